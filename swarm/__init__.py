@@ -1,0 +1,26 @@
+"""A deterministic, asyncio actor-based multi-UAV swarm simulator with fault injection.
+
+Embedding::
+
+    from swarm import Simulation, load_scenario
+    sim = Simulation(load_scenario("paper-case1"), seed=1)
+    sim.step()                  # or: await sim.run_until(100.0) in your own event loop
+    print(sim.snapshot().coverage)
+"""
+
+from swarm.errors import ScenarioError, SimulationError, SwarmError, UsageError
+from swarm.scenario import Scenario, builtin_scenarios, load_scenario
+from swarm.simulation import RunResult, Simulation, Snapshot
+
+__all__ = [
+    "RunResult",
+    "Scenario",
+    "ScenarioError",
+    "Simulation",
+    "SimulationError",
+    "Snapshot",
+    "SwarmError",
+    "UsageError",
+    "builtin_scenarios",
+    "load_scenario",
+]

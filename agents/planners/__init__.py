@@ -1,0 +1,23 @@
+"""Planners behind one interface (:mod:`agents.planners.base`); pick one by name."""
+
+from __future__ import annotations
+
+from agents.planners.base import Plan, Planner, PlanView
+from agents.planners.greedy import GreedyPlanner
+
+PLANNER_NAMES = ("greedy", "dacmp")
+
+
+def make_planner(settings) -> Planner:
+    """Build the planner named by a scenario's ``[planner]`` table (one instance per UAV)."""
+    name = settings.name
+    if name == "greedy":
+        return GreedyPlanner(headings=settings.greedy.headings)
+    if name == "dacmp":
+        from agents.planners.dacmp import DacmpPlanner
+
+        return DacmpPlanner.from_settings(settings)
+    raise ValueError(f"unknown planner {name!r}; expected one of {', '.join(PLANNER_NAMES)}")
+
+
+__all__ = ["Plan", "Planner", "PlanView", "GreedyPlanner", "make_planner", "PLANNER_NAMES"]

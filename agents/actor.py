@@ -1,0 +1,268 @@
+"""One UAV as an asyncio actor: its own map, knowledge, planner, random stream and inbox.
+
+Each tick the simulator wakes every live actor with its :class:`SensorReading` and waits until
+all have answered. An actor's step only touches its own state and returns an
+:class:`ActorOutput` (command, encoded frames, task); the simulator then processes outputs in
+UAV-id order, so the result does not depend on which task the event loop happens to run first.
+
+A step: drain the inbox (decode, schema-check, merge; malformed frames are counted as rejected
+and skipped) -> own scan and sightings -> replan if due -> local planner (APF) -> outbox.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from agents.apf import ApfSettings, apf_command
+from agents.grid import Grid
+from agents.knowledge import KnownThreat, Knowledge
+from agents.planners.base import Plan, Planner, PlanView
+from agents.types import UavType
+from agents.umap import UncertaintyMap
+from comms.codec import FrameError, decode, encode
+from comms.mailbox import Mailbox
+from comms.messages import (
+    MODE_SURVEIL,
+    NO_TARGET,
+    Hello,
+    Intent,
+    ScanRecords,
+    ThreatItem,
+    Threats,
+    TrackItem,
+    Tracks,
+)
+
+# Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
+_TRACKS_PER_FRAME = 400
+
+
+@dataclass(frozen=True, slots=True)
+class SensedTarget:
+    target: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    value: float
+
+
+@dataclass(slots=True)
+class SensorReading:
+    """What the UAV's own sensors give it this tick (ground truth inside its detection radius)."""
+
+    t: float
+    x: float
+    y: float
+    v: float
+    theta: float
+    targets: list[SensedTarget]
+    threats: list[KnownThreat]
+
+
+@dataclass(slots=True)
+class ActorOutput:
+    a: float
+    omega: float
+    frames: list[bytes]
+    plan: Plan
+    received: list[tuple[int, int, bool]]  # (sender, nbytes, accepted) for frames drained this tick
+
+
+@dataclass(frozen=True, slots=True)
+class ActorSettings:
+    dt: float = 1.0
+    replan_s: float = 10.0
+    beacon_every_s: float = 1.0
+    tracks_every_s: float = 5.0
+    frame_max_bytes: int = 65536
+    surveillance: bool = True
+    peer_timeout_s: float = 5.0
+    apf: ApfSettings = field(default_factory=ApfSettings)
+
+
+@dataclass(slots=True)
+class ActorCounters:
+    delivered: int = 0  # frames decoded and merged
+    rejected: int = 0  # frames that failed decoding or the schema
+    frames_sent: int = 0
+    plans: int = 0
+
+
+class UavActor:
+    def __init__(
+        self,
+        uid: int,
+        name: str,
+        kind: UavType,
+        grid: Grid,
+        tau: float,
+        planner: Planner,
+        rng: np.random.Generator,
+        settings: ActorSettings,
+        mailbox: Mailbox,
+    ):
+        self.uid = uid
+        self.name = name
+        self.kind = kind
+        self.grid = grid
+        self.planner = planner
+        self.rng = rng
+        self.settings = settings
+        self.mailbox = mailbox
+        self.umap = UncertaintyMap(grid, tau)
+        self.knowledge = Knowledge()
+        self.plan: Plan | None = None
+        self.counters = ActorCounters()
+        self._next_replan = -math.inf
+        self._next_beacon = -math.inf
+        self._next_tracks = -math.inf
+        self._pending_scans: list[float] = []
+        self._seq = 0
+        # Task plumbing (see run()).
+        self._pending: SensorReading | None = None
+        self._waiter: asyncio.Future | None = None
+
+    # --- the asyncio side -------------------------------------------------------------------
+
+    def wake(self, reading: SensorReading) -> None:
+        """Hand the actor this tick's reading (called by the simulator)."""
+        if self._waiter is not None and not self._waiter.done():
+            self._waiter.set_result(reading)
+        else:
+            self._pending = reading
+
+    async def run(self, report: Callable[[int, ActorOutput | None, BaseException | None], None]) -> None:
+        """The actor task: wait for a tick, step, report; until cancelled (crash or end)."""
+        loop = asyncio.get_running_loop()
+        while True:
+            if self._pending is not None:
+                reading, self._pending = self._pending, None
+            else:
+                self._waiter = loop.create_future()
+                reading = await self._waiter
+                self._waiter = None
+            try:
+                out = self.step(reading)
+            except Exception as exc:  # surfaced by the simulator with the UAV's name
+                report(self.uid, None, exc)
+                raise
+            report(self.uid, out, None)
+
+    # --- one tick ---------------------------------------------------------------------------
+
+    def step(self, r: SensorReading) -> ActorOutput:
+        t = r.t
+        s = self.settings
+        received = self._drain_inbox(t)
+
+        radius = self.kind.detect_radius
+        self.umap.scan(r.x, r.y, radius, t)
+        self._pending_scans.extend((t, r.x, r.y, radius))
+        k = self.knowledge
+        for st in r.targets:
+            k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
+        for th in r.threats:
+            k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+
+        if self.plan is None or t >= self._next_replan or self._reached(r):
+            self.plan = self.planner.plan(
+                PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
+                         self.grid, s.replan_s, s.surveillance, self.plan)
+            )
+            self.counters.plans += 1
+            self._next_replan = t + s.replan_s
+        plan = self.plan
+
+        speed = self.kind.speed_max
+        if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
+            tx, ty = k.tracks[plan.target].predict(t)
+            if math.hypot(tx - r.x, ty - r.y) < radius:
+                speed = self.kind.speed_min  # loiter over the target
+        others = [(p.x, p.y) for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
+        a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, plan.wx, plan.wy, speed,
+                               list(k.threats.values()), others, s.apf, s.dt)
+        return ActorOutput(a, omega, self._outbox(r, plan), plan, received)
+
+    def _reached(self, r: SensorReading) -> bool:
+        p = self.plan
+        return p is not None and math.hypot(p.wx - r.x, p.wy - r.y) < 1.5 * r.v * self.settings.dt
+
+    def _drain_inbox(self, t: float) -> list[tuple[int, int, bool]]:
+        received = []
+        k = self.knowledge
+        for _arrival, sender, data in self.mailbox.drain():
+            try:
+                frame = decode(data, self.settings.frame_max_bytes)
+            except FrameError:
+                self.counters.rejected += 1
+                received.append((sender, len(data), False))
+                continue
+            self.counters.delivered += 1
+            received.append((sender, len(data), True))
+            for m in frame.messages:
+                tm = type(m)
+                if tm is ScanRecords:
+                    rec = m.records
+                    for i in range(0, len(rec), 4):
+                        self.umap.scan(rec[i + 1], rec[i + 2], rec[i + 3], rec[i])
+                elif tm is Hello:
+                    if m.uav != self.uid:
+                        p = k.peer(m.uav)
+                        if frame.t >= p.t_pose:
+                            p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, frame.t
+                elif tm is Intent:
+                    if m.uav != self.uid:
+                        p = k.peer(m.uav)
+                        if frame.t >= p.t_intent:
+                            p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, frame.t
+                elif tm is Tracks:
+                    for item in m.items:
+                        k.merge_track(item)
+                elif tm is Threats:
+                    for th in m.items:
+                        k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+        return received
+
+    def _frame(self, t: float, messages: list) -> bytes:
+        self._seq += 1
+        self.counters.frames_sent += 1
+        return encode(self.uid, self._seq, t, messages)
+
+    def _outbox(self, r: SensorReading, plan: Plan) -> list[bytes]:
+        t = r.t
+        s = self.settings
+        frames: list[bytes] = []
+        if t >= self._next_beacon:
+            msgs = [
+                Hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
+                Intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
+            ]
+            if self._pending_scans:
+                msgs.append(ScanRecords(self.uid, tuple(self._pending_scans)))
+                self._pending_scans = []
+            frames.append(self._frame(t, msgs))
+            self._next_beacon = t + s.beacon_every_s - 1e-9
+        k = self.knowledge
+        if t >= self._next_tracks and (k.tracks or k.threats):
+            items = [TrackItem(tr.target, tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value)
+                     for _, tr in sorted(k.tracks.items())]
+            threats = Threats(tuple(ThreatItem(th.threat, th.x, th.y, th.radius, th.d_max)
+                                    for _, th in sorted(k.threats.items())))
+            first = True
+            for i in range(0, max(len(items), 1), _TRACKS_PER_FRAME):
+                msgs = [Tracks(tuple(items[i:i + _TRACKS_PER_FRAME]))]
+                if first and threats.items:
+                    msgs.append(threats)
+                first = False
+                frames.append(self._frame(t, msgs))
+            self._next_tracks = t + s.tracks_every_s - 1e-9
+        return frames
+
+
+__all__ = ["ActorOutput", "ActorSettings", "SensedTarget", "SensorReading", "UavActor", "NO_TARGET"]

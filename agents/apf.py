@@ -1,0 +1,100 @@
+"""The local planner shared by every planner: an artificial potential field (eq. 28-32).
+
+It turns a waypoint into a command ``(a, omega)``:
+
+* attraction to the waypoint, ``k_att`` times the unit vector towards it (eq. 28-29);
+* repulsion from each known threat within its influence radius ``d_max`` (eq. 30, with the
+  distance measured from the threat's edge, ``d_0 = R_T``);
+* repulsion from UAVs heard closer than ``uav_dmax_m`` (eq. 31-32), with ``b`` and ``c`` set so
+  the force is negligible beyond about 1 km.
+
+A fixed-wing UAV cannot stop, so a potential field alone can fly it into a threat it sensed too
+late for its turn radius. A guard therefore overrides the field when the UAV is within a turn
+radius (plus margin) of a threat edge and heading towards it: full turn away, minimum speed.
+The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_command`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from agents.dynamics import limit_command, wrap_angle
+from agents.knowledge import KnownThreat
+from agents.types import UavType
+
+
+@dataclass(frozen=True, slots=True)
+class ApfSettings:
+    k_att: float = 1.0
+    k_rep: float = 4.0e6  # m^2: threat repulsion equals attraction ~1.9 km from the edge of a 3 km d_max ring
+    uav_b: float = 400.0
+    uav_c: float = 200.0
+    uav_dmax_m: float = 1000.0
+    min_separation_m: float = 200.0
+    threat_margin_m: float = 300.0
+
+
+def apf_command(
+    kind: UavType,
+    x: float,
+    y: float,
+    v: float,
+    theta: float,
+    wx: float,
+    wy: float,
+    speed: float,
+    threats: list[KnownThreat],
+    others: list[tuple[float, float]],
+    s: ApfSettings,
+    dt: float,
+) -> tuple[float, float]:
+    """Command ``(a, omega)`` that steers towards ``(wx, wy)`` at ``speed``, within limits."""
+    # Attraction (eq. 28-29).
+    dx, dy = wx - x, wy - y
+    d = math.hypot(dx, dy)
+    fx, fy = (s.k_att * dx / d, s.k_att * dy / d) if d > 1e-9 else (0.0, 0.0)
+
+    guard_turn = 0.0
+    r_turn = kind.r_min(v)
+    for th in threats:
+        ex, ey = x - th.x, y - th.y
+        dc = math.hypot(ex, ey)
+        if dc < 1e-9:
+            continue
+        ux, uy = ex / dc, ey / dc
+        rho = dc - th.radius  # clearance from the threat's edge
+        reach = th.d_max - th.radius
+        if rho < reach:
+            rho_f = max(rho, 1.0)
+            mag = s.k_rep * (1.0 / (rho_f * rho_f) - 1.0 / (reach * reach))  # eq. 30
+            fx += mag * ux
+            fy += mag * uy
+        # Guard: close to the edge and closing in -> turn away at full rate.
+        closing = math.cos(theta) * (-ux) + math.sin(theta) * (-uy)
+        if rho < r_turn + s.threat_margin_m and closing > 0.0:
+            # Turn towards whichever side the outward normal lies.
+            side = math.sin(math.atan2(uy, ux) - theta)
+            guard_turn = 1.0 if side >= 0 else -1.0
+
+    for ox, oy in others:
+        ex, ey = x - ox, y - oy
+        dd = math.hypot(ex, ey)
+        if dd < 1e-9 or dd > s.uav_dmax_m:
+            continue
+        c = s.uav_c
+        denom = math.exp(dd / c) - math.exp(s.min_separation_m / c)
+        # eq. 32; inside d_min the denominator vanishes: use a large capped push.
+        mag = 50.0 if denom <= 1e-9 else min(50.0, (s.uav_b / c) * math.exp(dd / c) / (denom * denom))
+        fx += mag * ex / dd
+        fy += mag * ey / dd
+
+    if guard_turn:
+        omega = guard_turn * kind.turn_rate_max(v)
+        speed = kind.speed_min
+    elif fx == 0.0 and fy == 0.0:
+        omega = 0.0
+    else:
+        omega = wrap_angle(math.atan2(fy, fx) - theta) / dt
+    a = (speed - v) / dt
+    return limit_command(kind, v, a, omega, dt)

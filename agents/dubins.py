@@ -1,0 +1,133 @@
+"""Shortest Dubins path length from one pose to many points, final heading free.
+
+This is the "relaxed Dubins" (Dubins-to-a-point) problem used by the DACMP fitness
+(spec, "The planner" 3, eq. 19: ``Dub(k)``).  The vehicle starts at ``(x0, y0)`` with heading
+``theta0`` (radians, 0 = +x, counter-clockwise positive), moves forward only with turning radius
+at least ``r_min``, and must reach the point ``p``.  **The final heading is free**: the returned
+length is the minimum over *all* final headings (not the length for the heading of the straight
+line to the point).
+
+Closed form (Bui, Soueres, Boissonnat & Laumond 1994, "Shortest path synthesis for Dubins
+non-holonomic robot"; the free-terminal-heading optimal paths are of type CS or CC).
+Work in the vehicle frame scaled by ``r = r_min``: the start is the origin, heading +x, and the
+point is ``(x, y)``.  Because the problem is mirror symmetric, the point is reflected to
+``y >= 0`` (the left side); the right side is the mirror image (swap L and R below).
+The left minimum-turning circle has centre ``c_L = (0, 1)``, the right one ``c_R = (0, -1)``.
+A point with ``y >= 0`` can never be strictly inside the right circle.
+
+* **Outside (or on) the left circle**, ``|p - c_L| >= 1``: path **LS** -- turn toward the point's
+  side by ``alpha`` along the circle, then go straight along the tangent to the point::
+
+      d_c   = |p - c_L|                      (distance from the circle centre)
+      t     = sqrt(d_c^2 - 1)                (tangent length)
+      alpha = atan2(x + t (y - 1), t x + 1 - y)  in [0, 2 pi)
+      L     = r (alpha + t)
+
+  ``alpha`` is the heading of the tangent segment, i.e. the angle turned; it is obtained by solving
+  ``p - c_L = (sin a, -cos a) + t (cos a, sin a)`` for ``a`` (the same as
+  ``angle(p - c_L) + pi/2 - atan2(t, 1)`` modulo ``2 pi``).  A point straight ahead gives
+  ``alpha = 0``, ``L = |p|``; a point on the circle gives ``t = 0`` (pure arc).
+
+* **Strictly inside the left circle**, ``|p - c_L| < 1``: the point is too close on its own side
+  to be reached by turning toward it, and the shortest path is **RL** (CC type): turn *away* by
+  ``a`` on the right circle, then turn back by ``b`` on a left circle of centre ``c_2`` passing
+  through the point.  With ``q = p - c_R`` (``1 < |q| < 3`` for such points), the second centre is
+  ``c_2 = c_R + 2 u`` with ``u`` a unit vector such that ``|p - c_2| = 1``, i.e. (law of cosines)::
+
+      angle(u) = angle(q) +- gamma,   cos(gamma) = (|q|^2 + 3) / (4 |q|)
+      a = (pi/2 - angle(u))            mod 2 pi   (first arc, clockwise)
+      b = (angle(p - c_2) - angle(-u)) mod 2 pi   (second arc, counter-clockwise)
+      L = r (a + b), minimised over the two roots
+
+  (the optimum has ``b > pi``, as in Bui et al.).  The RS path (turn away all the way round, then
+  straight) is also feasible there but never shorter; the tests check this against a brute-force
+  reference over all classic Dubins words and densely sampled final headings.
+
+The length is discontinuous across the front arcs of the two turning circles (just outside: a
+short arc; just inside: a long CC loop); that is a property of the problem, not of the code.
+Points *exactly* at the start position get length 0 (the formula already gives it; it is also
+guarded explicitly).  ``r_min <= 0`` means no turning constraint: the Euclidean distance.
+
+Everything is vectorised with numpy (no Python loop over points).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["dubins_length"]
+
+_TWO_PI = 2.0 * math.pi
+
+
+def dubins_length(
+    x0: float,
+    y0: float,
+    theta0: float,
+    px: np.ndarray,
+    py: np.ndarray,
+    r_min: float,
+) -> np.ndarray:
+    """Shortest forward path length from pose ``(x0, y0, theta0)`` to each point ``(px, py)``.
+
+    Final heading free (minimum over all final headings); turning radius at least ``r_min``.
+    Returns float64 with the broadcast shape of ``px`` and ``py`` (the shape of ``px`` when they
+    have the same shape).  See the module docstring for the cases and formulas.
+    """
+    px = np.asarray(px, dtype=np.float64)
+    py = np.asarray(py, dtype=np.float64)
+    px, py = np.broadcast_arrays(px, py)
+    dx = px - float(x0)
+    dy = py - float(y0)
+    r = float(r_min)
+    if math.isnan(r):
+        raise ValueError("r_min is NaN")
+    if not r > 0.0:
+        return np.hypot(dx, dy)
+
+    c = math.cos(theta0)
+    s = math.sin(theta0)
+    inv_r = 1.0 / r
+    # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
+    x = (c * dx + s * dy) * inv_r
+    y = np.abs(c * dy - s * dx) * inv_r
+
+    # |p - c_L|^2 - 1 = x^2 + (y-1)^2 - 1 = x^2 + y (y - 2)   (exact for y == 0: t == |x|)
+    t2 = x * x + y * (y - 2.0)
+    inside = t2 < 0.0
+
+    # --- CS (LS) for every point; overwritten below for points inside the left circle.
+    t = np.sqrt(np.maximum(t2, 0.0))
+    alpha = np.arctan2(x + t * (y - 1.0), t * x + 1.0 - y)
+    # For x > 0 the true alpha lies in [0, pi]; an angle near -0 or 2 pi there is rounding of 0.
+    alpha = np.where(alpha < 0.0, alpha + _TWO_PI, alpha)
+    alpha = np.where((x > 0.0) & (alpha > math.pi), 0.0, alpha)
+    out = np.array(alpha + t, dtype=np.float64)  # a real (possibly 0-d) array
+
+    # --- CC (RL) for points strictly inside the left turning circle (usually none).
+    if np.any(inside):
+        xi = x[inside]
+        yi = y[inside]
+        qy = yi + 1.0  # q = p - c_R, c_R = (0, -1)
+        dq = np.hypot(xi, qy)
+        cos_g = np.clip((dq * dq + 3.0) / (4.0 * dq), -1.0, 1.0)
+        gamma = np.arccos(cos_g)
+        ang_q = np.arctan2(qy, xi)
+        best = np.full(xi.shape, np.inf)
+        for sign in (1.0, -1.0):  # the two roots (not a loop over points)
+            ang_u = ang_q + sign * gamma
+            a = np.mod(0.5 * math.pi - ang_u, _TWO_PI)
+            ux = np.cos(ang_u)
+            uy = np.sin(ang_u)
+            # c_2 = c_R + 2u ; the switch point is c_R + u, i.e. c_2 - u
+            c2x = 2.0 * ux
+            c2y = -1.0 + 2.0 * uy
+            b = np.mod(np.arctan2(yi - c2y, xi - c2x) - np.arctan2(-uy, -ux), _TWO_PI)
+            best = np.minimum(best, a + b)
+        out[inside] = best
+
+    out *= r
+    out[(dx == 0.0) & (dy == 0.0)] = 0.0
+    return out

@@ -1,0 +1,58 @@
+"""Fixed-wing kinematics (eq. 9-10) and the hard limits on every command (eq. 11-12).
+
+Both the world (to move UAVs) and the planners (to predict) use these functions, so a planner
+can never ask for something the airframe cannot do: :func:`limit_command` is applied to every
+command before integration.
+"""
+
+from __future__ import annotations
+
+import math
+
+from agents.types import UavType
+
+TWO_PI = 2.0 * math.pi
+
+
+def wrap_angle(a: float) -> float:
+    """Angle in [-pi, pi)."""
+    return (a + math.pi) % TWO_PI - math.pi
+
+
+def limit_command(kind: UavType, v: float, a: float, omega: float, dt: float) -> tuple[float, float]:
+    """Clip ``(a, omega)`` so that acceleration, speed range and turn radius all hold.
+
+    The acceleration is limited so the speed stays in ``[speed_min, speed_max]`` after ``dt``;
+    the turn rate uses the larger of the speeds before and after the step, so the turn radius
+    constraint holds throughout the step.
+    """
+    lo = max(-kind.accel_max, (kind.speed_min - v) / dt)
+    hi = min(kind.accel_max, (kind.speed_max - v) / dt)
+    if lo <= hi:
+        a = min(max(a, lo), hi)
+    else:  # speed outside the range and not recoverable in one step: brake/accelerate fully
+        a = -kind.accel_max if v > kind.speed_max else kind.accel_max
+    v_next = v + a * dt
+    w_max = kind.turn_rate_max(max(v, v_next))
+    omega = min(max(omega, -w_max), w_max)
+    return a, omega
+
+
+def integrate(x: float, y: float, v: float, theta: float, a: float, omega: float, dt: float) -> tuple[float, float, float, float]:
+    """Advance one step (mid-point heading, mean speed): deterministic and second order."""
+    v_next = v + a * dt
+    theta_mid = theta + 0.5 * omega * dt
+    v_mean = 0.5 * (v + v_next)
+    x += v_mean * math.cos(theta_mid) * dt
+    y += v_mean * math.sin(theta_mid) * dt
+    return x, y, v_next, wrap_angle(theta + omega * dt)
+
+
+def command_violates(kind: UavType, v: float, a: float, omega: float, dt: float, tol: float = 1e-9) -> bool:
+    """True if a command that was applied breaks a hard limit (the world counts these)."""
+    v_next = v + a * dt
+    if abs(a) > kind.accel_max * (1 + tol) + tol:
+        return True
+    if v_next < kind.speed_min * (1 - tol) - tol or v_next > kind.speed_max * (1 + tol) + tol:
+        return True
+    return abs(omega) > kind.turn_rate_max(max(v, v_next)) * (1 + tol) + tol

@@ -1,0 +1,91 @@
+"""What a UAV knows besides its map: target tracks, threats, and the other UAVs it has heard.
+
+All of it comes from its own sensor or from frames it decoded; merges are "newest wins" for
+tracks and peers and "never forget" for threats, so duplicated or reordered frames are harmless.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from comms.messages import NO_TARGET, TrackItem
+
+
+@dataclass(slots=True)
+class Track:
+    target: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    t: float
+    value: float = 1.0
+
+    def predict(self, t: float, horizon_s: float = 60.0) -> tuple[float, float]:
+        """Dead-reckoned position, extrapolated at most ``horizon_s`` past the sighting."""
+        dt = min(max(t - self.t, 0.0), horizon_s)
+        return self.x + self.vx * dt, self.y + self.vy * dt
+
+
+@dataclass(frozen=True, slots=True)
+class KnownThreat:
+    threat: int
+    x: float
+    y: float
+    radius: float
+    d_max: float
+
+
+@dataclass(slots=True)
+class Peer:
+    """Another UAV as last heard: pose from its Hello, plan from its Intent."""
+
+    uav: int
+    type: str = ""
+    x: float = math.nan
+    y: float = math.nan
+    v: float = 0.0
+    theta: float = 0.0
+    t_pose: float = -math.inf
+    wx: float = math.nan
+    wy: float = math.nan
+    mode: int = 0
+    target: int = NO_TARGET
+    t_intent: float = -math.inf
+
+
+class Knowledge:
+    __slots__ = ("tracks", "threats", "peers")
+
+    def __init__(self) -> None:
+        self.tracks: dict[int, Track] = {}
+        self.threats: dict[int, KnownThreat] = {}
+        self.peers: dict[int, Peer] = {}
+
+    def see_target(self, target: int, x: float, y: float, vx: float, vy: float, t: float, value: float) -> bool:
+        """Record a sighting; True if the target was unknown before."""
+        tr = self.tracks.get(target)
+        if tr is None:
+            self.tracks[target] = Track(target, x, y, vx, vy, t, value)
+            return True
+        if t >= tr.t:
+            tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = x, y, vx, vy, t, value
+        return False
+
+    def merge_track(self, item: TrackItem) -> None:
+        self.see_target(item.target, item.x, item.y, item.vx, item.vy, item.t, item.value)
+
+    def add_threat(self, threat: int, x: float, y: float, radius: float, d_max: float) -> None:
+        if threat not in self.threats:
+            self.threats[threat] = KnownThreat(threat, x, y, radius, d_max)
+
+    def peer(self, uav: int) -> Peer:
+        p = self.peers.get(uav)
+        if p is None:
+            p = self.peers[uav] = Peer(uav)
+        return p
+
+    def recent_peers(self, t: float, max_age_s: float) -> list[Peer]:
+        """Peers heard from within ``max_age_s``, in id order (deterministic)."""
+        return [p for _, p in sorted(self.peers.items()) if t - p.t_pose <= max_age_s]

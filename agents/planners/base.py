@@ -1,0 +1,52 @@
+"""The one small interface every planner implements.
+
+A planner is asked for a :class:`Plan` (next waypoint, mode, watched target) every
+``replan_s`` seconds or when the UAV reaches its waypoint. It sees only a :class:`PlanView`:
+the UAV's own pose and type, its own map and knowledge, its own random stream. Nothing about
+the ground truth or other UAVs' internals reaches a planner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from agents.grid import Grid
+from agents.knowledge import Knowledge
+from agents.types import UavType
+from agents.umap import UncertaintyMap
+from comms.messages import MODE_SEARCH, NO_TARGET
+
+
+@dataclass(frozen=True, slots=True)
+class Plan:
+    wx: float
+    wy: float
+    mode: int = MODE_SEARCH
+    target: int = NO_TARGET
+
+
+@dataclass(slots=True)
+class PlanView:
+    t: float
+    uav: int
+    kind: UavType
+    x: float
+    y: float
+    v: float
+    theta: float
+    umap: UncertaintyMap
+    knowledge: Knowledge
+    rng: np.random.Generator
+    grid: Grid
+    replan_s: float
+    surveillance: bool  # False: a sighting ends interest in a target (search only)
+    plan: Plan | None  # the current plan, if any
+
+
+class Planner(Protocol):
+    name: str
+
+    def plan(self, view: PlanView) -> Plan: ...

@@ -1,0 +1,132 @@
+"""Gaussian map pyramid of the DACMP planner (spec "The planner" 1, paper eq. 17-18).
+
+``G_0 = q`` (the uncertainty map, indexed ``[row, col]``) and ``G_l = REDUCE(G_{l-1})``:
+a 5x5 binomial blur with the separable kernel ``[1, 4, 6, 4, 1] / 16`` along both axes, border
+mode *reflect* in scipy.ndimage's sense (``d c b a | a b c d``, the edge sample repeated), then
+every other row and column is kept, starting at index 0.  A level of shape ``(h, w)`` therefore
+gives ``(ceil(h/2), ceil(w/2))``.  Up to float rounding the result equals::
+
+    b = scipy.ndimage.convolve1d(a, k, axis=0, mode="reflect")
+    b = scipy.ndimage.convolve1d(b, k, axis=1, mode="reflect")
+    b[::2, ::2]
+
+but only the kept output rows/columns are computed, directly as strided sums
+``out[i] = sum_k w_k * a[reflect(2i + k - 2)]``: rows first (halving the data), then columns (done
+as a row pass on the transposed, re-contiguous intermediate, which is faster than column-strided
+access).  Interior outputs are one BLAS matrix-vector product over a read-only strided view of the
+input (no padding copy, no scipy); the one or two border rows/columns per axis use reflected
+indices.  The weights are applied as integers (1, 4, 6, 4, 1) and the ``1/256`` (exact, a power of
+two) once at the end.  float32 input stays float32 (computed in float32); other floating dtypes
+keep their dtype; integer/bool input is computed in float64.  Results agree with the scipy
+formulation to float rounding (a few ulp: BLAS may fuse multiply-adds), not bit for bit; they are
+deterministic for a given machine and library build.
+
+Stopping rule of :func:`gaussian_pyramid`: ``ceil(n/2) >= 1``, so no level can ever become
+smaller than 1x1; once a level is 1x1 every further level would be the same single value again
+(carrying no information), so the pyramid stops after the first 1x1 level and the returned list
+may then be shorter than ``levels``.  (The paper's 500x500 grid with 7 levels never gets there:
+500, 250, 125, 63, 32, 16, 8.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.lib.stride_tricks import as_strided
+
+__all__ = ["pyr_down", "gaussian_pyramid", "sample_levels"]
+
+_WEIGHTS = np.array([1.0, 4.0, 6.0, 4.0, 1.0])  # binomial, unnormalised
+_SCALE = 1.0 / 256.0  # (1/16) per axis, applied once at the end (exact: a power of two)
+
+
+def _reflect(j: int, n: int) -> int:
+    """scipy.ndimage 'reflect' index (``d c b a | a b c d``, period 2n)."""
+    j %= 2 * n
+    return 2 * n - 1 - j if j >= n else j
+
+
+def _reduce_rows(a: np.ndarray) -> np.ndarray:
+    """Unscaled [1,4,6,4,1] reduce along axis 0 of a C-contiguous 2-D array, kept rows only.
+
+    Output row ``i`` is ``sum_k w_k * a[reflect(2i + k - 2)]``.  Rows whose five inputs are all in
+    range (all but the first and the last) are one matrix-vector product over a read-only strided
+    view ``V[i, c, k] = a[2i + k, c]`` (no copy: BLAS gemv does the five-term sums); the one or two
+    border rows use reflected indices.
+    """
+    n, ncols = a.shape
+    m = (n + 1) // 2
+    out = np.empty((m, ncols), dtype=a.dtype)
+    w = _WEIGHTS.astype(a.dtype)
+    hi = (n - 3) // 2  # last output row i with 2i + 2 <= n - 1 (fully interior)
+    if hi >= 1:
+        s0, s1 = a.strides
+        view = as_strided(a, shape=(hi, ncols, 5), strides=(2 * s0, s1, s0), writeable=False)
+        np.matmul(view, w, out=out[1 : hi + 1])
+        border = [0, *range(hi + 1, m)]
+    else:
+        border = list(range(m))
+    for i in border:  # at most two rows, or every row of a tiny array
+        j = [_reflect(2 * i + k - 2, n) for k in range(5)]
+        r = out[i]
+        np.add(a[j[0]], a[j[4]], out=r)
+        r += 4 * (a[j[1]] + a[j[3]])
+        r += 6 * a[j[2]]
+    return out
+
+
+def pyr_down(a: np.ndarray) -> np.ndarray:
+    """One pyramid step: [1,4,6,4,1]/16 blur on both axes (reflect border), keep ``[::2, ::2]``.
+
+    ``a`` must be 2-D and non-empty; the result has shape ``(ceil(h/2), ceil(w/2))`` and the
+    dtype of ``a`` (float32 stays float32; integer/bool input gives float64).
+    """
+    a = np.asarray(a)
+    if a.ndim != 2:
+        raise ValueError(f"pyr_down expects a 2-D array, got shape {a.shape}")
+    if a.shape[0] == 0 or a.shape[1] == 0:
+        raise ValueError(f"pyr_down expects a non-empty array, got shape {a.shape}")
+    if not np.issubdtype(a.dtype, np.floating):
+        a = a.astype(np.float64)
+    b = _reduce_rows(np.ascontiguousarray(a))  # rows: (ceil(h/2), w)
+    out_t = _reduce_rows(np.ascontiguousarray(b.T))  # columns, on the transpose
+    out = np.ascontiguousarray(out_t.T)
+    out *= a.dtype.type(_SCALE)
+    return out
+
+
+def gaussian_pyramid(q: np.ndarray, levels: int) -> list[np.ndarray]:
+    """``[G_0, G_1, ..., G_{levels-1}]`` with ``G_0 = q`` (not copied) and ``G_l = pyr_down(G_{l-1})``.
+
+    ``levels`` counts G_0 and must be >= 1.  Stops early after the first 1x1 level (further levels
+    could not be smaller, only identical), so the list can be shorter than ``levels``.
+    """
+    levels = int(levels)
+    if levels < 1:
+        raise ValueError(f"levels must be >= 1, got {levels}")
+    g = np.asarray(q)
+    if g.ndim != 2 or g.shape[0] == 0 or g.shape[1] == 0:
+        raise ValueError(f"q must be a non-empty 2-D array, got shape {g.shape}")
+    pyr = [g]
+    while len(pyr) < levels and pyr[-1].shape != (1, 1):
+        pyr.append(pyr_down(pyr[-1]))
+    return pyr
+
+
+def sample_levels(pyramid: list[np.ndarray], ix0: np.ndarray, iy0: np.ndarray) -> np.ndarray:
+    """Values of every level at the cells containing level-0 cells ``(row iy0, col ix0)``.
+
+    Returns shape ``(len(pyramid), n)`` (``n`` = number of points after broadcasting ``ix0``,
+    ``iy0`` and flattening): row ``l`` is ``G_l[clip(iy0 >> l), clip(ix0 >> l)]``, indices clipped
+    to the level's shape.  The dtype is the common dtype of the levels.
+    """
+    ix = np.asarray(ix0).astype(np.intp, copy=False).ravel()
+    iy = np.asarray(iy0).astype(np.intp, copy=False).ravel()
+    ix, iy = np.broadcast_arrays(ix, iy)
+    dtype = np.result_type(*pyramid) if pyramid else np.float64
+    out = np.empty((len(pyramid), ix.shape[0]), dtype=dtype)
+    for l, g in enumerate(pyramid):  # loop over levels (~7), not points
+        h, w = g.shape
+        r = np.clip(iy >> l, 0, h - 1)
+        c = np.clip(ix >> l, 0, w - 1)
+        out[l] = g[r, c]
+    return out

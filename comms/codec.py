@@ -1,0 +1,169 @@
+"""msgpack frames: encode on send, decode and schema-check on receipt.
+
+Wire format (one msgpack array)::
+
+    [MAGIC, VERSION, sender, seq, t, [[kind, field, ...], ...]]
+
+Decoding never trusts the bytes: size cap first, then msgpack with container limits, then a
+strict shape and type check of every field. Anything wrong raises :class:`FrameError`, which the
+receiver counts as a rejected frame and carries on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import msgpack
+
+from comms.messages import (
+    Hello,
+    Intent,
+    Message,
+    ScanRecords,
+    ThreatItem,
+    Threats,
+    TrackItem,
+    Tracks,
+)
+
+MAGIC = 0x5357  # "SW"
+VERSION = 1
+DEFAULT_MAX_BYTES = 65536
+
+K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS = 1, 2, 3, 4, 5
+
+
+class FrameError(ValueError):
+    """A received frame is malformed, truncated, oversized or fails the schema."""
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    sender: int
+    seq: int
+    t: float
+    messages: tuple[Message, ...]
+
+
+def _pack_message(m: Message) -> list:
+    if type(m) is Hello:
+        return [K_HELLO, m.uav, m.type, m.x, m.y, m.v, m.theta]
+    if type(m) is Intent:
+        return [K_INTENT, m.uav, m.wx, m.wy, m.mode, m.target]
+    if type(m) is ScanRecords:
+        return [K_SCAN, m.uav, list(m.records)]
+    if type(m) is Tracks:
+        return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in m.items]]
+    if type(m) is Threats:
+        return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
+    raise TypeError(f"not a message: {m!r}")
+
+
+def encode(sender: int, seq: int, t: float, messages: list[Message] | tuple[Message, ...]) -> bytes:
+    return msgpack.packb(
+        [MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]],
+        use_bin_type=True,
+    )
+
+
+# --- decoding -----------------------------------------------------------------------------
+
+
+def _int(v) -> int:
+    if type(v) is not int:
+        raise FrameError(f"expected an integer, got {type(v).__name__}")
+    return v
+
+
+def _num(v) -> float:
+    # msgpack gives int or float; bool is an int subclass and must not pass.
+    if type(v) is float:
+        if not math.isfinite(v):
+            raise FrameError("non-finite number")
+        return v
+    if type(v) is int:
+        return float(v)
+    raise FrameError(f"expected a number, got {type(v).__name__}")
+
+
+def _list(v, n: int | None = None) -> list:
+    if type(v) is not list:
+        raise FrameError(f"expected an array, got {type(v).__name__}")
+    if n is not None and len(v) != n:
+        raise FrameError(f"expected {n} fields, got {len(v)}")
+    return v
+
+
+def _message(raw) -> Message:
+    raw = _list(raw)
+    if not raw:
+        raise FrameError("empty message")
+    kind = _int(raw[0])
+    if kind == K_HELLO:
+        _list(raw, 7)
+        if type(raw[2]) is not str or len(raw[2]) > 64:
+            raise FrameError("hello: bad type name")
+        return Hello(_int(raw[1]), raw[2], _num(raw[3]), _num(raw[4]), _num(raw[5]), _num(raw[6]))
+    if kind == K_INTENT:
+        _list(raw, 6)
+        mode = _int(raw[4])
+        if mode not in (0, 1):
+            raise FrameError("intent: bad mode")
+        return Intent(_int(raw[1]), _num(raw[2]), _num(raw[3]), mode, _int(raw[5]))
+    if kind == K_SCAN:
+        _list(raw, 3)
+        recs = _list(raw[2])
+        if len(recs) % 4:
+            raise FrameError("scan: record list not a multiple of 4")
+        return ScanRecords(_int(raw[1]), tuple(_num(v) for v in recs))
+    if kind == K_TRACKS:
+        _list(raw, 2)
+        items = []
+        for it in _list(raw[1]):
+            it = _list(it, 7)
+            items.append(TrackItem(_int(it[0]), *(_num(v) for v in it[1:])))
+        return Tracks(tuple(items))
+    if kind == K_THREATS:
+        _list(raw, 2)
+        items = []
+        for it in _list(raw[1]):
+            it = _list(it, 5)
+            item = ThreatItem(_int(it[0]), *(_num(v) for v in it[1:]))
+            if item.radius <= 0 or item.d_max < item.radius:
+                raise FrameError("threat: bad radius")
+            items.append(item)
+        return Threats(tuple(items))
+    raise FrameError(f"unknown message kind {kind}")
+
+
+def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> Frame:
+    """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception."""
+    if not isinstance(data, (bytes, bytearray)):
+        raise FrameError("frame is not bytes")
+    if len(data) > max_bytes:
+        raise FrameError(f"oversized frame: {len(data)} > {max_bytes} bytes")
+    try:
+        raw = msgpack.unpackb(
+            data,
+            raw=False,
+            strict_map_key=True,
+            max_str_len=max_bytes,
+            max_bin_len=max_bytes,
+            max_array_len=max_bytes,
+            max_map_len=max_bytes,
+            max_ext_len=max_bytes,
+        )
+    except Exception as exc:  # msgpack raises several unrelated types for bad input
+        raise FrameError(f"undecodable frame: {type(exc).__name__}") from None
+    try:
+        raw = _list(raw, 6)
+        if raw[0] != MAGIC or type(raw[0]) is not int:
+            raise FrameError("bad magic")
+        if raw[1] != VERSION or type(raw[1]) is not int:
+            raise FrameError(f"unsupported version {raw[1]!r}")
+        return Frame(_int(raw[2]), _int(raw[3]), _num(raw[4]), tuple(_message(m) for m in _list(raw[5])))
+    except FrameError:
+        raise
+    except (TypeError, ValueError, IndexError, RecursionError) as exc:
+        raise FrameError(f"malformed frame: {exc}") from None

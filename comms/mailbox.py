@@ -1,0 +1,44 @@
+"""A UAV's bounded inbox of raw frames, with statistics (cf. Trio's memory channels)."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+
+@dataclass(slots=True)
+class MailboxStats:
+    accepted: int = 0
+    dropped_full: int = 0
+    max_depth: int = 0
+
+
+class Mailbox:
+    """FIFO of ``(arrival_t, sender, frame_bytes)``; when full, new frames are dropped and counted."""
+
+    __slots__ = ("capacity", "_items", "stats")
+
+    def __init__(self, capacity: int):
+        if capacity < 1:
+            raise ValueError(f"mailbox capacity must be >= 1, got {capacity}")
+        self.capacity = capacity
+        self._items: deque[tuple[float, int, bytes]] = deque()
+        self.stats = MailboxStats()
+
+    def put(self, t: float, sender: int, data: bytes) -> bool:
+        if len(self._items) >= self.capacity:
+            self.stats.dropped_full += 1
+            return False
+        self._items.append((t, sender, data))
+        self.stats.accepted += 1
+        if len(self._items) > self.stats.max_depth:
+            self.stats.max_depth = len(self._items)
+        return True
+
+    def drain(self) -> list[tuple[float, int, bytes]]:
+        items = list(self._items)
+        self._items.clear()
+        return items
+
+    def __len__(self) -> int:
+        return len(self._items)

@@ -1,0 +1,85 @@
+"""The typed messages UAVs exchange. Plain immutable data: no behaviour, no planner knowledge.
+
+A frame (see :mod:`comms.codec`) carries one or more of these. Ids are the simulator's integer
+UAV / target / threat ids; times are simulated seconds; positions metres; angles radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+MODE_SEARCH = 0
+MODE_SURVEIL = 1
+NO_TARGET = -1
+
+
+@dataclass(frozen=True, slots=True)
+class Hello:
+    """Presence and pose: how a UAV learns that another exists and where it is."""
+
+    uav: int
+    type: str
+    x: float
+    y: float
+    v: float
+    theta: float
+
+
+@dataclass(frozen=True, slots=True)
+class Intent:
+    """The sender's next waypoint and task (eq. 23 needs other UAVs' next waypoints)."""
+
+    uav: int
+    wx: float
+    wy: float
+    mode: int  # MODE_SEARCH or MODE_SURVEIL
+    target: int  # target being watched, NO_TARGET when searching
+
+
+@dataclass(frozen=True, slots=True)
+class ScanRecords:
+    """Disks the sender scanned: a compact delta of its uncertainty map.
+
+    ``records`` is a flat tuple ``(t, x, y, r, t, x, y, r, ...)``; a receiver applies each as a
+    per-cell max, which is all the map CRDT needs.
+    """
+
+    uav: int
+    records: tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class TrackItem:
+    target: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    t: float  # time of the sighting
+    value: float
+
+
+@dataclass(frozen=True, slots=True)
+class Tracks:
+    """Target sightings the sender knows of; newest sighting per target wins on merge."""
+
+    items: tuple[TrackItem, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ThreatItem:
+    threat: int
+    x: float
+    y: float
+    radius: float
+    d_max: float
+
+
+@dataclass(frozen=True, slots=True)
+class Threats:
+    """Known threats (never forgotten once known)."""
+
+    items: tuple[ThreatItem, ...]
+
+
+Message = Hello | Intent | ScanRecords | Tracks | Threats

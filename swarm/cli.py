@@ -1,0 +1,142 @@
+"""The ``swarm`` command line: run, validate and list scenarios.
+
+Only this module prints and exits. A user mistake (bad scenario, unknown name, bad option)
+prints one ``error:`` line and exits with status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from swarm.errors import SwarmError
+
+EXIT_USAGE = 2
+
+
+def _console(stderr: bool = False):
+    from rich.console import Console
+
+    return Console(stderr=stderr, highlight=False)
+
+
+def _cmd_validate(args) -> int:
+    from swarm.scenario import load_scenario
+
+    for ref in args.scenario:
+        sc = load_scenario(ref)
+        types = sorted({u.type for u in sc.uavs})
+        print(f"ok: {ref}: scenario '{sc.name}', {len(sc.uavs)} UAVs ({', '.join(types)}), "
+              f"{len(sc.targets.placed) + sc.targets.count} targets, {len(sc.threats)} threats, "
+              f"{len(sc.faults)} faults, {sc.duration_s:g} s")
+    return 0
+
+
+def _cmd_list(args) -> int:
+    from swarm.scenario import builtin_scenarios, load_scenario
+
+    for name in builtin_scenarios():
+        sc = load_scenario(name)
+        print(f"{name:14s} {sc.description}")
+    return 0
+
+
+def _summary_table(metrics: dict, out_dir: Path | None):
+    from rich.table import Table
+
+    t = Table(title=f"{metrics['scenario']} · planner {metrics['planner']} · seed {metrics['seed']}", show_header=True)
+    t.add_column("metric")
+    t.add_column("value", justify="right")
+    r = metrics["radio"]
+    rows = [
+        ("simulated / wall", f"{metrics['sim_seconds']:g} s / {metrics['wall_seconds']:.2f} s"),
+        ("coverage", f"{metrics['coverage']:.3f}"),
+        ("certainty", f"{metrics['certainty']:.3f}"),
+        ("targets found", f"{metrics['targets_found']} / {metrics['targets_total']}"),
+        ("surveillance ratio (mean)", f"{metrics['surveillance_ratio_mean']:.3f}"),
+        ("handovers (fast->slow)", f"{metrics['handovers']} ({metrics['handovers_fast_to_slow']})"),
+        ("radio sent/delivered", f"{r['sent']} / {r['delivered']}"),
+        ("radio dropped/rejected", f"{r['dropped']} / {r['rejected']}"),
+        ("violations sep/threat/dyn", "{separation} / {threat} / {dynamics}".format(**metrics["violations"])),
+        ("faults applied", ", ".join(f"{k}={v}" for k, v in metrics["faults_applied"].items()) or "none"),
+        ("event log sha256", metrics["event_log_sha256"][:16] + "…"),
+    ]
+    if out_dir is not None:
+        rows.append(("outputs", str(out_dir)))
+    for k, v in rows:
+        t.add_row(k, v)
+    return t
+
+
+def _cmd_run(args) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from swarm.outputs import write_run
+    from swarm.scenario import apply_overrides, load_scenario, parse_assignment
+    from swarm.simulation import Simulation
+
+    sc = load_scenario(args.scenario)
+    if args.set:
+        sc = apply_overrides(sc, dict(parse_assignment(s) for s in args.set))
+    sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration)
+    err = _console(stderr=True)
+    with sim, Progress(
+        TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[sim]}"),
+        TimeElapsedColumn(), TimeRemainingColumn(), console=err, transient=True, disable=args.quiet,
+    ) as progress:
+        task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
+                                 sim="t=0 s")
+
+        def on_progress(now: float, end: float) -> None:
+            progress.update(task, completed=round(now / sim.dt), sim=f"t={now:.0f}/{end:.0f} s")
+
+        result = sim.run(progress=on_progress)
+    out_dir = Path(args.out) if args.out else None
+    if out_dir is not None:
+        write_run(result, out_dir, sim.scenario.to_dict(), figures=not args.no_figures)
+    if not args.quiet:
+        _console().print(_summary_table(result.metrics, out_dir))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run one scenario and write its outputs")
+    r.add_argument("scenario", help="built-in name (see `swarm list`) or path to a .toml file")
+    r.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    r.add_argument("--planner", choices=["greedy", "dacmp"], default=None, help="planner (default: the scenario's)")
+    r.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario setting, e.g. --set radio.loss_base=0.3 (repeatable)")
+    r.add_argument("--out", default=None, help="output folder (metrics.json, timeseries.csv, events.msgpack, trajectories.png)")
+    r.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
+    r.set_defaults(func=_cmd_run)
+
+    v = sub.add_parser("validate", help="check scenario files without running them")
+    v.add_argument("scenario", nargs="+")
+    v.set_defaults(func=_cmd_validate)
+
+    ls = sub.add_parser("list", help="list the built-in scenarios")
+    ls.set_defaults(func=_cmd_list)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except SwarmError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,129 @@
+"""Ground-truth metrics (DACMP-SPEC "Metrics"), computed by the simulator, never by agents.
+
+* ``coverage``: fraction of cells scanned at least once by any UAV (the paper's coverage rate);
+* ``certainty``: eq. 8, ``1 - mean(q)`` over the union of all real scans;
+* ``targets_found``: targets seen at least once;
+* surveillance: per target, the share of time since first detection during which some UAV in
+  surveillance mode had it inside its detection radius; per UAV, seconds in each mode;
+  handovers (a target's watcher changing, with the UAV types, and the time from the new
+  watcher's start to the old one's release).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from agents.grid import Grid
+from agents.umap import UncertaintyMap
+from comms.messages import MODE_SURVEIL
+
+
+@dataclass(slots=True)
+class Handover:
+    t: float
+    target: int
+    from_uav: int
+    to_uav: int
+    from_type: str
+    to_type: str
+    latency_s: float  # release time minus the time the new watcher started watching
+
+
+@dataclass
+class Metrics:
+    grid: Grid
+    tau: float
+    union: UncertaintyMap = field(init=False)
+    covered_cells: int = 0
+    found_t: dict[int, float] = field(default_factory=dict)
+    watched_s: dict[int, float] = field(default_factory=dict)
+    mode_s: dict[int, dict[str, float]] = field(default_factory=dict)
+    holder: dict[int, int] = field(default_factory=dict)
+    watch_since: dict[tuple[int, int], float] = field(default_factory=dict)
+    handovers: list[Handover] = field(default_factory=list)
+    rows: list[dict] = field(default_factory=list)
+    # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
+
+    def __post_init__(self) -> None:
+        self.union = UncertaintyMap(self.grid, self.tau)
+
+    @property
+    def n_cells(self) -> int:
+        return self.grid.nx * self.grid.ny
+
+    def scan(self, x: float, y: float, radius: float, t: float) -> None:
+        d = self.grid.disk(x, y, radius)
+        if d is None:
+            return
+        rows, cols, mask = d
+        view = self.union.last_seen[rows, cols]
+        self.covered_cells += int(np.count_nonzero(mask & np.isneginf(view)))
+        np.maximum(view, np.where(mask, np.float32(t), view), out=view)
+
+    def coverage(self) -> float:
+        return self.covered_cells / self.n_cells
+
+    def certainty(self, t: float) -> float:
+        return 1.0 - float(np.mean(self.union.uncertainty(t), dtype=np.float64))
+
+    def observe(self, t: float, dt: float, plans: dict[int, tuple[int, int]], sensed: dict[int, list[int]],
+                types: dict[int, str], speed_max: dict[int, float]) -> list[tuple]:
+        """Account one tick. ``plans``: uid -> (mode, target); ``sensed``: uid -> target ids
+        inside its detection radius. Returns events to log (found, handover, release)."""
+        events: list[tuple] = []
+        for uid, targets in sensed.items():
+            for m in targets:
+                if m not in self.found_t:
+                    self.found_t[m] = t
+                    events.append(("found", t, m, uid))
+        watching: dict[int, list[int]] = {}
+        covered: set[int] = set()
+        for uid, (mode, target) in plans.items():
+            ms = self.mode_s.setdefault(uid, {"search": 0.0, "surveil": 0.0})
+            if mode == MODE_SURVEIL:
+                ms["surveil"] += dt
+                covered.update(sensed.get(uid, ()))
+                if target >= 0:
+                    watching.setdefault(target, []).append(uid)
+                    self.watch_since.setdefault((uid, target), t)
+            else:
+                ms["search"] += dt
+        for key in [k for k in self.watch_since if k[1] not in watching or k[0] not in watching[k[1]]]:
+            del self.watch_since[key]
+        for m in self.found_t:
+            if m in covered:
+                self.watched_s[m] = self.watched_s.get(m, 0.0) + dt
+        for m in sorted(set(self.holder) | set(watching)):
+            now = sorted(watching.get(m, []))
+            old = self.holder.get(m)
+            if old is not None and old in now:
+                continue
+            if old is not None and now:
+                new = now[0]
+                since = self.watch_since.get((new, m), t)
+                h = Handover(t, m, old, new, types.get(old, "?"), types.get(new, "?"), t - since)
+                self.handovers.append(h)
+                events.append(("handover", t, m, old, new))
+            elif old is not None:
+                events.append(("release", t, m, old))
+            if now:
+                self.holder[m] = now[0]
+            else:
+                self.holder.pop(m, None)
+        return events
+
+    def surveillance_ratio(self, t_end: float) -> dict[int, float]:
+        out = {}
+        for m, t0 in sorted(self.found_t.items()):
+            span = t_end - t0
+            out[m] = self.watched_s.get(m, 0.0) / span if span > 0 else 0.0
+        return out
+
+    def fast_to_slow_handovers(self, speed_max_by_type: dict[str, float]) -> int:
+        return sum(
+            1 for h in self.handovers
+            if speed_max_by_type.get(h.from_type, math.inf) > speed_max_by_type.get(h.to_type, math.inf)
+        )

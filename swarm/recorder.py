@@ -1,0 +1,73 @@
+"""The event log: every notable thing a run does, as msgpack, hashed as it is written.
+
+An event is a flat array ``[kind, t, field, ...]`` (kinds and fields are listed in the README).
+Events of one tick are packed together at the end of the tick into one growing byte buffer and
+fed to SHA-256, so the hash is of exactly the bytes written to ``events.msgpack``. Nothing in
+an event comes from the wall clock or from Python's ``hash``: the same scenario and seed give
+the same bytes in any process.
+
+Subscribers (the embedding API) get each event live as ``callback(event_tuple)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable, Iterable, Iterator
+
+import msgpack
+
+Event = tuple
+
+
+class EventLog:
+    def __init__(self) -> None:
+        self._pending: list[Event] = []
+        self._buf = bytearray()
+        self._sha = hashlib.sha256()
+        self._packer = msgpack.Packer(use_bin_type=True)
+        self._subs: list[tuple[Callable[[Event], None], frozenset[str] | None]] = []
+        self.count = 0
+
+    def emit(self, *event) -> None:
+        self._pending.append(event)
+        if self._subs:
+            kind = event[0]
+            for cb, kinds in self._subs:
+                if kinds is None or kind in kinds:
+                    cb(event)
+
+    def flush(self) -> None:
+        """Pack pending events (called once per tick and at the end)."""
+        if not self._pending:
+            return
+        pack = self._packer.pack
+        chunk = b"".join(pack(e) for e in self._pending)
+        self.count += len(self._pending)
+        self._pending.clear()
+        self._buf += chunk
+        self._sha.update(chunk)
+
+    def subscribe(self, callback: Callable[[Event], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
+        entry = (callback, frozenset(kinds) if kinds is not None else None)
+        self._subs.append(entry)
+
+        def unsubscribe() -> None:
+            if entry in self._subs:
+                self._subs.remove(entry)
+
+        return unsubscribe
+
+    def to_bytes(self) -> bytes:
+        self.flush()
+        return bytes(self._buf)
+
+    def sha256(self) -> str:
+        self.flush()
+        return self._sha.hexdigest()
+
+
+def read_events(data: bytes) -> Iterator[list]:
+    """Iterate the events of an ``events.msgpack`` file's bytes."""
+    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
+    unpacker.feed(data)
+    yield from unpacker

@@ -1,0 +1,985 @@
+"""Scenario: the data that describes one run, and its validation.
+
+A scenario is a TOML document (a built-in one from ``swarm/scenarios/`` or a user's file).
+It is validated into frozen pydantic models; anything wrong becomes one
+:class:`~swarm.errors.ScenarioError` that names the file, the dotted key path, what was found
+and what was expected. No other exception escapes the loader: the CLI prints ``str(err)`` and
+nothing else, so the message must stand on its own.
+
+Defaults are the paper's where it gives a number (Table 1, section 4.1) and otherwise the
+settled defaults of ``DACMP-SPEC.md``; every one of them can be overridden from the file or with
+:func:`apply_overrides` (``--set key=value``).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import difflib
+import math
+import os
+import re
+import tomllib
+import types
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal, NamedTuple, Union, get_args, get_origin
+
+from pydantic import (
+    AllowInfNan,
+    BaseModel,
+    ConfigDict,
+    Field,
+    Strict,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from swarm.errors import ScenarioError, UsageError
+
+__all__ = [
+    "Area",
+    "MapSettings",
+    "UavTypeSpec",
+    "UavSpec",
+    "PlacedTarget",
+    "TargetSettings",
+    "ThreatSpec",
+    "RadioSettings",
+    "DropFault",
+    "BurstFault",
+    "PartitionFault",
+    "DelayFault",
+    "DuplicateFault",
+    "CorruptFault",
+    "CrashFault",
+    "JoinFault",
+    "Fault",
+    "FAULT_KINDS",
+    "GreedySettings",
+    "DacmpSettings",
+    "ApfSettings",
+    "PlannerSettings",
+    "SafetySettings",
+    "MetricsSettings",
+    "Scenario",
+    "DEFAULT_UAV_TYPES",
+    "load_scenario",
+    "parse_scenario",
+    "scenario_from_toml",
+    "builtin_scenarios",
+    "apply_overrides",
+    "parse_assignment",
+]
+
+# --- value types -------------------------------------------------------------------------
+# Strict scalars: a TOML integer is fine where a float is wanted (pydantic's strict float takes
+# ints), but a string ("fast") or a boolean (true) never silently becomes a number, and a float
+# never becomes an integer. Infinity and NaN are refused everywhere (model config) except where
+# a field says otherwise (the radio range).
+Num = Annotated[float, Strict()]
+Int = Annotated[int, Strict()]
+Bool = Annotated[bool, Strict()]
+Str = Annotated[str, Strict()]
+
+
+def _fmt(x: float) -> str:
+    """A bound or value as a person would write it: 50000 rather than 50000.0."""
+    if isinstance(x, float) and x.is_integer() and abs(x) < 1e15:
+        return str(int(x))
+    return repr(x)
+
+
+def _range_words(noun: str, gt: float | None, ge: float | None, lt: float | None, le: float | None) -> str:
+    low = (f"({_fmt(gt)}", f"> {_fmt(gt)}") if gt is not None else (f"[{_fmt(ge)}", f">= {_fmt(ge)}") if ge is not None else None
+    high = (f"{_fmt(lt)})", f"< {_fmt(lt)}") if lt is not None else (f"{_fmt(le)}]", f"<= {_fmt(le)}") if le is not None else None
+    if low and high:
+        return f"{noun} in {low[0]}, {high[0]}"
+    if low or high:
+        return f"{noun} {(low or high)[1]}"  # type: ignore[index]
+    return noun
+
+
+def _num(default: Any = ..., *, gt=None, ge=None, lt=None, le=None, note: str = "", optional: bool = False) -> Any:
+    """A float field whose ``description`` is the human 'expected' text used in errors."""
+    words = _range_words("a number", gt, ge, lt, le)
+    if note:
+        words += f" ({note})"
+    if optional:
+        words += ", or leave it out"
+    return Field(default, gt=gt, ge=ge, lt=lt, le=le, description=words)
+
+
+def _int(default: Any = ..., *, ge=None, le=None, note: str = "") -> Any:
+    words = _range_words("a whole number", None, ge, None, le)
+    if note:
+        words += f" ({note})"
+    return Field(default, ge=ge, le=le, description=words)
+
+
+def _table(factory: Any, name: str) -> Any:
+    return Field(default_factory=factory, description=f"a table [{name}]")
+
+
+# --- problems found by our own checks ----------------------------------------------------
+class _Problem(NamedTuple):
+    """One thing wrong, found by a cross-field check. ``path`` is relative to the model that
+    found it; pydantic prefixes the model's own location when it reports the error. ``value`` is
+    the validated value; the error shows the document's own value where there is one (``60000``
+    as written, not ``60000.0``), or ``found`` verbatim if given."""
+
+    path: tuple[str | int, ...]
+    value: Any
+    expected: str
+    hint: str = ""
+    found: str | None = None
+
+
+class _Invalid(ValueError):
+    """Raised inside validators with every problem found, so the loader can report the first one
+    in document order (pydantic itself only knows field order). A ValueError so that pydantic
+    wraps it into its ValidationError like any other validator failure."""
+
+    def __init__(self, problems: list[_Problem]):
+        self.problems = problems
+        super().__init__("; ".join(f"{_key(p.path)}: found {p.found or _found(p.value)}; expected {p.expected}" for p in problems))
+
+
+def _raise_if(problems: list[_Problem]) -> None:
+    if problems:
+        raise _Invalid(problems)
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+# --- the world -----------------------------------------------------------------------------
+class Area(_Model):
+    """The mission area, origin at a corner, x east, y north (paper: 50 km x 50 km, 100 m cells)."""
+
+    width_m: Num = _num(50_000.0, gt=0)
+    height_m: Num = _num(50_000.0, gt=0)
+    cell_m: Num = _num(100.0, gt=0)
+
+    @model_validator(mode="after")
+    def _whole_cells(self) -> Area:
+        # The grid must tile the area exactly, otherwise the last row/column of cells would be
+        # partly outside it and coverage fractions would be ambiguous.
+        _raise_if([
+            _Problem((key,), value, f"a whole multiple of cell_m ({_fmt(self.cell_m)})")
+            for key, value in (("width_m", self.width_m), ("height_m", self.height_m))
+            if not _is_whole_multiple(value, self.cell_m)
+        ])
+        return self
+
+    @property
+    def cols(self) -> int:
+        return round(self.width_m / self.cell_m)
+
+    @property
+    def rows(self) -> int:
+        return round(self.height_m / self.cell_m)
+
+    def contains(self, x_m: float, y_m: float) -> bool:
+        return 0.0 <= x_m <= self.width_m and 0.0 <= y_m <= self.height_m
+
+
+def _is_whole_multiple(value: float, step: float) -> bool:
+    ratio = value / step
+    if not math.isfinite(ratio):
+        return False
+    return abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio)
+
+
+class MapSettings(_Model):
+    """Uncertainty map and pyramid (paper: 7 levels). ``tau`` is not in the paper; see
+    :attr:`Scenario.effective_tau` for the spec's default."""
+
+    levels: Int = _int(7, ge=1, le=12)
+    prior_target_speed: Num = _num(10.0, gt=0, note="m/s")
+    tau: Num | None = _num(None, gt=0, note="1/s", optional=True)
+
+
+class UavTypeSpec(_Model):
+    """One UAV type (a row of Table 1). Types are data: a new type needs no code."""
+
+    speed_min: Num = _num(..., gt=0, note="m/s")
+    speed_max: Num = _num(..., gt=0, note="m/s, >= speed_min")
+    accel_max: Num = _num(..., gt=0, note="m/s^2")
+    bank_max_deg: Num = _num(..., gt=0, lt=90)
+    detect_radius_m: Num = _num(..., gt=0)
+    w_t: Num = _num(..., ge=0, note="target attraction weight")
+    w_r: Num = _num(..., ge=0, note="repulsion weight")
+    influence_radius_m: Num = _num(..., gt=0, note="target influence radius D")
+
+    @model_validator(mode="after")
+    def _speed_range(self) -> UavTypeSpec:
+        if self.speed_min > self.speed_max:
+            _raise_if([_Problem(("speed_min",), self.speed_min, f"a number <= speed_max ({_fmt(self.speed_max)})")])
+        return self
+
+
+# Table 1 of the paper.
+DEFAULT_UAV_TYPES: dict[str, UavTypeSpec] = {
+    "A": UavTypeSpec(speed_min=30.0, speed_max=50.0, accel_max=0.4, bank_max_deg=30.0,
+                     detect_radius_m=1500.0, w_t=5.0, w_r=5.1, influence_radius_m=10_000.0),
+    "B": UavTypeSpec(speed_min=60.0, speed_max=90.0, accel_max=0.6, bank_max_deg=20.0,
+                     detect_radius_m=2000.0, w_t=2.0, w_r=2.1, influence_radius_m=4000.0),
+}
+
+
+class UavSpec(_Model):
+    """One UAV at the start (or at ``join_s`` for a late joiner)."""
+
+    # None is replaced after validation by f"{type}{k}", k counting from 1 within the type.
+    name: Str | None = Field(None, description="a string (unique UAV name), or leave it out")
+    type: Str = Field(..., description="a UAV type name defined in [uav_types]")
+    x_m: Num = _num(..., note="metres east of the area's corner, inside the area")
+    y_m: Num = _num(..., note="metres north of the area's corner, inside the area")
+    heading_deg: Num = _num(0.0, note="degrees, 0 = east, counter-clockwise")
+    # None = the type's speed_max; the range is checked against the type by Scenario.
+    speed: Num | None = _num(None, gt=0, note="m/s within the type's speed range", optional=True)
+    join_s: Num | None = _num(None, ge=0, note="time the UAV enters the world", optional=True)
+
+
+class PlacedTarget(_Model):
+    x_m: Num = _num(..., note="inside the area")
+    y_m: Num = _num(..., note="inside the area")
+    heading_deg: Num = _num(0.0, note="degrees, 0 = east, counter-clockwise")
+    speed: Num = _num(0.0, ge=0, note="m/s, <= targets.speed_max")
+    value: Num = _num(1.0, gt=0)
+
+
+class TargetSettings(_Model):
+    """Target motion model (Table 1: 0-20 m/s, +-0.4 m/s^2) and where targets start."""
+
+    count: Int = _int(0, ge=0, note="targets drawn uniformly in the area from the seed")
+    speed_max: Num = _num(20.0, ge=0, note="m/s")
+    accel_max: Num = _num(0.4, gt=0, note="m/s^2")
+    accel_sigma: Num = _num(0.05, ge=0, note="m/s^2 per sqrt(s)")
+    turn_sigma: Num = _num(0.01, ge=0, note="rad/s per sqrt(s)")
+    turn_rate_max: Num = _num(0.1, gt=0, note="rad/s")
+    value: Num = _num(1.0, gt=0)
+    placed: list[PlacedTarget] = Field(default_factory=list, description="an array of tables [[targets.placed]]")
+
+    @model_validator(mode="after")
+    def _placed_speeds(self) -> TargetSettings:
+        _raise_if([
+            _Problem(("placed", i, "speed"), t.speed, f"a number in [0, {_fmt(self.speed_max)}] (targets.speed_max)")
+            for i, t in enumerate(self.placed)
+            if t.speed > self.speed_max
+        ])
+        return self
+
+
+class ThreatSpec(_Model):
+    """A circular no-fly zone of radius R_T with a repulsion field out to ``d_max``."""
+
+    x_m: Num = _num(..., note="inside the area")
+    y_m: Num = _num(..., note="inside the area")
+    radius_m: Num = _num(..., gt=0)
+    influence_m: Num | None = _num(None, gt=0, note="> radius_m, from the centre", optional=True)
+
+    @model_validator(mode="after")
+    def _influence_beyond_radius(self) -> ThreatSpec:
+        if self.influence_m is not None and self.influence_m <= self.radius_m:
+            _raise_if([_Problem(("influence_m",), self.influence_m, f"a number > radius_m ({_fmt(self.radius_m)})")])
+        return self
+
+    @property
+    def d_max(self) -> float:
+        """Repulsion influence radius from the centre (our default: 3 km beyond the edge)."""
+        return self.influence_m if self.influence_m is not None else self.radius_m + 3000.0
+
+
+class RadioSettings(_Model):
+    """The paper says nothing about the radio; the defaults are the ideal radio used to
+    reproduce it (unlimited range, no loss)."""
+
+    # inf is allowed here (and means the same as leaving it out): TOML can write `inf`.
+    range_m: Annotated[float, Strict(), AllowInfNan(True)] | None = _num(
+        None, gt=0, note="metres; inf = unlimited", optional=True
+    )
+    loss_base: Num = _num(0.0, ge=0, le=1)
+    loss_at_range: Num = _num(0.0, ge=0, le=1)
+    latency_s: Num = _num(0.0, ge=0)
+    jitter_s: Num = _num(0.0, ge=0)
+    bandwidth_bytes_per_s: Num | None = _num(None, gt=0, optional=True)
+    frame_max_bytes: Int = _int(65536, ge=256)
+    mailbox_capacity: Int = _int(1024, ge=1)
+    beacon_every_s: Num = _num(1.0, gt=0)
+    tracks_every_s: Num = _num(5.0, gt=0)
+
+    @property
+    def range_limit_m(self) -> float:
+        """The range as a number; math.inf when unlimited."""
+        return math.inf if self.range_m is None else self.range_m
+
+
+# --- faults --------------------------------------------------------------------------------
+_NAMES = "an array of UAV names"
+
+
+class _WindowedFault(_Model):
+    start_s: Num = _num(0.0, ge=0)
+    end_s: Num | None = _num(None, gt=0, note="> start_s; absent = until the end", optional=True)
+
+    @model_validator(mode="after")
+    def _window(self) -> _WindowedFault:
+        if self.end_s is not None and self.end_s <= self.start_s:
+            _raise_if([_Problem(("end_s",), self.end_s, f"a number > start_s ({_fmt(self.start_s)})")])
+        return self
+
+
+class _LinkFault(_WindowedFault):
+    # Frames from or to these UAVs; empty = all.
+    uavs: list[Str] = Field(default_factory=list, description=f"{_NAMES} (empty = all)")
+    # Directed sender -> receiver pairs; empty = all.
+    links: list[tuple[Str, Str]] = Field(
+        default_factory=list, description="an array of [sender, receiver] UAV name pairs (empty = all)"
+    )
+
+
+class DropFault(_LinkFault):
+    kind: Literal["drop"] = "drop"
+    rate: Num = _num(..., ge=0, le=1)
+
+
+class BurstFault(_LinkFault):
+    """Gilbert-Elliott two-state loss."""
+
+    kind: Literal["burst"] = "burst"
+    p_enter_bad: Num = _num(..., ge=0, le=1)
+    p_exit_bad: Num = _num(..., gt=0, le=1)
+    loss_good: Num = _num(0.0, ge=0, le=1)
+    loss_bad: Num = _num(1.0, ge=0, le=1)
+
+
+class PartitionFault(_WindowedFault):
+    kind: Literal["partition"] = "partition"
+    groups: list[list[Str]] = Field(..., description="an array of at least 2 non-empty arrays of UAV names")
+    # True: only frames from an earlier-listed group to a later-listed group are blocked.
+    one_way: Bool = Field(False, description="true or false")
+
+    @model_validator(mode="after")
+    def _groups(self) -> PartitionFault:
+        problems = []
+        if len(self.groups) < 2:
+            problems.append(_Problem(("groups",), self.groups, "at least 2 groups of UAV names"))
+        seen: dict[str, int] = {}
+        for g, group in enumerate(self.groups):
+            if not group:
+                problems.append(_Problem(("groups", g), group, "a non-empty array of UAV names"))
+            for k, name in enumerate(group):
+                if name in seen:
+                    problems.append(_Problem(("groups", g, k), name,
+                                             f"a UAV name not already in groups[{seen[name]}] (a UAV is in at most one group)"))
+                seen.setdefault(name, g)
+        _raise_if(problems)
+        return self
+
+
+class DelayFault(_LinkFault):
+    kind: Literal["delay"] = "delay"
+    extra_s: Num = _num(..., ge=0)
+    jitter_s: Num = _num(0.0, ge=0)
+
+
+class DuplicateFault(_LinkFault):
+    kind: Literal["duplicate"] = "duplicate"
+    rate: Num = _num(..., ge=0, le=1)
+
+
+class CorruptFault(_LinkFault):
+    kind: Literal["corrupt"] = "corrupt"
+    rate: Num = _num(..., ge=0, le=1)
+    bytes: Int = _int(1, ge=1, note="bytes flipped per corrupted frame")
+
+
+class CrashFault(_Model):
+    kind: Literal["crash"] = "crash"
+    at_s: Num = _num(..., ge=0)
+    uav: Str = Field(..., description="a UAV name defined in [[uavs]]")
+
+
+class JoinFault(_Model):
+    kind: Literal["join"] = "join"
+    at_s: Num = _num(..., ge=0)
+    uav: Str = Field(..., description="a UAV name defined in [[uavs]]")
+
+
+_FAULT_CLASSES: dict[str, type[_Model]] = {
+    "drop": DropFault,
+    "burst": BurstFault,
+    "partition": PartitionFault,
+    "delay": DelayFault,
+    "duplicate": DuplicateFault,
+    "corrupt": CorruptFault,
+    "crash": CrashFault,
+    "join": JoinFault,
+}
+FAULT_KINDS: tuple[str, ...] = tuple(_FAULT_CLASSES)
+
+Fault = Annotated[
+    Union[DropFault, BurstFault, PartitionFault, DelayFault, DuplicateFault, CorruptFault, CrashFault, JoinFault],
+    Field(discriminator="kind"),
+]
+
+
+# --- planner, safety, metrics --------------------------------------------------------------
+class GreedySettings(_Model):
+    headings: Int = _int(15, ge=3, note="candidate headings per decision")
+
+
+class DacmpSettings(_Model):
+    """PSO and fitness settings (section 3; defaults from DACMP-SPEC.md)."""
+
+    particles: Int = _int(40, ge=1)
+    iterations: Int = _int(25, ge=1)
+    w_start: Num = _num(0.9, ge=0)
+    w_end: Num = _num(0.4, ge=0)
+    c1_start: Num = _num(2.5, ge=0)
+    c1_end: Num = _num(0.5, ge=0)
+    c2_start: Num = _num(0.5, ge=0)
+    c2_end: Num = _num(2.5, ge=0)
+    ring_mean_factor: Num = _num(1.5, gt=0, note="times the detection radius")
+    ring_sd_factor: Num = _num(0.5, ge=0, note="times the detection radius")
+    heading_sd_rad: Num = _num(math.pi / 2, ge=0)
+    eta: Num = _num(0.5, ge=0, le=1)
+    # None = equal weights summing to 1; the length is checked against map.levels by Scenario.
+    level_weights: list[Annotated[float, Strict(), Field(ge=0)]] | None = Field(
+        None, description="an array of numbers >= 0, one per map level, with a positive sum, or leave it out"
+    )
+
+    @model_validator(mode="after")
+    def _positive_sum(self) -> DacmpSettings:
+        if self.level_weights is not None and not sum(self.level_weights) > 0:
+            _raise_if([_Problem(("level_weights",), self.level_weights, "weights with a positive sum")])
+        return self
+
+
+class ApfSettings(_Model):
+    """Local planner (eq. 28-32). b, c make the UAV-UAV force negligible beyond about 1 km."""
+
+    k_att: Num = _num(1.0, gt=0)
+    k_rep: Num = _num(4.0e6, gt=0)
+    uav_b: Num = _num(400.0, gt=0)
+    uav_c: Num = _num(200.0, gt=0)
+    uav_dmax_m: Num = _num(1000.0, gt=0)
+    lookahead_s: Num = _num(20.0, gt=0)
+
+
+class PlannerSettings(_Model):
+    name: Literal["greedy", "dacmp"] = Field("dacmp", description="one of: greedy, dacmp")
+    replan_s: Num = _num(10.0, gt=0)
+    # False: a sighting ends interest in a target (search only, as in paper-fig11).
+    surveillance: Bool = Field(True, description="true or false")
+    greedy: GreedySettings = _table(GreedySettings, "planner.greedy")
+    dacmp: DacmpSettings = _table(DacmpSettings, "planner.dacmp")
+    apf: ApfSettings = _table(ApfSettings, "planner.apf")
+
+
+class SafetySettings(_Model):
+    min_separation_m: Num = _num(200.0, gt=0)
+
+
+class MetricsSettings(_Model):
+    sample_s: Num = _num(10.0, gt=0, note=">= dt_s")
+
+
+# --- the scenario --------------------------------------------------------------------------
+class Scenario(_Model):
+    """Everything one run needs. Build it with :func:`load_scenario` or :func:`parse_scenario`."""
+
+    name: Str = Field("scenario", description="a string")
+    description: Str = Field("", description="a string")
+    seed: Int = _int(0, ge=0)
+    duration_s: Num = _num(2000.0, gt=0)
+    dt_s: Num = _num(1.0, gt=0, le=10)
+    area: Area = _table(Area, "area")
+    map: MapSettings = _table(MapSettings, "map")
+    uav_types: dict[Str, UavTypeSpec] = Field(
+        default_factory=lambda: dict(DEFAULT_UAV_TYPES), description="a table of UAV types [uav_types.NAME]"
+    )
+    uavs: list[UavSpec] = Field(..., min_length=1, description="an array of tables [[uavs]] with at least one UAV")
+    targets: TargetSettings = _table(TargetSettings, "targets")
+    threats: list[ThreatSpec] = Field(default_factory=list, description="an array of tables [[threats]]")
+    radio: RadioSettings = _table(RadioSettings, "radio")
+    faults: list[Fault] = Field(
+        default_factory=list, description=f"an array of tables [[faults]], each with kind = one of: {', '.join(FAULT_KINDS)}"
+    )
+    planner: PlannerSettings = _table(PlannerSettings, "planner")
+    safety: SafetySettings = _table(SafetySettings, "safety")
+    metrics: MetricsSettings = _table(MetricsSettings, "metrics")
+
+    @field_validator("uav_types", mode="before")
+    @classmethod
+    def _over_table1(cls, value: Any) -> Any:
+        # Merge by name over Table 1: giving only [uav_types.C] keeps A and B; giving
+        # [uav_types.A] replaces A as a whole.
+        if isinstance(value, dict):
+            return {**DEFAULT_UAV_TYPES, **value}
+        return value
+
+    @model_validator(mode="after")
+    def _complete_and_cross_check(self) -> Scenario:
+        # Filling in names and folding joins replaces items of lists this model has just built
+        # (pydantic copies input lists), so the frozen model's attributes are never reassigned.
+        per_type: dict[str, int] = {}
+        for i, uav in enumerate(self.uavs):
+            per_type[uav.type] = per_type.get(uav.type, 0) + 1
+            if uav.name is None:
+                self.uavs[i] = uav.model_copy(update={"name": f"{uav.type}{per_type[uav.type]}"})
+
+        problems = self._cross_problems()
+        _raise_if(problems)
+
+        for fault in self.faults:
+            if isinstance(fault, JoinFault):
+                i = self.uav_names.index(fault.uav)
+                self.uavs[i] = self.uavs[i].model_copy(update={"join_s": fault.at_s})
+        return self
+
+    def _cross_problems(self) -> list[_Problem]:
+        """Checks that need more than one table: names, types, positions, fault references."""
+        problems: list[_Problem] = []
+        area = self.area
+        inside = {
+            "x_m": f"a number in [0, {_fmt(area.width_m)}] (inside the area)",
+            "y_m": f"a number in [0, {_fmt(area.height_m)}] (inside the area)",
+        }
+
+        def check_inside(path: tuple[str | int, ...], obj: Any) -> None:
+            for key, limit in (("x_m", area.width_m), ("y_m", area.height_m)):
+                value = getattr(obj, key)
+                if not 0.0 <= value <= limit:
+                    problems.append(_Problem((*path, key), value, inside[key]))
+
+        types_list = ", ".join(self.uav_types)
+        first_with_name: dict[str, int] = {}
+        for i, uav in enumerate(self.uavs):
+            spec = self.uav_types.get(uav.type)
+            if spec is None:
+                problems.append(_Problem(("uavs", i, "type"), uav.type, f"a UAV type defined in [uav_types]: {types_list}"))
+            assert uav.name is not None
+            if uav.name in first_with_name:
+                problems.append(_Problem(("uavs", i, "name"), uav.name,
+                                         f"a name not already used by uavs[{first_with_name[uav.name]}] (UAV names are unique)",
+                                         "a UAV without a name is called TYPE + its number within the type, e.g. B1"))
+            first_with_name.setdefault(uav.name, i)
+            check_inside(("uavs", i), uav)
+            if spec is not None and uav.speed is not None and not spec.speed_min <= uav.speed <= spec.speed_max:
+                problems.append(_Problem(("uavs", i, "speed"), uav.speed,
+                                         f"a number in [{_fmt(spec.speed_min)}, {_fmt(spec.speed_max)}] (type {uav.type}'s speed range)"))
+
+        for i, target in enumerate(self.targets.placed):
+            check_inside(("targets", "placed", i), target)
+        for i, threat in enumerate(self.threats):
+            check_inside(("threats", i), threat)
+
+        names = set(first_with_name)
+        valid_names = f"a UAV name defined in [[uavs]]: {', '.join(first_with_name)}"
+
+        def check_name(path: tuple[str | int, ...], name: str) -> None:
+            if name not in names:
+                close = difflib.get_close_matches(name, list(first_with_name), n=1)
+                problems.append(_Problem(path, name, valid_names, f"did you mean {close[0]!r}?" if close else ""))
+
+        joined_at: dict[str, int] = {}
+        for f, fault in enumerate(self.faults):
+            if isinstance(fault, _LinkFault):
+                for k, name in enumerate(fault.uavs):
+                    check_name(("faults", f, "uavs", k), name)
+                for k, pair in enumerate(fault.links):
+                    for end, name in enumerate(pair):
+                        check_name(("faults", f, "links", k, end), name)
+            elif isinstance(fault, PartitionFault):
+                for g, group in enumerate(fault.groups):
+                    for k, name in enumerate(group):
+                        check_name(("faults", f, "groups", g, k), name)
+            elif isinstance(fault, (CrashFault, JoinFault)):
+                check_name(("faults", f, "uav"), fault.uav)
+            if isinstance(fault, JoinFault) and fault.uav in names:
+                uav = self._uav_by_name(fault.uav)
+                if fault.uav in joined_at:
+                    problems.append(_Problem(("faults", f, "uav"), fault.uav,
+                                             f"a UAV not already joined by faults[{joined_at[fault.uav]}]"))
+                # join_s equal to at_s is the folded form this validator itself produces, so a
+                # dumped scenario loads again.
+                elif uav.join_s is not None and uav.join_s != fault.at_s:
+                    problems.append(_Problem(("faults", f, "uav"), fault.uav,
+                                             "a UAV without its own join_s (give the join time in one place)",
+                                             found=f"{fault.uav!r} (string), which already has join_s = {_fmt(uav.join_s)}"))
+                joined_at.setdefault(fault.uav, f)
+
+        weights = self.planner.dacmp.level_weights
+        if weights is not None and len(weights) != self.map.levels:
+            problems.append(_Problem(("planner", "dacmp", "level_weights"), weights,
+                                     f"an array of {self.map.levels} numbers (one per map level, map.levels = {self.map.levels})"))
+        if self.metrics.sample_s < self.dt_s:
+            problems.append(_Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({_fmt(self.dt_s)})"))
+        return problems
+
+    def _uav_by_name(self, name: str) -> UavSpec:
+        return next(u for u in self.uavs if u.name == name)
+
+    # --- helpers for the rest of the simulator ---
+    def uav_type(self, name: str) -> UavTypeSpec:
+        try:
+            return self.uav_types[name]
+        except KeyError:
+            raise UsageError(f"no UAV type {name!r} in this scenario; defined types: {', '.join(self.uav_types)}") from None
+
+    @property
+    def uav_names(self) -> list[str]:
+        return [u.name for u in self.uavs]  # type: ignore[misc]  # always filled after validation
+
+    @property
+    def effective_tau(self) -> float:
+        """Memory factor of the uncertainty map: map.tau, or (spec default) the prior target speed
+        over the largest detection radius among the types actually flown."""
+        if self.map.tau is not None:
+            return self.map.tau
+        radius = max(self.uav_types[u.type].detect_radius_m for u in self.uavs)
+        return self.map.prior_target_speed / radius
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-safe dict (infinities become None, which also means 'unlimited' on input)."""
+        return _finite_or_none(self.model_dump(mode="json"))
+
+    def with_overrides(self, **changes: Any) -> Scenario:
+        """A new validated scenario with top-level fields (or dotted keys) replaced."""
+        return apply_overrides(self, changes)
+
+    def _document(self) -> dict[str, Any]:
+        """This scenario as an input document that validates to itself (used for overrides):
+        joins are unfolded again so the join fault stays the one place that says when."""
+        doc = self.model_dump(mode="python")
+        joins = {f["uav"] for f in doc["faults"] if f["kind"] == "join"}
+        for uav in doc["uavs"]:
+            if uav["name"] in joins:
+                uav["join_s"] = None
+        return doc
+
+
+def _finite_or_none(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    return value
+
+
+# --- loading -------------------------------------------------------------------------------
+_BUILTIN_PACKAGE = "swarm.scenarios"
+
+
+def builtin_scenarios() -> list[str]:
+    """Names of the scenarios shipped with the package, sorted."""
+    folder = resources.files(_BUILTIN_PACKAGE)
+    return sorted(p.name[: -len(".toml")] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(ref: str | os.PathLike[str]) -> Scenario:
+    """Load a built-in scenario by name or a TOML file by path."""
+    if not isinstance(ref, (str, os.PathLike)):
+        raise ScenarioError("", "", _found(ref), _file_expected())
+    source = os.fspath(ref)
+    if not isinstance(source, str):  # a bytes path
+        raise ScenarioError(repr(source), "", _found(source), _file_expected())
+    path = Path(source)
+    try:
+        is_file = path.is_file()
+    except (OSError, ValueError):  # e.g. a name too long, an embedded NUL
+        is_file = False
+    if is_file:
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ScenarioError(source, "", "a file that is not UTF-8 text", "a TOML document") from None
+        except OSError as exc:
+            raise ScenarioError(source, "", f"a file that cannot be read ({exc.strerror or exc})", _file_expected()) from None
+        return scenario_from_toml(text, source)
+    if isinstance(ref, str) and ref in builtin_scenarios():
+        text = resources.files(_BUILTIN_PACKAGE).joinpath(f"{ref}.toml").read_text(encoding="utf-8")
+        return scenario_from_toml(text, ref)
+    found = "no such file" if not path.exists() else "something that is not a file"
+    raise ScenarioError(source, "", found, _file_expected())
+
+
+def _file_expected() -> str:
+    return f"a path to an existing .toml file or a built-in name ({', '.join(builtin_scenarios())})"
+
+
+def scenario_from_toml(text: str, source: str) -> Scenario:
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(source, "", f"invalid TOML ({exc})", "a TOML document") from None
+    return parse_scenario(doc, source)
+
+
+def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
+    """Validate an already-parsed document. ``name`` defaults to the source's file stem."""
+    if not isinstance(doc, dict):
+        raise ScenarioError(source, "", _found(doc), "a table of scenario settings")
+    data = dict(doc)
+    data.setdefault("name", _default_name(source))
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        # from None: our message says everything; pydantic's would only repeat it less clearly.
+        raise _first_error(exc, doc, source) from None
+
+
+def _default_name(source: str) -> str:
+    if not source or source.startswith("<"):
+        return "scenario"
+    return Path(source).stem or "scenario"
+
+
+# --- overrides -----------------------------------------------------------------------------
+def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any]) -> Scenario:
+    """A new scenario with dotted keys replaced, e.g. ``{"radio.loss_base": 0.3}`` or
+    ``{"uavs[0].x_m": 100}``; the result is validated as a whole."""
+    source = f"{scenario.name} (with overrides)"
+    doc = scenario._document()
+    for dotted, value in overrides.items():
+        _set_path(doc, dotted, value, source)
+    try:
+        return parse_scenario(doc, source)
+    except ScenarioError as err:
+        if err.key in overrides or err.hint:
+            raise
+        # The override was fine on its own but broke another key (e.g. a smaller area leaves a
+        # UAV outside it): say which override did it.
+        changed = ", ".join(f"{k}={v!r}" for k, v in overrides.items())
+        raise ScenarioError(err.source, err.key, err.found, err.expected, f"after overriding {changed}") from None
+
+
+_SEGMENT = re.compile(r"([^.\[\]]+)((?:\[\d+\])*)")
+
+
+def _split_key(dotted: str, source: str) -> list[str | int]:
+    """'uavs[0].x_m' -> ['uavs', 0, 'x_m']."""
+    parts: list[str | int] = []
+    for segment in dotted.split("."):
+        match = _SEGMENT.fullmatch(segment)
+        if match is None:
+            raise ScenarioError(source, dotted, f"the key {dotted!r}", "a dotted key like radio.loss_base or uavs[0].x_m")
+        parts.append(match.group(1))
+        parts.extend(int(i) for i in re.findall(r"\d+", match.group(2)))
+    return parts
+
+
+def _set_path(doc: dict[str, Any], dotted: str, value: Any, source: str) -> None:
+    parts = _split_key(dotted, source)
+    node: Any = doc
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        here = _key(tuple(parts[: depth + 1]))
+        if isinstance(part, int):
+            if not isinstance(node, list):
+                raise ScenarioError(source, _key(tuple(parts[:depth])), _found(node), "an array (it is indexed with [n])")
+            if not part < len(node):
+                raise ScenarioError(source, here, f"index {part}", f"an index from 0 to {len(node) - 1}")
+        elif not isinstance(node, dict):
+            raise ScenarioError(source, _key(tuple(parts[:depth])), _found(node), "a table (it has keys below it)")
+        elif part not in node and not last:
+            # An unknown table: create it so that validation reports the unknown key with a hint.
+            node[part] = {}
+        if last:
+            node[part] = value
+        else:
+            if node[part] is None:
+                node[part] = {}
+            node = node[part]
+
+
+def parse_assignment(text: str) -> tuple[str, Any]:
+    """Parse ``key=value`` from the command line; the value is read as a TOML value
+    (``0.3``, ``true``, ``[1, 2]``, ``"x"``) and otherwise taken as a bare string."""
+    key, eq, raw = text.partition("=")
+    key = key.strip()
+    if not eq or not key:
+        raise ScenarioError("--set", key, repr(text), "key=value, e.g. radio.loss_base=0.3")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key, value
+
+
+# --- error translation ---------------------------------------------------------------------
+class _Issue(NamedTuple):
+    path: tuple[Any, ...]  # document path: list indices as ints, no pydantic union tags
+    found: str
+    expected: str
+    hint: str = ""
+
+
+_TOML_TYPES: tuple[tuple[type, str], ...] = (
+    (bool, "boolean"),  # before int: bool is an int in Python
+    (int, "integer"),
+    (float, "float"),
+    (str, "string"),
+    (list, "array"),
+    (tuple, "array"),
+    (dict, "table"),
+    (_dt.datetime, "datetime"),  # before date: a datetime is a date
+    (_dt.date, "date"),
+    (_dt.time, "time"),
+    (type(None), "nothing"),
+)
+
+
+def _found(value: Any) -> str:
+    """The offending value and its TOML type, e.g. "-3.0 (float)"."""
+    kind = next((name for cls, name in _TOML_TYPES if isinstance(value, cls)), type(value).__name__)
+    try:
+        text = repr(value)
+    except Exception:  # a repr that fails must not hide the real error
+        text = f"<{type(value).__name__}>"
+    if len(text) > 80:
+        text = text[:77] + "..."
+    return f"{text} ({kind})"
+
+
+def _key(path: tuple[Any, ...]) -> str:
+    """('uavs', 2, 'x_m') -> 'uavs[2].x_m'."""
+    out = ""
+    for part in path:
+        if isinstance(part, int) and not isinstance(part, bool):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+def _unwrap(tp: Any) -> Any:
+    """Strip Annotated[...] and Optional[...] to reach the type that matters."""
+    while True:
+        origin = get_origin(tp)
+        if origin is Annotated:
+            tp = get_args(tp)[0]
+        elif origin in (Union, types.UnionType) and type(None) in get_args(tp):
+            rest = [a for a in get_args(tp) if a is not type(None)]
+            tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]
+        else:
+            return tp
+
+
+class _Where(NamedTuple):
+    path: tuple[Any, ...]
+    field_description: str | None  # of the deepest field the location reached
+    table: type[BaseModel] | None  # the deepest model reached (for unknown keys)
+
+
+def _resolve(loc: tuple[Any, ...]) -> _Where:
+    """Follow a pydantic location through the model classes: the document path (without the
+    fault-kind tag pydantic inserts), and the field and table it points at."""
+    tp: Any = Scenario
+    path: list[Any] = []
+    description: str | None = None
+    table: type[BaseModel] | None = None
+    for part in loc:
+        tp = _unwrap(tp)
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            table = tp
+            field = tp.model_fields.get(part) if isinstance(part, str) else None
+            if field is not None:
+                description = field.description
+                tp = field.annotation
+            else:
+                tp = None
+            path.append(part)
+            continue
+        origin = get_origin(tp)
+        if origin in (list, tuple):
+            tp = get_args(tp)[0]
+        elif origin is dict:
+            tp = get_args(tp)[1]
+        elif origin in (Union, types.UnionType) and isinstance(part, str) and part in _FAULT_CLASSES:
+            tp = _FAULT_CLASSES[part]  # the tag is pydantic's, not a key of the document
+            continue
+        else:
+            tp = None
+        path.append(part)
+    return _Where(tuple(path), description, table)
+
+
+def _issues(err: Any, doc: Any) -> list[_Issue]:
+    """Turn one pydantic error into our words (our own checks may carry several problems)."""
+    kind, loc, ctx, value = err["type"], tuple(err["loc"]), err.get("ctx") or {}, err.get("input")
+    if kind == "value_error" and isinstance(ctx.get("error"), _Invalid):
+        out = []
+        for problem in ctx["error"].problems:
+            where = _resolve(loc + problem.path)
+            found = problem.found or _found(_lookup(doc, where.path, problem.value))
+            out.append(_Issue(where.path, found, problem.expected, problem.hint))
+        return out
+
+    where = _resolve(loc)
+    expected = where.field_description or err["msg"]
+    if kind == "missing":
+        return [_Issue(where.path, "nothing (the key is missing)", expected)]
+    if kind == "extra_forbidden":
+        unknown = where.path[-1]
+        valid = list(where.table.model_fields) if where.table else []
+        prefix = _key(where.path[:-1])
+        close = difflib.get_close_matches(str(unknown), valid, n=1)
+        hint = f"did you mean {close[0]!r}?" if close else f"valid keys: {', '.join(valid)}"
+        table_words = f"[{prefix}]" if prefix else "the top level"
+        return [_Issue(where.path, f"unknown key {unknown!r}", f"a key that {table_words} accepts", hint)]
+    if kind in ("model_type", "model_attributes_type") and where.path and isinstance(where.path[-1], int):
+        return [_Issue(where.path, _found(value), "a table")]  # an entry of an array of tables
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        tag = value.get("kind") if isinstance(value, dict) else None
+        found = _found(tag) if kind == "union_tag_invalid" else "nothing (the key is missing)"
+        return [_Issue((*where.path, "kind"), found, f"one of: {', '.join(FAULT_KINDS)}")]
+    return [_Issue(where.path, _found(value), expected)]
+
+
+def _lookup(doc: Any, path: tuple[Any, ...], default: Any) -> Any:
+    """The value at a path of the document as written, or ``default`` if it is not there."""
+    node = doc
+    for part in path:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+        else:
+            return default
+    return node
+
+
+def _document_position(doc: Any, path: tuple[Any, ...]) -> tuple[int, ...]:
+    """Where a path sits in the document, for ordering: the index of each key in its table
+    (a missing key counts as after the table's last key) and each list index."""
+    position: list[int] = []
+    node = doc
+    for part in path:
+        if isinstance(node, dict):
+            keys = list(node)
+            if part in keys:
+                position.append(keys.index(part))
+                node = node[part]
+                continue
+            position.append(len(keys))
+        elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            position.append(part)
+            node = node[part]
+            continue
+        break
+    return tuple(position)
+
+
+def _first_error(exc: ValidationError, doc: dict[str, Any], source: str) -> ScenarioError:
+    issues = [issue for err in exc.errors(include_url=False) for issue in _issues(err, doc)]
+    # Stable: among issues at one position, pydantic's (field) order decides.
+    first = min(enumerate(issues), key=lambda pair: (_document_position(doc, pair[1].path), pair[0]))[1]
+    return ScenarioError(source, _key(first.path), first.found, first.expected, first.hint)

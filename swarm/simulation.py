@@ -1,0 +1,677 @@
+"""The simulation: builds the world, the actors, the radio and the faults from a scenario,
+and advances them on a virtual clock.
+
+Drive it from your own event loop::
+
+    sim = Simulation(load_scenario("paper-case1"), seed=3)
+    await sim.run_until(600.0)
+
+or synchronously (tests, Hypothesis state machines, scripts)::
+
+    sim.step()            # one dt
+    result = sim.run()    # to the scenario's duration
+
+A simulation is bound to the first event loop that drives it: the host's running loop for
+``run_until``, or a private loop for ``step``/``run``. Mixing the two raises a clear error.
+Library code never prints, exits or calls ``asyncio.run``.
+
+One tick at time ``t`` (see ARCHITECTURE.md): faults and joins due at ``t`` and frames that
+arrived by ``t`` are processed first (clock priorities), then every live actor is woken with its
+sensor reading and the simulator waits for all of them; outputs are then handled in UAV-id
+order: ground-truth metrics, radio (topology from positions, one broadcast per frame, per-link
+decisions), the world integrates commands and targets by ``dt``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from agents.actor import ActorOutput, ActorSettings, UavActor
+from agents.apf import ApfSettings
+from agents.grid import Grid
+from agents.knowledge import KnownThreat
+from agents.planners import make_planner
+from agents.planners.base import Plan
+from agents.types import UavType
+from comms.mailbox import Mailbox
+from comms.messages import MODE_SURVEIL
+from comms.radio import Delivery, LinkModel, Radio
+from faults.injector import FaultInjector
+from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict
+from swarm.clock import DELIVERY, FAULT, TICK, Clock
+from swarm.errors import SimulationError, UsageError
+from swarm.metrics import Metrics
+from swarm.recorder import EventLog
+from swarm.rng import RngTree
+from swarm.scenario import Scenario, UavSpec, load_scenario
+from swarm.world import ALIVE, CRASHED, PENDING, TargetMotion, Targets, UavBody, World
+
+MODE_NAMES = {0: "search", 1: "surveil"}
+
+
+@dataclass(frozen=True, slots=True)
+class UavSnapshot:
+    uid: int
+    name: str
+    type: str
+    state: str  # pending | alive | crashed
+    x: float
+    y: float
+    v: float
+    theta: float
+    mode: str
+    target: int
+    waypoint: tuple[float, float] | None
+
+
+@dataclass(frozen=True, slots=True)
+class TargetSnapshot:
+    tid: int
+    x: float
+    y: float
+    v: float
+    theta: float
+    found_t: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Snapshot:
+    t: float
+    uavs: tuple[UavSnapshot, ...]
+    targets: tuple[TargetSnapshot, ...]
+    coverage: float
+    targets_found: int
+    links: tuple[tuple[int, int], ...]
+
+
+@dataclass
+class RunResult:
+    """Everything a finished (or stopped) run produced; :mod:`swarm.outputs` writes it."""
+
+    metrics: dict
+    timeseries: list[dict]
+    events: bytes
+    paths: dict[str, np.ndarray]  # UAV name -> (n, 3) rows of (t, x, y)
+    target_paths: dict[int, np.ndarray]
+    union_last_seen: np.ndarray
+    threats: list[KnownThreat]
+    area: tuple[float, float]
+    uav_types: dict[str, str] = field(default_factory=dict)
+
+
+def uav_type_from_spec(name: str, spec) -> UavType:
+    return UavType(
+        name=name,
+        speed_min=spec.speed_min,
+        speed_max=spec.speed_max,
+        accel_max=spec.accel_max,
+        bank_max_rad=math.radians(spec.bank_max_deg),
+        detect_radius=spec.detect_radius_m,
+        w_t=spec.w_t,
+        w_r=spec.w_r,
+        influence_radius=spec.influence_radius_m,
+    )
+
+
+class Simulation:
+    def __init__(
+        self,
+        scenario: Scenario | str | Path,
+        *,
+        seed: int | None = None,
+        planner: str | None = None,
+        duration_s: float | None = None,
+    ):
+        if not isinstance(scenario, Scenario):
+            scenario = load_scenario(scenario)
+        overrides = {}
+        if planner is not None:
+            overrides["planner.name"] = planner
+        if duration_s is not None:
+            overrides["duration_s"] = duration_s
+        if seed is not None:
+            overrides["seed"] = seed
+        if overrides:
+            from swarm.scenario import apply_overrides
+
+            scenario = apply_overrides(scenario, overrides)
+        sc = scenario
+        self.scenario = sc
+        self.seed = sc.seed
+        self.dt = sc.dt_s
+        self.duration_s = sc.duration_s
+        self.rng = RngTree(self.seed)
+        self.grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
+        self.tau = sc.effective_tau
+        self.clock = Clock()
+        self.log = EventLog()
+        self.types = {name: uav_type_from_spec(name, spec) for name, spec in sc.uav_types.items()}
+        self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
+
+        tm = sc.targets
+        self.targets = Targets(TargetMotion(tm.speed_max, tm.accel_max, tm.accel_sigma, tm.turn_sigma, tm.turn_rate_max))
+        threats = [KnownThreat(i, th.x_m, th.y_m, th.radius_m, th.d_max) for i, th in enumerate(sc.threats)]
+        self.world = World(self.grid, self.targets, threats)
+        self.metrics = Metrics(self.grid, self.tau)
+
+        self.names: dict[str, int] = {}  # shared with the injector: names added later resolve
+        self.actors: dict[int, UavActor] = {}
+        self._tasks: dict[int, asyncio.Task] = {}
+        self._plans: dict[int, Plan] = {}
+        self._paths: dict[int, list[tuple[float, float, float]]] = {}
+        self._target_paths: dict[int, list[tuple[float, float, float]]] = {}
+
+        self.injector = FaultInjector(FaultSchedule([]), self.names)
+        r = sc.radio
+        self.radio = Radio(
+            LinkModel(r.range_m, r.loss_base, r.loss_at_range, r.latency_s, r.jitter_s, r.bandwidth_bytes_per_s),
+            link_rng=lambda s, d: self.rng.generator("link", self.world.uavs[s].name, self.world.uavs[d].name),
+            link_filter=self.injector,
+        )
+        ap = sc.planner.apf
+        self._actor_settings = ActorSettings(
+            dt=self.dt,
+            replan_s=sc.planner.replan_s,
+            beacon_every_s=r.beacon_every_s,
+            tracks_every_s=r.tracks_every_s,
+            frame_max_bytes=r.frame_max_bytes,
+            surveillance=sc.planner.surveillance,
+            apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m),
+        )
+
+        for p in tm.placed:
+            self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
+        for _ in range(tm.count):
+            g = self.rng.generator("target", len(self.targets))
+            self._add_target_rng(
+                float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m)),
+                float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, tm.speed_max)), tm.value, g,
+            )
+        for spec in sc.uavs:
+            self._add_uav_spec(spec)
+        for f in sc.faults:
+            fault = fault_from_dict(f.model_dump(mode="python"))
+            if isinstance(fault, Join):
+                continue  # folded into the UAV's join_s by the scenario loader
+            self.add_fault(fault)
+
+        self._tick_index = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._own_loop = False
+        self._barrier: asyncio.Future | None = None
+        self._waiting = 0
+        self._outputs: dict[int, ActorOutput] = {}
+        self._failed: BaseException | None = None
+        self._closed = False
+        self._wall = 0.0
+        self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
+        self.clock.schedule(0.0, self._tick, TICK)
+        self.log.emit("start", 0.0, {
+            "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
+            "uavs": [[b.uid, b.name, b.kind.name] for b in self.world.uavs.values()],
+            "targets": len(self.targets), "threats": len(threats),
+            "faults": self.injector.schedule.to_list(),
+        })
+
+    # --- construction helpers ---------------------------------------------------------------
+
+    @classmethod
+    def from_file(cls, ref: str | Path, **kw) -> "Simulation":
+        return cls(load_scenario(ref), **kw)
+
+    def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
+        tid = self.targets.add(x, y, theta, v, value, rng)
+        self._target_paths[tid] = []
+        return tid
+
+    def _add_uav_spec(self, spec: UavSpec) -> int:
+        kind = self.types[spec.type]
+        uid = len(self.world.uavs)
+        name = spec.name
+        speed = spec.speed if spec.speed is not None else kind.speed_max
+        body = UavBody(uid, name, kind, spec.x_m, spec.y_m, speed, math.radians(spec.heading_deg),
+                       PENDING, spec.join_s or 0.0)
+        self.world.add_uav(body)
+        self.names[name] = uid
+        planner = make_planner(self.scenario.planner)
+        self.actors[uid] = UavActor(
+            uid, name, kind, self.grid, self.tau, planner, self.rng.generator("uav", name),
+            self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity),
+        )
+        self._paths[uid] = []
+        self.clock.schedule(max(body.join_s, self.clock.now), lambda: self._join(uid), FAULT)
+        return uid
+
+    # --- public API: inspection -------------------------------------------------------------
+
+    @property
+    def now(self) -> float:
+        """World time: ``k * dt`` after ``k`` ticks."""
+        return self._tick_index * self.dt
+
+    @property
+    def done(self) -> bool:
+        return self._tick_index >= self.n_ticks
+
+    @property
+    def n_ticks(self) -> int:
+        return int(round(self.duration_s / self.dt))
+
+    def snapshot(self) -> Snapshot:
+        uavs = []
+        for uid, b in sorted(self.world.uavs.items()):
+            plan = self._plans.get(uid)
+            mode = "down" if b.state == CRASHED else ("pending" if b.state == PENDING else
+                                                      MODE_NAMES[plan.mode] if plan else "search")
+            uavs.append(UavSnapshot(uid, b.name, b.kind.name, b.state, b.x, b.y, b.v, b.theta, mode,
+                                    plan.target if plan else -1, (plan.wx, plan.wy) if plan else None))
+        tg = self.targets
+        targets = tuple(TargetSnapshot(i, tg.x[i], tg.y[i], tg.v[i], tg.theta[i], self.metrics.found_t.get(i))
+                        for i in range(len(tg)))
+        return Snapshot(self.now, tuple(uavs), targets, self.metrics.coverage(), len(self.metrics.found_t),
+                        tuple(sorted(self.radio.graph.edges())))
+
+    def uav_map(self, name: str) -> np.ndarray:
+        """A copy of one UAV's own last-seen map (what it believes, not the truth)."""
+        return self.actors[self._uid(name)].umap.last_seen.copy()
+
+    def subscribe(self, callback: Callable[[tuple], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
+        """Call ``callback(event)`` for each event (optionally only some kinds); returns an unsubscribe function."""
+        return self.log.subscribe(callback, kinds)
+
+    def _uid(self, name: str) -> int:
+        if name not in self.names:
+            raise UsageError(f"no UAV named {name!r}; known: {', '.join(self.names)}")
+        return self.names[name]
+
+    # --- public API: changing the run -------------------------------------------------------
+
+    def add_target(self, x: float, y: float, heading_deg: float = 0.0, speed: float = 0.0, value: float = 1.0) -> int:
+        if not self.grid.contains(x, y):
+            raise UsageError(f"target position ({x}, {y}) is outside the area {self.grid.width_m} x {self.grid.height_m} m")
+        if not 0.0 <= speed <= self.targets.motion.speed_max:
+            raise UsageError(f"target speed {speed} outside [0, {self.targets.motion.speed_max}] m/s")
+        tid = len(self.targets)
+        return self._add_target_rng(x, y, math.radians(heading_deg), speed, value, self.rng.generator("target", tid))
+
+    def add_uav(self, type: str, x: float, y: float, heading_deg: float = 0.0, speed: float | None = None,
+                name: str | None = None, join_s: float | None = None) -> str:
+        """Add a UAV; it joins at ``join_s`` (default: the next tick). Returns its name."""
+        if type not in self.types:
+            raise UsageError(f"unknown UAV type {type!r}; known: {', '.join(self.types)}")
+        if name is None:
+            k = 1 + sum(1 for b in self.world.uavs.values() if b.kind.name == type)
+            name = f"{type}{k}"
+            while name in self.names:
+                k += 1
+                name = f"{type}{k}"
+        if name in self.names:
+            raise UsageError(f"a UAV named {name!r} already exists")
+        if not self.grid.contains(x, y):
+            raise UsageError(f"UAV position ({x}, {y}) is outside the area")
+        kind = self.types[type]
+        if speed is not None and not kind.speed_min <= speed <= kind.speed_max:
+            raise UsageError(f"speed {speed} outside type {type}'s range [{kind.speed_min}, {kind.speed_max}]")
+        join = self.now if join_s is None else max(join_s, self.now)
+        spec = UavSpec(name=name, type=type, x_m=x, y_m=y, heading_deg=heading_deg, speed=speed, join_s=join)
+        self._add_uav_spec(spec)
+        return name
+
+    def add_fault(self, fault: Fault) -> None:
+        """Add a fault (see :mod:`faults.schedule`); node faults must not be in the past."""
+        names = set(self.names)
+        referenced = list(getattr(fault, "uavs", ())) + [n for pair in getattr(fault, "links", ()) for n in pair]
+        referenced += [n for g in getattr(fault, "groups", ()) for n in g]
+        if isinstance(fault, (Crash, Join)):
+            referenced.append(fault.uav)
+        unknown = [n for n in referenced if n not in names]
+        if unknown:
+            raise UsageError(f"fault {fault.kind} names unknown UAV(s) {unknown}; known: {', '.join(self.names)}")
+        if isinstance(fault, (Crash, Join)):
+            if fault.at_s < self.now:
+                raise UsageError(f"{fault.kind} at {fault.at_s} s is in the past (now {self.now} s)")
+            uid = self.names[fault.uav]
+            if isinstance(fault, Crash):
+                self.clock.schedule(max(fault.at_s, self.clock.now), lambda: self._crash(uid), FAULT)
+            else:
+                self.world.uavs[uid].join_s = fault.at_s
+                self.clock.schedule(max(fault.at_s, self.clock.now), lambda: self._join(uid), FAULT)
+        self.injector.add(fault)
+
+    # --- node events ------------------------------------------------------------------------
+
+    def _join(self, uid: int) -> None:
+        b = self.world.uavs[uid]
+        if b.state != PENDING or self.clock.now + 1e-9 < b.join_s:
+            return  # already joined, crashed, or this was a superseded join time
+        b.state = ALIVE
+        late = b.join_s > 0
+        if late:
+            self.injector.note_fired("join")
+        self.log.emit("join", self.clock.now, uid, b.name, b.x, b.y)
+
+    def _crash(self, uid: int) -> None:
+        b = self.world.uavs[uid]
+        if b.state != ALIVE:
+            if b.state == PENDING:
+                b.state = CRASHED  # crashed before joining: never flies
+                self.injector.note_fired("crash")
+                self.log.emit("crash", self.clock.now, uid, b.name)
+            return
+        b.state = CRASHED
+        self.injector.note_fired("crash")
+        task = self._tasks.pop(uid, None)
+        if task is not None:
+            task.cancel()
+        self.actors[uid].mailbox.drain()
+        self._plans.pop(uid, None)
+        self.log.emit("crash", self.clock.now, uid, b.name)
+
+    def _deliver(self, batch: list[Delivery]) -> None:
+        uavs = self.world.uavs
+        for d in batch:
+            if uavs[d.receiver].state != ALIVE:
+                self.radio.counters.drop("receiver_down")
+                self.log.emit("lost", self.clock.now, d.sender, d.receiver, len(d.data), "receiver_down")
+            elif not self.actors[d.receiver].mailbox.put(d.arrival_t, d.sender, d.data):
+                self.radio.counters.drop("mailbox_full")
+                self.log.emit("lost", self.clock.now, d.sender, d.receiver, len(d.data), "mailbox_full")
+
+    # --- the tick ---------------------------------------------------------------------------
+
+    def _report(self, uid: int, out: ActorOutput | None, exc: BaseException | None) -> None:
+        barrier = self._barrier
+        if barrier is None or barrier.done():
+            return
+        if exc is not None:
+            name = self.world.uavs[uid].name
+            err = SimulationError(f"UAV {name} raised {type(exc).__name__}: {exc}")
+            err.__cause__ = exc
+            barrier.set_exception(err)
+            return
+        self._outputs[uid] = out
+        self._waiting -= 1
+        if self._waiting == 0:
+            barrier.set_result(None)
+
+    async def _tick(self) -> None:
+        t = self._tick_index * self.dt
+        dt = self.dt
+        world = self.world
+        self.injector.begin_tick(t)
+        alive = world.alive_ids()
+        loop = asyncio.get_running_loop()
+        readings = {}
+        for uid in alive:
+            if uid not in self._tasks:
+                self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report), name=f"uav-{world.uavs[uid].name}")
+            readings[uid] = world.sense(uid, t)
+        self._outputs = {}
+        if alive:
+            self._barrier = loop.create_future()
+            self._waiting = len(alive)
+            for uid in alive:
+                self.actors[uid].wake(readings[uid])
+            try:
+                await self._barrier
+            finally:
+                self._barrier = None
+        outputs = self._outputs
+        log = self.log
+
+        # Ground truth: scans, sightings, modes (positions at t, as the agents saw them).
+        plans: dict[int, tuple[int, int]] = {}
+        sensed: dict[int, list[int]] = {}
+        for uid in alive:
+            b = world.uavs[uid]
+            out = outputs[uid]
+            prev = self._plans.get(uid)
+            self._plans[uid] = out.plan
+            if prev is None or prev.mode != out.plan.mode or prev.target != out.plan.target:
+                log.emit("mode", t, uid, out.plan.mode, out.plan.target)
+            self.metrics.scan(b.x, b.y, b.kind.detect_radius, t)
+            plans[uid] = (out.plan.mode, out.plan.target)
+            sensed[uid] = [s.target for s in readings[uid].targets]
+            log.emit("pose", t, uid, b.x, b.y, b.v, b.theta, out.plan.mode, out.plan.target)
+            self._paths[uid].append((t, b.x, b.y))
+            for sender, nbytes, ok in out.received:
+                log.emit("rx", t, sender, uid, nbytes, ok)
+        types = {u: world.uavs[u].kind.name for u in alive}
+        for ev in self.metrics.observe(t, dt, plans, sensed, types, self.speed_max_by_type):
+            log.emit(*ev)
+        tg = self.targets
+        for i in range(len(tg)):
+            log.emit("target", t, i, tg.x[i], tg.y[i])
+            self._target_paths[i].append((t, tg.x[i], tg.y[i]))
+
+        # Radio: topology from positions at t, then every frame in UAV-id order.
+        xy = world.positions(alive)
+        for kind, a, b in world.check_safety(alive, xy, self.scenario.safety.min_separation_m):
+            log.emit("violation", t, kind, a, b)
+        self.radio.update_topology(alive, xy, dt)
+        deliveries: list[Delivery] = []
+
+        def lost(src: int, dst: int, nbytes: int, cause: str) -> None:
+            log.emit("lost", t, src, dst, nbytes, cause)
+
+        for uid in alive:
+            for frame in outputs[uid].frames:
+                self.radio.broadcast(t, uid, frame, deliveries, lost)
+        by_time: dict[float, list[Delivery]] = defaultdict(list)
+        for d in deliveries:
+            by_time[d.arrival_t].append(d)
+        for at in sorted(by_time):
+            batch = by_time[at]
+            self.clock.schedule(at, lambda batch=batch: self._deliver(batch), DELIVERY)
+
+        # Physics.
+        for uid in alive:
+            out = outputs[uid]
+            world.apply(uid, out.a, out.omega, dt)
+        tg.step(dt, self.grid)
+
+        self._tick_index += 1
+        if self._tick_index % self._sample_every == 0 or self._tick_index == self.n_ticks:
+            self.metrics.rows.append(self._sample())
+        log.flush()
+        self.clock.schedule(self._tick_index * dt, self._tick, TICK)
+
+    def _radio_totals(self) -> dict:
+        c = self.radio.counters
+        delivered = sum(a.counters.delivered for a in self.actors.values())
+        rejected = sum(a.counters.rejected for a in self.actors.values())
+        queued = sum(len(a.mailbox) for a in self.actors.values())
+        return {
+            "sent": c.sent,
+            "delivered": delivered,
+            "dropped": c.dropped_total,
+            "rejected": rejected,
+            "bytes_sent": c.bytes_sent,
+            "duplicated": c.duplicated,
+            "dropped_by_cause": dict(sorted(c.dropped.items())),
+            "in_flight": len(self.clock) - 1 + queued,  # minus the next tick; deliveries are batched
+        }
+
+    def _sample(self) -> dict:
+        t = self.now
+        radio = self._radio_totals()
+        row = {
+            "t": t,
+            "coverage": self.metrics.coverage(),
+            "certainty": self.metrics.certainty(t),
+            "targets_found": len(self.metrics.found_t),
+            "alive": len(self.world.alive_ids()),
+            "sent": radio["sent"],
+            "delivered": radio["delivered"],
+            "dropped": radio["dropped"],
+            "rejected": radio["rejected"],
+            "bytes_sent": radio["bytes_sent"],
+        }
+        for uid, b in sorted(self.world.uavs.items()):
+            plan = self._plans.get(uid)
+            row[f"mode_{b.name}"] = ("down" if b.state == CRASHED else "pending" if b.state == PENDING
+                                     else MODE_NAMES[plan.mode] if plan else "search")
+        return row
+
+    # --- driving ----------------------------------------------------------------------------
+
+    def _check_usable(self) -> None:
+        if self._closed:
+            raise SimulationError("this Simulation is closed")
+        if self._failed is not None:
+            raise SimulationError(f"this Simulation failed earlier: {self._failed}")
+
+    async def _advance(self, t_end: float, progress: Callable[[float, float], None] | None = None) -> None:
+        clock = self.clock
+        eps = 1e-9 * self.dt
+        every = max(1, self.n_ticks // 200)
+        try:
+            while clock.peek() < t_end - eps:
+                callback = clock.pop()
+                if callback == self._tick:
+                    await self._tick()
+                    if progress is not None and self._tick_index % every == 0:
+                        progress(self.now, t_end)
+                else:
+                    callback()
+        except BaseException as exc:
+            self._failed = exc
+            raise
+
+    async def run_until(self, t: float, progress: Callable[[float, float], None] | None = None) -> None:
+        """Advance the world to time ``t`` inside the caller's running event loop."""
+        self._check_usable()
+        loop = asyncio.get_running_loop()
+        if self._loop is None:
+            self._loop = loop
+        elif self._loop is not loop:
+            raise SimulationError("this Simulation is bound to another event loop (it was driven with "
+                                  "step()/run() or from another loop); drive it from one loop only")
+        start = time.perf_counter()
+        try:
+            await self._advance(t, progress)
+        finally:
+            self._wall += time.perf_counter() - start
+
+    def _run_sync(self, t: float, progress=None) -> None:
+        self._check_usable()
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:
+            pass
+        else:
+            raise SimulationError("step()/run() are synchronous and cannot run inside a running event loop; "
+                                  "use `await sim.run_until(t)` there")
+        if self._loop is None:
+            self._loop = asyncio.new_event_loop()
+            self._own_loop = True
+        elif not self._own_loop:
+            raise SimulationError("this Simulation is driven by a host event loop; use `await sim.run_until(t)`")
+        start = time.perf_counter()
+        try:
+            self._loop.run_until_complete(self._advance(t, progress))
+        finally:
+            self._wall += time.perf_counter() - start
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` ticks synchronously."""
+        if n < 1:
+            raise UsageError(f"step(n) needs n >= 1, got {n}")
+        self._run_sync((self._tick_index + n) * self.dt)
+
+    def run(self, progress: Callable[[float, float], None] | None = None) -> RunResult:
+        """Run synchronously to the scenario's duration and return the result."""
+        self._run_sync(self.n_ticks * self.dt, progress)
+        return self.result()
+
+    def close(self) -> None:
+        """Cancel the actor tasks and release a private event loop. Safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        tasks = list(self._tasks.values())
+        self._tasks.clear()
+        for task in tasks:
+            task.cancel()
+        if self._own_loop and self._loop is not None:
+            if tasks:
+                self._loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
+            self._loop.close()
+
+    def __enter__(self) -> "Simulation":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # --- results ----------------------------------------------------------------------------
+
+    def metrics_dict(self) -> dict:
+        sc = self.scenario
+        t = self.now
+        m = self.metrics
+        radio = self._radio_totals()
+        per_uav = {}
+        for uid, b in sorted(self.world.uavs.items()):
+            a = self.actors[uid]
+            per_uav[b.name] = {
+                "type": b.kind.name,
+                "state": b.state,
+                "mode_seconds": m.mode_s.get(uid, {"search": 0.0, "surveil": 0.0}),
+                "frames_sent": a.counters.frames_sent,
+                "frames_delivered": a.counters.delivered,
+                "frames_rejected": a.counters.rejected,
+                "mailbox_dropped_full": a.mailbox.stats.dropped_full,
+                "mailbox_max_depth": a.mailbox.stats.max_depth,
+                "plans": a.counters.plans,
+            }
+        surv = m.surveillance_ratio(t)
+        return {
+            "scenario": sc.name,
+            "planner": sc.planner.name,
+            "seed": self.seed,
+            "sim_seconds": t,
+            "wall_seconds": round(self._wall, 3),
+            "coverage": m.coverage(),
+            "certainty": m.certainty(t),
+            "targets_found": len(m.found_t),
+            "targets_total": len(self.targets),
+            "surveillance_ratio_mean": float(np.mean(list(surv.values()))) if surv else 0.0,
+            "surveillance_ratio": {str(k): v for k, v in surv.items()},
+            "handovers": len(m.handovers),
+            "handovers_fast_to_slow": m.fast_to_slow_handovers(self.speed_max_by_type),
+            "handover_list": [
+                {"t": h.t, "target": h.target, "from": self.world.uavs[h.from_uav].name,
+                 "to": self.world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
+                 "latency_s": h.latency_s} for h in m.handovers
+            ],
+            "radio": radio,
+            "violations": dict(self.world.violations),
+            "faults_applied": dict(sorted(self.injector.fired.items())),
+            "per_uav": per_uav,
+            "events": self.log.count + len(self.log._pending),
+            "event_log_sha256": self.log.sha256(),
+        }
+
+    def result(self) -> RunResult:
+        events = self.log.to_bytes()
+        metrics = self.metrics_dict()
+        return RunResult(
+            metrics=metrics,
+            timeseries=list(self.metrics.rows),
+            events=events,
+            paths={self.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in self._paths.items()},
+            target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in self._target_paths.items()},
+            union_last_seen=self.metrics.union.last_seen.copy(),
+            threats=list(self.world.threats),
+            area=(self.grid.width_m, self.grid.height_m),
+            uav_types={b.name: b.kind.name for b in self.world.uavs.values()},
+        )

@@ -1,0 +1,167 @@
+"""Ground truth: where the UAVs, targets and threats really are, and what each sensor sees.
+
+The world moves UAVs only with commands that passed :func:`agents.dynamics.limit_command`, so
+the airframe limits hold on every step; it double-checks each applied command and counts a
+``dynamics`` violation if one ever does not (that would be a simulator bug). Targets follow the
+UAV kinematics driven by a Wiener process on acceleration and turn rate, with speed and
+acceleration limits, and reflect at the area border. Each target draws from its own stream.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from agents.actor import SensedTarget, SensorReading
+from agents.dynamics import command_violates, integrate, limit_command, wrap_angle
+from agents.grid import Grid
+from agents.knowledge import KnownThreat
+from agents.types import UavType
+
+PENDING, ALIVE, CRASHED = "pending", "alive", "crashed"
+
+
+@dataclass(slots=True)
+class UavBody:
+    uid: int
+    name: str
+    kind: UavType
+    x: float
+    y: float
+    v: float
+    theta: float
+    state: str = PENDING
+    join_s: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class TargetMotion:
+    speed_max: float = 20.0
+    accel_max: float = 0.4
+    accel_sigma: float = 0.05
+    turn_sigma: float = 0.01
+    turn_rate_max: float = 0.1
+
+
+class Targets:
+    """Target states as parallel lists (few targets; per-target random streams)."""
+
+    def __init__(self, motion: TargetMotion):
+        self.motion = motion
+        self.x: list[float] = []
+        self.y: list[float] = []
+        self.v: list[float] = []
+        self.theta: list[float] = []
+        self.a: list[float] = []
+        self.omega: list[float] = []
+        self.value: list[float] = []
+        self.rngs: list[np.random.Generator] = []
+        self._xy = np.zeros((0, 2))
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def add(self, x: float, y: float, theta: float, v: float, value: float, rng: np.random.Generator) -> int:
+        self.x.append(x)
+        self.y.append(y)
+        self.v.append(v)
+        self.theta.append(theta)
+        self.a.append(0.0)
+        self.omega.append(0.0)
+        self.value.append(value)
+        self.rngs.append(rng)
+        self._xy = np.column_stack([self.x, self.y]) if self.x else np.zeros((0, 2))
+        return len(self.x) - 1
+
+    @property
+    def xy(self) -> np.ndarray:
+        return self._xy
+
+    def step(self, dt: float, grid: Grid) -> None:
+        m = self.motion
+        sq = math.sqrt(dt)
+        w, h = grid.width_m, grid.height_m
+        for i, rng in enumerate(self.rngs):
+            na, nw = rng.standard_normal(2)
+            a = min(max(self.a[i] + m.accel_sigma * sq * na, -m.accel_max), m.accel_max)
+            om = min(max(self.omega[i] + m.turn_sigma * sq * nw, -m.turn_rate_max), m.turn_rate_max)
+            v = self.v[i]
+            # Keep the speed in [0, speed_max] by limiting the applied acceleration.
+            a = min(max(a, -v / dt), (m.speed_max - v) / dt)
+            x, y, v, th = integrate(self.x[i], self.y[i], v, self.theta[i], a, om, dt)
+            if x < 0.0:
+                x, th = -x, math.pi - th
+            elif x > w:
+                x, th = 2 * w - x, math.pi - th
+            if y < 0.0:
+                y, th = -y, -th
+            elif y > h:
+                y, th = 2 * h - y, -th
+            self.x[i], self.y[i], self.v[i], self.theta[i] = x, y, v, wrap_angle(th)
+            self.a[i], self.omega[i] = a, om
+        if self.rngs:
+            self._xy = np.column_stack([self.x, self.y])
+
+
+class World:
+    def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat]):
+        self.grid = grid
+        self.uavs: dict[int, UavBody] = {}
+        self.targets = targets
+        self.threats = threats
+        self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
+
+    def add_uav(self, body: UavBody) -> None:
+        self.uavs[body.uid] = body
+
+    def alive_ids(self) -> list[int]:
+        return [u for u, b in sorted(self.uavs.items()) if b.state == ALIVE]
+
+    def positions(self, ids: list[int]) -> np.ndarray:
+        if not ids:
+            return np.zeros((0, 2))
+        return np.array([(self.uavs[u].x, self.uavs[u].y) for u in ids], dtype=np.float64)
+
+    # --- sensing ----------------------------------------------------------------------------
+
+    def sense(self, uid: int, t: float) -> SensorReading:
+        b = self.uavs[uid]
+        r = b.kind.detect_radius
+        seen: list[SensedTarget] = []
+        tg = self.targets
+        if len(tg):
+            xy = tg.xy
+            d2 = (xy[:, 0] - b.x) ** 2 + (xy[:, 1] - b.y) ** 2
+            for i in np.flatnonzero(d2 <= r * r).tolist():
+                v, th = tg.v[i], tg.theta[i]
+                seen.append(SensedTarget(i, tg.x[i], tg.y[i], v * math.cos(th), v * math.sin(th), tg.value[i]))
+        threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
+        return SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats)
+
+    # --- motion -----------------------------------------------------------------------------
+
+    def apply(self, uid: int, a: float, omega: float, dt: float) -> None:
+        b = self.uavs[uid]
+        a, omega = limit_command(b.kind, b.v, a, omega, dt)
+        if command_violates(b.kind, b.v, a, omega, dt):
+            self.violations["dynamics"] += 1
+        b.x, b.y, b.v, b.theta = integrate(b.x, b.y, b.v, b.theta, a, omega, dt)
+
+    def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
+        """Count separation and threat-clearance violations now; returns them for the log."""
+        found: list[tuple[str, int, int]] = []
+        if len(ids) >= 2:
+            from scipy.spatial import cKDTree
+
+            pairs = cKDTree(xy).query_pairs(min_sep, output_type="ndarray")
+            for i, j in sorted(map(tuple, pairs.tolist())):
+                found.append(("separation", ids[i], ids[j]))
+        for th in self.threats:
+            d = np.hypot(xy[:, 0] - th.x, xy[:, 1] - th.y) if len(ids) else np.zeros(0)
+            for i in np.flatnonzero(d < th.radius).tolist():
+                found.append(("threat", ids[i], th.threat))
+        for kind, _, _ in found:
+            self.violations[kind] += 1
+        return found
