@@ -184,7 +184,8 @@ class UavActor:
             tx, ty = k.tracks[plan.target].predict(t)
             if math.hypot(tx - r.x, ty - r.y) < radius:
                 speed = self.kind.speed_min  # loiter over the target
-        others = [(p.x, p.y) for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
+        others = [(p.x, p.y, p.v * math.cos(p.theta), p.v * math.sin(p.theta))
+                  for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
         a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, plan.wx, plan.wy, speed,
                                list(k.threats.values()), others, s.apf, s.dt)
         return ActorOutput(a, omega, self._outbox(r, plan), plan, received)
@@ -210,7 +211,9 @@ class UavActor:
                 if tm is ScanRecords:
                     rec = m.records
                     for i in range(0, len(rec), 4):
-                        self.umap.scan(rec[i + 1], rec[i + 2], rec[i + 3], rec[i])
+                        # A scan from the future would pin cells at q=0: only accept the past.
+                        if rec[i] <= t and rec[i + 3] >= 0.0:
+                            self.umap.scan(rec[i + 1], rec[i + 2], rec[i + 3], rec[i])
                 elif tm is Hello:
                     if m.uav != self.uid:
                         p = k.peer(m.uav)

@@ -11,6 +11,11 @@ It turns a waypoint into a command ``(a, omega)``:
 A fixed-wing UAV cannot stop, so a potential field alone can fly it into a threat it sensed too
 late for its turn radius. A guard therefore overrides the field when the UAV is within a turn
 radius (plus margin) of a threat edge and heading towards it: full turn away, minimum speed.
+The same holds between UAVs: at 180 m/s closing speed the eq. 31-32 field acts for only a few
+seconds. So each UAV also predicts the closest point of approach with every UAV it hears
+(constant velocities) and, if they would pass closer than twice the minimum separation within
+``cpa_horizon_s``, turns right at full rate; both turning right resolves head-on and crossing
+conflicts (the rule of the air), deterministically and without negotiation.
 The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_command`).
 """
 
@@ -33,6 +38,7 @@ class ApfSettings:
     uav_dmax_m: float = 1000.0
     min_separation_m: float = 200.0
     threat_margin_m: float = 300.0
+    cpa_horizon_s: float = 15.0
 
 
 def apf_command(
@@ -45,7 +51,7 @@ def apf_command(
     wy: float,
     speed: float,
     threats: list[KnownThreat],
-    others: list[tuple[float, float]],
+    others: list[tuple[float, float, float, float]],
     s: ApfSettings,
     dt: float,
 ) -> tuple[float, float]:
@@ -77,9 +83,20 @@ def apf_command(
             side = math.sin(math.atan2(uy, ux) - theta)
             guard_turn = 1.0 if side >= 0 else -1.0
 
-    for ox, oy in others:
+    vx, vy = v * math.cos(theta), v * math.sin(theta)
+    conflict = False
+    for ox, oy, ovx, ovy in others:
         ex, ey = x - ox, y - oy
         dd = math.hypot(ex, ey)
+        # Closest point of approach under constant velocities.
+        wx_, wy_ = ovx - vx, ovy - vy
+        w2 = wx_ * wx_ + wy_ * wy_
+        if w2 > 1e-9:
+            t_cpa = (ex * wx_ + ey * wy_) / w2  # = -(p . w)/|w|^2 with p = other - me = -e
+            if 0.0 < t_cpa < s.cpa_horizon_s:
+                mx, my = -ex + wx_ * t_cpa, -ey + wy_ * t_cpa
+                if mx * mx + my * my < (2.0 * s.min_separation_m) ** 2:
+                    conflict = True
         if dd < 1e-9 or dd > s.uav_dmax_m:
             continue
         c = s.uav_c
@@ -92,6 +109,8 @@ def apf_command(
     if guard_turn:
         omega = guard_turn * kind.turn_rate_max(v)
         speed = kind.speed_min
+    elif conflict:
+        omega = -kind.turn_rate_max(v)  # turn right
     elif fx == 0.0 and fy == 0.0:
         omega = 0.0
     else:

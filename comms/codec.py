@@ -1,8 +1,10 @@
 """msgpack frames: encode on send, decode and schema-check on receipt.
 
-Wire format (one msgpack array)::
+Wire format: one msgpack array followed by a 4-byte little-endian CRC-32 of it (the link
+layer's frame check sequence: without it a flipped byte inside a float decodes as a valid but
+wrong number, e.g. a scan time of 1e300 that would poison a map forever)::
 
-    [MAGIC, VERSION, sender, seq, t, [[kind, field, ...], ...]]
+    [MAGIC, VERSION, sender, seq, t, [[kind, field, ...], ...]] + crc32
 
 Decoding never trusts the bytes: size cap first, then msgpack with container limits, then a
 strict shape and type check of every field. Anything wrong raises :class:`FrameError`, which the
@@ -12,6 +14,7 @@ receiver counts as a rejected frame and carries on.
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass
 
 import msgpack
@@ -61,10 +64,11 @@ def _pack_message(m: Message) -> list:
 
 
 def encode(sender: int, seq: int, t: float, messages: list[Message] | tuple[Message, ...]) -> bytes:
-    return msgpack.packb(
+    payload = msgpack.packb(
         [MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]],
         use_bin_type=True,
     )
+    return payload + zlib.crc32(payload).to_bytes(4, "little")
 
 
 # --- decoding -----------------------------------------------------------------------------
@@ -143,9 +147,14 @@ def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> Frame:
         raise FrameError("frame is not bytes")
     if len(data) > max_bytes:
         raise FrameError(f"oversized frame: {len(data)} > {max_bytes} bytes")
+    if len(data) < 5:
+        raise FrameError(f"truncated frame: {len(data)} bytes")
+    payload = bytes(data[:-4])
+    if zlib.crc32(payload).to_bytes(4, "little") != bytes(data[-4:]):
+        raise FrameError("checksum mismatch (corrupted or truncated frame)")
     try:
         raw = msgpack.unpackb(
-            data,
+            payload,
             raw=False,
             strict_map_key=True,
             max_str_len=max_bytes,

@@ -563,7 +563,6 @@ class Scenario(_Model):
             spec = self.uav_types.get(uav.type)
             if spec is None:
                 problems.append(_Problem(("uavs", i, "type"), uav.type, f"a UAV type defined in [uav_types]: {types_list}"))
-            assert uav.name is not None
             if uav.name in first_with_name:
                 problems.append(_Problem(("uavs", i, "name"), uav.name,
                                          f"a name not already used by uavs[{first_with_name[uav.name]}] (UAV names are unique)",
@@ -923,10 +922,18 @@ def _issues(err: Any, doc: Any) -> list[_Issue]:
             out.append(_Issue(where.path, found, problem.expected, problem.hint))
         return out
 
+    if loc and loc[-1] == "[key]":  # pydantic's marker for a dict key that failed validation
+        where = _resolve(loc[:-1])
+        return [_Issue(where.path, f"the key {loc[-2]!r}", "a name (keys are strings)")]
     where = _resolve(loc)
     expected = where.field_description or err["msg"]
+    if kind == "missing" and where.path and isinstance(where.path[-1], int):
+        # a tuple (a [sender, receiver] pair) with too few items: show the whole pair
+        return [_Issue(where.path[:-1], _found(_lookup(doc, where.path[:-1], None)), expected)]
     if kind == "missing":
         return [_Issue(where.path, "nothing (the key is missing)", expected)]
+    if kind == "invalid_key":
+        return [_Issue(where.path, f"the key {where.path[-1]!r}", "keys that are strings")]
     if kind == "extra_forbidden":
         unknown = where.path[-1]
         valid = list(where.table.model_fields) if where.table else []

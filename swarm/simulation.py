@@ -152,6 +152,7 @@ class Simulation:
         self.grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
         self.tau = sc.effective_tau
         self.clock = Clock()
+        self._tick_index = 0
         self.log = EventLog()
         self.types = {name: uav_type_from_spec(name, spec) for name, spec in sc.uav_types.items()}
         self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
@@ -203,7 +204,6 @@ class Simulation:
                 continue  # folded into the UAV's join_s by the scenario loader
             self.add_fault(fault)
 
-        self._tick_index = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._own_loop = False
         self._barrier: asyncio.Future | None = None

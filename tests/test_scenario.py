@@ -125,6 +125,14 @@ def test_defaults_match_table1_and_spec():
     assert s.effective_tau == pytest.approx(10.0 / 2000.0)
 
 
+def test_scenario_from_toml_names_from_source_and_keeps_explicit_name():
+    assert scenario_from_toml(MINIMAL, "runs/my-run.toml").name == "my-run"
+    assert scenario_from_toml('name = "x"\n' + MINIMAL, "runs/my-run.toml").name == "x"
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_toml("seed = ", "inline")
+    assert info.value.source == "inline" and info.value.found.startswith("invalid TOML")
+
+
 def test_effective_tau_uses_only_flown_types_and_explicit_tau():
     doc = tomllib.loads(MINIMAL.replace('"B"', '"A"'))
     assert parse_scenario(doc).effective_tau == pytest.approx(10.0 / 1500.0)
@@ -291,12 +299,14 @@ def test_level_weights_length(tmp_path):
 
 
 def test_first_error_in_document_order(tmp_path):
-    # pydantic reports fields in model order (duration_s before radio); the file says radio first.
-    err = error_for(tmp_path, MINIMAL + "[radio]\nloss_base = 2\n[metrics]\nsample_s = -1\n")
+    # pydantic reports errors in model field order (uavs before radio, radio before metrics);
+    # the user gets the first one as written in the file.
+    err = error_for(tmp_path, "[metrics]\nsample_s = -1\n[radio]\nloss_base = 2\n" + MINIMAL)
+    assert err.key == "metrics.sample_s"
+    err = error_for(tmp_path, "[radio]\nloss_base = 2\n" + MINIMAL + "speed = -3\n")
     assert err.key == "radio.loss_base"
-    text = '[radio]\nloss_base = 2\n' + MINIMAL
-    err = error_for(tmp_path, 'dt_s = 0\n' + text)
-    assert err.key == "dt_s"
+    err = error_for(tmp_path, MINIMAL + "speed = -3\n[radio]\nloss_base = 2\n")
+    assert err.key == "uavs[0].speed"
 
 
 def test_invalid_toml(tmp_path):
