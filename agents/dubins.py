@@ -34,14 +34,16 @@ A point with ``y >= 0`` can never be strictly inside the right circle.
   through the point.  With ``q = p - c_R`` (``1 < |q| < 3`` for such points), the second centre is
   ``c_2 = c_R + 2 u`` with ``u`` a unit vector such that ``|p - c_2| = 1``, i.e. (law of cosines)::
 
-      angle(u) = angle(q) +- gamma,   cos(gamma) = (|q|^2 + 3) / (4 |q|)
-      a = (pi/2 - angle(u))            mod 2 pi   (first arc, clockwise)
-      b = (angle(p - c_2) - angle(-u)) mod 2 pi   (second arc, counter-clockwise)
-      L = r (a + b), minimised over the two roots
+      angle(u) = angle(q) - gamma,   cos(gamma) = (|q|^2 + 3) / (4 |q|)
+      a = pi/2 - angle(u)                      (first arc, clockwise, in [0, pi/3])
+      b = (angle(p - c_2) - angle(-u)) mod 2 pi  (second arc, counter-clockwise, in (pi, 2 pi))
+      L = r (a + b)
 
-  (the optimum has ``b > pi``, as in Bui et al.).  The RS path (turn away all the way round, then
-  straight) is also feasible there but never shorter; the tests check this against a brute-force
-  reference over all classic Dubins words and densely sampled final headings.
+  The other root, ``angle(q) + gamma``, gives a first arc in ``[5 pi/3, 2 pi)`` and is always
+  longer; the optimum has ``b > pi``, as in Bui et al.  The RS path (turn away all the way round,
+  then straight) is also feasible there but never shorter.  Both claims are checked by the tests
+  against a brute-force reference over all classic Dubins words and densely sampled final
+  headings.
 
 The length is discontinuous across the front arcs of the two turning circles (just outside: a
 short arc; just inside: a long CC loop); that is a property of the problem, not of the code.
@@ -101,7 +103,8 @@ def dubins_length(
     # --- CS (LS) for every point; overwritten below for points inside the left circle.
     t = np.sqrt(np.maximum(t2, 0.0))
     alpha = np.arctan2(x + t * (y - 1.0), t * x + 1.0 - y)
-    # For x > 0 the true alpha lies in [0, pi]; an angle near -0 or 2 pi there is rounding of 0.
+    # Defensive: for x > 0 the true alpha lies in [0, pi], so a value near 2 pi there can only be a
+    # rounded zero (point straight ahead).
     alpha = np.where(alpha < 0.0, alpha + _TWO_PI, alpha)
     alpha = np.where((x > 0.0) & (alpha > math.pi), 0.0, alpha)
     out = np.array(alpha + t, dtype=np.float64)  # a real (possibly 0-d) array
@@ -110,23 +113,19 @@ def dubins_length(
     if np.any(inside):
         xi = x[inside]
         yi = y[inside]
-        qy = yi + 1.0  # q = p - c_R, c_R = (0, -1)
+        qy = yi + 1.0  # q = p - c_R, c_R = (0, -1); 1 < |q| < 3 here
         dq = np.hypot(xi, qy)
-        cos_g = np.clip((dq * dq + 3.0) / (4.0 * dq), -1.0, 1.0)
-        gamma = np.arccos(cos_g)
-        ang_q = np.arctan2(qy, xi)
-        best = np.full(xi.shape, np.inf)
-        for sign in (1.0, -1.0):  # the two roots (not a loop over points)
-            ang_u = ang_q + sign * gamma
-            a = np.mod(0.5 * math.pi - ang_u, _TWO_PI)
-            ux = np.cos(ang_u)
-            uy = np.sin(ang_u)
-            # c_2 = c_R + 2u ; the switch point is c_R + u, i.e. c_2 - u
-            c2x = 2.0 * ux
-            c2y = -1.0 + 2.0 * uy
-            b = np.mod(np.arctan2(yi - c2y, xi - c2x) - np.arctan2(-uy, -ux), _TWO_PI)
-            best = np.minimum(best, a + b)
-        out[inside] = best
+        gamma = np.arccos(np.clip((dq * dq + 3.0) / (4.0 * dq), -1.0, 1.0))
+        ang_u = np.arctan2(qy, xi) - gamma  # the root with the short first arc
+        # first arc (clockwise): a = pi/2 - angle(u), in [0, pi/3]; wrap to [-pi, pi), clip rounding
+        a = np.maximum(np.mod(0.5 * math.pi - ang_u + math.pi, _TWO_PI) - math.pi, 0.0)
+        ux = np.cos(ang_u)
+        uy = np.sin(ang_u)
+        # second centre c_2 = c_R + 2u; the switch point is c_R + u, seen from c_2 in direction -u
+        b = np.mod(np.arctan2(yi + 1.0 - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
+        # b lies in (pi, 2 pi): a value near 0 is 2 pi lost to rounding (point at the start)
+        b = np.where(b < 0.5 * math.pi, b + _TWO_PI, b)
+        out[inside] = a + b
 
     out *= r
     out[(dx == 0.0) & (dy == 0.0)] = 0.0

@@ -922,7 +922,7 @@ def _issues(err: Any, doc: Any) -> list[_Issue]:
             out.append(_Issue(where.path, found, problem.expected, problem.hint))
         return out
 
-    if loc and loc[-1] == "[key]":  # pydantic's marker for a dict key that failed validation
+    if len(loc) >= 2 and loc[-1] == "[key]" and kind != "extra_forbidden":  # pydantic's marker for a dict key that failed validation
         where = _resolve(loc[:-1])
         return [_Issue(where.path, f"the key {loc[-2]!r}", "a name (keys are strings)")]
     where = _resolve(loc)
