@@ -153,6 +153,7 @@ class Simulation:
         self.tau = sc.effective_tau
         self.clock = Clock()
         self._tick_index = 0
+        self._in_flight = 0
         self.log = EventLog()
         self.types = {name: uav_type_from_spec(name, spec) for name, spec in sc.uav_types.items()}
         self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
@@ -371,12 +372,15 @@ class Simulation:
         task = self._tasks.pop(uid, None)
         if task is not None:
             task.cancel()
-        self.actors[uid].mailbox.drain()
+        for _arrival, sender, data in self.actors[uid].mailbox.drain():
+            self.radio.counters.drop("receiver_down")
+            self.log.emit("lost", self.clock.now, sender, uid, len(data), "receiver_down")
         self._plans.pop(uid, None)
         self.log.emit("crash", self.clock.now, uid, b.name)
 
     def _deliver(self, batch: list[Delivery]) -> None:
         uavs = self.world.uavs
+        self._in_flight -= len(batch)
         for d in batch:
             if uavs[d.receiver].state != ALIVE:
                 self.radio.counters.drop("receiver_down")
@@ -470,6 +474,7 @@ class Simulation:
             by_time[d.arrival_t].append(d)
         for at in sorted(by_time):
             batch = by_time[at]
+            self._in_flight += len(batch)
             self.clock.schedule(at, lambda batch=batch: self._deliver(batch), DELIVERY)
 
         # Physics.
@@ -497,7 +502,7 @@ class Simulation:
             "bytes_sent": c.bytes_sent,
             "duplicated": c.duplicated,
             "dropped_by_cause": dict(sorted(c.dropped.items())),
-            "in_flight": len(self.clock) - 1 + queued,  # minus the next tick; deliveries are batched
+            "in_flight": self._in_flight + queued,  # scheduled on the clock or unread in a mailbox
         }
 
     def _sample(self) -> dict:

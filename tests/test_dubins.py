@@ -184,7 +184,7 @@ def test_point_directly_behind(d):
     # pi + 2 atan(r/dd), and the tangent has length dd.
     closed = dd + r * (math.pi + 2.0 * math.atan(r / dd))
     assert got == pytest.approx(closed, rel=1e-12)
-    assert got == pytest.approx(reference_length(0.0, 0.0, 0.0, -dd, 0.0, r), rel=1e-6)
+    assert got == pytest.approx(reference_length(0.0, 0.0, 0.0, -dd, 0.0, r), rel=1e-9)
 
 
 def test_point_at_centre_of_turning_circle_is_cc():
@@ -192,7 +192,7 @@ def test_point_at_centre_of_turning_circle_is_cc():
     r = 1.0
     got = _one(0.0, 0.0, 0.0, 0.0, r, r)
     ref = reference_length(0.0, 0.0, 0.0, 0.0, r, r)
-    assert got == pytest.approx(ref, rel=1e-6)
+    assert got == pytest.approx(ref, rel=1e-9)
     assert got > math.pi * r
 
 
@@ -255,7 +255,7 @@ def test_matches_reference_on_random_points():
     got = dubins_length(x0, y0, h0, px, py, r)
     for g, (a, b) in zip(got, pts):
         ref = reference_length(x0, y0, h0, a, b, r)
-        assert g == pytest.approx(ref, rel=1e-6, abs=1e-9), (a, b)
+        assert g == pytest.approx(ref, rel=1e-9, abs=1e-12), (a, b)
         for side in (1, -1):
             cx, cy = _centre(x0, y0, h0, side, r)
             n_inside += math.hypot(a - cx, b - cy) < r
@@ -273,7 +273,7 @@ def test_hypothesis_matches_reference(px, py, h0, r):
     assume(not _near_circle(0.0, 0.0, h0, px, py, r, 1e-3))
     assume(math.hypot(px, py) > 1e-6)
     got = _one(0.0, 0.0, h0, px, py, r)
-    assert got == pytest.approx(reference_length(0.0, 0.0, h0, px, py, r), rel=1e-6, abs=1e-9)
+    assert got == pytest.approx(reference_length(0.0, 0.0, h0, px, py, r), rel=1e-9, abs=1e-12)
 
 
 # ---------------------------------------------------------------------------------------------
