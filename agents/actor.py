@@ -180,19 +180,22 @@ class UavActor:
         plan = self.plan
 
         speed = self.kind.speed_max
+        goal_x, goal_y = plan.wx, plan.wy
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
-            tx, ty = k.tracks[plan.target].predict(t)
-            if math.hypot(tx - r.x, ty - r.y) < radius:
-                speed = self.kind.speed_min  # loiter over the target
+            # Watching: fly at the target's latest position, slowly once over it (loiter).
+            goal_x, goal_y = k.tracks[plan.target].predict(t)
+            if math.hypot(goal_x - r.x, goal_y - r.y) < radius:
+                speed = self.kind.speed_min
         others = [(p.x, p.y, p.v * math.cos(p.theta), p.v * math.sin(p.theta))
                   for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
-        a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, plan.wx, plan.wy, speed,
+        a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
                                list(k.threats.values()), others, s.apf, s.dt)
         return ActorOutput(a, omega, self._outbox(r, plan), plan, received)
 
     def _reached(self, r: SensorReading) -> bool:
         p = self.plan
-        return p is not None and math.hypot(p.wx - r.x, p.wy - r.y) < 1.5 * r.v * self.settings.dt
+        # A watcher circles its target: reaching that waypoint is not a reason to replan.
+        return p is not None and p.mode != MODE_SURVEIL and math.hypot(p.wx - r.x, p.wy - r.y) < 1.5 * r.v * self.settings.dt
 
     def _drain_inbox(self, t: float) -> list[tuple[int, int, bool]]:
         received = []

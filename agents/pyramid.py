@@ -124,9 +124,15 @@ def sample_levels(pyramid: list[np.ndarray], ix0: np.ndarray, iy0: np.ndarray) -
     ix, iy = np.broadcast_arrays(ix, iy)
     dtype = np.result_type(*pyramid) if pyramid else np.float64
     out = np.empty((len(pyramid), ix.shape[0]), dtype=dtype)
+    # Negative indices clip to 0 once (x >> l of a non-negative x stays non-negative); the upper
+    # clip is per level.
+    ix = np.maximum(ix, 0)
+    iy = np.maximum(iy, 0)
     for l, g in enumerate(pyramid):  # loop over levels (~7), not points
         h, w = g.shape
-        r = np.clip(iy >> l, 0, h - 1)
-        c = np.clip(ix >> l, 0, w - 1)
-        out[l] = g[r, c]
+        r = np.minimum(iy >> l, h - 1)
+        c = np.minimum(ix >> l, w - 1)
+        r *= w
+        r += c
+        out[l] = np.take(g, r)  # flat (row-major) index r * w + c, any memory layout
     return out

@@ -448,6 +448,11 @@ class DacmpSettings(_Model):
     ring_sd_factor: Num = _num(0.5, ge=0, note="times the detection radius")
     heading_sd_rad: Num = _num(math.pi / 2, ge=0)
     eta: Num = _num(0.5, ge=0, le=1)
+    # The target terms (eq. 22-23) measure distance and speed in this unit (km, km/s): with
+    # Table 1's weights that is what makes them outweigh the search term (at most 1) inside D.
+    field_unit_m: Num = _num(1000.0, gt=0, note="metres per distance unit of eq. 22-23")
+    # Particles closer than this to a known threat's edge are infeasible (on top of the circle).
+    threat_margin_m: Num = _num(300.0, ge=0)
     # None = equal weights summing to 1; the length is checked against map.levels by Scenario.
     level_weights: list[Annotated[float, Strict(), Field(ge=0)]] | None = Field(
         None, description="an array of numbers >= 0, one per map level, with a positive sum, or leave it out"

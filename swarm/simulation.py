@@ -242,7 +242,8 @@ class Simulation:
                        PENDING, spec.join_s or 0.0)
         self.world.add_uav(body)
         self.names[name] = uid
-        planner = make_planner(self.scenario.planner)
+        planner = make_planner(self.scenario.planner, levels=self.scenario.map.levels,
+                               speed_max_by_type=self.speed_max_by_type)
         self.actors[uid] = UavActor(
             uid, name, kind, self.grid, self.tau, planner, self.rng.generator("uav", name),
             self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity),

@@ -4,6 +4,11 @@ The slow reference below is written independently of the implementation: classic
 (all six words LSL, RSR, LSR, RSL, LRL, RLR, built geometrically from the turning circles), every
 candidate *checked by simulating it* (it must end at the requested pose, else it is discarded),
 minimised over a dense grid of final headings and then refined with a bounded scalar minimiser.
+Tolerance: relative 1e-9.  The refinement reaches the optimal heading to ~1e-11 rad and the length
+is (at worst) Lipschitz in the final heading near the optimum, so the reference is accurate far
+beyond that; over 600 random points the observed worst disagreement was ~3e-15.  Points within
+1e-3 r of a turning circle are skipped: the relaxed length is discontinuous there and the two
+computations may legitimately land on different sides.
 """
 
 from __future__ import annotations

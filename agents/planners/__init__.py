@@ -8,7 +8,7 @@ from agents.planners.greedy import GreedyPlanner
 PLANNER_NAMES = ("greedy", "dacmp")
 
 
-def make_planner(settings) -> Planner:
+def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, float] | None = None) -> Planner:
     """Build the planner named by a scenario's ``[planner]`` table (one instance per UAV)."""
     name = settings.name
     if name == "greedy":
@@ -16,7 +16,7 @@ def make_planner(settings) -> Planner:
     if name == "dacmp":
         from agents.planners.dacmp import DacmpPlanner
 
-        return DacmpPlanner.from_settings(settings)
+        return DacmpPlanner.from_settings(settings, levels, speed_max_by_type)
     raise ValueError(f"unknown planner {name!r}; expected one of {', '.join(PLANNER_NAMES)}")
 
 
