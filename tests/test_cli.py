@@ -1,0 +1,66 @@
+"""The `swarm` command: outputs of a run, and readable errors with exit status 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from swarm.cli import main
+
+
+def _swarm(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "swarm", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def test_run_writes_every_output(tmp_path, small_scenario_path):
+    out = tmp_path / "run"
+    assert main(["run", str(small_scenario_path), "--duration", "60", "--out", str(out), "--quiet"]) == 0
+    for name in ("metrics.json", "timeseries.csv", "events.msgpack", "trajectories.png", "scenario.json"):
+        assert (out / name).stat().st_size > 0, name
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["sim_seconds"] == 60.0 and m["scenario"] == "faults-small"
+    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+    assert {"t", "coverage", "certainty", "targets_found", "sent", "mode_B1", "mode_A2"} <= set(header)
+    assert (out / "trajectories.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_damaged_scenario_gives_one_line_exit_2_no_traceback(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[area]\nwidth_m = "wide"\n')
+    r = _swarm("validate", str(bad))
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert str(bad) in lines[0] and "area.width_m" in lines[0] and "'wide'" in lines[0]
+
+
+def test_unknown_key_suggests_the_closest(tmp_path):
+    bad = tmp_path / "typo.toml"
+    bad.write_text('[[uavs]]\ntype = "B"\nx_m = 0.0\ny_m = 0.0\nheding_deg = 90.0\n')
+    r = _swarm("run", str(bad))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "uavs[0].heding_deg" in r.stderr and "heading_deg" in r.stderr
+
+
+def test_broken_toml_and_missing_file(tmp_path):
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[area\nwidth_m = 1\n")
+    r = _swarm("validate", str(broken))
+    assert r.returncode == 2 and "invalid TOML" in r.stderr and "Traceback" not in r.stderr
+    r = _swarm("run", "no-such-scenario")
+    assert r.returncode == 2 and "paper-fig11" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_bad_override_names_the_key(small_scenario_path):
+    r = _swarm("run", str(small_scenario_path), "--set", "radio.loss_base=1.5", "--quiet")
+    assert r.returncode == 2 and "radio.loss_base" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("name", ["paper-fig11", "paper-case1", "paper-case2", "paper-case3"])
+def test_builtins_validate(name, capsys):
+    assert main(["validate", name]) == 0
+    assert capsys.readouterr().out.startswith(f"ok: {name}")
