@@ -100,6 +100,15 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_bench(args) -> int:
+    from swarm.bench import CASES, main as bench_main
+
+    unknown = [c for c in args.case if c not in {k.name for k in CASES}]
+    if unknown:
+        raise SwarmError(f"unknown bench case(s) {unknown}; known: {', '.join(k.name for k in CASES)}")
+    return bench_main(quick=args.quick, only=args.case or None)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
     sub = p.add_subparsers(dest="command", required=True)
@@ -119,6 +128,11 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+")
     v.set_defaults(func=_cmd_validate)
+
+    b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
+    b.add_argument("--quick", action="store_true", help="only the quick cases")
+    b.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
+    b.set_defaults(func=_cmd_bench)
 
     ls = sub.add_parser("list", help="list the built-in scenarios")
     ls.set_defaults(func=_cmd_list)
