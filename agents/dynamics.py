@@ -16,7 +16,8 @@ TWO_PI = 2.0 * math.pi
 
 def wrap_angle(a: float) -> float:
     """Angle in [-pi, pi)."""
-    return (a + math.pi) % TWO_PI - math.pi
+    w = (a + math.pi) % TWO_PI - math.pi
+    return w - TWO_PI if w >= math.pi else w  # the modulo can round up to exactly 2 pi
 
 
 def limit_command(kind: UavType, v: float, a: float, omega: float, dt: float) -> tuple[float, float]:
@@ -26,6 +27,11 @@ def limit_command(kind: UavType, v: float, a: float, omega: float, dt: float) ->
     the turn rate uses the larger of the speeds before and after the step, so the turn radius
     constraint holds throughout the step.
     """
+    # A non-finite request (a planner bug) must not reach the airframe: hold speed and heading.
+    if not math.isfinite(a):
+        a = 0.0
+    if not math.isfinite(omega):
+        omega = 0.0
     lo = max(-kind.accel_max, (kind.speed_min - v) / dt)
     hi = min(kind.accel_max, (kind.speed_max - v) / dt)
     if lo <= hi:
@@ -50,6 +56,8 @@ def integrate(x: float, y: float, v: float, theta: float, a: float, omega: float
 
 def command_violates(kind: UavType, v: float, a: float, omega: float, dt: float, tol: float = 1e-9) -> bool:
     """True if a command that was applied breaks a hard limit (the world counts these)."""
+    if not (math.isfinite(a) and math.isfinite(omega)):
+        return True
     v_next = v + a * dt
     if abs(a) > kind.accel_max * (1 + tol) + tol:
         return True

@@ -52,13 +52,17 @@ class Grid:
         """
         c = self.cell_m
         # Centres are at (i + 0.5) * c; first/last index whose centre may lie inside.
-        ix0 = max(int(np.ceil((x - radius) / c - 0.5)), 0)
-        ix1 = min(int(np.floor((x + radius) / c - 0.5)), self.nx - 1)
-        iy0 = max(int(np.ceil((y - radius) / c - 0.5)), 0)
-        iy1 = min(int(np.floor((y + radius) / c - 0.5)), self.ny - 1)
+        # One spare cell each side: the box only has to contain the disk, the mask decides (a
+        # rounded box edge could otherwise drop a centre lying exactly on the circle).
+        ix0 = max(int(np.ceil((x - radius) / c - 0.5)) - 1, 0)
+        ix1 = min(int(np.floor((x + radius) / c - 0.5)) + 1, self.nx - 1)
+        iy0 = max(int(np.ceil((y - radius) / c - 0.5)) - 1, 0)
+        iy1 = min(int(np.floor((y + radius) / c - 0.5)) + 1, self.ny - 1)
         if ix1 < ix0 or iy1 < iy0:
             return None
         dx = (np.arange(ix0, ix1 + 1) + 0.5) * c - x
         dy = (np.arange(iy0, iy1 + 1) + 0.5) * c - y
         mask = (dy[:, None] ** 2 + dx[None, :] ** 2) <= radius * radius
+        if not mask.any():
+            return None
         return slice(iy0, iy1 + 1), slice(ix0, ix1 + 1), mask

@@ -6,26 +6,29 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from swarm import Simulation
 
 SNIPPET = (
     "from swarm import Simulation\n"
-    "sim = Simulation('paper-fig11', seed={seed}, planner='greedy', duration_s=120.0)\n"
+    "sim = Simulation('paper-fig11', seed={seed}, planner='{planner}', duration_s=120.0)\n"
     "print(sim.run().metrics['event_log_sha256'])\n"
     "sim.close()\n"
 )
 
 
-def _hash_in_subprocess(seed: int, hashseed: str) -> str:
+def _hash_in_subprocess(seed: int, hashseed: str, planner: str = "greedy") -> str:
     env = {**os.environ, "PYTHONHASHSEED": hashseed}
-    out = subprocess.run([sys.executable, "-c", SNIPPET.format(seed=seed)], env=env,
+    out = subprocess.run([sys.executable, "-c", SNIPPET.format(seed=seed, planner=planner)], env=env,
                          capture_output=True, text=True, check=True)
     return out.stdout.strip()
 
 
-def test_same_seed_same_hash_across_processes_and_hash_seeds():
-    a = _hash_in_subprocess(1, "0")
-    b = _hash_in_subprocess(1, "4242")
+@pytest.mark.parametrize("planner", ["greedy", "dacmp"])
+def test_same_seed_same_hash_across_processes_and_hash_seeds(planner):
+    a = _hash_in_subprocess(1, "0", planner)
+    b = _hash_in_subprocess(1, "4242", planner)
     assert len(a) == 64
     assert a == b
 
