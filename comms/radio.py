@@ -153,7 +153,7 @@ class Radio:
         if self.model.bandwidth_bytes_per_s is not None:
             if self._tokens.get(src, 0.0) < size:
                 c.drop("bandwidth", len(nbrs))
-                if on_lost:
+                if on_lost is not None:
                     for dst in nbrs:
                         on_lost(src, dst, size, "bandwidth")
                 return
@@ -167,7 +167,7 @@ class Radio:
                 copies, cause = self.filter.filter(t, src, dst, data, rng)
                 if not copies:
                     c.drop(cause or "fault")
-                    if on_lost:
+                    if on_lost is not None:
                         on_lost(src, dst, size, cause or "fault")
                     continue
                 c.duplicated += len(copies) - 1
@@ -175,7 +175,7 @@ class Radio:
             for extra, payload in copies:
                 if p > 0.0 and rng.random() < p:
                     c.drop("loss")
-                    if on_lost:
+                    if on_lost is not None:
                         on_lost(src, dst, size, "loss")
                     continue
                 delay = model.latency_s + extra

@@ -30,6 +30,9 @@ from faults.schedule import (
 )
 
 
+_ORDER = {"drop": 0, "burst": 1, "corrupt": 2, "duplicate": 3, "delay": 4}
+
+
 class _Scope:
     """Which directed links a link fault applies to, in UAV ids."""
 
@@ -84,7 +87,10 @@ class FaultInjector:
 
     def begin_tick(self, t: float) -> None:
         """Select the faults active at ``t`` (windows are half-open: ``[start, end)``)."""
-        self._active = [(f, s) for f, s in self._link if f.active(t)]
+        # Fixed order whatever the schedule's order: a copy that is dropped is never counted as
+        # corrupted, duplicated or delayed.
+        active = [(f, s) for f, s in self._link if f.active(t)]
+        self._active = sorted(active, key=lambda fs: _ORDER[fs[0].kind])
         self._active_partitions = [(p, g) for p, g in self._partitions if p.active(t)]
 
     def blocked(self, src: int, dst: int) -> bool:
@@ -128,8 +134,8 @@ class FaultInjector:
             elif type(f) is Corrupt:
                 if rng.random() < f.rate and data:
                     buf = bytearray(data)
-                    pos = rng.integers(0, len(buf), size=f.bytes)
-                    flips = rng.integers(1, 256, size=f.bytes)
+                    pos = rng.choice(len(buf), size=min(f.bytes, len(buf)), replace=False)
+                    flips = rng.integers(1, 256, size=len(pos))  # never 0: each byte really changes
                     for p, x in zip(pos.tolist(), flips.tolist()):
                         buf[p] ^= x
                     data = bytes(buf)

@@ -172,7 +172,7 @@ def test_command_within_limits_is_unchanged(k, dt, data):
 def test_limit_command_concrete_values():
     k = UavType("A", 20.0, 40.0, 2.0, math.radians(30.0), 500.0, 1.0, 1.0, 1000.0)
     # huge acceleration is clipped to accel_max, huge turn to the rate at the faster speed
-    a, w = limit_command(k, 30.0, 1e300, math.inf, 0.5)
+    a, w = limit_command(k, 30.0, 1e300, 1e300, 0.5)
     assert a == 2.0
     assert w == pytest.approx(GRAVITY * math.tan(math.radians(30.0)) / 31.0)
     # near speed_max the acceleration is clipped so v_next == speed_max
@@ -201,19 +201,21 @@ def test_command_violates_detects_each_limit():
     assert command_violates(k, 30.0, 2.0, w, 0.5)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "agents/dynamics.py limit_command (line 22) lets NaN through: min(max(nan, lo), hi) is nan, "
-        "so limit_command(kind, 30.0, nan, nan, 0.5) returns (nan, nan), and command_violates "
-        "(line 51) returns False for it because every comparison with NaN is False; integrate then "
-        "yields NaN positions"
-    ),
-)
-def test_limit_command_sanitises_nan():
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_commands_are_sanitised_and_flagged(bad):
+    """Regression: NaN used to pass through limit_command and was not flagged as a violation."""
     k = UavType("A", 20.0, 40.0, 2.0, math.radians(30.0), 500.0, 1.0, 1.0, 1000.0)
-    a, w = limit_command(k, 30.0, math.nan, math.nan, 0.5)
-    assert math.isfinite(a) and math.isfinite(w)
+    for a_in, w_in in ((bad, 0.1), (0.5, bad), (bad, bad)):
+        a, w = limit_command(k, 30.0, a_in, w_in, 0.5)
+        assert math.isfinite(a) and math.isfinite(w)
+        assert not command_violates(k, 30.0, a, w, 0.5)
+        x, y, v, th = integrate(0.0, 0.0, 30.0, 0.0, a, w, 0.5)
+        assert all(math.isfinite(z) for z in (x, y, v, th))
+    # the world's check flags a non-finite command that bypassed the limiter
+    assert command_violates(k, 30.0, bad, 0.0, 0.5)
+    assert command_violates(k, 30.0, 0.0, bad, 0.5)
+    # a non-finite request means "hold": no acceleration, no turn
+    assert limit_command(k, 30.0, bad, bad, 0.5) == (0.0, 0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -322,14 +324,16 @@ def test_wrap_angle_concrete_values():
     assert wrap_angle(7.0) == pytest.approx(7.0 - 2 * math.pi)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "agents/dynamics.py wrap_angle (line 19) documents the range [-pi, pi) but returns +pi for "
-        "a = math.nextafter(-math.pi, -math.inf): a + pi = -4.4e-16 and -4.4e-16 % (2 pi) rounds "
-        "to exactly 2 pi"
-    ),
-)
-def test_wrap_angle_is_half_open():
-    a = math.nextafter(-math.pi, -math.inf)
-    assert wrap_angle(a) < math.pi
+@pytest.mark.parametrize("k", [0, 1, -1, 5, -5])
+def test_wrap_angle_is_half_open(k):
+    """Regression: a just below -pi (mod 2 pi) used to give +pi, outside [-pi, pi)."""
+    for a in (math.nextafter(-math.pi, -math.inf) + k * 2 * math.pi, math.pi + k * 2 * math.pi):
+        w = wrap_angle(a)
+        assert -math.pi <= w < math.pi
+        assert math.isclose(math.cos(w), math.cos(a), abs_tol=1e-12)
+
+
+@settings(deadline=None, max_examples=300)
+@given(st.floats(-1e6, 1e6))
+def test_wrap_angle_never_returns_pi(a):
+    assert -math.pi <= wrap_angle(a) < math.pi

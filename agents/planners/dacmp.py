@@ -88,9 +88,14 @@ class DacmpPlanner:
         return w / w.sum()
 
     @staticmethod
-    def guide_point(pyramid: list[np.ndarray], cell_m: float, ix: int, iy: int,
-                    width: float, height: float) -> tuple[float, float] | None:
-        """Centre of the most uncertain region adjacent to the UAV's, on the coarsest level >= 4x4."""
+    def guide_point(pyramid: list[np.ndarray], cell_m: float, x: float, y: float, theta: float,
+                    width: float, height: float, tie_tol: float = 0.02) -> tuple[float, float] | None:
+        """Centre of the most uncertain region adjacent to the UAV's, on the coarsest level >= 4x4.
+
+        Regions within ``tie_tol`` (2%) of the best count as tied (early on, everything unseen is ~1);
+        among them the one closest to the UAV's heading wins. A fixed scan order would send every
+        UAV the same way (south-west) whenever the map is uniform.
+        """
         level = None
         for lv in range(len(pyramid) - 1, -1, -1):
             if min(pyramid[lv].shape) >= 4:
@@ -99,20 +104,22 @@ class DacmpPlanner:
         if level is None:
             return None
         g = pyramid[level]
-        ry, rx = iy >> level, ix >> level
-        ry, rx = min(ry, g.shape[0] - 1), min(rx, g.shape[1] - 1)
-        best, best_v = None, -np.inf
-        for dy in (-1, 0, 1):  # fixed scan order: ties go to the first region met
-            for dx in (-1, 0, 1):
-                if dx == 0 and dy == 0:
-                    continue
-                y, x = ry + dy, rx + dx
-                if 0 <= y < g.shape[0] and 0 <= x < g.shape[1] and g[y, x] > best_v:
-                    best, best_v = (x, y), g[y, x]
-        if best is None:
-            return None
         size = cell_m * (1 << level)
-        return min((best[0] + 0.5) * size, width), min((best[1] + 0.5) * size, height)
+        ry = min(int(y // size), g.shape[0] - 1)
+        rx = min(int(x // size), g.shape[1] - 1)
+        cands = []
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                yy, xx = ry + dy, rx + dx
+                if (dx or dy) and 0 <= yy < g.shape[0] and 0 <= xx < g.shape[1]:
+                    cx, cy = min((xx + 0.5) * size, width), min((yy + 0.5) * size, height)
+                    turn = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
+                    cands.append((float(g[yy, xx]), turn, cx, cy))
+        if not cands:
+            return None
+        best = max(c[0] for c in cands)
+        _, _, cx, cy = min((c for c in cands if c[0] >= best - tie_tol), key=lambda c: c[1])
+        return cx, cy
 
     def plan(self, view: PlanView) -> Plan:
         k = view.kind
@@ -123,8 +130,7 @@ class DacmpPlanner:
         q = view.umap.uncertainty(t)
         pyr = gaussian_pyramid(q, self.levels)
         lam = self._weights(len(pyr))
-        ix0, iy0 = g.cell_of(view.x, view.y)
-        guide = self.guide_point(pyr, g.cell_m, ix0, iy0, g.width_m, g.height_m)
+        guide = self.guide_point(pyr, g.cell_m, view.x, view.y, view.theta, g.width_m, g.height_m)
         r_min = k.r_min(view.v)
         unit = self.field_unit_m
         floor = g.cell_m / unit
