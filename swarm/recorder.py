@@ -36,6 +36,11 @@ class EventLog:
                 if kinds is None or kind in kinds:
                     cb(event)
 
+    @property
+    def total(self) -> int:
+        """Events emitted so far, packed or not."""
+        return self.count + len(self._pending)
+
     def flush(self) -> None:
         """Pack pending events (called once per tick and at the end)."""
         if not self._pending:

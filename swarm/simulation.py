@@ -42,7 +42,6 @@ from agents.planners import make_planner
 from agents.planners.base import Plan
 from agents.types import UavType
 from comms.mailbox import Mailbox
-from comms.messages import MODE_SURVEIL
 from comms.radio import Delivery, LinkModel, Radio
 from faults.injector import FaultInjector
 from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict
@@ -271,8 +270,7 @@ class Simulation:
         uavs = []
         for uid, b in sorted(self.world.uavs.items()):
             plan = self._plans.get(uid)
-            mode = "down" if b.state == CRASHED else ("pending" if b.state == PENDING else
-                                                      MODE_NAMES[plan.mode] if plan else "search")
+            mode = self._mode_name(uid)
             uavs.append(UavSnapshot(uid, b.name, b.kind.name, b.state, b.x, b.y, b.v, b.theta, mode,
                                     plan.target if plan else -1, (plan.wx, plan.wy) if plan else None))
         tg = self.targets
@@ -490,6 +488,16 @@ class Simulation:
         log.flush()
         self.clock.schedule(self._tick_index * dt, self._tick, TICK)
 
+    def _mode_name(self, uid: int) -> str:
+        """search / surveil for a flying UAV, else down / pending."""
+        b = self.world.uavs[uid]
+        if b.state == CRASHED:
+            return "down"
+        if b.state == PENDING:
+            return "pending"
+        plan = self._plans.get(uid)
+        return MODE_NAMES[plan.mode] if plan else "search"
+
     def _radio_totals(self) -> dict:
         c = self.radio.counters
         delivered = sum(a.counters.delivered for a in self.actors.values())
@@ -522,9 +530,7 @@ class Simulation:
             "bytes_sent": radio["bytes_sent"],
         }
         for uid, b in sorted(self.world.uavs.items()):
-            plan = self._plans.get(uid)
-            row[f"mode_{b.name}"] = ("down" if b.state == CRASHED else "pending" if b.state == PENDING
-                                     else MODE_NAMES[plan.mode] if plan else "search")
+            row[f"mode_{b.name}"] = self._mode_name(uid)
         return row
 
     # --- driving ----------------------------------------------------------------------------
@@ -663,7 +669,7 @@ class Simulation:
             "violations": dict(self.world.violations),
             "faults_applied": dict(sorted(self.injector.fired.items())),
             "per_uav": per_uav,
-            "events": self.log.count + len(self.log._pending),
+            "events": self.log.total,
             "event_log_sha256": self.log.sha256(),
         }
 

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from agents.actor import SensedTarget, SensorReading
 from agents.dynamics import command_violates, integrate, limit_command, wrap_angle
@@ -153,8 +154,6 @@ class World:
         """Count separation and threat-clearance violations now; returns them for the log."""
         found: list[tuple[str, int, int]] = []
         if len(ids) >= 2:
-            from scipy.spatial import cKDTree
-
             pairs = cKDTree(xy).query_pairs(min_sep, output_type="ndarray")
             for i, j in sorted(map(tuple, pairs.tolist())):
                 found.append(("separation", ids[i], ids[j]))

@@ -152,8 +152,7 @@ class DacmpPlanner:
         D = k.influence_radius
 
         def fitness(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            ix = np.clip((px // g.cell_m).astype(np.int64), 0, g.nx - 1)
-            iy = np.clip((py // g.cell_m).astype(np.int64), 0, g.ny - 1)
+            ix, iy = g.cells_of(px, py)
             p_sum = np.zeros(px.shape)
             for lv, G in enumerate(pyr):
                 p_sum += lam[lv] * G[np.minimum(iy >> lv, G.shape[0] - 1), np.minimum(ix >> lv, G.shape[1] - 1)]
