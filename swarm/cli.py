@@ -109,6 +109,37 @@ def _cmd_bench(args) -> int:
     return bench_main(quick=args.quick, only=args.case or None)
 
 
+def _cmd_animate(args) -> int:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from swarm.animate import prepare_animation
+
+    job = prepare_animation(args.rundir, args.out, fps=args.fps, speed=args.speed, trail_s=args.trail)
+    err = _console(stderr=True)
+    with Progress(
+        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
+        TimeElapsedColumn(), TimeRemainingColumn(), console=err, transient=True, disable=args.quiet,
+    ) as progress:
+        task = progress.add_task(f"rendering {job.out_path.name}", total=job.n_frames)
+
+        def on_frame(done: int, total: int) -> None:
+            progress.update(task, completed=done)
+
+        path = job.render(progress=on_frame)
+    if not args.quiet:
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from swarm.report import write_report
+
+    path = write_report(args.rundir, args.out, animation=args.animation)
+    if not args.quiet:
+        print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
     sub = p.add_subparsers(dest="command", required=True)
@@ -136,6 +167,25 @@ def build_parser() -> argparse.ArgumentParser:
 
     ls = sub.add_parser("list", help="list the built-in scenarios")
     ls.set_defaults(func=_cmd_list)
+
+    an = sub.add_parser("animate", help="render a run folder's animation (MP4 with ffmpeg, else GIF)")
+    an.add_argument("rundir", help="a run folder written by `swarm run --out DIR`")
+    an.add_argument("--out", default=None, metavar="FILE",
+                    help=".mp4 or .gif (default: RUNDIR/animation.mp4 if ffmpeg is installed, else RUNDIR/animation.gif)")
+    an.add_argument("--fps", type=float, default=10.0, help="frames per second of video (default 10)")
+    an.add_argument("--speed", type=float, default=60.0,
+                    help="simulated seconds per second of video (default 60: a 2000 s run gives a 33 s clip)")
+    an.add_argument("--trail", type=float, default=300.0, metavar="SECONDS", help="trail length (default 300 s)")
+    an.add_argument("--quiet", action="store_true", help="no progress bar")
+    an.set_defaults(func=_cmd_animate)
+
+    rep = sub.add_parser("report", help="write a self-contained HTML report of a run folder")
+    rep.add_argument("rundir", help="a run folder written by `swarm run --out DIR`")
+    rep.add_argument("--out", default=None, metavar="FILE", help="HTML file (default: RUNDIR/report.html)")
+    rep.add_argument("--animation", default=None, metavar="FILE",
+                     help="animation to embed (default: RUNDIR/animation.mp4 or .gif if present)")
+    rep.add_argument("--quiet", action="store_true", help="do not print the path written")
+    rep.set_defaults(func=_cmd_report)
     return p
 
 
