@@ -1,13 +1,95 @@
 from __future__ import annotations
 
+import os
+from collections import Counter
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+from faults.strategies import ALL_KINDS
 
 DATA = Path(__file__).parent / "data"
+
+# --- Hypothesis profiles ----------------------------------------------------------------------
+# ci (default): the same examples on every run (derandomize), a fixed number of them, no
+#   per-example deadline (a simulation run is not a microbenchmark). Tests that run
+#   simulations scale their example counts with the profile's max_examples (n * max_examples
+#   // 100), so `deep` multiplies them by 10.
+# deep: 10x the examples, random (new examples each run, failures kept in the database).
+#   HYPOTHESIS_PROFILE=deep .venv/bin/python -m pytest tests/test_strategies.py tests/test_invariants.py
+settings.register_profile(
+    "ci", derandomize=True, max_examples=100, deadline=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "deep", max_examples=1000, deadline=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 @pytest.fixture
 def small_scenario_path() -> Path:
     """4 UAVs, 300 s, with a partition, a crash, a late joiner, corruption and 30% drops."""
     return DATA / "faults-small.toml"
+
+
+# --- fault-kind coverage across the session -------------------------------------------------------
+# Tests that run generated fault schedules record them here (the `fault_stats` fixture). At the
+# end of the session a summary says how often each kind was scheduled and how often the injector
+# reported it actually changed something; if enough runs happened and some kind never fired, the
+# session fails: a fault strategy that never bites tests nothing.
+
+MIN_RUNS_FOR_COVERAGE = 100
+
+
+class FaultStats:
+    def __init__(self) -> None:
+        self.schedules = 0  # fault schedules generated (run or not)
+        self.runs = 0  # simulations run with a generated schedule
+        self.scheduled: Counter[str] = Counter()  # faults per kind in those schedules
+        self.fired: Counter[str] = Counter()  # injector fired counts per kind, summed over runs
+        self.runs_fired: Counter[str] = Counter()  # runs in which each kind fired at least once
+
+    def schedule(self, faults) -> None:
+        self.schedules += 1
+        self.scheduled.update(getattr(f, "kind", None) or f["kind"] for f in faults)
+
+    def run(self, faults_applied: dict[str, int]) -> None:
+        self.runs += 1
+        for kind, n in faults_applied.items():
+            self.fired[kind] += n
+            if n:
+                self.runs_fired[kind] += 1
+
+    def never_fired(self) -> list[str]:
+        return [k for k in ALL_KINDS if self.fired[k] == 0]
+
+
+_STATS = FaultStats()
+
+
+@pytest.fixture(scope="session")
+def fault_stats() -> FaultStats:
+    return _STATS
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    s = _STATS
+    if not s.schedules:
+        return
+    tr = terminalreporter
+    tr.section("fault-kind coverage (generated schedules)")
+    tr.write_line(f"schedules generated: {s.schedules}; simulations run with one: {s.runs}")
+    tr.write_line(f"{'kind':10s} {'scheduled':>10s} {'fired':>10s} {'runs fired':>11s}")
+    for kind in ALL_KINDS:
+        tr.write_line(f"{kind:10s} {s.scheduled[kind]:10d} {s.fired[kind]:10d} {s.runs_fired[kind]:11d}")
+    if s.runs >= MIN_RUNS_FOR_COVERAGE and s.never_fired():
+        tr.write_line(f"FAILED: fault kind(s) never fired in {s.runs} runs: {', '.join(s.never_fired())}", red=True)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    s = _STATS
+    if s.runs >= MIN_RUNS_FOR_COVERAGE and s.never_fired() and session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

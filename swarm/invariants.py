@@ -1,0 +1,968 @@
+"""Invariants of a run, as a library: check a finished run's event log, or a simulation live.
+
+Each invariant is a *checker*: an object fed the run's events in order (the ``[kind, t, ...]``
+arrays of :mod:`swarm.recorder`) that collects :class:`Violation` records saying what went
+wrong, when, and which UAVs / target. A :class:`Monitor` feeds several checkers at once, from a
+log or live from ``sim.subscribe``::
+
+    # after the run: `swarm run my.toml --out out/` wrote scenario.json and events.msgpack
+    from swarm.invariants import check_events, load_run
+    scenario, events = load_run("out/")
+    for v in check_events(events, scenario):
+        print(v)
+
+    # live, e.g. in a test or a Hypothesis state machine
+    from swarm.invariants import Monitor, default_checkers
+    monitor = Monitor(default_checkers(live=True)).attach(sim)
+    sim.step(10)
+    monitor.flush()
+    monitor.raise_if()            # InvariantViolation listing every violation so far
+
+What the events alone cannot tell (radio range, threats, UAV type limits, the fault schedule)
+comes from the :class:`~swarm.scenario.Scenario`. Faults added while a run goes
+(``sim.add_fault``) are not in the event log: give them as ``faults=`` when checking a log, or
+check live (the monitor then reads the simulation's own schedule). Checkers marked *live* also
+read each UAV's map through ``sim.uav_map(name)`` and only work attached to a simulation.
+
+The invariants (``name``: class, parameters and their defaults):
+
+* ``separation`` / ``threat``: :class:`SeparationChecker`, :class:`ThreatClearanceChecker`:
+  the planner's own moves never bring two UAVs closer than ``safety.min_separation_m`` or a
+  UAV inside a threat circle. A pair (or UAV) already in violation when it first appears (a
+  start or join position) is excused until it has cleared once: that is the scenario's doing.
+* ``dynamics``: :class:`DynamicsChecker`: consecutive poses of a UAV respect its type's limits
+  (speed range, ``|a| <= accel_max``, turn radius) and the kinematics (no jumps).
+* ``radio``: :class:`RadioChecker`: every ``rx`` has a legal send tick: sender and receiver both
+  flying, within range, not separated by an active partition; and the receiver is flying
+  when it reads the frame. Send ticks considered: ``dt`` plus up to the largest possible
+  delay (radio latency + jitter + every delay fault) before the ``rx``.
+* ``map_monotonic`` (live): :class:`MapMonotonicityChecker`: no cell's last-seen time ever
+  decreases in any UAV's map.
+* ``map_agreement`` (live, liveness): :class:`MapAgreementChecker(quiet_s=20, lag_s=5)`: once the
+  swarm has been connected, with no active link fault or partition and no crash or join, for
+  ``quiet_s``, every live UAV knows every cell any live UAV knew ``lag_s`` earlier.
+* ``joiner_catch_up`` (live, liveness): :class:`JoinerCatchUpChecker(bound_s=20)`: within
+  ``bound_s`` of joining, a late joiner knows everything its radio neighbours knew when it
+  joined (judged only while it can talk to one of them with no link fault active).
+* ``single_watcher``: :class:`SingleWatcherChecker(settle_s=30)`: two UAVs of one type that can
+  talk never both watch one target for longer than ``settle_s`` (after a partition heals the
+  duplicate assignment must be resolved within ``settle_s``: targets are reassigned).
+* ``handover``: :class:`HandoverChecker(takeover_s=60, release_s=60)`: a target watched by a
+  fast UAV, with a free (searching) slower UAV inside the slower one's influence radius ``D``
+  of the target that can talk to the watcher, is taken over within ``takeover_s``; once the
+  slower UAV watches it the fast one stops within ``release_s`` and returns to search.
+* ``no_drop``: :class:`NoDropChecker(grace_s=10)`: a watched target is never left unwatched by
+  a watcher that is still flying (unless someone else watches it within ``grace_s``).
+
+"Can talk" means: both flying, within radio range, and no active partition between them
+(either way). Times are simulated seconds; UAVs are named by their scenario names.
+
+Why these defaults: the planners replan every 10 s (``planner.replan_s``), so a settled
+assignment may take a few replans (settle 30 s; takeover and release 60 s; a target may go
+unwatched for one replan, 10 s); UAVs beacon every second, so 5 s covers a few hops of map
+deltas and 20 s of quiet is ample for a design with anti-entropy.
+
+Known breaks of the current simulator (pinned as strict xfails in ``tests/test_invariants.py``):
+``map_agreement`` after a partition or over several hops, ``joiner_catch_up`` always (scan
+records are neither relayed nor re-sent), and ``separation`` whenever UAVs cannot hear each
+other (they learn of each other only over the radio).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.dynamics import integrate, wrap_angle
+from agents.types import UavType
+from faults.schedule import Delay, Fault, LinkFault, Partition, fault_from_dict
+from swarm.errors import SwarmError, UsageError
+from swarm.recorder import read_events
+from swarm.scenario import Scenario, parse_scenario
+
+__all__ = [
+    "Checker",
+    "DynamicsChecker",
+    "HandoverChecker",
+    "InvariantViolation",
+    "JoinerCatchUpChecker",
+    "MapAgreementChecker",
+    "MapMonotonicityChecker",
+    "Monitor",
+    "NoDropChecker",
+    "RadioChecker",
+    "RunContext",
+    "SeparationChecker",
+    "SingleWatcherChecker",
+    "ThreatClearanceChecker",
+    "Violation",
+    "check_events",
+    "default_checkers",
+    "handover_checkers",
+    "load_run",
+    "safety_checkers",
+]
+
+MODE_SURVEIL = 1
+_EPS = 1e-6
+
+
+# --- what a checker reports --------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One broken invariant: which, when (simulated seconds), what, and who."""
+
+    invariant: str
+    t: float
+    message: str
+    uavs: tuple[str, ...] = ()
+    target: int | None = None
+    data: dict = field(default_factory=dict, compare=False)
+
+    def __str__(self) -> str:
+        who = f" uavs={','.join(self.uavs)}" if self.uavs else ""
+        tgt = f" target={self.target}" if self.target is not None else ""
+        return f"[{self.invariant}] t={self.t:g} s{who}{tgt}: {self.message}"
+
+
+class InvariantViolation(SwarmError, AssertionError):
+    """Raised by :meth:`Monitor.raise_if` / :meth:`Checker.raise_if`; ``violations`` lists them."""
+
+    def __init__(self, violations: Sequence[Violation], limit: int = 10):
+        self.violations = list(violations)
+        lines = [str(v) for v in self.violations[:limit]]
+        more = len(self.violations) - limit
+        if more > 0:
+            lines.append(f"... and {more} more")
+        super().__init__(f"{len(self.violations)} invariant violation(s):\n  " + "\n  ".join(lines))
+
+
+# --- the run's context ---------------------------------------------------------------------------
+
+
+def _uav_type(name: str, spec) -> UavType:
+    return UavType(name=name, speed_min=spec.speed_min, speed_max=spec.speed_max, accel_max=spec.accel_max,
+                   bank_max_rad=math.radians(spec.bank_max_deg), detect_radius=spec.detect_radius_m,
+                   w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
+
+
+class RunContext:
+    """What the checkers know about a run besides its events: the scenario's settings, UAV ids,
+    names and types (from the ``start`` and ``join`` events, or the live simulation), and the
+    fault schedule (``faults`` if given, else the live simulation's, else the ``start`` event's)."""
+
+    def __init__(self, scenario: Scenario, *, sim: Any = None, faults: Iterable[Fault] | None = None):
+        self.scenario = scenario
+        self.sim = sim
+        self.dt = scenario.dt_s
+        self.types = {n: _uav_type(n, s) for n, s in scenario.uav_types.items()}
+        self.range_m = scenario.radio.range_limit_m
+        self.min_separation_m = scenario.safety.min_separation_m
+        self.threats = [(i, th.x_m, th.y_m, th.radius_m) for i, th in enumerate(scenario.threats)]
+        self.names: dict[int, str] = {}
+        self.type_name: dict[int, str] = {}
+        self.uid: dict[str, int] = {}
+        self._override = list(faults) if faults is not None else None
+        self._start_faults: list[Fault] = []
+        self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
+        for i, u in enumerate(scenario.uavs):  # the simulator numbers scenario UAVs in order
+            self._learn(i, u.name, u.type)
+        if sim is not None:
+            for uid, b in sim.world.uavs.items():
+                self._learn(uid, b.name, b.kind.name)
+
+    def _learn(self, uid: int, name: str, type_name: str | None) -> None:
+        self.names[uid] = name
+        self.uid[name] = uid
+        if type_name is not None:
+            self.type_name[uid] = type_name
+
+    def on_event(self, ev: Sequence) -> None:
+        kind = ev[0]
+        if kind == "start":
+            header = ev[2]
+            for uid, name, type_name in header.get("uavs", []):
+                self._learn(uid, name, type_name)
+            self._start_faults = [fault_from_dict(d) for d in header.get("faults", [])]
+        elif kind == "join":
+            uid, name = ev[2], ev[3]
+            type_name = self.type_name.get(uid)
+            if self.sim is not None and uid in self.sim.world.uavs:
+                type_name = self.sim.world.uavs[uid].kind.name
+            self._learn(uid, name, type_name)
+
+    def name(self, uid: int) -> str:
+        return self.names.get(uid, f"#{uid}")
+
+    def kind(self, uid: int) -> UavType | None:
+        t = self.type_name.get(uid)
+        return self.types.get(t) if t is not None else None
+
+    @property
+    def faults(self) -> list[Fault]:
+        if self._override is not None:
+            return self._override
+        if self.sim is not None:
+            return self.sim.injector.schedule.faults
+        return self._start_faults
+
+    def _partitions(self) -> list[tuple[Partition, dict[int, int]]]:
+        faults = self.faults
+        n, cached = self._partition_cache
+        if n != len(faults) + len(self.uid):
+            cached = []
+            for f in faults:
+                if isinstance(f, Partition):
+                    cached.append((f, {self.uid[m]: g for g, grp in enumerate(f.groups) for m in grp if m in self.uid}))
+            self._partition_cache = (len(faults) + len(self.uid), cached)
+        return cached
+
+    def blocked(self, src: int, dst: int, t: float) -> bool:
+        """True when an active partition blocks frames from ``src`` to ``dst`` at ``t``."""
+        for p, group_of in self._partitions():
+            if not p.active(t):
+                continue
+            gs, gd = group_of.get(src), group_of.get(dst)
+            if gs is None or gd is None or gs == gd:
+                continue
+            if not p.one_way or gs < gd:
+                return True
+        return False
+
+    def link_faults_active(self, t: float) -> bool:
+        return any(isinstance(f, (LinkFault, Partition)) and f.active(t) for f in self.faults)
+
+    def max_delay_s(self) -> float:
+        r = self.scenario.radio
+        extra = sum(f.extra_s + f.jitter_s for f in self.faults if isinstance(f, Delay))
+        return r.latency_s + r.jitter_s + extra
+
+    def in_range(self, pa: Sequence[float], pb: Sequence[float]) -> bool:
+        return math.hypot(pa[0] - pb[0], pa[1] - pb[1]) <= self.range_m + _EPS
+
+    def can_talk(self, a: int, b: int, t: float, poses: dict[int, Sequence[float]]) -> bool:
+        pa, pb = poses.get(a), poses.get(b)
+        if pa is None or pb is None or not self.in_range(pa, pb):
+            return False
+        return not (self.blocked(a, b, t) or self.blocked(b, a, t))
+
+    def connected(self, poses: dict[int, Sequence[float]]) -> bool:
+        """Whether the flying UAVs form one radio component (ranges only)."""
+        ids = sorted(poses)
+        if len(ids) <= 1:
+            return True
+        if not math.isfinite(self.range_m):
+            return True
+        seen = {ids[0]}
+        todo = [ids[0]]
+        while todo:
+            a = todo.pop()
+            for b in ids:
+                if b not in seen and self.in_range(poses[a], poses[b]):
+                    seen.add(b)
+                    todo.append(b)
+        return len(seen) == len(ids)
+
+
+# --- checkers ------------------------------------------------------------------------------------
+
+
+def _poses(events: Sequence[Sequence]) -> dict[int, tuple]:
+    """uid -> (x, y, v, theta, mode, target) of the pose events in a group."""
+    return {e[2]: tuple(e[3:9]) for e in events if e[0] == "pose"}
+
+
+class Checker:
+    """Base class: override :meth:`on_group` (events of one instant, in log order) and, for
+    liveness properties, :meth:`finish` (end of the run)."""
+
+    name = "checker"
+    live_only = False  # True: needs the simulation (reads maps), cannot run on a log alone
+    max_violations = 200  # keep memory bounded when something is badly wrong
+
+    def __init__(self) -> None:
+        self.violations: list[Violation] = []
+        self.ctx: RunContext | None = None
+        self.truncated = 0
+
+    def bind(self, ctx: RunContext) -> None:
+        self.ctx = ctx
+
+    def attach(self, sim: Any) -> None:
+        """Called once when a monitor attaches to a live simulation (after :meth:`bind`)."""
+
+    def on_group(self, t: float, events: list[Sequence]) -> None:
+        raise NotImplementedError
+
+    def finish(self, t_end: float) -> None:
+        """The run ended at ``t_end`` (judge pending liveness obligations)."""
+
+    def violate(self, t: float, message: str, uavs: Iterable[int] = (), target: int | None = None, **data: Any) -> None:
+        if len(self.violations) >= self.max_violations:
+            self.truncated += 1
+            return
+        names = tuple(self.ctx.name(u) for u in uavs) if self.ctx else tuple(str(u) for u in uavs)
+        self.violations.append(Violation(self.name, float(t), message, names, target, dict(data)))
+
+    def raise_if(self) -> None:
+        if self.violations:
+            raise InvariantViolation(self.violations)
+
+
+class SeparationChecker(Checker):
+    """No two flying UAVs closer than ``min_separation_m`` (default: the scenario's
+    ``safety.min_separation_m``) through their own moves; one violation per episode."""
+
+    name = "separation"
+
+    def __init__(self, min_separation_m: float | None = None):
+        super().__init__()
+        self.min_separation_m = min_separation_m
+        self._prev: set[int] = set()
+        self._active: set[tuple[int, int]] = set()
+        self._excused: set[tuple[int, int]] = set()
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if not poses:
+            return
+        d_min = self.min_separation_m if self.min_separation_m is not None else self.ctx.min_separation_m
+        ids = sorted(poses)
+        close: set[tuple[int, int]] = set()
+        if len(ids) >= 2:
+            xy = np.array([poses[u][:2] for u in ids], dtype=float)
+            d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+            for i, j in zip(*np.nonzero(np.triu(d < d_min, 1))):
+                close.add((ids[int(i)], ids[int(j)]))
+                pair = (ids[int(i)], ids[int(j)])
+                if pair in self._active or pair in self._excused:
+                    continue
+                if pair[0] not in self._prev or pair[1] not in self._prev:
+                    self._excused.add(pair)  # too close from the moment they were both flying
+                    continue
+                self._active.add(pair)
+                self.violate(t, f"{self.ctx.name(pair[0])} and {self.ctx.name(pair[1])} are "
+                                f"{float(d[i, j]):.1f} m apart (< {d_min:g} m)", pair, distance_m=float(d[i, j]))
+        self._active &= close
+        self._excused &= close
+        self._prev = set(ids)
+
+
+class ThreatClearanceChecker(Checker):
+    """No flying UAV inside a threat circle through its own moves (a UAV that starts or joins
+    inside one is excused until it is out)."""
+
+    name = "threat"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._prev: set[int] = set()
+        self._active: set[tuple[int, int]] = set()
+        self._excused: set[tuple[int, int]] = set()
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if not poses:
+            return
+        inside: set[tuple[int, int]] = set()
+        for uid, p in poses.items():
+            for k, x, y, r in self.ctx.threats:
+                d = math.hypot(p[0] - x, p[1] - y)
+                if d >= r:
+                    continue
+                key = (uid, k)
+                inside.add(key)
+                if key in self._active or key in self._excused:
+                    continue
+                if uid not in self._prev:
+                    self._excused.add(key)
+                    continue
+                self._active.add(key)
+                self.violate(t, f"{self.ctx.name(uid)} is {r - d:.1f} m inside threat {k} (radius {r:g} m)",
+                             [uid], threat=k, depth_m=r - d)
+        self._active &= inside
+        self._excused &= inside
+        self._prev = set(poses)
+
+
+class DynamicsChecker(Checker):
+    """Consecutive poses (``t``, ``t + dt``) of each UAV respect its type's hard limits
+    (``speed_min <= v <= speed_max``, ``|dv| <= accel_max dt``, ``|dtheta| <= g tan(bank)/v dt``
+    at the larger of the two speeds) and the kinematics (eq. 9-10: the position follows from
+    speed and heading). ``tol_m``: position tolerance; limits get a relative 1e-9."""
+
+    name = "dynamics"
+
+    def __init__(self, tol_m: float = 1e-6):
+        super().__init__()
+        self.tol_m = tol_m
+        self._prev: dict[int, tuple] = {}
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if not poses:
+            return
+        dt = self.ctx.dt
+        for uid, p in poses.items():
+            kind = self.ctx.kind(uid)
+            prev = self._prev.get(uid)
+            self._prev[uid] = (t, *p)
+            if kind is None:
+                continue
+            x1, y1, v1, th1 = p[:4]
+            rel = 1e-9
+            if not (kind.speed_min * (1 - rel) - rel <= v1 <= kind.speed_max * (1 + rel) + rel):
+                self.violate(t, f"speed {v1:.6g} m/s outside [{kind.speed_min:g}, {kind.speed_max:g}]", [uid], v=v1)
+            if prev is None or abs(t - prev[0] - dt) > 1e-9 * max(1.0, t):
+                continue
+            _, x0, y0, v0, th0 = prev[:5]
+            a = (v1 - v0) / dt
+            if abs(a) > kind.accel_max * (1 + rel) + rel:
+                self.violate(t, f"acceleration {a:.6g} m/s^2 beyond {kind.accel_max:g}", [uid], a=a)
+            omega = wrap_angle(th1 - th0) / dt
+            w_max = kind.turn_rate_max(max(v0, v1))
+            if abs(omega) > w_max * (1 + rel) + rel:
+                self.violate(t, f"turn rate {omega:.6g} rad/s beyond {w_max:.6g} (turn radius below r_min)",
+                             [uid], omega=omega)
+            px, py, _, _ = integrate(x0, y0, v0, th0, a, omega, dt)
+            err = math.hypot(px - x1, py - y1)
+            if err > self.tol_m + 1e-9 * (abs(x1) + abs(y1)):
+                self.violate(t, f"moved {err:.3g} m away from where its speed and heading take it", [uid], error_m=err)
+
+
+class RadioChecker(Checker):
+    """The radio never delivers beyond range, across a partition, from a UAV that was not
+    flying when it sent, or to a UAV that is not flying (see the module docstring).
+    ``max_delay_s``: longest possible delivery delay (default: from scenario and faults)."""
+
+    name = "radio"
+
+    def __init__(self, max_delay_s: float | None = None):
+        super().__init__()
+        self.max_delay_s = max_delay_s
+        self._history: deque[tuple[float, dict[int, tuple]]] = deque()
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if poses:
+            self._history.append((t, poses))
+            dt = self.ctx.dt
+            max_delay = self.max_delay_s if self.max_delay_s is not None else self.ctx.max_delay_s()
+            while self._history and self._history[0][0] < t - dt - max_delay - dt - _EPS:
+                self._history.popleft()
+        rx = [e for e in events if e[0] == "rx"]
+        if not rx:
+            return
+        dt = self.ctx.dt
+        max_delay = self.max_delay_s if self.max_delay_s is not None else self.ctx.max_delay_s()
+        for e in rx:
+            src, dst = e[2], e[3]
+            if dst not in poses:
+                self.violate(t, f"{self.ctx.name(dst)} read a frame from {self.ctx.name(src)} while not flying",
+                             [src, dst], cause="receiver_down")
+                continue
+            reasons = []
+            legal = False
+            for s, ps in reversed(self._history):  # latest candidate send tick first
+                if s > t - dt + _EPS:
+                    continue
+                if s < t - dt - max_delay - _EPS:
+                    break
+                why = self._illegal(src, dst, s, ps)
+                if why is None:
+                    legal = True
+                    break
+                reasons.append(f"at {s:g} s {why}")
+            if not legal:
+                detail = "; ".join(reasons) if reasons else "no tick it could have been sent in"
+                self.violate(t, f"frame {self.ctx.name(src)} -> {self.ctx.name(dst)} delivered illegally: {detail}",
+                             [src, dst], reasons=reasons)
+
+    def _illegal(self, src: int, dst: int, s: float, poses: dict[int, tuple]) -> str | None:
+        ps, pd = poses.get(src), poses.get(dst)
+        if ps is None:
+            return "the sender was not flying"
+        if pd is None:
+            return "the receiver was not flying"
+        d = math.hypot(ps[0] - pd[0], ps[1] - pd[1])
+        if d > self.ctx.range_m + _EPS:
+            return f"they were {d:.0f} m apart (range {self.ctx.range_m:g} m)"
+        if self.ctx.blocked(src, dst, s):
+            return "a partition separated them"
+        return None
+
+
+class _LiveChecker(Checker):
+    live_only = True
+
+    def _sim(self):
+        if self.ctx is None or self.ctx.sim is None:
+            raise UsageError(f"the {self.name!r} checker reads the UAVs' maps: attach it to a live Simulation "
+                             "(Monitor(...).attach(sim)), it cannot check an event log alone")
+        return self.ctx.sim
+
+    def _maps(self, uids: Iterable[int]) -> dict[int, np.ndarray]:
+        sim = self._sim()
+        return {u: sim.uav_map(self.ctx.name(u)) for u in uids}
+
+
+class MapMonotonicityChecker(_LiveChecker):
+    """A UAV's map never forgets: no cell's last-seen time decreases between two ticks."""
+
+    name = "map_monotonic"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._last: dict[int, np.ndarray] = {}
+
+    def attach(self, sim):
+        self._snapshot(None)
+
+    def _snapshot(self, t: float | None) -> None:
+        sim = self._sim()
+        for uid, b in sorted(sim.world.uavs.items()):
+            if b.state == "crashed" and uid in self._last:
+                continue  # a crashed UAV's map no longer changes
+            cur = sim.uav_map(b.name)
+            prev = self._last.get(uid)
+            if prev is not None and t is not None:
+                dec = cur < prev
+                if dec.any():
+                    iy, ix = (int(v[0]) for v in np.nonzero(dec))
+                    self.violate(t, f"{b.name}'s map forgot {int(dec.sum())} cell(s), e.g. cell (ix={ix}, iy={iy}) "
+                                    f"went from {float(prev[iy, ix]):g} to {float(cur[iy, ix]):g}",
+                                 [uid], cells=int(dec.sum()), cell=(ix, iy))
+            self._last[uid] = cur
+
+    def on_group(self, t, events):
+        if any(e[0] == "pose" for e in events):
+            self._snapshot(t)
+
+
+class MapAgreementChecker(_LiveChecker):
+    """Liveness of the map CRDT: after ``quiet_s`` seconds in which the flying UAVs form one
+    radio component, no link fault or partition is active and nobody crashes or joins, every
+    flying UAV knows (last-seen >=) every cell any flying UAV knew ``lag_s`` seconds before;
+    at most a ``tolerance`` fraction of cells may lag. Checked every ``every_s`` while quiet.
+    A lossy or bandwidth-limited radio never counts as quiet unless ``allow_radio_loss``."""
+
+    name = "map_agreement"
+
+    def __init__(self, quiet_s: float = 20.0, lag_s: float = 5.0, tolerance: float = 0.0, every_s: float = 10.0,
+                 allow_radio_loss: bool = False):
+        super().__init__()
+        self.quiet_s, self.lag_s, self.tolerance, self.every_s = quiet_s, lag_s, tolerance, every_s
+        self.allow_radio_loss = allow_radio_loss
+        self._quiet_since: float | None = None
+        self._members: frozenset[int] = frozenset()
+        self._history: deque[tuple[float, dict[int, np.ndarray]]] = deque()
+        self._last_check = -math.inf
+        self._reported_window: float | None = None
+        self.checks = 0  # how many times agreement was judged (a test can assert it was)
+
+    def _radio_lossy(self) -> bool:
+        r = self.ctx.scenario.radio
+        return (r.loss_base > 0 or r.loss_at_range > 0 or r.bandwidth_bytes_per_s is not None)
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if not poses:
+            return
+        members = frozenset(poses)
+        quiet_now = (members == self._members and not any(e[0] in ("crash", "join") for e in events)
+                     and not self.ctx.link_faults_active(t) and self.ctx.connected(poses)
+                     and (self.allow_radio_loss or not self._radio_lossy()))
+        if not quiet_now:
+            self._quiet_since = None
+        elif self._quiet_since is None:
+            self._quiet_since = t
+        self._members = members
+        self._history.append((t, self._maps(members)))
+        while self._history and self._history[0][0] < t - self.lag_s - _EPS:
+            self._history.popleft()
+        if self._quiet_since is None or t - self._quiet_since < self.quiet_s - _EPS:
+            return
+        if t - self._last_check < self.every_s - _EPS or self._reported_window == self._quiet_since:
+            return
+        self._last_check = t
+        then_t, then = self._history[0]
+        if then_t > t - self.lag_s + _EPS:
+            return
+        self.checks += 1
+        known = np.maximum.reduce([m for u, m in then.items() if u in members]) if then else None
+        now = self._history[-1][1]
+        if known is None:
+            return
+        for uid in sorted(members):
+            behind = now[uid] < known
+            frac = float(behind.mean())
+            if frac > self.tolerance:
+                iy, ix = (int(v[0]) for v in np.nonzero(behind))
+                who = [u for u in sorted(members) if u in then and then[u][iy, ix] == known[iy, ix]]
+                self.violate(t, f"after {t - self._quiet_since:g} s connected and fault-free, {self.ctx.name(uid)} "
+                                f"still misses {int(behind.sum())} cell(s) ({frac:.1%}) that "
+                                f"{', '.join(self.ctx.name(u) for u in who)} knew at {then_t:g} s, e.g. cell "
+                                f"(ix={ix}, iy={iy}): {float(now[uid][iy, ix]):g} < {float(known[iy, ix]):g}",
+                             [uid, *who[:1]], cells=int(behind.sum()), fraction=frac, quiet_since=self._quiet_since)
+                self._reported_window = self._quiet_since
+
+
+class JoinerCatchUpChecker(_LiveChecker):
+    """Liveness for late joiners: within ``bound_s`` of joining, a UAV knows (last-seen >=) every
+    cell its radio neighbours at join time knew then (``tolerance``: fraction allowed to lag).
+    Judged only if, all along, it could talk to one of those neighbours and no link fault or
+    partition was active; otherwise the obligation lapses."""
+
+    name = "joiner_catch_up"
+
+    def __init__(self, bound_s: float = 20.0, tolerance: float = 0.0):
+        super().__init__()
+        self.bound_s, self.tolerance = bound_s, tolerance
+        self._pending: dict[int, tuple[float, np.ndarray, tuple[int, ...]]] = {}
+        self.checks = 0
+
+    def on_group(self, t, events):
+        sim = self._sim()
+        poses = _poses(events)
+        for e in events:
+            if e[0] == "join" and e[1] > 0:
+                uid = e[2]
+                j = sim.world.uavs[uid]
+                nbrs = tuple(u for u, b in sorted(sim.world.uavs.items())
+                             if u != uid and b.state == "alive"
+                             and self.ctx.in_range((b.x, b.y), (j.x, j.y)))
+                if nbrs:
+                    maps = self._maps(nbrs)
+                    self._pending[uid] = (float(e[1]), np.maximum.reduce(list(maps.values())), nbrs)
+        if not poses:
+            return
+        for uid, (t_join, target, nbrs) in list(self._pending.items()):
+            if uid not in poses or self.ctx.link_faults_active(t) or not any(
+                    self.ctx.can_talk(uid, n, t, poses) for n in nbrs):
+                if t > t_join + _EPS:  # the join tick itself precedes the joiner's first pose
+                    del self._pending[uid]
+                continue
+            behind = self._maps([uid])[uid] < target
+            frac = float(behind.mean())
+            if frac <= self.tolerance:
+                del self._pending[uid]
+                self.checks += 1
+            elif t >= t_join + self.bound_s - _EPS:
+                del self._pending[uid]
+                self.checks += 1
+                self.violate(t, f"{self.ctx.name(uid)} joined at {t_join:g} s and {t - t_join:g} s later still misses "
+                                f"{int(behind.sum())} cell(s) ({frac:.1%}) that its neighbours "
+                                f"{', '.join(self.ctx.name(n) for n in nbrs)} knew when it joined",
+                             [uid, *nbrs], cells=int(behind.sum()), fraction=frac, joined=t_join)
+
+
+class _WatchChecker(Checker):
+    """Helpers for the assignment invariants: watchers per target from the pose events."""
+
+    @staticmethod
+    def watchers(poses: dict[int, tuple]) -> dict[int, set[int]]:
+        out: dict[int, set[int]] = {}
+        for uid, p in poses.items():
+            if p[4] == MODE_SURVEIL and p[5] >= 0:
+                out.setdefault(int(p[5]), set()).add(uid)
+        return out
+
+
+class SingleWatcherChecker(_WatchChecker):
+    """At most one UAV per type keeps a target once the handover settles: two same-type UAVs
+    that can talk both watching one target for longer than ``settle_s`` is a violation."""
+
+    name = "single_watcher"
+
+    def __init__(self, settle_s: float = 30.0):
+        super().__init__()
+        self.settle_s = settle_s
+        self._since: dict[tuple[int, int, int], float] = {}
+        self._reported: set[tuple[int, int, int]] = set()
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if not poses:
+            return
+        now: set[tuple[int, int, int]] = set()
+        for m, ws in sorted(self.watchers(poses).items()):
+            ws = sorted(ws)
+            for i, a in enumerate(ws):
+                for b in ws[i + 1:]:
+                    ta, tb = self.ctx.type_name.get(a), self.ctx.type_name.get(b)
+                    if ta is None or ta != tb:
+                        continue
+                    if not self.ctx.can_talk(a, b, t, poses):
+                        continue
+                    key = (m, a, b)
+                    now.add(key)
+                    since = self._since.setdefault(key, t)
+                    if t - since > self.settle_s + _EPS and key not in self._reported:
+                        self._reported.add(key)
+                        self.violate(t, f"{self.ctx.name(a)} and {self.ctx.name(b)} (both type "
+                                        f"{self.ctx.type_name.get(a)}) have both watched target {m} for "
+                                        f"{t - since:g} s while able to talk (settle time {self.settle_s:g} s)",
+                                     [a, b], target=m, since=since)
+        for key in list(self._since):
+            if key not in now:
+                del self._since[key]
+                self._reported.discard(key)
+
+
+class HandoverChecker(_WatchChecker):
+    """Fast-to-slow handover (DACMP eq. 25-26) as observable obligations (see the module
+    docstring): ``takeover_s`` for the slow UAV to start watching, ``release_s`` for the fast
+    one to stop; with ``require_search`` the fast one must then be searching, not watching."""
+
+    name = "handover"
+
+    def __init__(self, takeover_s: float = 60.0, release_s: float = 60.0, require_search: bool = True):
+        super().__init__()
+        self.takeover_s, self.release_s, self.require_search = takeover_s, release_s, require_search
+        self._offer: dict[tuple[int, int], float] = {}  # (target, fast watcher) -> since
+        self._overlap: dict[tuple[int, int, int], float] = {}  # (target, fast, slow) -> since
+        self._reported: set[tuple] = set()
+        self._prev_watchers: dict[int, set[int]] = {}
+        self._targets: dict[int, tuple[float, float]] = {}
+
+    def on_group(self, t, events):
+        for e in events:
+            if e[0] == "target":
+                self._targets[e[2]] = (e[3], e[4])
+        poses = _poses(events)
+        if not poses:
+            return
+        ctx = self.ctx
+        watchers = self.watchers(poses)
+        offers: set[tuple[int, int]] = set()
+        overlaps: set[tuple[int, int, int]] = set()
+        for m, ws in sorted(watchers.items()):
+            pos = self._targets.get(m)
+            for f in sorted(ws):
+                kf = ctx.kind(f)
+                if kf is None:
+                    continue
+                slower_watching = [s for s in ws if s != f and ctx.kind(s) is not None
+                                   and ctx.kind(s).speed_max < kf.speed_max]
+                for s in slower_watching:
+                    if ctx.can_talk(f, s, t, poses):
+                        key = (m, f, s)
+                        overlaps.add(key)
+                        since = self._overlap.setdefault(key, t)
+                        if t - since > self.release_s + _EPS and ("release", key) not in self._reported:
+                            self._reported.add(("release", key))
+                            self.violate(t, f"fast {ctx.name(f)} kept watching target {m} for {t - since:g} s after "
+                                            f"slower {ctx.name(s)} took it over (release bound {self.release_s:g} s)",
+                                         [f, s], target=m, since=since)
+                if slower_watching or pos is None:
+                    continue
+                free = [s for s, p in sorted(poses.items())
+                        if s != f and p[4] != MODE_SURVEIL and ctx.kind(s) is not None
+                        and ctx.kind(s).speed_max < kf.speed_max
+                        and math.hypot(p[0] - pos[0], p[1] - pos[1]) < ctx.kind(s).influence_radius
+                        and ctx.can_talk(f, s, t, poses)]
+                if not free:
+                    continue
+                key2 = (m, f)
+                offers.add(key2)
+                since = self._offer.setdefault(key2, t)
+                if t - since > self.takeover_s + _EPS and ("takeover", key2, since) not in self._reported:
+                    self._reported.add(("takeover", key2, since))
+                    self.violate(t, f"target {m} watched by fast {ctx.name(f)}: free slower "
+                                    f"{', '.join(ctx.name(s) for s in free)} within its influence radius and able to "
+                                    f"talk for {t - since:g} s, but none took over (bound {self.takeover_s:g} s)",
+                                 [f, *free], target=m, since=since)
+        # The fast watcher that lets go after a takeover must return to search.
+        if self.require_search:
+            for m, prev in self._prev_watchers.items():
+                for f in prev:
+                    if f in watchers.get(m, ()) or f not in poses:
+                        continue
+                    took = [s for s in watchers.get(m, ()) if ctx.kind(s) is not None and ctx.kind(f) is not None
+                            and ctx.kind(s).speed_max < ctx.kind(f).speed_max]
+                    if took and poses[f][4] == MODE_SURVEIL:
+                        self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
+                                        f"watching target {poses[f][5]} instead of returning to search",
+                                     [f, took[0]], target=m, now_watching=poses[f][5])
+        self._offer = {k: v for k, v in self._offer.items() if k in offers}
+        self._overlap = {k: v for k, v in self._overlap.items() if k in overlaps}
+        self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}
+
+
+class NoDropChecker(_WatchChecker):
+    """A target that is being watched is not dropped while its watcher is flying and not
+    displaced: if its watcher stops watching it, someone must be watching it within
+    ``grace_s`` (a watcher that crashed is excused)."""
+
+    name = "no_drop"
+
+    def __init__(self, grace_s: float = 10.0):
+        super().__init__()
+        self.grace_s = grace_s
+        self._prev: dict[int, set[int]] = {}
+        self._pending: dict[int, tuple[float, int]] = {}  # target -> (dropped at, by)
+
+    def on_group(self, t, events):
+        poses = _poses(events)
+        if not poses:
+            return
+        watchers = self.watchers(poses)
+        for m in [m for m in self._pending if watchers.get(m)]:
+            del self._pending[m]
+        for m, (t0, w) in list(self._pending.items()):
+            if t - t0 > self.grace_s + _EPS:
+                del self._pending[m]
+                self.violate(t0, f"{self.ctx.name(w)} stopped watching target {m} while flying and nobody watched it "
+                                 f"within {self.grace_s:g} s", [w], target=m,
+                             now=poses.get(w, (None,) * 6)[4:6])
+        for m, prev in self._prev.items():
+            if watchers.get(m) or m in self._pending:
+                continue
+            alive = sorted(w for w in prev if w in poses)
+            if alive:
+                self._pending[m] = (t, alive[0])
+        self._prev = watchers
+
+    def finish(self, t_end):
+        self._pending.clear()  # not enough time left to judge
+
+
+# --- running checkers ------------------------------------------------------------------------------
+
+
+class Monitor:
+    """Feeds events, grouped by instant, to a set of checkers; from a log (:meth:`feed` each
+    event, then :meth:`finish`) or live (:meth:`attach` to a simulation, :meth:`flush` after
+    each ``step``)."""
+
+    def __init__(self, checkers: Iterable[Checker], scenario: Scenario | None = None, *,
+                 faults: Iterable[Fault] | None = None):
+        self.checkers = list(checkers)
+        self.scenario = scenario
+        self._faults = faults
+        self.ctx: RunContext | None = RunContext(scenario, faults=faults) if scenario is not None else None
+        if self.ctx is not None:
+            for c in self.checkers:
+                c.bind(self.ctx)
+        self._t: float | None = None
+        self._group: list[Sequence] = []
+        self._unsubscribe = None
+        self.t_end = 0.0
+        self.events = 0
+
+    def attach(self, sim: Any) -> "Monitor":
+        """Check ``sim`` live from now on (subscribes to its events)."""
+        self.scenario = sim.scenario
+        self.ctx = RunContext(sim.scenario, sim=sim, faults=self._faults)
+        for c in self.checkers:
+            c.bind(self.ctx)
+        for c in self.checkers:
+            c.attach(sim)
+        self._unsubscribe = sim.subscribe(self.feed)
+        return self
+
+    def detach(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+
+    def feed(self, ev: Sequence) -> None:
+        if self.ctx is None:
+            raise UsageError("Monitor needs the run's scenario: Monitor(checkers, scenario) or .attach(sim)")
+        self.events += 1
+        self.ctx.on_event(ev)
+        if ev[0] == "start":
+            return
+        t = float(ev[1])
+        if self._t is not None and t != self._t:
+            self.flush()
+        self._t = t
+        self._group.append(ev)
+
+    def flush(self) -> None:
+        """Hand the buffered events (one instant) to the checkers."""
+        if not self._group:
+            return
+        t, group = self._t, self._group
+        self._group = []
+        self.t_end = max(self.t_end, t)
+        for c in self.checkers:
+            c.on_group(t, group)
+
+    def finish(self) -> list[Violation]:
+        self.flush()
+        for c in self.checkers:
+            c.finish(self.t_end)
+        return self.violations
+
+    @property
+    def violations(self) -> list[Violation]:
+        out = [v for c in self.checkers for v in c.violations]
+        return sorted(out, key=lambda v: (v.t, v.invariant))
+
+    def raise_if(self) -> None:
+        if self.violations:
+            raise InvariantViolation(self.violations)
+
+    def by_name(self, name: str) -> Checker:
+        for c in self.checkers:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+
+def safety_checkers() -> list[Checker]:
+    """Separation, threat clearance and dynamic limits: hold for any planner."""
+    return [SeparationChecker(), ThreatClearanceChecker(), DynamicsChecker()]
+
+
+def handover_checkers(settle_s: float = 30.0, takeover_s: float = 60.0, release_s: float = 60.0,
+                      grace_s: float = 10.0) -> list[Checker]:
+    """The DACMP assignment invariants (planner-specific)."""
+    return [SingleWatcherChecker(settle_s), HandoverChecker(takeover_s, release_s), NoDropChecker(grace_s)]
+
+
+def default_checkers(*, live: bool = False, handover: bool = False, liveness: bool = False) -> list[Checker]:
+    """Checkers that hold for any planner: safety, dynamics, radio; with ``live`` also map
+    monotonicity; with ``liveness`` (live only) map agreement and joiner catch-up; with
+    ``handover`` the DACMP assignment invariants."""
+    out: list[Checker] = [*safety_checkers(), RadioChecker()]
+    if live:
+        out.append(MapMonotonicityChecker())
+        if liveness:
+            out += [MapAgreementChecker(), JoinerCatchUpChecker()]
+    if handover:
+        out += handover_checkers()
+    return out
+
+
+def check_events(events: Iterable[Sequence], scenario: Scenario, checkers: Iterable[Checker] | None = None, *,
+                 faults: Iterable[Fault] | None = None) -> list[Violation]:
+    """Run ``checkers`` (default: every log-only checker that holds for any planner) over a
+    run's events; returns the violations (empty: all invariants held)."""
+    checkers = list(checkers) if checkers is not None else default_checkers()
+    live = [c.name for c in checkers if c.live_only]
+    if live:
+        raise UsageError(f"checker(s) {live} need a live simulation; use Monitor(...).attach(sim)")
+    monitor = Monitor(checkers, scenario, faults=faults)
+    for ev in events:
+        monitor.feed(ev)
+    return monitor.finish()
+
+
+def load_run(out_dir: str | Path) -> tuple[Scenario, list[list]]:
+    """The scenario (``scenario.json``) and events (``events.msgpack``) of a ``swarm run --out``
+    folder."""
+    out = Path(out_dir)
+    doc = json.loads((out / "scenario.json").read_text(encoding="utf-8"))
+    scenario = parse_scenario(doc, str(out / "scenario.json"))
+    return scenario, list(read_events((out / "events.msgpack").read_bytes()))

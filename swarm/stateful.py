@@ -1,0 +1,296 @@
+"""A Hypothesis state machine that drives one simulation and checks invariants every step.
+
+:class:`SwarmMachine` draws a small scenario (:func:`swarm.strategies.scenarios`), builds a
+:class:`~swarm.simulation.Simulation` and drives it synchronously. Its rules advance time, crash
+UAVs, add late joiners, cut and heal partitions, change the loss on every link and add targets
+(all through the public API: ``step``, ``add_fault``, ``add_uav``, ``add_target``). After every
+rule its ``@invariant`` feeds the new events to a :class:`swarm.invariants.Monitor` and fails
+with an :class:`~swarm.invariants.InvariantViolation` naming what broke, when and who; the
+failure notes a scenario file and the ``swarm run`` command that replays the run.
+
+Use it as it is::
+
+    from swarm.stateful import SwarmMachine
+    TestSwarm = SwarmMachine.TestCase
+
+or subclass it to add rules, invariants or checkers::
+
+    from hypothesis.stateful import invariant, rule
+    from swarm.stateful import SwarmMachine
+
+    class MyMachine(SwarmMachine):
+        checkers = SwarmMachine.checkers + ("single_watcher",)
+
+        @rule()
+        def heal_everything(self):
+            self.cuts.clear()
+
+        @invariant()
+        def coverage_never_drops(self):
+            ...
+
+    TestMine = MyMachine.TestCase
+
+Partitions and loss are applied as fault windows covering each ``advance`` (a cut stays in
+force, window after window, until a ``heal`` rule removes it), so everything that happened is
+in the simulation's fault schedule and can be written to a scenario file.
+
+Needs ``hypothesis`` (the ``test`` extra).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+from hypothesis import note
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
+
+from faults.schedule import Crash, Drop, Join, Partition
+from swarm.invariants import (
+    Checker,
+    DynamicsChecker,
+    HandoverChecker,
+    InvariantViolation,
+    JoinerCatchUpChecker,
+    MapAgreementChecker,
+    MapMonotonicityChecker,
+    Monitor,
+    NoDropChecker,
+    RadioChecker,
+    SeparationChecker,
+    SingleWatcherChecker,
+    ThreatClearanceChecker,
+)
+from swarm.scenario import Scenario, parse_scenario
+from swarm.simulation import Simulation
+from swarm.strategies import _fault_doc, reproduction, scenarios
+
+__all__ = ["CHECKERS", "SwarmMachine"]
+
+#: Checker factories by name (see :mod:`swarm.invariants` for what each checks).
+CHECKERS: dict[str, Callable[[], Checker]] = {
+    "separation": SeparationChecker,
+    "threat": ThreatClearanceChecker,
+    "dynamics": DynamicsChecker,
+    "radio": RadioChecker,
+    "map_monotonic": MapMonotonicityChecker,
+    "map_agreement": MapAgreementChecker,
+    "joiner_catch_up": JoinerCatchUpChecker,
+    "single_watcher": SingleWatcherChecker,
+    "handover": HandoverChecker,
+    "no_drop": NoDropChecker,
+}
+
+
+class SwarmMachine(RuleBasedStateMachine):
+    """Drives one simulation; see the module docstring. Class attributes to override:
+
+    * ``checkers``: names from :data:`CHECKERS` checked after every rule (default: those that
+      the current simulator keeps under any planner and any fault: threat clearance, dynamic
+      limits, radio legality, map monotonicity);
+    * ``max_time_s``: no ``advance`` past this simulated time (keeps examples cheap);
+    * ``max_uavs``: no ``join`` beyond this many UAVs;
+    * ``max_steps_per_advance``: ticks one ``advance`` may take;
+    * :meth:`scenario_strategy`: the scenarios to start from;
+    * :meth:`on_start`: called once the simulation exists (e.g. to plant a bug, or to swap a
+      UAV's planner);
+    * :meth:`make_checkers`: to build checkers with other parameters than their defaults.
+
+    Separation is not checked by default: UAVs learn of each other only over the radio, so
+    with frames cut (partitions, loss) the current simulator does let them collide; add
+    ``"separation"`` to ``checkers`` to see it.
+    """
+
+    checkers: ClassVar[tuple[str, ...]] = ("threat", "dynamics", "radio", "map_monotonic")
+    max_time_s: ClassVar[float] = 90.0
+    max_uavs: ClassVar[int] = 6
+    max_steps_per_advance: ClassVar[int] = 30
+    #: A joiner enters at least this far from threat edges and from other flying UAVs (as the
+    #: scenario strategies place UAVs): appearing in front of someone is the scenario's doing,
+    #: not the planner's.
+    threat_clearance_m: ClassVar[float] = 3000.0
+    uav_clearance_m: ClassVar[float] = 2000.0
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.sim: Simulation | None = None
+        self.monitor: Monitor | None = None
+        self.scenario: Scenario | None = None
+        self.cuts: list[tuple[tuple[tuple[str, ...], ...], bool]] = []  # (groups, one_way) in force
+        self.loss = 0.0
+        self.joiners: list[dict] = []
+        self.late_targets: list[str] = []
+        self.history: list[str] = []
+
+    # --- what to start from and what to check ---------------------------------------------
+
+    def scenario_strategy(self) -> st.SearchStrategy[Scenario]:
+        """Small scenarios without scheduled faults (the rules add them), 2-4 UAVs."""
+        return scenarios(min_uavs=2, max_uavs=4, faults=False, late_joiners=False,
+                         min_duration_s=int(self.max_time_s), max_duration_s=int(self.max_time_s),
+                         area_km=(5, 10))
+
+    def make_checkers(self) -> list[Checker]:
+        unknown = [n for n in self.checkers if n not in CHECKERS]
+        if unknown:
+            raise ValueError(f"unknown checker(s) {unknown}; known: {', '.join(CHECKERS)}")
+        return [CHECKERS[n]() for n in self.checkers]
+
+    # --- helpers -------------------------------------------------------------------------------
+
+    @property
+    def now(self) -> float:
+        return self.sim.now if self.sim is not None else 0.0
+
+    def alive(self) -> list[str]:
+        if self.sim is None:
+            return []
+        return [b.name for _, b in sorted(self.sim.world.uavs.items()) if b.state == "alive"]
+
+    def flying_or_pending(self) -> list[str]:
+        if self.sim is None:
+            return []
+        return [b.name for _, b in sorted(self.sim.world.uavs.items()) if b.state != "crashed"]
+
+    def _clear(self, x: float, y: float) -> bool:
+        far_from_threats = all(math.hypot(x - th.x_m, y - th.y_m) >= th.radius_m + self.threat_clearance_m
+                               for th in self.scenario.threats)
+        far_from_uavs = all(math.hypot(x - b.x, y - b.y) >= self.uav_clearance_m
+                            for b in self.sim.world.uavs.values() if b.state != "crashed")
+        return far_from_threats and far_from_uavs
+
+    def reproduction_scenario(self) -> Scenario:
+        """The run so far as a scenario: the start scenario plus every fault and joiner added
+        (targets added while running cannot be written in a scenario; they are listed in the
+        file's comment). Its duration is the time reached."""
+        doc = self.scenario.model_dump(mode="python")
+        doc["uavs"] = list(doc["uavs"]) + self.joiners
+        doc["faults"] = [_fault_doc(f) for f in self.sim.injector.schedule.faults if not isinstance(f, Join)]
+        doc["duration_s"] = max(self.now, self.scenario.dt_s)
+        return parse_scenario(doc, "<state machine>")
+
+    def _explain(self) -> str:
+        sc = self.reproduction_scenario()
+        comment = "Written by swarm.stateful.SwarmMachine: the run that failed.\nSteps:\n" + "\n".join(
+            f"  {h}" for h in self.history)
+        if self.late_targets:
+            comment += "\nTargets added while running (not in this file): " + "; ".join(self.late_targets)
+        path, command = reproduction(sc, comment=comment)
+        return f"replay: {command}  (scenario written to {path})"
+
+    # --- rules -------------------------------------------------------------------------------
+
+    @initialize(data=st.data())
+    def start(self, data: Any) -> None:
+        self.scenario = data.draw(self.scenario_strategy(), label="scenario")
+        self.sim = Simulation(self.scenario)
+        self.monitor = Monitor(self.make_checkers()).attach(self.sim)
+        self.history.append(f"start: {len(self.scenario.uavs)} UAVs, seed {self.scenario.seed}")
+        self.on_start()
+
+    def on_start(self) -> None:
+        """Hook for subclasses, called once the simulation exists (override this rather than
+        :meth:`start`: a method that replaces a decorated rule is no longer a rule)."""
+
+    @precondition(lambda self: self.sim is not None and self.now < self.max_time_s)
+    @rule(ticks=st.integers(1, 10))
+    def advance(self, ticks: int) -> None:
+        sim = self.sim
+        ticks = max(1, min(ticks, self.max_steps_per_advance, int(round((self.max_time_s - sim.now) / sim.dt)) or 1))
+        t0, t1 = sim.now, sim.now + ticks * sim.dt
+        for groups, one_way in self.cuts:
+            sim.add_fault(Partition(groups=groups, start_s=t0, end_s=t1, one_way=one_way))
+        if self.loss > 0:
+            sim.add_fault(Drop(rate=self.loss, start_s=t0, end_s=t1))
+        sim.step(ticks)
+        self.monitor.flush()
+        self.history.append(f"t={t0:g}: advance {ticks} tick(s)")
+
+    @precondition(lambda self: self.sim is not None and self.now < self.max_time_s)
+    @rule(ticks=st.integers(10, 30))
+    def advance_long(self, ticks: int) -> None:
+        """A longer stretch with nothing new happening (lets liveness checks see quiet periods)."""
+        self.advance(ticks)
+
+    @precondition(lambda self: len(self.alive()) >= 1)
+    @rule(data=st.data())
+    def crash(self, data: Any) -> None:
+        name = data.draw(st.sampled_from(self.alive()), label="crash")
+        self.sim.add_fault(Crash(uav=name, at_s=self.now))
+        self.history.append(f"t={self.now:g}: crash {name}")
+
+    @precondition(lambda self: self.sim is not None and len(self.sim.world.uavs) < self.max_uavs)
+    @rule(data=st.data())
+    def join(self, data: Any) -> None:
+        sc = self.scenario
+        kind = data.draw(st.sampled_from(sorted(sc.uav_types)), label="type")
+        x = data.draw(st.integers(0, int(sc.area.width_m) // 100), label="x_hm") * 100.0
+        y = data.draw(st.integers(0, int(sc.area.height_m) // 100), label="y_hm") * 100.0
+        heading = data.draw(st.integers(0, 23), label="heading_15deg") * 15.0
+        if not self._clear(x, y):
+            self.history.append(f"t={self.now:g}: join skipped (too close to a threat or a UAV)")
+            return
+        name = self.sim.add_uav(type=kind, x=x, y=y, heading_deg=heading)
+        self.joiners.append({"name": name, "type": kind, "x_m": x, "y_m": y, "heading_deg": heading,
+                             "join_s": self.now})
+        self.history.append(f"t={self.now:g}: join {name} ({kind}) at ({x:g}, {y:g})")
+
+    @precondition(lambda self: len(self.flying_or_pending()) >= 2)
+    @rule(data=st.data(), one_way=st.booleans())
+    def cut(self, data: Any, one_way: bool) -> None:
+        names = self.flying_or_pending()
+        side = data.draw(st.lists(st.booleans(), min_size=len(names), max_size=len(names)), label="sides")
+        a = tuple(n for n, s in zip(names, side) if s)
+        b = tuple(n for n, s in zip(names, side) if not s)
+        if not a or not b:
+            a, b = (names[0],), tuple(names[1:])
+        self.cuts.append(((a, b), one_way))
+        self.history.append(f"t={self.now:g}: cut {list(a)} | {list(b)}{' one way' if one_way else ''}")
+
+    @precondition(lambda self: bool(self.cuts))
+    @rule()
+    def heal(self) -> None:
+        groups, _ = self.cuts.pop(0)
+        self.history.append(f"t={self.now:g}: heal {[list(g) for g in groups]}")
+
+    @precondition(lambda self: self.sim is not None)
+    @rule(rate=st.sampled_from([0.0, 1.0, 0.5, 0.2, 0.8]))
+    def change_loss(self, rate: float) -> None:
+        self.loss = rate
+        self.history.append(f"t={self.now:g}: loss {rate:g} on every link")
+
+    @precondition(lambda self: self.sim is not None)
+    @rule(data=st.data())
+    def add_target(self, data: Any) -> None:
+        sc = self.scenario
+        x = data.draw(st.integers(0, int(sc.area.width_m) // 100), label="x_hm") * 100.0
+        y = data.draw(st.integers(0, int(sc.area.height_m) // 100), label="y_hm") * 100.0
+        heading = data.draw(st.integers(0, 23), label="heading_15deg") * 15.0
+        speed = float(data.draw(st.integers(0, int(sc.targets.speed_max)), label="speed"))
+        tid = self.sim.add_target(x, y, heading_deg=heading, speed=speed)
+        self.late_targets.append(f"t={self.now:g} id={tid} ({x:g}, {y:g}) heading {heading:g} speed {speed:g}")
+        self.history.append(f"t={self.now:g}: target {tid} at ({x:g}, {y:g})")
+
+    # --- invariants -----------------------------------------------------------------------------
+
+    @invariant()
+    def invariants_hold(self) -> None:
+        if self.monitor is None:
+            return
+        self.monitor.flush()
+        violations = self.monitor.violations
+        if violations:
+            err = InvariantViolation(violations)
+            explanation = self._explain()
+            note(explanation)
+            err.add_note(explanation)
+            raise err
+
+    def teardown(self) -> None:
+        if self.monitor is not None:
+            self.monitor.detach()
+        if self.sim is not None:
+            self.sim.close()

@@ -1,0 +1,401 @@
+"""Hypothesis strategies for small valid scenarios: import them in your own property tests.
+
+Every scenario is built as a document and validated by the project's own model
+(:func:`swarm.scenario.parse_scenario`), so it is always one a user could have written::
+
+    from hypothesis import given
+    from swarm import Simulation
+    from swarm.strategies import scenarios
+
+    @given(scenarios(max_uavs=3, max_duration_s=40))
+    def test_no_dynamics_violation(scenario):
+        with Simulation(scenario) as sim:
+            assert sim.run().metrics["violations"]["dynamics"] == 0
+
+The pieces compose: :func:`areas` (5-15 km squares by default), :func:`fleets` (mixed UAV
+types, optionally a generated third type and late joiners), :func:`target_layouts`,
+:func:`threat_layouts`, :func:`radio_tables` (from :func:`faults.strategies.link_models`) and
+fault schedules (:func:`faults.strategies.fault_schedules`). Runs are short (20-60 s) so each
+example is cheap. Shrinking goes towards one UAV, no targets, no threats, the ideal radio, no
+faults, the greedy planner and the shortest run.
+
+When an example fails, :func:`reproduction` writes it as a TOML file and returns the exact
+``swarm run`` command that replays it (:func:`scenario_toml` is the writer).
+
+Needs ``hypothesis`` (the ``test`` extra); nothing in the simulator imports this module.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import math
+import os
+import re
+import tempfile
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from hypothesis import note
+from hypothesis.errors import InvalidArgument
+from hypothesis import strategies as st
+
+from faults.schedule import FaultSchedule, Join, fault_from_dict, fault_to_dict
+from faults.strategies import ALL_KINDS, fault_schedules, link_models
+from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, parse_scenario
+
+__all__ = [
+    "areas",
+    "fault_schedule_of",
+    "fleets",
+    "radio_tables",
+    "reproduction",
+    "reproduce_command",
+    "reproducible",
+    "scenario_documents",
+    "scenario_toml",
+    "scenarios",
+    "target_layouts",
+    "threat_layouts",
+    "uav_type_specs",
+]
+
+GENERATED_SOURCE = "<generated>"
+
+
+# --- the world -------------------------------------------------------------------------------
+
+
+@st.composite
+def areas(draw, min_km: int = 5, max_km: int = 15, cell_m: Sequence[float] = (100.0, 200.0, 250.0)) -> dict:
+    """An ``[area]`` table: whole kilometres on each side (so any listed cell size tiles it)."""
+    if not 1 <= min_km <= max_km:
+        raise ValueError(f"need 1 <= min_km <= max_km, got {min_km}, {max_km}")
+    w = draw(st.integers(min_km, max_km)) * 1000.0
+    h = draw(st.integers(min_km, max_km)) * 1000.0
+    return {"width_m": w, "height_m": h, "cell_m": float(draw(st.sampled_from(list(cell_m))))}
+
+
+@st.composite
+def uav_type_specs(draw) -> dict:
+    """A ``[uav_types.NAME]`` table for a type that is not in Table 1 (types are data)."""
+    speed_min = float(draw(st.integers(15, 60)))
+    return {
+        "speed_min": speed_min,
+        "speed_max": speed_min + float(draw(st.integers(0, 40))),
+        "accel_max": draw(st.sampled_from([0.5, 0.2, 1.0, 2.0])),
+        "bank_max_deg": float(draw(st.integers(10, 45))),
+        "detect_radius_m": float(draw(st.integers(5, 25)) * 100),
+        "w_t": draw(st.sampled_from([3.0, 0.0, 1.0, 6.0])),
+        "w_r": draw(st.sampled_from([3.1, 0.0, 1.1, 6.1])),
+        "influence_radius_m": float(draw(st.integers(1, 10)) * 1000),
+    }
+
+
+def _lattice(area: dict, spacing_m: float, margin_m: float) -> list[tuple[float, float]]:
+    w, h = area["width_m"], area["height_m"]
+    xs = [margin_m + i * spacing_m for i in range(int((w - 2 * margin_m) // spacing_m) + 1)] or [w / 2]
+    ys = [margin_m + j * spacing_m for j in range(int((h - 2 * margin_m) // spacing_m) + 1)] or [h / 2]
+    return [(x, y) for y in ys for x in xs]
+
+
+@st.composite
+def fleets(draw, area: dict, types: Sequence[str] = ("B", "A"), *, min_uavs: int = 1, max_uavs: int = 4,
+           duration_s: float | None = None, late_joiners: bool = True, spacing_m: float = 2000.0,
+           type_specs: dict[str, dict] | None = None) -> list[dict]:
+    """``[[uavs]]`` entries of mixed ``types``, named TYPE + number (``B1``, ``A1``, ...), starting
+    on distinct points of a lattice ``spacing_m`` apart (never inside each other's separation
+    distance), heading anywhere, at their type's top speed or a speed in range. With
+    ``late_joiners`` (and a ``duration_s``) some may enter later (``join_s``)."""
+    slots = _lattice(area, spacing_m, margin_m=500.0)
+    n = draw(st.integers(min_uavs, max(min_uavs, min(max_uavs, len(slots)))))
+    if n > len(slots):
+        raise ValueError(f"{n} UAVs do not fit {spacing_m} m apart in a {area['width_m']} x {area['height_m']} m area")
+    picks = draw(st.lists(st.integers(0, len(slots) - 1), min_size=n, max_size=n, unique=True))
+    specs = {**{k: v.model_dump() for k, v in DEFAULT_UAV_TYPES.items()}, **(type_specs or {})}
+    per_type: dict[str, int] = {}
+    out = []
+    for i, slot in enumerate(picks):
+        kind = draw(st.sampled_from(list(types)))
+        per_type[kind] = per_type.get(kind, 0) + 1
+        x, y = slots[slot]
+        uav: dict[str, Any] = {"name": f"{kind}{per_type[kind]}", "type": kind, "x_m": x, "y_m": y,
+                               "heading_deg": float(draw(st.integers(0, 23)) * 15)}
+        spec = specs.get(kind)
+        if spec is not None and draw(st.booleans()):
+            uav["speed"] = float(draw(st.integers(math.ceil(spec["speed_min"]), math.floor(spec["speed_max"]))))
+        # The first UAV always starts at 0 s, so the run has someone flying.
+        if late_joiners and duration_s is not None and i > 0 and duration_s >= 2 and draw(st.booleans()):
+            uav["join_s"] = float(draw(st.integers(1, int(duration_s) - 1)))
+        out.append(uav)
+    return out
+
+
+@st.composite
+def target_layouts(draw, area: dict, *, max_targets: int = 3, speed_max: float = 20.0) -> dict:
+    """A ``[targets]`` table: some placed targets and/or a random ``count``."""
+    w, h = area["width_m"], area["height_m"]
+    placed = draw(st.lists(
+        st.fixed_dictionaries({
+            "x_m": st.integers(0, int(w) // 100).map(lambda k: k * 100.0),
+            "y_m": st.integers(0, int(h) // 100).map(lambda k: k * 100.0),
+            "heading_deg": st.integers(0, 23).map(lambda k: k * 15.0),
+            "speed": st.integers(0, int(speed_max)).map(float),
+        }),
+        max_size=max_targets,
+    ))
+    count = draw(st.integers(0, max(0, max_targets - len(placed))))
+    return {"count": count, "speed_max": speed_max, "placed": placed}
+
+
+@st.composite
+def threat_layouts(draw, area: dict, keep_clear: Sequence[tuple[float, float]] = (), *, max_threats: int = 2,
+                   clearance_m: float = 3000.0) -> list[dict]:
+    """``[[threats]]`` circles of 300-1500 m whose edge lies at least ``clearance_m`` from every
+    point of ``keep_clear`` (the UAVs' start points: a UAV that starts beside a threat, pointing
+    at it, may be unable to turn away in time, and that would be the scenario's fault, not the
+    planner's). Fewer threats than asked when the area is too crowded."""
+    w, h = area["width_m"], area["height_m"]
+    n = draw(st.integers(0, max_threats))
+    out = []
+    for _ in range(n):
+        radius = float(draw(st.integers(3, 15)) * 100)
+        x = float(draw(st.integers(0, int(w) // 100)) * 100)
+        y = float(draw(st.integers(0, int(h) // 100)) * 100)
+        if all(math.hypot(x - px, y - py) >= radius + clearance_m for px, py in keep_clear):
+            out.append({"x_m": x, "y_m": y, "radius_m": radius})
+    return out
+
+
+@st.composite
+def radio_tables(draw, *, max_range_m: float = 20_000.0, lossy: bool = True, bandwidth: bool = False) -> dict:
+    """A ``[radio]`` table from :func:`faults.strategies.link_models` (plus a mailbox size)."""
+    m = draw(link_models(max_range_m=max_range_m, lossy=lossy, bandwidth=bandwidth))
+    table: dict[str, Any] = {"loss_base": m.loss_base, "loss_at_range": m.loss_at_range,
+                             "latency_s": m.latency_s, "jitter_s": m.jitter_s}
+    if m.range_m is not None:
+        table["range_m"] = m.range_m
+    if m.bandwidth_bytes_per_s is not None:
+        table["bandwidth_bytes_per_s"] = m.bandwidth_bytes_per_s
+    table["mailbox_capacity"] = draw(st.sampled_from([1024, 64, 8]))
+    return table
+
+
+# --- whole scenarios -------------------------------------------------------------------------
+
+
+@st.composite
+def scenario_documents(
+    draw,
+    *,
+    min_uavs: int = 1,
+    max_uavs: int = 4,
+    min_duration_s: int = 20,
+    max_duration_s: int = 60,
+    area_km: tuple[int, int] = (5, 15),
+    planners: Sequence[str] = ("greedy", "dacmp"),
+    surveillance: bool | None = None,
+    extra_types: bool = True,
+    late_joiners: bool = True,
+    max_targets: int = 3,
+    max_threats: int = 2,
+    faults: bool = True,
+    fault_kinds: Sequence[str] = ALL_KINDS,
+    max_faults: int = 5,
+    lossy_radio: bool = True,
+) -> dict:
+    """A scenario document (a dict, as parsed from TOML) that :func:`parse_scenario` accepts.
+    :func:`scenarios` validates it; the fuzz tests mutate it into wrong documents."""
+    duration = draw(st.integers(min_duration_s, max_duration_s))
+    area = draw(areas(*area_km))
+    type_specs: dict[str, dict] = {}
+    types = ["B", "A"]
+    if extra_types and draw(st.booleans()):
+        type_specs["C"] = draw(uav_type_specs())
+        types.append("C")
+    uavs = draw(fleets(area, types, min_uavs=min_uavs, max_uavs=max_uavs, duration_s=float(duration),
+                       late_joiners=late_joiners, type_specs=type_specs))
+    names = [u["name"] for u in uavs]
+    doc: dict[str, Any] = {
+        "name": "generated",
+        "seed": draw(st.integers(0, 2**16)),
+        "duration_s": float(duration),
+        "area": area,
+        "uavs": uavs,
+        "targets": draw(target_layouts(area, max_targets=max_targets)),
+        "threats": draw(threat_layouts(area, [(u["x_m"], u["y_m"]) for u in uavs], max_threats=max_threats)),
+        "radio": draw(radio_tables(lossy=lossy_radio)),
+    }
+    if type_specs:
+        doc["uav_types"] = type_specs
+    planner = draw(st.sampled_from(list(planners)))
+    doc["planner"] = {"name": planner,
+                      "surveillance": draw(st.booleans()) if surveillance is None else surveillance}
+    if planner == "dacmp":
+        particles, iterations = draw(st.sampled_from([(10, 5), (20, 10), (40, 25)]))
+        doc["planner"]["dacmp"] = {"particles": particles, "iterations": iterations}
+    if faults and max_faults > 0:
+        # The first UAV flies from the start (someone must); a UAV can only be told once when it joins.
+        joinable = [u["name"] for u in uavs[1:] if "join_s" not in u]
+        schedule = draw(fault_schedules(names, float(duration), kinds=fault_kinds, max_faults=max_faults,
+                                        joinable=joinable))
+        doc["faults"] = [_fault_doc(f) for f in schedule.faults]
+    return doc
+
+
+def _fault_doc(fault) -> dict:
+    d = fault_to_dict(fault)
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if v is None or (k in ("uavs", "links") and not v):
+            continue
+        if k == "links":
+            v = [list(p) for p in v]
+        elif k == "groups":
+            v = [list(g) for g in v]
+        elif k == "uavs":
+            v = list(v)
+        out[k] = v
+    if isinstance(fault, Join):
+        out.pop("start_s", None)
+    return out
+
+
+def fault_schedule_of(scenario: Scenario) -> FaultSchedule:
+    """A scenario's ``[[faults]]`` as a :class:`~faults.schedule.FaultSchedule` (what the injector runs)."""
+    return FaultSchedule([fault_from_dict(f.model_dump(mode="python")) for f in scenario.faults])
+
+
+def scenarios(**kwargs: Any) -> st.SearchStrategy[Scenario]:
+    """Validated :class:`~swarm.scenario.Scenario` objects (see :func:`scenario_documents` for
+    the options). A document the model rejects is a bug in these strategies and raises."""
+    return scenario_documents(**kwargs).map(lambda doc: parse_scenario(doc, GENERATED_SOURCE))
+
+
+# --- reproducing an example --------------------------------------------------------------------
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _toml_str(s: str) -> str:
+    out = ['"']
+    for ch in s:
+        code = ord(ch)
+        if ch == '"':
+            out.append('\\"')
+        elif ch == "\\":
+            out.append("\\\\")
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "\t":
+            out.append("\\t")
+        elif code < 0x20 or code == 0x7F:
+            out.append(f"\\u{code:04X}")
+        else:
+            out.append(ch)
+    out.append('"')
+    return "".join(out)
+
+
+def _toml_key(k: str) -> str:
+    return k if _BARE_KEY.fullmatch(k) else _toml_str(k)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return _toml_str(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items() if x is not None) + "}"
+    raise TypeError(f"cannot write {type(v).__name__} as TOML: {v!r}")
+
+
+def _is_table_array(v: Any) -> bool:
+    return isinstance(v, (list, tuple)) and bool(v) and all(isinstance(x, dict) for x in v)
+
+
+def _emit(lines: list[str], table: dict, path: list[str]) -> None:
+    for k, v in table.items():
+        if v is None or isinstance(v, dict) or _is_table_array(v):
+            continue
+        lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
+    for k, v in table.items():
+        if isinstance(v, dict):
+            sub = path + [_toml_key(k)]
+            lines.extend(["", f"[{'.'.join(sub)}]"])
+            _emit(lines, v, sub)
+    for k, v in table.items():
+        if _is_table_array(v):
+            sub = path + [_toml_key(k)]
+            for item in v:
+                lines.extend(["", f"[[{'.'.join(sub)}]]"])
+                _emit(lines, item, sub)
+
+
+def scenario_toml(scenario: Scenario | dict, comment: str = "") -> str:
+    """The scenario as a TOML document that loads back to an equal :class:`Scenario`."""
+    doc = scenario.model_dump(mode="python") if isinstance(scenario, Scenario) else scenario
+    lines = [f"# {line}" for line in comment.splitlines()]
+    _emit(lines, doc, [])
+    return "\n".join(lines).strip("\n") + "\n"
+
+
+def reproduce_command(path: str | os.PathLike[str], seed: int) -> str:
+    return f"swarm run {os.fspath(path)} --seed {seed}"
+
+
+def reproduction(scenario: Scenario, directory: str | os.PathLike[str] | None = None,
+                 comment: str = "") -> tuple[Path, str]:
+    """Write ``scenario`` as TOML and return ``(path, command)``: the ``swarm run`` command
+    that replays it. ``directory`` defaults to ``$SWARM_REPRO_DIR`` or ``<tmp>/swarm-repro``;
+    the file name is derived from the content, so the same example always lands in one file."""
+    text = scenario_toml(scenario, comment)
+    folder = Path(directory or os.environ.get("SWARM_REPRO_DIR") or Path(tempfile.gettempdir()) / "swarm-repro")
+    folder.mkdir(parents=True, exist_ok=True)
+    digest = hashlib.sha256(text.encode()).hexdigest()[:12]
+    path = folder / f"{scenario.name}-{digest}.toml"
+    path.write_text(text, encoding="utf-8")
+    return path, reproduce_command(path, scenario.seed)
+
+
+@contextlib.contextmanager
+def reproducible(scenario: Scenario, directory: str | os.PathLike[str] | None = None) -> Iterator[None]:
+    """Run a test body; if it fails, write the scenario (seed and fault schedule included) with
+    :func:`reproduction` and attach the ``swarm run`` command to the failure: as a Hypothesis
+    :func:`~hypothesis.note` (printed with the minimal failing example) and as a note on the
+    exception itself (printed by pytest whatever the runner)::
+
+        @given(scenarios())
+        def test_something(scenario):
+            with reproducible(scenario):
+                ...
+    """
+    try:
+        yield
+    except BaseException as exc:
+        if isinstance(exc, (KeyboardInterrupt, SystemExit, GeneratorExit)):
+            raise
+        faults = ", ".join(f.kind for f in scenario.faults) or "none"
+        try:
+            path, command = reproduction(scenario, directory,
+                                         comment=f"Failing example: {type(exc).__name__}: {exc}".replace("\n", " ")[:500])
+            text = f"reproduce (seed {scenario.seed}, faults: {faults}): {command}"
+        except OSError as err:  # a read-only disk must not hide the real failure
+            text = f"reproduce: could not write the scenario ({err}); seed {scenario.seed}, faults: {faults}"
+        with contextlib.suppress(InvalidArgument):  # outside a Hypothesis test there is nothing to note in
+            note(text)
+        if hasattr(exc, "add_note"):
+            exc.add_note(text)
+        raise

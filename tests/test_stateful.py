@@ -1,0 +1,132 @@
+"""The reusable state machine (swarm.stateful.SwarmMachine): as shipped, subclassed with a rule and
+an invariant of our own, and with a planted bug it must catch."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from hypothesis import HealthCheck, Phase, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import invariant, rule, run_state_machine_as_test
+
+from faults.schedule import Burst
+from swarm.invariants import InvariantViolation
+from swarm.scenario import scenario_from_toml
+from swarm.stateful import CHECKERS, SwarmMachine
+from swarm.strategies import scenario_toml, scenarios
+
+
+def examples(n: int) -> int:
+    """``n`` under the ci profile, scaled with the active profile (deep: 10x)."""
+    return max(1, n * settings.default.max_examples // 100)
+
+
+class RecordingMachine(SwarmMachine):
+    """SwarmMachine that adds what each example did to the session's fault statistics."""
+
+    stats = None  # set by the fixture below
+
+    def teardown(self):
+        if self.sim is not None and self.stats is not None:
+            self.stats.schedule(self.sim.injector.schedule.faults)
+            self.stats.run(dict(self.sim.injector.fired))
+        super().teardown()
+
+
+@pytest.fixture(autouse=True)
+def _record_faults(fault_stats):
+    RecordingMachine.stats = fault_stats
+    yield
+    RecordingMachine.stats = None
+
+
+TestSwarmMachine = RecordingMachine.TestCase
+TestSwarmMachine.settings = settings(max_examples=examples(50), stateful_step_count=50,
+                                     suppress_health_check=[HealthCheck.too_slow])
+
+
+class CoverageMachine(RecordingMachine):
+    """A user's subclass: one more rule (Gilbert-Elliott bursts on every link) and one more
+    invariant (ground-truth coverage and targets found never go down)."""
+
+    def __init__(self):
+        super().__init__()
+        self.last = (0.0, 0)
+
+    @rule(p_enter=st.sampled_from([0.5, 0.1, 1.0]), ticks=st.integers(5, 20))
+    def burst(self, p_enter, ticks):
+        now = self.now
+        self.sim.add_fault(Burst(start_s=now, end_s=now + ticks, p_enter_bad=p_enter, p_exit_bad=0.3))
+        self.history.append(f"t={now:g}: burst p_enter_bad={p_enter} for {ticks} s")
+
+    @invariant()
+    def coverage_and_finds_never_drop(self):
+        if self.sim is None:
+            return
+        snap = self.sim.snapshot()
+        assert snap.coverage >= self.last[0] and snap.targets_found >= self.last[1]
+        self.last = (snap.coverage, snap.targets_found)
+
+
+TestCoverageMachine = CoverageMachine.TestCase
+TestCoverageMachine.settings = settings(max_examples=examples(20), stateful_step_count=40,
+                                        suppress_health_check=[HealthCheck.too_slow])
+
+
+class RangeBlindMachine(SwarmMachine):
+    """A planted bug the machine must find: a radio that forgets its range limit."""
+
+    def scenario_strategy(self):
+        return scenarios(min_uavs=2, max_uavs=3, faults=False, late_joiners=False, lossy_radio=False,
+                         min_duration_s=60, max_duration_s=60, area_km=(12, 15)).map(
+            lambda sc: sc.model_copy(update={"radio": sc.radio.model_copy(update={"range_m": 1500.0})}))
+
+    def on_start(self):
+        self.sim.radio.model = dataclasses.replace(self.sim.radio.model, range_m=None)
+
+
+def test_machine_catches_a_planted_radio_bug_and_says_how_to_replay_it():
+    with pytest.raises(InvariantViolation) as info:
+        run_state_machine_as_test(RangeBlindMachine, settings=settings(
+            max_examples=20, stateful_step_count=10, phases=[Phase.generate], database=None,
+            suppress_health_check=list(HealthCheck)))
+    err = info.value
+    assert {v.invariant for v in err.violations} == {"radio"}
+    assert any("range 1500 m" in v.message for v in err.violations)
+    assert any(n.startswith("replay: swarm run ") and "--seed" in n for n in err.__notes__)
+
+
+def test_machine_run_can_be_written_as_a_scenario():
+    machine = SwarmMachine()
+    # Drive it by hand, as Hypothesis would: a start, some time, each kind of change.
+    from hypothesis import find
+
+    scenario = find(machine.scenario_strategy(), lambda s: len(s.uavs) >= 2)
+
+    class _Data:
+        def draw(self, strategy, label=None):
+            return scenario if label == "scenario" else find(strategy, lambda x: True)
+
+    machine.start(_Data())
+    machine.advance(5)
+    machine.cut(_Data(), one_way=False)
+    machine.change_loss(0.5)
+    machine.advance(5)
+    machine.heal()
+    machine.join(_Data())
+    machine.crash(_Data())
+    machine.advance_long(10)
+    machine.invariants_hold()
+    sc = machine.reproduction_scenario()
+    kinds = sorted({f.kind for f in sc.faults})
+    assert kinds == ["crash", "drop", "partition"]
+    assert scenario_from_toml(scenario_toml(sc), "again.toml") == sc
+    assert sc.duration_s == machine.now == 20.0
+    machine.teardown()
+
+
+def test_checker_names_are_all_known():
+    assert set(SwarmMachine.checkers) <= set(CHECKERS)
+    with pytest.raises(ValueError, match="unknown checker"):
+        type("Bad", (SwarmMachine,), {"checkers": ("nope",)})().make_checkers()

@@ -1,0 +1,238 @@
+"""The public Hypothesis strategies (faults.strategies, swarm.strategies) and the property test
+they exist for: generated scenarios with generated fault schedules keep every invariant that
+holds for any planner, and replay to the same event log.
+
+Each generated run is recorded in the session's fault statistics (see conftest.py): the summary
+at the end of the session says how often each fault kind fired, and the session fails if a kind
+never did.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, find, given, settings
+from hypothesis import strategies as st
+
+from comms.radio import LinkModel, Radio
+from faults.schedule import Burst, Corrupt, Crash, Delay, Drop, Duplicate, FaultSchedule, Join, Partition
+from faults.strategies import (
+    ALL_KINDS,
+    fault_schedules,
+    faults,
+    link_models,
+    partitions,
+    probabilities,
+    windows,
+)
+from swarm import Simulation
+from swarm.invariants import DynamicsChecker, RadioChecker, ThreatClearanceChecker, check_events
+from swarm.recorder import read_events
+from swarm.scenario import Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
+from swarm.strategies import (
+    fault_schedule_of,
+    fleets,
+    radio_tables,
+    target_layouts,
+    threat_layouts,
+    uav_type_specs,
+    reproducible,
+    reproduction,
+    scenario_toml,
+    scenarios,
+)
+
+NAMES = ["B1", "B2", "A1", "A2"]
+KIND_CLASSES = {"drop": Drop, "burst": Burst, "delay": Delay, "duplicate": Duplicate, "corrupt": Corrupt,
+                "partition": Partition, "crash": Crash, "join": Join}
+
+
+def examples(n: int) -> int:
+    """``n`` under the ci profile, scaled with the active profile (deep: 10x)."""
+    return max(1, n * settings.default.max_examples // 100)
+
+
+# --- fault schedules -------------------------------------------------------------------------------
+
+
+@settings(max_examples=examples(400))
+@given(duration=st.integers(10, 300), kinds=st.lists(st.sampled_from(ALL_KINDS), min_size=1, unique=True),
+       data=st.data())
+def test_fault_schedules_name_known_uavs_and_stay_inside_the_run(fault_stats, duration, kinds, data):
+    schedule = data.draw(fault_schedules(NAMES, float(duration), kinds=kinds, max_faults=8))
+    fault_stats.schedule(schedule.faults)
+    assert isinstance(schedule, FaultSchedule)
+    joined = [f.uav for f in schedule.faults if isinstance(f, Join)]
+    assert len(joined) == len(set(joined)), "a UAV can only join once"
+    for f in schedule.faults:
+        assert f.kind in kinds
+        assert isinstance(f, KIND_CLASSES[f.kind])
+        names = list(getattr(f, "uavs", ())) + [n for p in getattr(f, "links", ()) for n in p]
+        names += [n for g in getattr(f, "groups", ()) for n in g] + [getattr(f, "uav", "B1")]
+        assert set(names) <= set(NAMES)
+        if isinstance(f, (Crash, Join)):
+            assert 0.0 <= f.at_s < duration
+            assert f.at_s > 0 or isinstance(f, Crash)  # a join at 0 s would not be late
+        else:
+            assert 0.0 <= f.start_s < duration
+            assert f.end_s == math.inf or f.start_s < f.end_s <= duration
+        if isinstance(f, Partition):
+            flat = [n for g in f.groups for n in g]
+            assert len(f.groups) >= 2 and all(f.groups) and len(flat) == len(set(flat))
+        if isinstance(f, (Drop, Duplicate, Corrupt)):
+            assert 0.05 <= f.rate <= 1.0
+
+
+def test_every_kind_has_a_strategy():
+    for kind in ALL_KINDS:
+        f = find(faults(NAMES, 60.0, kinds=[kind]), lambda f: True)
+        assert f.kind == kind
+
+
+def test_schedules_shrink_to_simple_cases():
+    assert find(fault_schedules(NAMES, 60.0), lambda s: True).faults == []
+    one = find(fault_schedules(NAMES, 60.0), lambda s: len(s.faults) >= 1).faults
+    assert one == [Drop(start_s=0.0, end_s=math.inf, rate=1.0)]  # simplest kind, whole run, all links
+    crash = find(fault_schedules(NAMES, 60.0), lambda s: any(isinstance(f, Crash) for f in s.faults)).faults
+    assert crash == [Crash(uav="B1", at_s=0.0)]
+    late = find(windows(100.0), lambda w: w[0] >= 30)
+    assert late == (30.0, math.inf)
+    assert find(probabilities(0.05), lambda p: True) == 1.0
+
+
+def test_partitions_need_two_names_and_schedules_respect_joinable():
+    with pytest.raises(ValueError):
+        find(partitions(["B1"], 10.0), lambda p: True)
+    s = find(fault_schedules(NAMES, 30.0, kinds=["join"], joinable=["A2"], min_faults=1), lambda s: True)
+    assert [f.uav for f in s.faults] == ["A2"]
+    with pytest.raises(ValueError):
+        faults(NAMES, 30.0, kinds=["meteor"])
+
+
+@settings(max_examples=examples(100))
+@given(link_models())
+def test_link_models_are_usable_by_the_radio(model):
+    assert isinstance(model, LinkModel)
+    assert 0.0 <= model.loss_base <= 1.0 and 0.0 <= model.loss_at_range <= 1.0
+    for d in (0.0, 500.0, 1e5):
+        assert 0.0 <= model.loss(d) <= 1.0
+    import numpy as np
+
+    radio = Radio(model, link_rng=lambda s, d: np.random.default_rng(s * 7 + d))
+    radio.update_topology([0, 1], np.array([[0.0, 0.0], [100.0, 0.0]]), 1.0)
+    out = []
+    radio.broadcast(0.0, 0, b"x" * 100, out)
+    assert all(d.arrival_t >= 0.0 for d in out)
+
+
+def test_link_models_shrink_to_the_ideal_radio():
+    assert find(link_models(), lambda m: True) == LinkModel()
+
+
+# --- scenarios -------------------------------------------------------------------------------------
+
+
+@settings(max_examples=examples(150), suppress_health_check=[HealthCheck.too_slow])
+@given(scenarios())
+def test_scenarios_are_valid_small_and_round_trip_through_toml(scenario):
+    """Also: late joiners never include the first UAV, so someone flies from the start."""
+    assert isinstance(scenario, Scenario)
+    assert 5_000 <= scenario.area.width_m <= 15_000 and 5_000 <= scenario.area.height_m <= 15_000
+    assert 1 <= len(scenario.uavs) <= 4 and 20 <= scenario.duration_s <= 60
+    assert any((u.join_s or 0.0) == 0.0 for u in scenario.uavs), "someone flies from the start"
+    text = scenario_toml(scenario)
+    assert scenario_from_toml(text, "generated.toml") == scenario
+
+
+def test_fleets_mix_types_including_a_generated_third_one():
+    area = {"width_m": 10_000.0, "height_m": 10_000.0, "cell_m": 100.0}
+    spec = find(uav_type_specs(), lambda s: True)
+    UavTypeSpec(**spec)  # valid as a table
+    fleet = find(fleets(area, ("B", "A", "C"), min_uavs=3, type_specs={"C": spec}),
+                 lambda f: len({u["type"] for u in f}) == 3)
+    assert sorted(u["name"] for u in fleet) == ["A1", "B1", "C1"]
+    xy = [(u["x_m"], u["y_m"]) for u in fleet]
+    assert min(math.dist(p, q) for i, p in enumerate(xy) for q in xy[i + 1:]) >= 2000.0
+
+
+@settings(max_examples=examples(50))
+@given(uav_type_specs())
+def test_generated_uav_types_are_valid(spec):
+    UavTypeSpec(**spec)
+
+
+def test_pieces_shrink_to_simple_cases():
+    area = {"width_m": 5_000.0, "height_m": 5_000.0, "cell_m": 100.0}
+    assert len(find(fleets(area), lambda f: True)) == 1
+    assert find(target_layouts(area), lambda t: True) == {"count": 0, "speed_max": 20.0, "placed": []}
+    assert find(threat_layouts(area), lambda t: True) == []
+    assert find(radio_tables(), lambda r: True) == {"loss_base": 0.0, "loss_at_range": 0.0, "latency_s": 0.0,
+                                                     "jitter_s": 0.0, "mailbox_capacity": 1024}
+
+
+@settings(max_examples=2)
+@given(scenarios(min_uavs=2, max_uavs=3, max_duration_s=25, max_faults=3))
+def test_reproduction_file_runs_with_the_printed_command(scenario):
+    import json
+    import tempfile
+
+    from swarm.cli import main
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path, command = reproduction(scenario, tmp)
+        assert command == f"swarm run {path} --seed {scenario.seed}"
+        argv = command.split()[1:] + ["--quiet", "--no-figures", "--out", f"{tmp}/out"]
+        assert main(argv) == 0
+        with Simulation(scenario) as sim:
+            expected = sim.run().metrics["event_log_sha256"]
+        assert json.loads(Path(tmp, "out", "metrics.json").read_text())["event_log_sha256"] == expected
+
+
+def test_reproducible_notes_the_command_on_failure(tmp_path):
+    sc = load_scenario("paper-case1")
+    with pytest.raises(AssertionError) as info:
+        with reproducible(sc, tmp_path):
+            raise AssertionError("planted")
+    (note,) = info.value.__notes__
+    assert f"--seed {sc.seed}" in note and "swarm run " in note and str(tmp_path) in note
+
+
+# --- the property: generated runs keep the any-planner invariants and replay exactly ----------
+
+
+def _fired_summary(sim: Simulation) -> dict[str, int]:
+    return dict(sim.injector.fired)
+
+
+@settings(max_examples=examples(400), suppress_health_check=[HealthCheck.too_slow])
+@given(scenario=scenarios(max_uavs=4, max_duration_s=40))
+def test_generated_runs_keep_invariants_and_replay_identically(fault_stats, scenario):
+    """Threat clearance, dynamic limits and radio legality on the event log of a run with a
+    generated fault schedule, then a replay from the scenario's TOML (what `swarm run` reads)
+    must give the same event-log hash. (Separation is not here: it is broken whenever UAVs
+    cannot hear each other, see test_invariants.py's known failures.)"""
+    fault_stats.schedule(scenario.faults)
+    with reproducible(scenario):
+        with Simulation(scenario) as sim:
+            result = sim.run()
+            fault_stats.run(_fired_summary(sim))
+        events = list(read_events(result.events))
+        violations = check_events(events, scenario, [ThreatClearanceChecker(), DynamicsChecker(), RadioChecker()])
+        assert not violations, "\n".join(map(str, violations))
+        assert result.metrics["violations"]["dynamics"] == 0
+        # Replay from the file a user would get.
+        again = scenario_from_toml(scenario_toml(scenario), "replay.toml")
+        with Simulation(again) as sim2:
+            replay = sim2.run().metrics["event_log_sha256"]
+        assert replay == result.metrics["event_log_sha256"], "same scenario and seed gave another event log"
+
+
+def test_fault_schedule_of_lists_the_scenario_faults():
+    doc = {"uavs": [{"type": "B", "x_m": 0.0, "y_m": 0.0}, {"type": "B", "x_m": 10.0, "y_m": 0.0}],
+           "area": {"width_m": 1000.0, "height_m": 1000.0},
+           "faults": [{"kind": "drop", "rate": 0.5}, {"kind": "crash", "uav": "B2", "at_s": 3.0}]}
+    schedule = fault_schedule_of(parse_scenario(doc))
+    assert [f.kind for f in schedule.faults] == ["drop", "crash"]
+    assert schedule.faults[1] == Crash(uav="B2", at_s=3.0)
