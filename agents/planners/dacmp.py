@@ -8,9 +8,11 @@ Each replanning, a UAV runs a particle swarm over candidate waypoints:
   random factor ``Q ~ U(0, 1)`` on each position increment (eq. 15);
 * fitness ``f = f_S + f_t`` (eq. 16):
 
-  - ``f_Sl = sum_l lambda_l P_l(k) / (1 + ((Dub(k) - R_s) / R_s)^2)`` (eq. 19), ``P_l`` the
-    Gaussian pyramid level ``l`` at the particle's cell, ``Dub`` the shortest Dubins path with
-    free final heading (:mod:`agents.dubins`);
+  - ``f_Sl = sum_{l=1..L} lambda_l P_l(k) / (1 + ((Dub(k) - R_s) / R_s)^2)`` (eq. 19), ``P_l``
+    the Gaussian pyramid level ``l`` at the particle's cell, ``Dub`` the shortest Dubins path
+    with free final heading (:mod:`agents.dubins`). As in the paper, ``L`` (``map.levels``, 7)
+    counts the layers *above* the map ``G_0``: the sum starts at ``l = 1`` and the seventh layer
+    of a 500 x 500 map is the 4 x 4 one the paper's global guide reads;
   - ``f_Sg = 1 / (1 + exp(theta_k / pi))`` (eq. 20), ``theta_k`` the angle at the UAV between
     the global guide point and the particle; the guide is the centre of the most uncertain of
     the (up to 8) regions around the UAV's own region on the coarsest level with >= 4x4 cells;
@@ -36,7 +38,7 @@ import numpy as np
 
 from agents.dubins import dubins_length
 from agents.planners.base import Plan, PlanView
-from agents.pyramid import gaussian_pyramid
+from agents.pyramid import gaussian_pyramid, level_index, sample_levels
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
@@ -82,10 +84,12 @@ class DacmpPlanner:
     # --- pieces of the fitness --------------------------------------------------------------
 
     def _weights(self, n: int) -> np.ndarray:
+        """lambda_1..lambda_n of eq. 19 (n can be < L when the map is small), summing to 1."""
         if self.level_weights is None:
             return np.full(n, 1.0 / n)
         w = np.asarray(self.level_weights[:n], dtype=np.float64)
-        return w / w.sum()
+        total = w.sum()
+        return w / total if total > 0 else np.full(n, 1.0 / n)
 
     @staticmethod
     def guide_point(pyramid: list[np.ndarray], cell_m: float, x: float, y: float, theta: float,
@@ -104,15 +108,16 @@ class DacmpPlanner:
         if level is None:
             return None
         g = pyramid[level]
-        size = cell_m * (1 << level)
-        ry = min(int(y // size), g.shape[0] - 1)
-        rx = min(int(x // size), g.shape[1] - 1)
+        # Region a of this level is centred on level-0 cell a * 2**level (see level_index).
+        ry = min(level_index(max(int(y // cell_m), 0), level), g.shape[0] - 1)
+        rx = min(level_index(max(int(x // cell_m), 0), level), g.shape[1] - 1)
         cands = []
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
                 yy, xx = ry + dy, rx + dx
                 if (dx or dy) and 0 <= yy < g.shape[0] and 0 <= xx < g.shape[1]:
-                    cx, cy = min((xx + 0.5) * size, width), min((yy + 0.5) * size, height)
+                    cx = min(((xx << level) + 0.5) * cell_m, width)
+                    cy = min(((yy << level) + 0.5) * cell_m, height)
                     turn = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
                     cands.append((float(g[yy, xx]), turn, cx, cy))
         if not cands:
@@ -128,8 +133,8 @@ class DacmpPlanner:
         R = k.detect_radius
         t = view.t
         q = view.umap.uncertainty(t)
-        pyr = gaussian_pyramid(q, self.levels)
-        lam = self._weights(len(pyr))
+        pyr = gaussian_pyramid(q, self.levels + 1)  # G_0 .. G_L
+        lam = self._weights(max(len(pyr) - 1, 1))
         guide = self.guide_point(pyr, g.cell_m, view.x, view.y, view.theta, g.width_m, g.height_m)
         r_min = k.r_min(view.v)
         unit = self.field_unit_m
@@ -153,9 +158,9 @@ class DacmpPlanner:
 
         def fitness(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             ix, iy = g.cells_of(px, py)
-            p_sum = np.zeros(px.shape)
-            for lv, G in enumerate(pyr):
-                p_sum += lam[lv] * G[np.minimum(iy >> lv, G.shape[0] - 1), np.minimum(ix >> lv, G.shape[1] - 1)]
+            # Levels 1..L (eq. 19); a map too small to have level 1 falls back on G_0.
+            upper = pyr[1:] or pyr[:1]
+            p_sum = lam @ sample_levels(upper, ix, iy) if len(pyr) > 1 else lam[0] * sample_levels(pyr, ix, iy)[0]
             dub = dubins_length(view.x, view.y, view.theta, px, py, r_min)
             f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
             if guide is not None:
