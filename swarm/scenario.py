@@ -450,6 +450,9 @@ class DacmpSettings(_Model):
     c2_end: Num = _num(2.5, ge=0)
     ring_mean_factor: Num = _num(1.5, gt=0, note="times the detection radius")
     ring_sd_factor: Num = _num(0.5, ge=0, note="times the detection radius")
+    # Our choice (the paper does not bound them): particles stay within this distance of the UAV,
+    # so the waypoint it announces is its next one, not a target 10 km away.
+    ring_max_factor: Num = _num(2.5, gt=0, note="times the detection radius")
     heading_sd_rad: Num = _num(math.pi / 2, ge=0)
     eta: Num = _num(0.5, ge=0, le=1)
     # The target terms (eq. 22-23) measure distance and speed in this unit (km, km/s): with
