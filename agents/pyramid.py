@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-__all__ = ["pyr_down", "gaussian_pyramid", "sample_levels"]
+__all__ = ["pyr_down", "gaussian_pyramid", "level_index", "sample_levels"]
 
 _WEIGHTS = np.array([1.0, 4.0, 6.0, 4.0, 1.0])  # binomial, unnormalised
 _SCALE = 1.0 / 256.0  # (1/16) per axis, applied once at the end (exact: a power of two)
@@ -112,26 +112,38 @@ def gaussian_pyramid(q: np.ndarray, levels: int) -> list[np.ndarray]:
     return pyr
 
 
+def level_index(i0, level: int):
+    """Index on level ``level`` of the cell nearest to level-0 cell ``i0`` (int or int array).
+
+    ``REDUCE`` keeps samples 0, 2, 4, ...: level-``l`` cell ``a`` is centred on level-0 cell
+    ``2**l * a``, not on the middle of the block ``[2**l a, 2**l (a+1))``. Reading level ``l`` at
+    ``i0 >> l`` would therefore look half a coarse cell towards the origin (3.2 km on level 6 of
+    the paper's map): the planner would see every region shifted south-west of where it is.
+    Rounding to the nearest centre removes that bias.
+    """
+    return (i0 + ((1 << level) >> 1)) >> level
+
+
 def sample_levels(pyramid: list[np.ndarray], ix0: np.ndarray, iy0: np.ndarray) -> np.ndarray:
-    """Values of every level at the cells containing level-0 cells ``(row iy0, col ix0)``.
+    """Values of every level at the cells nearest to level-0 cells ``(row iy0, col ix0)``.
 
     Returns shape ``(len(pyramid), n)`` (``n`` = number of points after broadcasting ``ix0``,
-    ``iy0`` and flattening): row ``l`` is ``G_l[clip(iy0 >> l), clip(ix0 >> l)]``, indices clipped
-    to the level's shape.  The dtype is the common dtype of the levels.
+    ``iy0`` and flattening): row ``l`` is ``G_l[clip(level_index(iy0, l)), clip(level_index(ix0, l))]``,
+    indices clipped to the level's shape.  The dtype is the common dtype of the levels.
     """
     ix = np.asarray(ix0).astype(np.intp, copy=False).ravel()
     iy = np.asarray(iy0).astype(np.intp, copy=False).ravel()
     ix, iy = np.broadcast_arrays(ix, iy)
     dtype = np.result_type(*pyramid) if pyramid else np.float64
     out = np.empty((len(pyramid), ix.shape[0]), dtype=dtype)
-    # Negative indices clip to 0 once (x >> l of a non-negative x stays non-negative); the upper
-    # clip is per level.
+    # Negative indices clip to 0 once (rounding a non-negative index stays non-negative); the
+    # upper clip is per level.
     ix = np.maximum(ix, 0)
     iy = np.maximum(iy, 0)
     for l, g in enumerate(pyramid):  # loop over levels (~7), not points
         h, w = g.shape
-        r = np.minimum(iy >> l, h - 1)
-        c = np.minimum(ix >> l, w - 1)
+        r = np.minimum(level_index(iy, l), h - 1)
+        c = np.minimum(level_index(ix, l), w - 1)
         r *= w
         r += c
         out[l] = np.take(g, r)  # flat (row-major) index r * w + c, any memory layout

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from swarm.errors import SwarmError
+from swarm.errors import SwarmError, UsageError
 
 EXIT_USAGE = 2
 
@@ -100,6 +100,146 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _parse_grid(assignments: list[str]) -> dict[str, list]:
+    from swarm.scenario import parse_assignment
+    from swarm.sweep import split_values
+
+    grid: dict[str, list] = {}
+    for text in assignments:
+        key, sep, values = text.partition("=")
+        if not sep or not key.strip() or not values.strip():
+            raise UsageError(f"--set {text!r}: expected KEY=VALUE[,VALUE...], e.g. radio.loss_base=0,0.3")
+        grid[key.strip()] = [parse_assignment(f"{key.strip()}={v}")[1] for v in split_values(values)]
+    return grid
+
+
+def _cmd_sweep(args) -> int:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from swarm.scenario import load_scenario
+    from swarm.sweep import plan_runs, run_sweep
+
+    planners = [p.strip() for p in args.planner.split(",") if p.strip()]
+    bad = [p for p in planners if p not in ("dacmp", "greedy")]
+    if bad or not planners:
+        raise UsageError(f"--planner {args.planner!r}: expected a comma-separated list of dacmp, greedy")
+    if args.seeds < 1:
+        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
+    sc = load_scenario(args.scenario)
+    runs = plan_runs(sc, seeds=range(args.first_seed, args.first_seed + args.seeds), planners=planners,
+                     grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
+    executor, client = None, None
+    if args.scheduler:
+        from distributed import Client
+
+        try:
+            client = Client(args.scheduler, timeout=args.connect_timeout)
+        except OSError as exc:
+            raise UsageError(f"--scheduler {args.scheduler}: cannot reach a Dask scheduler there ({exc})") from exc
+        executor = client.get_executor()
+    err = _console(stderr=True)
+    try:
+        with Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[last]}"),
+                      TimeElapsedColumn(), TimeRemainingColumn(), console=err, transient=False,
+                      disable=args.quiet) as progress:
+            task = progress.add_task("sweep", total=len(runs), last="")
+
+            def on_progress(done: int, total: int, spec, status: str) -> None:
+                progress.update(task, completed=done, last=f"{status}: {spec.label}")
+
+            result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress)
+    finally:
+        if client is not None:
+            client.close()
+    summary = result.summary
+    if not args.quiet:
+        _console().print(_sweep_table(summary))
+    print(f"{result.total} runs: {result.skipped} already finished, {result.ran} ran, "
+          f"{len(result.failed)} failed; summary in {Path(args.out) / 'summary.json'}", file=sys.stderr)
+    for f in result.failed:
+        print(f"failed: {f['run']}: {f['error']} (see {Path(args.out) / f['folder'] / 'error.json'})", file=sys.stderr)
+    return 1 if result.failed else 0
+
+
+def _sweep_table(summary: dict):
+    from rich.table import Table
+
+    shown = ["coverage", "certainty", "targets_found", "surveillance_ratio_mean", "handovers_fast_to_slow"]
+    t = Table(title="sweep summary (mean [95% interval])")
+    t.add_column("planner")
+    t.add_column("settings")
+    t.add_column("runs", justify="right")
+    for m in shown:
+        t.add_column(m, justify="right")
+    for g in summary["groups"]:
+        cells = []
+        for m in shown:
+            d = g["metrics"].get(m)
+            cells.append(f"{d['mean']:.3f} [{d['ci95'][0]:.3f}, {d['ci95'][1]:.3f}]" if d else "-")
+        t.add_row(g["planner"], ", ".join(f"{k}={v}" for k, v in g["settings"].items()) or "-",
+                  str(g["runs"]), *cells)
+    return t
+
+
+def _cmd_paper(args) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from swarm.paper import run_paper
+
+    if args.seeds is not None and args.seeds < 1:
+        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
+    executor, client = None, None
+    if args.scheduler:
+        from distributed import Client
+
+        try:
+            client = Client(args.scheduler, timeout=args.connect_timeout)
+        except OSError as exc:
+            raise UsageError(f"--scheduler {args.scheduler}: cannot reach a Dask scheduler there ({exc})") from exc
+        executor = client.get_executor()
+    err = _console(stderr=True)
+    try:
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
+                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=err, transient=False,
+                      disable=args.quiet) as progress:
+            tasks: dict[str, int] = {}
+
+            def on_progress(key: str, desc: str, done: float, total: float, info: str) -> None:
+                count = f"{done:.0f}/{total:.0f}"
+                if key not in tasks:
+                    tasks[key] = progress.add_task(desc, total=total, count=count, info=info)
+                progress.update(tasks[key], completed=done, total=total, count=count, info=info)
+
+            report = run_paper(args.experiment, args.out, seeds=args.seeds, duration_s=args.duration,
+                               executor=executor, workers=args.workers, progress=on_progress)
+    finally:
+        if client is not None:
+            client.close()
+    failed = []
+    for rep in report.experiments:
+        for folder, res in rep.sweeps:
+            print(f"{rep.name}: {folder}: {res.total} runs: {res.skipped} already finished, {res.ran} ran, "
+                  f"{len(res.failed)} failed", file=sys.stderr)
+        for folder, kept in rep.single:
+            print(f"{rep.name}: {folder}: {'already finished, kept' if kept else 'ran'}", file=sys.stderr)
+        for fig in rep.figures:
+            print(f"{rep.name}: figure {fig}", file=sys.stderr)
+        failed += rep.failed
+    if not args.quiet:
+        from rich.table import Table
+
+        t = Table(title="paper (quoted) vs ours (measured)", show_lines=False)
+        for col in ("experiment", "quantity", "paper (quoted)", "ours (measured)"):
+            t.add_column(col, overflow="fold")
+        for r in report.rows:
+            t.add_row(r["experiment"], r["quantity"], r["paper_quoted"], r["ours_measured"])
+        _console().print(t)
+    print(f"table: {report.table_md} and {report.table_csv}", file=sys.stderr)
+    for f in failed:
+        print(f"failed: {f['run']}: {f['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
 def _cmd_bench(args) -> int:
     from swarm.bench import CASES, main as bench_main
 
@@ -164,6 +304,42 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="only the quick cases")
     b.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
     b.set_defaults(func=_cmd_bench)
+
+    sw = sub.add_parser("sweep", help="run planners x settings x seeds and summarise (process pool or Dask)")
+    sw.add_argument("scenario", help="built-in name or path to a .toml file")
+    sw.add_argument("--seeds", type=int, default=30, help="number of seeds (default 30)")
+    sw.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
+    sw.add_argument("--planner", default="dacmp,greedy", help="comma-separated planners (default dacmp,greedy)")
+    sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
+                    help="sweep a scenario setting over values, e.g. --set radio.loss_base=0,0.3 (repeatable)")
+    sw.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
+    where = sw.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="submit to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    sw.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+    sw.add_argument("--figures", action="store_true", help="write trajectories.png for every run")
+    sw.add_argument("--out", required=True, help="sweep folder (runs/, summary.json, summary.csv)")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    sw.set_defaults(func=_cmd_sweep)
+
+    pa = sub.add_parser("paper", help="reproduce the paper's experiments (section 4): figures and a table")
+    pa.add_argument("experiment", choices=["fig11", "case1", "case2", "case3", "all"],
+                    help="fig11 (DACMP vs greedy over seeds), case1 (handover), case2 (threats, task loads), "
+                         "case3 (late joiner vs case2 over seeds), or all of them")
+    pa.add_argument("--seeds", type=int, default=None,
+                    help="seeds 0..N-1 (default: 30 for fig11, 10 for case3; case2: a single run unless given; "
+                         "all: case2 gets case3's count)")
+    pa.add_argument("--duration", type=float, default=None,
+                    help="simulated seconds per run (default: each scenario's; shorter for quick trials)")
+    pwhere = pa.add_mutually_exclusive_group()
+    pwhere.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    pwhere.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="submit the multi-seed runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    pa.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+    pa.add_argument("--out", default="results/paper", help="output folder (default results/paper)")
+    pa.add_argument("--quiet", action="store_true", help="no progress bars or table")
+    pa.set_defaults(func=_cmd_paper)
 
     ls = sub.add_parser("list", help="list the built-in scenarios")
     ls.set_defaults(func=_cmd_list)

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 from pathlib import Path
@@ -23,25 +24,41 @@ def _atomic_write(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def write_run(result, out_dir: str | Path, scenario_dict: dict | None = None, figures: bool = True) -> Path:
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    _atomic_write(out / "events.msgpack", result.events)
+def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -> dict[str, bytes]:
+    """A run's result files as ``{name: bytes}``, ``metrics.json`` last.
+
+    Built in memory so a sweep worker on another machine can ship a finished run back to the
+    machine that writes the folder (no shared file system needed)."""
+    files: dict[str, bytes] = {"events.msgpack": result.events}
     rows = result.timeseries
     if rows:
         columns = list(dict.fromkeys(k for row in rows for k in row))
-        tmp = out / "timeseries.csv.tmp"
-        with tmp.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=columns, restval="pending")
-            w.writeheader()
-            w.writerows(rows)
-        os.replace(tmp, out / "timeseries.csv")
+        buf = io.StringIO(newline="")
+        w = csv.DictWriter(buf, fieldnames=columns, restval="pending")
+        w.writeheader()
+        w.writerows(rows)
+        files["timeseries.csv"] = buf.getvalue().encode()
     if scenario_dict is not None:
-        _atomic_write(out / "scenario.json", json.dumps(scenario_dict, indent=2).encode())
+        files["scenario.json"] = json.dumps(scenario_dict, indent=2).encode()
     if figures:
         from swarm.plots import trajectories_figure
 
-        trajectories_figure(result, out / "trajectories.png")
+        png = io.BytesIO()
+        trajectories_figure(result, png)
+        files["trajectories.png"] = png.getvalue()
     # metrics.json last: its presence marks a complete run folder (sweeps rely on it).
-    _atomic_write(out / "metrics.json", json.dumps(result.metrics, indent=2).encode())
+    files["metrics.json"] = json.dumps(result.metrics, indent=2).encode()
+    return files
+
+
+def write_files(out_dir: str | Path, files: dict[str, bytes]) -> Path:
+    """Write ``files`` atomically one by one, in order (so ``metrics.json`` lands last)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, data in files.items():
+        _atomic_write(out / name, data)
     return out
+
+
+def write_run(result, out_dir: str | Path, scenario_dict: dict | None = None, figures: bool = True) -> Path:
+    return write_files(out_dir, run_files(result, scenario_dict, figures))

@@ -194,10 +194,11 @@ def _is_whole_multiple(value: float, step: float) -> bool:
 
 
 class MapSettings(_Model):
-    """Uncertainty map and pyramid (paper: 7 levels). ``tau`` is not in the paper; see
-    :attr:`Scenario.effective_tau` for the spec's default."""
+    """Uncertainty map and pyramid. ``levels`` is the paper's L: pyramid layers G_1..G_L above the
+    map G_0 (paper: seven, the seventh being 4 x 4 regions on a 500 x 500 map). ``tau`` is not in
+    the paper; see :attr:`Scenario.effective_tau` for the spec's default."""
 
-    levels: Int = _int(7, ge=1, le=12)
+    levels: Int = _int(7, ge=1, le=12, note="layers above the map itself")
     prior_target_speed: Num = _num(10.0, gt=0, note="m/s")
     tau: Num | None = _num(None, gt=0, note="1/s", optional=True)
 
@@ -259,8 +260,11 @@ class TargetSettings(_Model):
     speed_max: Num = _num(20.0, ge=0, note="m/s")
     accel_max: Num = _num(0.4, gt=0, note="m/s^2")
     accel_sigma: Num = _num(0.05, ge=0, note="m/s^2 per sqrt(s)")
-    turn_sigma: Num = _num(0.01, ge=0, note="rad/s per sqrt(s)")
+    turn_sigma: Num = _num(0.002, ge=0, note="rad/s per sqrt(s)")
     turn_rate_max: Num = _num(0.1, gt=0, note="rad/s")
+    # Our choice (the paper gives none): the turn rate relaxes to 0 with this time constant, so
+    # targets wander over kilometres like the paper's dashed tracks instead of circling in place.
+    turn_reversion_s: Num = _num(30.0, gt=0, note="s")
     value: Num = _num(1.0, gt=0)
     placed: list[PlacedTarget] = Field(default_factory=list, description="an array of tables [[targets.placed]]")
 
@@ -446,6 +450,9 @@ class DacmpSettings(_Model):
     c2_end: Num = _num(2.5, ge=0)
     ring_mean_factor: Num = _num(1.5, gt=0, note="times the detection radius")
     ring_sd_factor: Num = _num(0.5, ge=0, note="times the detection radius")
+    # Our choice (the paper does not bound them): particles stay within this distance of the UAV,
+    # so the waypoint it announces is its next one, not a target 10 km away.
+    ring_max_factor: Num = _num(2.5, gt=0, note="times the detection radius")
     heading_sd_rad: Num = _num(math.pi / 2, ge=0)
     eta: Num = _num(0.5, ge=0, le=1)
     # The target terms (eq. 22-23) measure distance and speed in this unit (km, km/s): with
@@ -453,7 +460,8 @@ class DacmpSettings(_Model):
     field_unit_m: Num = _num(1000.0, gt=0, note="metres per distance unit of eq. 22-23")
     # Particles closer than this to a known threat's edge are infeasible (on top of the circle).
     threat_margin_m: Num = _num(300.0, ge=0)
-    # None = equal weights summing to 1; the length is checked against map.levels by Scenario.
+    # lambda_1..lambda_L of eq. 19; None = equal weights summing to 1; the length is checked
+    # against map.levels by Scenario.
     level_weights: list[Annotated[float, Strict(), Field(ge=0)]] | None = Field(
         None, description="an array of numbers >= 0, one per map level, with a positive sum, or leave it out"
     )
@@ -621,7 +629,7 @@ class Scenario(_Model):
         weights = self.planner.dacmp.level_weights
         if weights is not None and len(weights) != self.map.levels:
             problems.append(_Problem(("planner", "dacmp", "level_weights"), weights,
-                                     f"an array of {self.map.levels} numbers (one per map level, map.levels = {self.map.levels})"))
+                                     f"an array of {self.map.levels} numbers (one per pyramid layer 1..L, map.levels = {self.map.levels})"))
         if self.metrics.sample_s < self.dt_s:
             problems.append(_Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({_fmt(self.dt_s)})"))
         return problems

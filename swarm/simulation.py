@@ -158,7 +158,8 @@ class Simulation:
         self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
 
         tm = sc.targets
-        self.targets = Targets(TargetMotion(tm.speed_max, tm.accel_max, tm.accel_sigma, tm.turn_sigma, tm.turn_rate_max))
+        self.targets = Targets(TargetMotion(tm.speed_max, tm.accel_max, tm.accel_sigma, tm.turn_sigma, tm.turn_rate_max,
+                                                  tm.turn_reversion_s))
         threats = [KnownThreat(i, th.x_m, th.y_m, th.radius_m, th.d_max) for i, th in enumerate(sc.threats)]
         self.world = World(self.grid, self.targets, threats)
         self.metrics = Metrics(self.grid, self.tau)

@@ -42,8 +42,9 @@ class TargetMotion:
     speed_max: float = 20.0
     accel_max: float = 0.4
     accel_sigma: float = 0.05
-    turn_sigma: float = 0.01
+    turn_sigma: float = 0.002
     turn_rate_max: float = 0.1
+    turn_reversion_s: float = 30.0
 
 
 class Targets:
@@ -83,11 +84,14 @@ class Targets:
     def step(self, dt: float, grid: Grid) -> None:
         m = self.motion
         sq = math.sqrt(dt)
+        # The turn rate relaxes towards 0 (Ornstein-Uhlenbeck): a pure Wiener turn rate drifts to
+        # its limit and stays there, and the target circles on the spot instead of travelling.
+        keep = math.exp(-dt / m.turn_reversion_s)
         w, h = grid.width_m, grid.height_m
         for i, rng in enumerate(self.rngs):
             na, nw = rng.standard_normal(2)
             a = min(max(self.a[i] + m.accel_sigma * sq * na, -m.accel_max), m.accel_max)
-            om = min(max(self.omega[i] + m.turn_sigma * sq * nw, -m.turn_rate_max), m.turn_rate_max)
+            om = min(max(self.omega[i] * keep + m.turn_sigma * sq * nw, -m.turn_rate_max), m.turn_rate_max)
             v = self.v[i]
             # Keep the speed in [0, speed_max] by limiting the applied acceleration.
             a = min(max(a, -v / dt), (m.speed_max - v) / dt)

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.ndimage import convolve1d
 
-from agents.pyramid import gaussian_pyramid, pyr_down, sample_levels
+from agents.pyramid import gaussian_pyramid, level_index, pyr_down, sample_levels
 
 KERNEL = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 
@@ -154,13 +154,16 @@ def test_sample_levels_picks_cells():
     for l, g in enumerate(pyr):
         h, w = g.shape
         for n, (c, r) in enumerate(zip(ix0, iy0)):
-            rr = min(max(r >> l, 0), h - 1)
-            cc = min(max(c >> l, 0), w - 1)
+            rr = min(level_index(max(r, 0), l), h - 1)
+            cc = min(level_index(max(c, 0), l), w - 1)
             assert got[l, n] == g[rr, cc]
-    # a few by hand: level 1, point (col 11, row 8) -> cell (row 4, col 5)
+    # a few by hand: level 1 cell a is centred on level-0 cell 2a, so point (col 11, row 8) ->
+    # nearest centres (row 4, col 6 -> clipped to 5)
     assert got[1, 1] == 1000 + 4 * 6 + 5
-    # level 2, point (col 7, row 6) -> (row 1, col 1)
-    assert got[2, 3] == 2000 + 1 * 3 + 1
+    # level 2, point (col 7, row 6): centres at 0, 4, 8 -> (row 2, col 2)
+    assert got[2, 3] == 2000 + 2 * 3 + 2
+    # level 1, point (col 5, row 3): 5 is nearer centre 6 (a = 3) than 4; 3 -> a = 2
+    assert got[1, 2] == 1000 + 2 * 6 + 3
     # out-of-range indices clip to the border
     assert got[0, 5] == pyr[0][0, 11] and got[3, 6] == pyr[3][1, 0]
 
@@ -173,5 +176,17 @@ def test_sample_levels_on_real_pyramid_and_dtype():
     got = sample_levels(pyr, ix0, iy0)
     assert got.shape == (5, 4) and got.dtype == np.float32
     for l in range(5):
-        np.testing.assert_array_equal(got[l], pyr[l][iy0 >> l, ix0 >> l])
+        rows = np.minimum(level_index(iy0, l), pyr[l].shape[0] - 1)
+        cols = np.minimum(level_index(ix0, l), pyr[l].shape[1] - 1)
+        np.testing.assert_array_equal(got[l], pyr[l][rows, cols])
     assert sample_levels(pyr, np.zeros(0, int), np.zeros(0, int)).shape == (5, 0)
+
+
+def test_level_index_rounds_to_the_nearest_coarse_centre():
+    # Level-l cell a is centred on level-0 cell a * 2**l: 0..1 -> 0 and 2..5 -> 1 on level 2.
+    assert [level_index(i, 2) for i in range(10)] == [0, 0, 1, 1, 1, 1, 2, 2, 2, 2]
+    assert [level_index(i, 0) for i in range(4)] == [0, 1, 2, 3]
+    # the truncating index (i >> l) would read a coarse cell centred up to 2**l - 1 cells away
+    i = np.arange(1000)
+    for l in range(1, 7):
+        assert np.abs((level_index(i, l) << l) - i).max() <= (1 << l) // 2

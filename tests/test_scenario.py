@@ -78,7 +78,7 @@ def test_case1_layout():
     assert {u.name: (u.type, u.x_m, u.y_m) for u in s.uavs} == {
         "B1": ("B", 20000.0, 22000.0), "B2": ("B", 36000.0, 22000.0), "A1": ("A", 10000.0, 22000.0)}
     assert [(t.x_m, t.y_m, t.heading_deg, t.speed) for t in s.targets.placed] == [
-        (25000.0, 23000.0, 90.0, 3.0), (41000.0, 23000.0, 180.0, 3.0)]
+        (22500.0, 22500.0, 90.0, 3.0), (38500.0, 22500.0, 180.0, 3.0)]
     assert s.duration_s == 600.0 and s.threats == []
 
 

@@ -1,0 +1,1111 @@
+"""The paper's experiments (section 4): runs, figures, and a table of ours next to the paper's.
+
+One function per experiment, and :func:`run_paper` for one or all of them (the Python form of
+``swarm paper``):
+
+* ``fig11`` — ``paper-fig11``, DACMP against greedy over seeds (Fig. 10-11): coverage and targets
+  found over time (mean, 95% band, min-max spread) and final values with 95% intervals;
+* ``case1`` — one ``paper-case1`` run (Fig. 12): distance of every UAV to target 1 over time with
+  the handover and mode changes marked, and the trajectories;
+* ``case2`` — one ``paper-case2`` run (Fig. 13-15): trajectories with threats, task loads per UAV
+  (mode timeline and seconds per mode), coverage over time; optionally statistics over seeds;
+* ``case3`` — ``paper-case3`` against ``paper-case2`` over the same seeds (Fig. 18): mean coverage
+  with 95% bands, the join time marked, and the paired difference.
+
+Multi-seed parts go through :mod:`swarm.sweep` (resumable: finished run folders are skipped;
+process pool or any ``concurrent.futures`` executor such as a Dask client's). Single runs run
+in this process and are written with :func:`swarm.outputs.write_run`; a finished one is kept.
+
+Layout of ``out_dir`` (default ``results/paper``)::
+
+    table.md, table.csv        paper (quoted) next to ours (measured), every experiment
+    fig11/   runs/<planner>/default/seed-NNN/, summary.json, summary.csv (a sweep)
+             fig11_over_time.png, fig11_final.png, results.json
+    case1/   run/ (one run's outputs), case1_distance.png, case1_trajectories.png, results.json
+    case2/   run/, seeds/ (a sweep of paper-case2, with --seeds and for case3),
+             case2_trajectories.png, case2_task_loads.png, case2_coverage.png, results.json
+    case3/   seeds/ (a sweep of paper-case3), case3_coverage.png, results.json
+
+``results.json`` holds what an experiment measured; the table is rebuilt from whichever of them
+exist (a missing experiment shows as "not run"), so every experiment rewrites it.
+
+Targets are numbered from 1 in figures and the table, as in the paper (target 1 = event id 0).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import shutil
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+
+from comms.messages import MODE_SURVEIL  # noqa: E402
+from swarm.errors import UsageError  # noqa: E402
+from swarm.recorder import read_events  # noqa: E402
+from swarm.scenario import load_scenario  # noqa: E402
+from swarm.sweep import SweepResult, describe, plan_runs, run_sweep  # noqa: E402
+
+EXPERIMENTS = ("fig11", "case1", "case2", "case3")
+DEFAULT_SEEDS = {"fig11": 30, "case3": 10}
+SCENARIO = {"fig11": "paper-fig11", "case1": "paper-case1", "case2": "paper-case2", "case3": "paper-case3"}
+FIG11_PLANNERS = ("greedy", "dacmp")  # greedy first: sweep comparisons are "dacmp - greedy"
+PLANNER_LABEL = {"greedy": "greedy", "dacmp": "DACMP"}
+PLANNER_COLOUR = {"greedy": "tab:blue", "dacmp": "tab:red"}
+CASE3_WINDOW_FROM_S = 600.0  # case3 table: mean coverage from this time on
+
+# What the paper reports (section 4), quoted; never computed.
+PAPER = {
+    "fig11": {"duration_s": 2000.0, "runs": 30, "targets_total": 14,
+              "coverage": {"greedy": 0.712, "dacmp": 0.763},
+              "targets_found": {"greedy": 12.1, "dacmp": 13.7}},
+    "case1": {"duration_s": 350.0},
+    "case2": {"targets_total": 6, "targets_found": 6, "watched_end": 6, "handovers_fast_to_slow": 4},
+    "case3": {"join_s": 300.0},
+}
+
+ProgressFn = Callable[[str, str, float, float, str], None]
+"""``progress(key, description, done, total, info)``: one bar per ``key``."""
+
+
+@dataclass
+class ExperimentReport:
+    name: str
+    figures: list[Path] = field(default_factory=list)
+    sweeps: list[tuple[Path, SweepResult]] = field(default_factory=list)
+    single: list[tuple[Path, bool]] = field(default_factory=list)  # (run folder, already finished)
+    failed: list[dict] = field(default_factory=list)
+
+
+@dataclass
+class PaperReport:
+    out_dir: Path
+    experiments: list[ExperimentReport]
+    table_md: Path
+    table_csv: Path
+    rows: list[dict]
+
+
+# --- running -----------------------------------------------------------------------------------
+
+def _expected_duration(scenario, duration_s: float | None) -> float:
+    return float(duration_s if duration_s is not None else scenario.duration_s)
+
+
+def _check_sim_seconds(metrics_path: Path, expected: float) -> None:
+    m = json.loads(metrics_path.read_text())
+    if not math.isclose(float(m.get("sim_seconds", math.nan)), expected, abs_tol=1e-6):
+        raise UsageError(
+            f"{metrics_path.parent} holds a finished run of {m.get('sim_seconds')} s, but this asks for "
+            f"{expected:g} s: use another --out or delete the old results")
+
+
+def _sweep(scenario_name: str, sweep_dir: Path, seeds: Sequence[int], planners: Sequence[str],
+           duration_s: float | None, executor: Executor, progress: ProgressFn | None, key: str) -> SweepResult:
+    sc = load_scenario(scenario_name)
+    runs = plan_runs(sc, seeds=seeds, planners=planners, duration_s=duration_s)
+    expected = _expected_duration(sc, duration_s)
+    for spec in runs:
+        mp = sweep_dir / spec.folder / "metrics.json"
+        if mp.is_file():
+            _check_sim_seconds(mp, expected)
+    desc = f"{key}: {scenario_name} x {len(seeds)} seeds"
+
+    def cb(done: int, total: int, spec, status: str) -> None:
+        if progress is not None:
+            progress(key, desc, done, total, f"{status}: {spec.label}")
+
+    if progress is not None:
+        progress(key, desc, 0, len(runs), "")
+    return run_sweep(runs, sweep_dir, executor=executor, progress=cb)
+
+
+def _single(scenario_name: str, run_dir: Path, duration_s: float | None, progress: ProgressFn | None,
+            key: str) -> bool:
+    """One run with the scenario's seed, all outputs in ``run_dir``. Returns True if it was
+    already there (kept)."""
+    from swarm.outputs import write_run
+    from swarm.simulation import Simulation
+
+    sc = load_scenario(scenario_name)
+    expected = _expected_duration(sc, duration_s)
+    desc = f"{key}: {scenario_name} seed {sc.seed}"
+    if (run_dir / "metrics.json").is_file():
+        _check_sim_seconds(run_dir / "metrics.json", expected)
+        if progress is not None:
+            progress(key, desc, expected, expected, "already finished")
+        return True
+
+    def cb(now: float, end: float) -> None:
+        if progress is not None:
+            progress(key, desc, now, end, f"t={now:.0f}/{end:.0f} s")
+
+    with Simulation(sc, duration_s=duration_s) as sim:
+        result = sim.run(progress=cb)
+        write_run(result, run_dir, sim.scenario.to_dict(), figures=True)
+    if progress is not None:
+        progress(key, desc, expected, expected, "done")
+    return False
+
+
+def _seed_list(seeds: int | Sequence[int]) -> list[int]:
+    if isinstance(seeds, int):
+        if seeds < 1:
+            raise UsageError(f"--seeds {seeds}: expected a whole number >= 1")
+        return list(range(seeds))
+    return [int(s) for s in seeds]
+
+
+def _record(rep: ExperimentReport, sweep_dir: Path, res: SweepResult) -> None:
+    rep.sweeps.append((sweep_dir, res))
+    rep.failed.extend(res.failed)
+
+
+def run_fig11(out_dir: str | Path, *, seeds: int | Sequence[int] = 30, duration_s: float | None = None,
+              executor: Executor | None = None, workers: int | None = None,
+              progress: ProgressFn | None = None) -> ExperimentReport:
+    """DACMP vs greedy on ``paper-fig11`` over ``seeds`` (Fig. 10-11)."""
+    out = Path(out_dir) / "fig11"
+    rep = ExperimentReport("fig11")
+    seed_list = _seed_list(seeds)
+    with _executor(executor, workers) as ex:
+        res = _sweep(SCENARIO["fig11"], out, seed_list, FIG11_PLANNERS, duration_s, ex, progress, "fig11")
+    _record(rep, out, res)
+    runs = {p: _finished(out, p, seed_list) for p in FIG11_PLANNERS}
+    rep.figures += [fig11_over_time(runs, out / "fig11_over_time.png"),
+                    fig11_final(runs, out / "fig11_final.png")]
+    results = {"experiment": "fig11", "scenario": SCENARIO["fig11"], "seeds": seed_list,
+               "duration_s": _expected_duration(load_scenario(SCENARIO["fig11"]), duration_s),
+               "failed": len(res.failed), "planners": {}, "difference": None}
+    summary = res.summary
+    for g in summary.get("groups", []):
+        results["planners"][g["planner"]] = {
+            "runs": g["runs"],
+            "coverage": g["metrics"].get("coverage"),
+            "targets_found": g["metrics"].get("targets_found"),
+        }
+    for c in summary.get("comparisons", []):
+        if c["baseline"] == "greedy" and c["planner"] == "dacmp":
+            results["difference"] = {"paired_seeds": c["paired_seeds"],
+                                     "coverage": c["difference"].get("coverage"),
+                                     "targets_found": c["difference"].get("targets_found")}
+    totals = [r["metrics"]["targets_total"] for p in runs.values() for r in p]
+    results["targets_total"] = totals[0] if totals else PAPER["fig11"]["targets_total"]
+    _write_json(out / "results.json", results)
+    return rep
+
+
+def run_case1(out_dir: str | Path, *, duration_s: float | None = None,
+              progress: ProgressFn | None = None, **_: Any) -> ExperimentReport:
+    """One DACMP run of ``paper-case1`` (Fig. 12)."""
+    out = Path(out_dir) / "case1"
+    rep = ExperimentReport("case1")
+    run_dir = out / "run"
+    rep.single.append((run_dir, _single(SCENARIO["case1"], run_dir, duration_s, progress, "case1")))
+    log = RunLog.load(run_dir)
+    rep.figures.append(case1_distance(log, out / "case1_distance.png"))
+    rep.figures.append(_copy(run_dir / "trajectories.png", out / "case1_trajectories.png"))
+    _write_json(out / "results.json", {"experiment": "case1", **case1_measures(log)})
+    return rep
+
+
+def run_case2(out_dir: str | Path, *, seeds: int | Sequence[int] | None = None, duration_s: float | None = None,
+              executor: Executor | None = None, workers: int | None = None,
+              progress: ProgressFn | None = None) -> ExperimentReport:
+    """One DACMP run of ``paper-case2`` (Fig. 13-15); with ``seeds``, statistics over seeds too."""
+    out = Path(out_dir) / "case2"
+    rep = ExperimentReport("case2")
+    run_dir = out / "run"
+    rep.single.append((run_dir, _single(SCENARIO["case2"], run_dir, duration_s, progress, "case2")))
+    seed_runs = []
+    results: dict[str, Any] = {"experiment": "case2"}
+    if seeds is not None:
+        seed_list = _seed_list(seeds)
+        with _executor(executor, workers) as ex:
+            res = _sweep(SCENARIO["case2"], out / "seeds", seed_list, ("dacmp",), duration_s, ex, progress,
+                         "case2 seeds")
+        _record(rep, out / "seeds", res)
+        seed_runs = _finished(out / "seeds", "dacmp", seed_list)
+        per_seed = [case2_measures(RunLog.load(r["folder"])) for r in seed_runs]
+        results["seeds"] = {
+            "seeds": [r["seed"] for r in seed_runs],
+            "failed": len(res.failed),
+            **{k: describe([float(m[k]) for m in per_seed])
+               for k in ("targets_found", "watched_end", "watched_end_in_range", "handovers_fast_to_slow",
+                         "threat_violations",
+                         "separation_violations", "coverage")},
+        }
+    log = RunLog.load(run_dir)
+    results["run"] = case2_measures(log)
+    rep.figures.append(_copy(run_dir / "trajectories.png", out / "case2_trajectories.png"))
+    rep.figures.append(task_loads(log, out / "case2_task_loads.png",
+                                  title="Task loads of the UAV swarm, Case 2 (paper Fig. 14)"))
+    rep.figures.append(case2_coverage(run_dir, seed_runs, out / "case2_coverage.png"))
+    _write_json(out / "results.json", results)
+    return rep
+
+
+def run_case3(out_dir: str | Path, *, seeds: int | Sequence[int] = 10, duration_s: float | None = None,
+              executor: Executor | None = None, workers: int | None = None,
+              progress: ProgressFn | None = None) -> ExperimentReport:
+    """``paper-case3`` against ``paper-case2`` over the same seeds (Fig. 18). The paper-case2 runs
+    are shared with ``case2``'s seeds (``case2/seeds``)."""
+    root = Path(out_dir)
+    out = root / "case3"
+    rep = ExperimentReport("case3")
+    seed_list = _seed_list(seeds)
+    with _executor(executor, workers) as ex:
+        for name, d, key in (("paper-case2", root / "case2" / "seeds", "case3 (case2 side)"),
+                             ("paper-case3", out / "seeds", "case3")):
+            _record(rep, d, _sweep(name, d, seed_list, ("dacmp",), duration_s, ex, progress, key))
+    without = {r["seed"]: r for r in _finished(root / "case2" / "seeds", "dacmp", seed_list)}
+    with_ = {r["seed"]: r for r in _finished(out / "seeds", "dacmp", seed_list)}
+    common = sorted(set(without) & set(with_))
+    join_s = _join_time(out / "seeds", seed_list)
+    rep.figures.append(case3_coverage([without[s] for s in common], [with_[s] for s in common], join_s,
+                                      out / "case3_coverage.png"))
+    results = {"experiment": "case3", "seeds": common, "failed": len(rep.failed), "join_s": join_s,
+               "window_from_s": CASE3_WINDOW_FROM_S,
+               "duration_s": _expected_duration(load_scenario("paper-case3"), duration_s)}
+    if common:
+        def window(r):
+            t, c = r["ts"]["t"], r["ts"]["coverage"]
+            sel = t >= CASE3_WINDOW_FROM_S
+            return float(c[sel].mean()) if sel.any() else math.nan
+
+        w2 = [window(without[s]) for s in common]
+        w3 = [window(with_[s]) for s in common]
+        results["window_available"] = all(math.isfinite(v) for v in w2 + w3)
+        if results["window_available"]:
+            results["window_mean"] = {"case2": describe(w2), "case3": describe(w3),
+                                      "difference": describe([b - a for a, b in zip(w2, w3)])}
+        f2 = [without[s]["metrics"]["coverage"] for s in common]
+        f3 = [with_[s]["metrics"]["coverage"] for s in common]
+        results["final"] = {"case2": describe(f2), "case3": describe(f3),
+                            "difference": describe([b - a for a, b in zip(f2, f3)])}
+        t, m2 = _mean_curve([without[s] for s in common], "coverage")
+        _, m3 = _mean_curve([with_[s] for s in common], "coverage")
+        results["above_from_s"] = _stays_above_from(t, m3, m2, join_s)
+    _write_json(out / "results.json", results)
+    return rep
+
+
+RUNNERS = {"fig11": run_fig11, "case1": run_case1, "case2": run_case2, "case3": run_case3}
+
+
+def run_paper(experiment: str, out_dir: str | Path = "results/paper", *, seeds: int | None = None,
+              duration_s: float | None = None, executor: Executor | None = None, workers: int | None = None,
+              progress: ProgressFn | None = None) -> PaperReport:
+    """Run one experiment (or ``"all"``), then rewrite ``table.md`` / ``table.csv``.
+
+    ``seeds``: for fig11 (default 30) and case3 (default 10); for case2 it adds statistics over
+    that many seeds (with ``"all"``, case2 gets case3's seed count, sharing its runs)."""
+    if experiment not in (*EXPERIMENTS, "all"):
+        raise UsageError(f"unknown experiment {experiment!r}; expected one of {', '.join(EXPERIMENTS)}, all")
+    if duration_s is not None and duration_s <= 0:
+        raise UsageError(f"--duration {duration_s:g}: expected a positive number of seconds")
+    if seeds is not None:
+        _seed_list(seeds)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    names = EXPERIMENTS if experiment == "all" else (experiment,)
+    reports = []
+    with _executor(executor, workers) as ex:
+        for name in names:
+            if name == "case1":
+                kw: dict[str, Any] = {}
+            elif name == "case2":
+                kw = {"seeds": seeds if experiment != "all" else (seeds or DEFAULT_SEEDS["case3"])}
+            else:
+                kw = {"seeds": seeds or DEFAULT_SEEDS[name]}
+            reports.append(RUNNERS[name](out, duration_s=duration_s, executor=ex, progress=progress, **kw))
+    md, csv_path, rows = write_table(out)
+    return PaperReport(out, reports, md, csv_path, rows)
+
+
+class _executor:
+    """The given executor, or a process pool for the block (processes start on first use)."""
+
+    def __init__(self, executor: Executor | None, workers: int | None):
+        self.given = executor
+        self.workers = workers
+        self.own: Executor | None = None
+
+    def __enter__(self) -> Executor:
+        if self.given is not None:
+            return self.given
+        self.own = ProcessPoolExecutor(max_workers=self.workers or os.cpu_count() or 1)
+        return self.own
+
+    def __exit__(self, *exc) -> None:
+        if self.own is not None:
+            self.own.shutdown(wait=True, cancel_futures=True)
+
+
+# --- reading results ---------------------------------------------------------------------------
+
+def _write_json(path: Path, data: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_json_default))
+    os.replace(tmp, path)
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    raise TypeError(type(o))
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    shutil.copyfile(src, dst)
+    return dst
+
+
+def read_timeseries(folder: Path) -> dict[str, np.ndarray]:
+    """``timeseries.csv`` as arrays: numeric columns as float, ``mode_*`` as strings."""
+    with open(folder / "timeseries.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    cols: dict[str, np.ndarray] = {}
+    for k in (rows[0].keys() if rows else ()):
+        vals = [r[k] for r in rows]
+        cols[k] = np.array(vals) if k.startswith("mode_") else np.array([float(v) for v in vals])
+    return cols
+
+
+def _finished(sweep_dir: Path, planner: str, seeds: Sequence[int]) -> list[dict]:
+    """Finished runs of one planner: ``{"seed", "folder", "metrics", "ts"}`` each, in seed order."""
+    out = []
+    for s in seeds:
+        folder = sweep_dir / "runs" / planner / "default" / f"seed-{int(s):03d}"
+        if (folder / "metrics.json").is_file() and (folder / "timeseries.csv").is_file():
+            out.append({"seed": int(s), "folder": folder, "metrics": json.loads((folder / "metrics.json").read_text()),
+                        "ts": read_timeseries(folder)})
+    return out
+
+
+def _join_time(sweep_dir: Path, seeds: Sequence[int]) -> float | None:
+    for s in seeds:
+        p = sweep_dir / "runs" / "dacmp" / "default" / f"seed-{int(s):03d}" / "scenario.json"
+        if p.is_file():
+            joins = [u["join_s"] for u in json.loads(p.read_text())["uavs"] if u.get("join_s")]
+            return float(min(joins)) if joins else None
+    sc = load_scenario("paper-case3")
+    joins = [u.join_s for u in sc.uavs if u.join_s]
+    return float(min(joins)) if joins else None
+
+
+def _stack(runs: Sequence[dict], column: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, values[n_runs, n_t])`` on the time grid the runs share (their shortest)."""
+    n = min(len(r["ts"]["t"]) for r in runs)
+    t = runs[0]["ts"]["t"][:n]
+    return t, np.vstack([r["ts"][column][:n] for r in runs])
+
+
+def _mean_curve(runs: Sequence[dict], column: str) -> tuple[np.ndarray, np.ndarray]:
+    t, v = _stack(runs, column)
+    return t, v.mean(axis=0)
+
+
+def _band(values: np.ndarray) -> dict[str, np.ndarray]:
+    """Per time point: mean, Student-t 95% interval of the mean, min and max over runs."""
+    from scipy import stats
+
+    n = values.shape[0]
+    mean = values.mean(axis=0)
+    if n > 1:
+        half = stats.t.ppf(0.975, n - 1) * values.std(axis=0, ddof=1) / math.sqrt(n)
+    else:
+        half = np.zeros_like(mean)
+    return {"mean": mean, "lo": mean - half, "hi": mean + half, "min": values.min(axis=0), "max": values.max(axis=0)}
+
+
+def _stays_above_from(t: np.ndarray, a: np.ndarray, b: np.ndarray, after: float | None) -> float | None:
+    """First sample time (>= ``after``) from which ``a > b`` at every later sample, or None."""
+    above = a > b
+    start = None
+    for i in range(len(t) - 1, -1, -1):
+        if not above[i]:
+            break
+        start = float(t[i])
+    if start is None:
+        return None
+    return max(start, after) if after is not None and start < after else start
+
+
+@dataclass
+class RunLog:
+    """What the figures and the table need from one run folder's event log."""
+
+    names: dict[int, str]
+    types: dict[int, str]
+    type_specs: dict[str, dict]
+    end_t: float
+    dt: float
+    poses: dict[int, np.ndarray]      # uid -> rows (t, x, y, mode, target)
+    targets: dict[int, np.ndarray]    # target id -> rows (t, x, y)
+    modes: list[tuple]                # (t, uid, mode, target) on every change
+    handovers: list[tuple]            # (t, target, from uid, to uid)
+    found: dict[int, tuple]           # target -> (t, uid)
+    joins: dict[int, float]
+    crashes: dict[int, float]
+    metrics: dict
+    threats: list[dict]
+
+    @classmethod
+    def load(cls, folder: Path) -> "RunLog":
+        folder = Path(folder)
+        metrics = json.loads((folder / "metrics.json").read_text())
+        scenario = json.loads((folder / "scenario.json").read_text())
+        names: dict[int, str] = {}
+        types: dict[int, str] = {}
+        poses: dict[int, list] = {}
+        targets: dict[int, list] = {}
+        modes, handovers = [], []
+        found: dict[int, tuple] = {}
+        joins: dict[int, float] = {}
+        crashes: dict[int, float] = {}
+        dt = float(scenario.get("dt_s", 1.0))
+        for e in read_events((folder / "events.msgpack").read_bytes()):
+            k = e[0]
+            if k == "pose":
+                poses.setdefault(e[2], []).append((e[1], e[3], e[4], e[7], e[8]))
+            elif k == "target":
+                targets.setdefault(e[2], []).append((e[1], e[3], e[4]))
+            elif k == "mode":
+                modes.append((e[1], e[2], e[3], e[4]))
+            elif k == "handover":
+                handovers.append((e[1], e[2], e[3], e[4]))
+            elif k == "found":
+                found.setdefault(e[2], (e[1], e[3]))
+            elif k == "join":
+                joins[e[2]] = e[1]
+                names[e[2]] = e[3]
+            elif k == "crash":
+                crashes.setdefault(e[2], e[1])
+            elif k == "start":
+                dt = float(e[2].get("dt", dt))
+                for uid, name, typ in e[2]["uavs"]:
+                    names[uid] = name
+                    types[uid] = typ
+        for uid, name in names.items():  # UAVs added during the run: type from the scenario
+            if uid not in types:
+                types[uid] = next((u["type"] for u in scenario["uavs"] if u["name"] == name), "?")
+        return cls(
+            names=names, types=types, type_specs=scenario["uav_types"], end_t=float(metrics["sim_seconds"]), dt=dt,
+            poses={u: np.array(v, dtype=np.float64) for u, v in poses.items()},
+            targets={m: np.array(v, dtype=np.float64) for m, v in targets.items()},
+            modes=modes, handovers=handovers, found=found, joins=joins, crashes=crashes, metrics=metrics,
+            threats=scenario.get("threats", []),
+        )
+
+    def speed_max(self, uid: int) -> float:
+        return float(self.type_specs.get(self.types.get(uid, "?"), {}).get("speed_max", math.nan))
+
+    def is_slow(self, uid: int) -> bool:
+        speeds = {float(s["speed_max"]) for s in self.type_specs.values()}
+        return len(speeds) > 1 and self.speed_max(uid) == min(speeds)
+
+    def uid(self, name: str) -> int | None:
+        return next((u for u, n in self.names.items() if n == name), None)
+
+    def target_at(self, m: int, t: np.ndarray) -> np.ndarray:
+        """Target ``m``'s (x, y) at times ``t`` (its rows are logged every tick)."""
+        rows = self.targets[m]
+        i = np.clip(np.searchsorted(rows[:, 0], t), 0, len(rows) - 1)
+        return rows[i, 1:3]
+
+    def watchers_at_end(self) -> dict[int, list[tuple[str, bool]]]:
+        """Target -> ``(UAV, in range)`` for every UAV that, at the last logged tick, is in
+        surveillance mode assigned to it; ``in range``: the target is inside that UAV's
+        detection radius at that tick (a fast UAV circling a moving target can be just outside)."""
+        out: dict[int, list[tuple[str, bool]]] = {m: [] for m in self.targets}
+        if not self.poses:
+            return out
+        t_last = max(p[-1, 0] for p in self.poses.values())
+        for uid in sorted(self.poses, key=lambda u: self.names.get(u, "")):
+            p = self.poses[uid]
+            if p[-1, 0] != t_last or int(p[-1, 3]) != MODE_SURVEIL or int(p[-1, 4]) < 0:
+                continue
+            m = int(p[-1, 4])
+            if m not in self.targets:
+                continue
+            tx, ty = self.target_at(m, np.array([t_last]))[0]
+            r = float(self.type_specs.get(self.types[uid], {}).get("detect_radius_m", math.inf))
+            out[m].append((self.names[uid], bool(math.hypot(p[-1, 1] - tx, p[-1, 2] - ty) <= r)))
+        return out
+
+    def surveil_seconds(self, uid: int, m: int) -> float:
+        p = self.poses.get(uid)
+        if p is None:
+            return 0.0
+        return float(np.count_nonzero((p[:, 3] == MODE_SURVEIL) & (p[:, 4] == m))) * self.dt
+
+    def mode_segments(self, uid: int) -> list[tuple[float, float, str, int]]:
+        """(start, end, mode, target) with mode in search / surveil / pending / down."""
+        segs = []
+        start = self.joins.get(uid, 0.0)
+        if start > 0:
+            segs.append((0.0, start, "pending", -1))
+        end = self.crashes.get(uid, self.end_t)
+        changes = [(t, mode, tg) for t, u, mode, tg in self.modes if u == uid]
+        for i, (t, mode, tg) in enumerate(changes):
+            t_next = changes[i + 1][0] if i + 1 < len(changes) else end
+            if t_next > t:
+                segs.append((t, min(t_next, end), "surveil" if mode == MODE_SURVEIL else "search", tg))
+        if uid in self.crashes:
+            segs.append((end, self.end_t, "down", -1))
+        return segs
+
+
+# --- measurements for the table ----------------------------------------------------------------
+
+def case1_measures(log: RunLog) -> dict:
+    """Target 1 (id 0): who found it, handovers to a slow UAV, who watches targets 1 and 2 at
+    the end, and how long fast UAV B1 (paper: UAV 1) spent on target 2 (watched by B2)."""
+    watchers = log.watchers_at_end()
+    name = log.names
+    ho = [{"t": t, "target": m + 1, "from": name.get(a, str(a)), "to": name.get(b, str(b)),
+           "to_slow": log.is_slow(b), "from_fast": not log.is_slow(a)}
+          for t, m, a, b in log.handovers]
+    to_slow_t1 = [h for h in ho if h["target"] == 1 and h["to_slow"]]
+    slow_names = sorted(name[u] for u in name if log.is_slow(u))
+    b1 = log.uid("B1")
+    return {
+        "scenario": log.metrics["scenario"], "seed": log.metrics["seed"], "duration_s": log.end_t,
+        "found": {str(m + 1): {"t": t, "by": name.get(u, str(u))} for m, (t, u) in sorted(log.found.items())},
+        "handovers": ho,
+        "handover_t1_to_slow": to_slow_t1[0] if to_slow_t1 else None,
+        "watchers_end": {str(m + 1): [{"uav": n, "in_range": r} for n, r in w] for m, w in sorted(watchers.items())},
+        "slow_uavs": slow_names,
+        "slow_watches_t1_at_end": any(n in slow_names for n, _ in watchers.get(0, [])),
+        "b1_surveil_t2_s": log.surveil_seconds(b1, 1) if b1 is not None and 1 in log.targets else None,
+        "coverage": log.metrics["coverage"],
+    }
+
+
+def case2_measures(log: RunLog) -> dict:
+    watchers = log.watchers_at_end()
+    m = log.metrics
+    name = log.names
+    return {
+        "seed": m["seed"], "duration_s": log.end_t,
+        "targets_found": m["targets_found"], "targets_total": m["targets_total"],
+        "watched_end": sum(1 for w in watchers.values() if w),
+        "watched_end_in_range": sum(1 for w in watchers.values() if any(r for _, r in w)),
+        "watched_end_by_more_than_one": sum(1 for w in watchers.values() if len(w) > 1),
+        "watchers_end": {str(k + 1): [{"uav": n, "in_range": r} for n, r in w] for k, w in sorted(watchers.items())},
+        "handovers": m["handovers"], "handovers_fast_to_slow": m["handovers_fast_to_slow"],
+        "handover_list": [{"t": t, "target": tg + 1, "from": name.get(a, str(a)), "to": name.get(b, str(b))}
+                          for t, tg, a, b in log.handovers],
+        "threat_violations": m["violations"]["threat"], "separation_violations": m["violations"]["separation"],
+        "coverage": m["coverage"],
+    }
+
+
+# --- figures -----------------------------------------------------------------------------------
+
+def _uav_colours(names: Sequence[str]) -> dict[str, Any]:
+    """One colour per UAV, assigned as in :func:`swarm.plots.trajectories_figure` (sorted names)."""
+    cmap = plt.get_cmap("tab10" if len(names) <= 10 else "tab20")
+    return {n: cmap(i % cmap.N) for i, n in enumerate(sorted(names))}
+
+
+def _save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None = None) -> None:
+    """Mean line, 95% band of the mean and min-max spread over runs; ``bounds``: the range the
+    quantity can take (the band of a few runs is clipped to it)."""
+    b = _band(values)
+    if bounds is not None:
+        b = {k: np.clip(v, *bounds) for k, v in b.items()}
+    n = values.shape[0]
+    ax.fill_between(t, b["min"], b["max"], color=colour, alpha=0.10, lw=0,
+                    label=f"{label} min-max" if n > 1 else None)
+    if n > 1:
+        ax.fill_between(t, b["lo"], b["hi"], color=colour, alpha=0.30, lw=0, label=f"{label} 95% CI of mean")
+    ax.plot(t, b["mean"], "-", color=colour, lw=1.6, label=f"{label} mean ({n} run{'s' if n != 1 else ''})")
+
+
+def _no_data(ax, text="no finished runs") -> None:
+    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="grey")
+
+
+def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
+    """Coverage and targets found over time per planner (paper Fig. 10a-b / 11a-b)."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    quoted = PAPER["fig11"]
+    for ax, col, ylabel, letter in ((axes[0], "coverage", "coverage rate", "a"),
+                                    (axes[1], "targets_found", "number of targets found", "b")):
+        any_data = False
+        t_end = 0.0
+        for p in FIG11_PLANNERS:
+            if not runs.get(p):
+                continue
+            any_data = True
+            t, v = _stack(runs[p], col)
+            t_end = max(t_end, float(t[-1]))
+            top = 1.0 if col == "coverage" else float(runs[p][0]["metrics"]["targets_total"])
+            _draw_band(ax, t, v, PLANNER_COLOUR[p], PLANNER_LABEL[p], (0.0, top))
+        if any_data and math.isclose(t_end, quoted["duration_s"]):
+            for p in FIG11_PLANNERS:
+                ax.plot([t_end], [quoted[col][p]], marker="D", mfc="none", mec=PLANNER_COLOUR[p], ms=8, ls="none",
+                        label=f"{PLANNER_LABEL[p]} paper (quoted): {quoted[col][p]:g}")
+        if not any_data:
+            _no_data(ax)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(ylabel)
+        ax.set_title(f"({letter}) {ylabel} over time, paper-fig11 (paper Fig. 11{letter})", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.set_xlim(left=0)
+        ax.set_ylim(bottom=0)
+        if any_data:
+            ax.legend(fontsize=7, loc="lower right")
+    return _save(fig, path)
+
+
+def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
+    """Final coverage and targets found per planner, ours (mean, 95% interval) next to the
+    paper's quoted means."""
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4.5))
+    quoted = PAPER["fig11"]
+    x = np.arange(len(FIG11_PLANNERS))
+    for ax, key, ylabel in ((axes[0], "coverage", "coverage rate at end"),
+                            (axes[1], "targets_found", "targets found at end")):
+        means, errs, ns, durations = [], [], [], set()
+        for p in FIG11_PLANNERS:
+            vals = [r["metrics"][key] for r in runs.get(p, [])]
+            durations |= {r["metrics"]["sim_seconds"] for r in runs.get(p, [])}
+            d = describe(vals) if vals else {"n": 0, "mean": math.nan, "ci95": [math.nan, math.nan]}
+            means.append(d["mean"])
+            errs.append([d["mean"] - d["ci95"][0], d["ci95"][1] - d["mean"]])
+            ns.append(d["n"])
+        e = np.array(errs).T
+        ax.bar(x - 0.2, means, 0.38, yerr=e, capsize=5, color=[PLANNER_COLOUR[p] for p in FIG11_PLANNERS],
+               alpha=0.8, label="ours (measured, mean, 95% CI)")
+        ax.bar(x + 0.2, [quoted[key][p] for p in FIG11_PLANNERS], 0.38, color="white",
+               edgecolor=[PLANNER_COLOUR[p] for p in FIG11_PLANNERS], hatch="//", label="paper (quoted, 2000 s)")
+        for i, (m, n) in enumerate(zip(means, ns)):
+            if math.isfinite(m):
+                ax.text(x[i] - 0.2, m, f"{m:.3g}\nn={n}", ha="center", va="bottom", fontsize=7)
+            ax.text(x[i] + 0.2, quoted[key][FIG11_PLANNERS[i]], f"{quoted[key][FIG11_PLANNERS[i]]:g}",
+                    ha="center", va="bottom", fontsize=7)
+        ax.set_xticks(x, [PLANNER_LABEL[p] for p in FIG11_PLANNERS])
+        ax.set_ylabel(ylabel)
+        dur = ", ".join(f"{d:g} s" for d in sorted(durations)) or "-"
+        ax.set_title(f"{ylabel} (ours at {dur})", fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+        top = np.nanmax([*(np.array(means) + e[1]), *(quoted[key][p] for p in FIG11_PLANNERS)])
+        ax.set_ylim(0, 1.3 * top)
+        ax.legend(fontsize=7, loc="upper center", ncol=2)
+    return _save(fig, path)
+
+
+def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
+    """Distance of every UAV to a target over time (paper Fig. 12d), handovers and mode
+    changes marked, thick where the UAV is in surveillance of that target."""
+    fig, ax = plt.subplots(figsize=(11, 5))
+    names = [log.names[u] for u in log.poses]
+    colours = _uav_colours(names)
+    if target not in log.targets:
+        _no_data(ax, f"no target {target + 1} in this run")
+        return _save(fig, path)
+    for uid in sorted(log.poses, key=lambda u: log.names[u]):
+        p = log.poses[uid]
+        name = log.names[uid]
+        c = colours[name]
+        txy = log.target_at(target, p[:, 0])
+        d = np.hypot(p[:, 1] - txy[:, 0], p[:, 2] - txy[:, 1]) / 1000
+        ax.plot(p[:, 0], d, "-", color=c, lw=1.2, label=f"{name} (type {log.types.get(uid, '?')})")
+        on = (p[:, 3] == MODE_SURVEIL) & (p[:, 4] == target)
+        ax.plot(p[:, 0], np.where(on, d, np.nan), "-", color=c, lw=4, alpha=0.45)
+        for t, u, mode, tg in log.modes:
+            if u != uid or t <= 0:
+                continue
+            i = min(int(np.searchsorted(p[:, 0], t)), len(p) - 1)
+            if mode == MODE_SURVEIL:
+                ax.plot(t, d[i], "^", color=c, mec="black", mew=0.6, ms=7)
+                ax.annotate(f"T{tg + 1}", (t, d[i]), textcoords="offset points", xytext=(3, 5), fontsize=7, color=c)
+            else:
+                ax.plot(t, d[i], "v", color=c, mec="black", mew=0.6, ms=7)
+    styles = iter([(0, (1, 2)), (0, (4, 2)), (0, (6, 2, 1, 2)), (0, (1, 4))])
+    for typ, spec in sorted(log.type_specs.items()):
+        if any(log.types.get(u) == typ for u in log.poses):
+            ax.axhline(spec["detect_radius_m"] / 1000, color="grey", ls=next(styles, ":"), lw=0.9,
+                       label=f"detection radius, type {typ} ({spec['detect_radius_m'] / 1000:g} km)")
+    if target in log.found:
+        t, u = log.found[target]
+        ax.axvline(t, color="black", ls="--", lw=0.8)
+        ax.annotate(f"target {target + 1} found by {log.names.get(u, u)}", (t, 1), xycoords=("data", "axes fraction"),
+                    rotation=90, va="top", ha="right", fontsize=7)
+    for t, m, a, b in log.handovers:
+        if m == target:
+            ax.axvline(t, color="black", ls=":", lw=1.0)
+            ax.annotate(f"handover {log.names.get(a, a)} → {log.names.get(b, b)}", (t, 1),
+                        xycoords=("data", "axes fraction"), rotation=90, va="top", ha="right", fontsize=7)
+    handles, labels = ax.get_legend_handles_labels()
+    handles += [plt.Line2D([], [], color="grey", lw=4, alpha=0.45),
+                plt.Line2D([], [], marker="^", color="grey", mec="black", ls="none"),
+                plt.Line2D([], [], marker="v", color="grey", mec="black", ls="none")]
+    labels += [f"in surveillance of target {target + 1}", "switch to surveillance (of target T#)",
+               "switch to search"]
+    ax.legend(handles, labels, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"distance to target {target + 1} (km)")
+    ax.set_xlim(0, log.end_t)
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{log.metrics['scenario']}: distance between UAVs and target {target + 1} (paper Fig. 12d)",
+                 fontsize=10)
+    return _save(fig, path)
+
+
+MODE_COLOUR = {"search": "#9ecae1", "surveil": "#fd8d3c", "pending": "#eeeeee", "down": "#636363"}
+
+
+def task_loads(log: RunLog, path: Path, title: str) -> Path:
+    """Per UAV: a timeline coloured by mode (target number on surveillance stretches, handovers
+    marked) and the seconds spent in each mode (paper Fig. 14)."""
+    uids = sorted(log.names, key=lambda u: (log.is_slow(u), log.names[u]))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 0.45 * len(uids) + 2.0), sharey=True,
+                                 gridspec_kw={"width_ratios": [4, 1]})
+    colours = _uav_colours([log.names[u] for u in uids])
+    ypos = {u: len(uids) - 1 - i for i, u in enumerate(uids)}
+    totals = {u: {k: 0.0 for k in MODE_COLOUR} for u in uids}
+    for u in uids:
+        y = ypos[u]
+        for a, b, mode, tg in log.mode_segments(u):
+            totals[u][mode] += b - a
+            ax.broken_barh([(a, b - a)], (y - 0.35, 0.7), facecolors=MODE_COLOUR[mode], edgecolor="none")
+            if mode == "surveil" and tg >= 0 and b - a >= 0.03 * log.end_t:
+                ax.text((a + b) / 2, y, f"T{tg + 1}", ha="center", va="center", fontsize=7)
+    for t, m, a, b in log.handovers:
+        if a in ypos and b in ypos:
+            ax.annotate("", xy=(t, ypos[b]), xytext=(t, ypos[a]),
+                        arrowprops={"arrowstyle": "->", "color": "black", "lw": 0.8})
+    for t, m, u in [(t, m, u) for m, (t, u) in log.found.items()]:
+        if u in ypos:
+            ax.plot(t, ypos[u] + 0.38, "v", color="black", ms=4)
+    labels = [f"{log.names[u]} ({'slow' if log.is_slow(u) else 'fast'}, {log.types.get(u, '?')})" for u in uids]
+    ax.set_yticks([ypos[u] for u in uids], labels)
+    for tick, u in zip(ax.get_yticklabels(), uids):
+        tick.set_color(colours[log.names[u]])
+    ax.set_xlim(0, log.end_t)
+    ax.set_xlabel("time (s)")
+    ax.set_title(title, fontsize=10)
+    handles = [Patch(color=MODE_COLOUR[k], label=k) for k in ("search", "surveil")]
+    if any(totals[u]["pending"] for u in uids):
+        handles.append(Patch(color=MODE_COLOUR["pending"], label="not joined yet"))
+    if any(totals[u]["down"] for u in uids):
+        handles.append(Patch(color=MODE_COLOUR["down"], label="down"))
+    handles += [plt.Line2D([], [], marker="v", color="black", ls="none", ms=4, label="found a target"),
+                plt.Line2D([], [], marker=r"$\uparrow$", color="black", ls="none", label="handover (arrow old → new)")]
+    ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=len(handles),
+              frameon=False)
+    left = np.zeros(len(uids))
+    ys = np.array([ypos[u] for u in uids])
+    for mode in ("search", "surveil", "pending", "down"):
+        w = np.array([totals[u][mode] for u in uids])
+        if w.any():
+            bx.barh(ys, w, left=left, height=0.7, color=MODE_COLOUR[mode], label=mode)
+            left += w
+    bx.set_xlabel("seconds per mode (s)")
+    bx.set_title("task load", fontsize=10)
+    bx.grid(axis="x", alpha=0.3)
+    return _save(fig, path)
+
+
+def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path:
+    """Coverage over time of the Case 2 run (paper Fig. 15), and over seeds if there are any."""
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    ts = read_timeseries(run_dir)
+    m = json.loads((run_dir / "metrics.json").read_text())
+    if len(seed_runs) > 1:
+        t, v = _stack(seed_runs, "coverage")
+        _draw_band(ax, t, v, "tab:grey", "seeds", (0.0, 1.0))
+    ax.plot(ts["t"], ts["coverage"], "-", color="tab:green", lw=1.8, label=f"seed {m['seed']} (the run shown in the figures)")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("coverage rate")
+    ax.set_xlim(0, m["sim_seconds"])
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(f"{m['scenario']}: coverage rate of the UAV swarm (paper Fig. 15)", fontsize=10)
+    return _save(fig, path)
+
+
+def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float | None, path: Path) -> Path:
+    """Mean coverage over seeds with and without the joining UAV (paper Fig. 18), join time
+    marked; below, the paired difference with its 95% interval."""
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(8.5, 7.5), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    if without and with_:
+        t2, v2 = _stack(without, "coverage")
+        t3, v3 = _stack(with_, "coverage")
+        n = min(len(t2), len(t3))
+        t = t2[:n]
+        _draw_band(ax, t, v2[:, :n], "tab:blue", "Case 2, 10 UAVs", (0.0, 1.0))
+        _draw_band(ax, t, v3[:, :n], "tab:red", "Case 3, 11 UAVs", (0.0, 1.0))
+        _draw_band(bx, t, v3[:, :n] - v2[:, :n], "tab:purple", "Case 3 − Case 2 (paired)", (-1.0, 1.0))
+        t_end = float(t[-1])
+        ax.set_xlim(0, max(t_end, (join_s or 0) * 1.1))
+        bx.axhline(0, color="black", lw=0.8)
+        ax.legend(fontsize=7, loc="lower right")
+        bx.legend(fontsize=7, loc="upper left")
+    else:
+        _no_data(ax)
+    if join_s is not None:
+        for a in (ax, bx):
+            a.axvline(join_s, color="black", ls="--", lw=1.0)
+        ax.annotate(f"UAV B6 (paper: UAV 11) joins at {join_s:g} s", (join_s, 0.02), xycoords=("data", "axes fraction"),
+                    rotation=90, ha="right", va="bottom", fontsize=8)
+    ax.set_ylabel("coverage rate")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.set_title("Coverage rate with 10 and 11 UAVs, mean over the same seeds (paper Fig. 18)", fontsize=10)
+    bx.set_xlabel("time (s)")
+    bx.set_ylabel("coverage difference")
+    bx.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+# --- the table ---------------------------------------------------------------------------------
+
+NOT_RUN = "not run"
+MD_HEADER = ("experiment", "quantity", "paper (quoted)", "ours (measured, N seeds, mean [95% CI])")
+
+
+def _load(out: Path, name: str) -> dict | None:
+    p = out / name / "results.json"
+    return json.loads(p.read_text()) if p.is_file() else None
+
+
+def _row(experiment: str, quantity: str, paper: str, ours: str = NOT_RUN, d: dict | None = None, note: str = "") -> dict:
+    return {"experiment": experiment, "quantity": quantity, "paper_quoted": paper, "ours_measured": ours,
+            "n": d["n"] if d else "", "mean": d["mean"] if d else "",
+            "ci95_low": d["ci95"][0] if d else "", "ci95_high": d["ci95"][1] if d else "", "note": note}
+
+
+def _fmt(d: dict | None, digits: int, what: str = "seeds", signed: bool = False) -> str:
+    if not d or not d.get("n"):
+        return "no finished runs"
+    sign = "+" if signed else ""
+    mean = f"{d['mean']:{sign}.{digits}f}"
+    if d["n"] < 2:
+        return f"{mean} (1 {what[:-1] if what.endswith('s') else what}, no interval)"
+    return f"{mean} [{d['ci95'][0]:{sign}.{digits}f}, {d['ci95'][1]:{sign}.{digits}f}], {d['n']} {what}"
+
+
+def _duration_note(res: dict | None, paper_s: float | None) -> str:
+    if not res or res.get("duration_s") is None or paper_s is None:
+        return ""
+    if math.isclose(float(res["duration_s"]), paper_s):
+        return ""
+    return f"ours at {float(res['duration_s']):g} s, paper at {paper_s:g} s"
+
+
+def _rows_fig11(res: dict | None) -> list[dict]:
+    e = "Fig. 11 (paper-fig11)"
+    q = PAPER["fig11"]
+    note = _duration_note(res, q["duration_s"])
+    rows = []
+    for key, label, digits in (("coverage", "coverage at end", 3), ("targets_found", "targets found (of 14)", 2)):
+        for p in FIG11_PLANNERS:
+            d = ((res or {}).get("planners", {}).get(p) or {}).get(key)
+            rows.append(_row(e, f"{label}, {PLANNER_LABEL[p]}", f"{q[key][p]:g} (mean of 30 runs)",
+                             _fmt(d, digits) if res else NOT_RUN, d, note))
+    for key, label, digits in (("coverage", "coverage, DACMP − greedy (paired by seed)", 3),
+                               ("targets_found", "targets found, DACMP − greedy (paired by seed)", 2)):
+        diff = q[key]["dacmp"] - q[key]["greedy"]
+        d = ((res or {}).get("difference") or {}).get(key)
+        ours = (_fmt(d, digits, "paired seeds", signed=True) if d else "no paired runs") if res else NOT_RUN
+        rows.append(_row(e, label, f"{diff:+.{digits}f} (difference of the quoted means; no interval given)",
+                         ours, d, note))
+    return rows
+
+
+def _watchers_text(watchers: list[dict], slow: Sequence[str]) -> str:
+    if not watchers:
+        return "nobody"
+    return ", ".join(f"{w['uav']} ({'slow' if w['uav'] in slow else 'fast'}, "
+                     f"{'in' if w['in_range'] else 'out of'} detection range at the last tick)" for w in watchers)
+
+
+def _rows_case1(res: dict | None) -> list[dict]:
+    e = "Case 1 (paper-case1)"
+    note = ""
+    if res:
+        note = f"one run, seed {res['seed']}, {res['duration_s']:g} s (paper's Fig. 12 ends at 350 s)"
+    rows = []
+    f1 = (res or {}).get("found", {}).get("1")
+    rows.append(_row(e, "target 1 first found by", "UAV 1 (fast; our B1), by 50 s (Fig. 12a)",
+                     (f"{f1['by']} at {f1['t']:g} s" if f1 else "not found") if res else NOT_RUN, note=note))
+    h = (res or {}).get("handover_t1_to_slow")
+    rows.append(_row(e, "target 1 handed over to the slow UAV", "yes: UAV 1 → UAV 3 (our B1 → A1), between 250 s and 350 s (Fig. 12b-c)",
+                     (f"yes: {h['from']} → {h['to']} at {h['t']:g} s" if h else "no") if res else NOT_RUN, note=note))
+    if res:
+        ours1 = _watchers_text(res["watchers_end"].get("1", []), res["slow_uavs"])
+        ours2 = _watchers_text(res["watchers_end"].get("2", []), res["slow_uavs"])
+        b1 = res.get("b1_surveil_t2_s")
+        ours3 = f"{b1:g} s" if b1 is not None else "n/a"
+    else:
+        ours1 = ours2 = ours3 = NOT_RUN
+    rows.append(_row(e, "target 1 watched at end by (surveillance mode, assigned to it)", "UAV 3 (slow; our A1)",
+                     ours1, note=note))
+    rows.append(_row(e, "target 2 watched at end by (surveillance mode, assigned to it)", "UAV 2 (fast; our B2)",
+                     ours2, note=note))
+    rows.append(_row(e, "time fast UAV B1 spent surveilling target 2 (watched by B2)",
+                     "0 s: UAV 1 passes target 2 without being captured (Fig. 12c)", ours3, note=note))
+    return rows
+
+
+def _rows_case2(res: dict | None) -> list[dict]:
+    e = "Case 2 (paper-case2)"
+    q = PAPER["case2"]
+    run = (res or {}).get("run")
+    note = f"one run, seed {run['seed']}, {run['duration_s']:g} s" if run else ""
+    rows = []
+
+    def single(quantity, paper, ours):
+        rows.append(_row(e, quantity, paper, ours if run else NOT_RUN, note=note))
+
+    single("targets found (of 6)", "6 (every target found)", f"{run['targets_found']} of {run['targets_total']}" if run else "")
+    if run:
+        who = "; ".join(f"T{k}: " + "+".join(w["uav"] + ("" if w["in_range"] else " (out of range)") for w in v)
+                        for k, v in run["watchers_end"].items() if v)
+        w = (f"{run['watched_end']} of {run['targets_total']}, {run['watched_end_in_range']} in detection range "
+             f"at the last tick" + (f"; {who}" if who else ""))
+    single("targets watched at end (a UAV in surveillance mode assigned to it)",
+           "6, each by one UAV (5 by slow UAVs, 1 by fast UAV 2)", w if run else "")
+    if run:
+        hl = ", ".join(f"{h['from']}→{h['to']} (T{h['target']}, {h['t']:g} s)" for h in run["handover_list"])
+    single("fast → slow handovers", "4: UAV 3→9, 5→10, 4→8, 1→6 (our B3→A4, B5→A5, B4→A3, B1→A1)",
+           (f"{run['handovers_fast_to_slow']}" + (f" (all {run['handovers']} handovers: {hl})" if hl else ""))
+           if run else "")
+    single("threat violations", "0 (threats avoided)", f"{run['threat_violations']}" if run else "")
+    single("separation violations", "not stated", f"{run['separation_violations']}" if run else "")
+    st = (res or {}).get("seeds")
+    if st:
+        sn = f"over seeds {st['seeds'][0]}..{st['seeds'][-1]}" if st["seeds"] else "over seeds"
+        seed_note = f"{run['duration_s']:g} s each" if run else ""
+        for key, label, paper, digits in (("targets_found", "targets found (of 6)", "6", 2),
+                                          ("watched_end", "targets watched at end (assigned)", "6", 2),
+                                          ("watched_end_in_range", "targets watched at end, in detection range", "6", 2),
+                                          ("handovers_fast_to_slow", "fast → slow handovers", "4", 2),
+                                          ("threat_violations", "threat violations", "0", 2),
+                                          ("separation_violations", "separation violations", "not stated", 2),
+                                          ("coverage", "coverage at end", "not quoted (Fig. 15)", 3)):
+            d = st.get(key)
+            rows.append(_row(e, f"{label}, {sn}", paper, _fmt(d, digits), d, seed_note))
+    return rows
+
+
+def _rows_case3(res: dict | None) -> list[dict]:
+    e = "Case 3 (paper-case3 vs paper-case2)"
+    w = CASE3_WINDOW_FROM_S
+    rows = []
+    if not res:
+        for quantity, paper in ((f"mean coverage from {w:g} s on, without / with the joiner", "not quoted; with joiner higher (Fig. 18)"),
+                                (f"mean coverage from {w:g} s on, with − without (paired)", "positive (Fig. 18), no number given"),
+                                ("coverage at end, with − without (paired)", "positive (Fig. 18), no number given"),
+                                ("time from which the mean with the joiner stays above", "after the join at 300 s (Fig. 18)")):
+            rows.append(_row(e, quantity, paper))
+        return rows
+    note = f"same seeds both, {res['duration_s']:g} s" + (f", join at {res['join_s']:g} s" if res.get("join_s") else "")
+    if not res.get("seeds"):
+        rows.append(_row(e, "coverage with vs without the joiner", "with joiner higher (Fig. 18)", "no paired runs", note=note))
+        return rows
+    wm = res.get("window_mean")
+    if wm:
+        rows.append(_row(e, f"mean coverage from {w:g} s on, without joiner (10 UAVs)", "not quoted (Fig. 18)",
+                         _fmt(wm["case2"], 3), wm["case2"], note))
+        rows.append(_row(e, f"mean coverage from {w:g} s on, with joiner (11 UAVs)", "not quoted; higher (Fig. 18)",
+                         _fmt(wm["case3"], 3), wm["case3"], note))
+        rows.append(_row(e, f"mean coverage from {w:g} s on, with − without (paired)", "positive (Fig. 18), no number given",
+                         _fmt(wm["difference"], 4, "paired seeds", signed=True), wm["difference"], note))
+    else:
+        rows.append(_row(e, f"mean coverage from {w:g} s on, with − without (paired)", "positive (Fig. 18), no number given",
+                         f"n/a: runs end at {res['duration_s']:g} s, before {w:g} s", note=note))
+    fd = res["final"]["difference"]
+    rows.append(_row(e, "coverage at end, with − without (paired)", "positive (Fig. 18), no number given",
+                     _fmt(fd, 4, "paired seeds", signed=True), fd, note))
+    a = res.get("above_from_s")
+    rows.append(_row(e, "time from which the mean with the joiner stays above", "after the join at 300 s (Fig. 18)",
+                     f"{a:g} s" if a is not None else "never (within the run)", note=note))
+    return rows
+
+
+ROW_BUILDERS = {"fig11": _rows_fig11, "case1": _rows_case1, "case2": _rows_case2, "case3": _rows_case3}
+
+
+def table_rows(out_dir: str | Path) -> list[dict]:
+    """The table's rows; an experiment without ``results.json`` is "not run", one whose file
+    cannot be read (written by another version) says so."""
+    out = Path(out_dir)
+    rows = []
+    for name, build in ROW_BUILDERS.items():
+        try:
+            rows += build(_load(out, name))
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError):
+            stale = build(None)
+            for r in stale:
+                r["ours_measured"] = f"unreadable {name}/results.json: rerun `swarm paper {name}`"
+            rows += stale
+    return rows
+
+
+def _md_cell(text: Any) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def write_table(out_dir: str | Path) -> tuple[Path, Path, list[dict]]:
+    """Rewrite ``table.md`` and ``table.csv`` from the ``results.json`` files in ``out_dir``."""
+    out = Path(out_dir)
+    rows = table_rows(out)
+    lines = [
+        "# The paper's experiments: paper (quoted) vs ours (measured)",
+        "",
+        "Written by `swarm paper` from the results in this folder. **paper (quoted)**: numbers and",
+        "statements copied from the paper's section 4 (never computed). **ours (measured, N seeds,",
+        "mean [95% CI])**: from our runs: the mean over seeds with the Student-t 95% interval of the",
+        "mean, or the value of a single run (seed noted). Differences are paired by seed.",
+        "Targets and UAVs numbered as in the paper where noted (target 1 = our first target).",
+        "",
+        "| " + " | ".join(MD_HEADER) + " | note |",
+        "|" + "---|" * (len(MD_HEADER) + 1),
+    ]
+    for r in rows:
+        lines.append("| " + " | ".join(_md_cell(r[k]) for k in ("experiment", "quantity", "paper_quoted",
+                                                                 "ours_measured", "note")) + " |")
+    md = "\n".join(lines) + "\n"
+    buf = io.StringIO(newline="")
+    cols = ["experiment", "quantity", "paper_quoted", "ours_measured", "n", "mean", "ci95_low", "ci95_high", "note"]
+    w = csv.DictWriter(buf, fieldnames=cols)
+    w.writeheader()
+    w.writerows(rows)
+    md_path, csv_path = out / "table.md", out / "table.csv"
+    for p, text in ((md_path, md), (csv_path, buf.getvalue())):
+        tmp = p.with_name(p.name + ".tmp")
+        tmp.write_text(text)
+        os.replace(tmp, p)
+    return md_path, csv_path, rows

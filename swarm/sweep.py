@@ -1,0 +1,328 @@
+"""Monte Carlo sweeps: every combination of planner x setting x seed, on any executor.
+
+A sweep is a list of :class:`RunSpec` (one simulation each). Runs go to a
+``concurrent.futures``-style executor: a local process pool by default, or a Dask distributed
+cluster through ``Client(address).get_executor()`` (``swarm sweep --scheduler``). A worker runs the
+simulation and sends the result files back as bytes; the process that called :func:`run_sweep`
+writes each run's folder, so workers on other machines need no shared file system.
+
+Layout of ``out_dir``::
+
+    runs/<planner>/<setting>/seed-<n>/   one run's outputs (see swarm.outputs); metrics.json last
+    runs/.../error.json                  a run that raised: the error and its traceback
+    summary.json, summary.csv            statistics per planner and setting (see summarize)
+
+A run folder with ``metrics.json`` is finished, so running the same sweep again skips it: an
+interrupted sweep keeps the runs it finished and resumes where it stopped. A run that raises is
+recorded and does not stop the others; it is tried again on the next invocation.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+import traceback
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from itertools import product
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarm.errors import UsageError
+from swarm.outputs import run_files, write_files
+from swarm.scenario import Scenario, apply_overrides, load_scenario, parse_scenario
+
+# Metrics summarised per group: every number at the top level of metrics.json, plus these
+# nested counters (flattened with a dot).
+_NESTED = ("radio", "violations")
+_SKIP = {"seed", "sim_seconds", "wall_seconds", "events", "targets_total"}
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One simulation of a sweep. ``scenario`` is the scenario as a plain dict (picklable, so it
+    travels to any worker), overrides already applied."""
+
+    scenario: dict
+    planner: str
+    seed: int
+    settings: tuple[tuple[str, Any], ...]
+    folder: str  # relative to the sweep's out_dir
+    duration_s: float | None = None
+    figures: bool = False
+
+    @property
+    def label(self) -> str:
+        s = ", ".join(f"{k}={v}" for k, v in self.settings)
+        return f"{self.planner} seed {self.seed}" + (f" ({s})" if s else "")
+
+
+@dataclass
+class SweepResult:
+    out_dir: Path
+    total: int
+    skipped: int  # finished before this invocation
+    ran: int
+    failed: list[dict] = field(default_factory=list)
+    summary: dict = field(default_factory=dict)
+
+
+def _slug(settings: Sequence[tuple[str, Any]]) -> str:
+    if not settings:
+        return "default"
+    text = ",".join(f"{k}={json.dumps(v, separators=(',', ':'))}" for k, v in settings)
+    return re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+
+
+def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[str],
+              grid: Mapping[str, Sequence[Any]] | None = None, duration_s: float | None = None,
+              figures: bool = False) -> list[RunSpec]:
+    """Every combination of ``planners`` x the cartesian product of ``grid`` x ``seeds``.
+
+    ``grid`` maps a dotted scenario key to the values to try, e.g.
+    ``{"radio.loss_base": [0.0, 0.3]}``. Each combination is validated here, so a bad key or
+    value fails before anything runs, naming the key.
+    """
+    grid = dict(grid or {})
+    keys = list(grid)
+    seeds = list(seeds)
+    if not seeds:
+        raise UsageError("a sweep needs at least one seed")
+    if not planners:
+        raise UsageError("a sweep needs at least one planner")
+    runs = []
+    for planner in planners:
+        for values in product(*(grid[k] for k in keys)):
+            settings = tuple(zip(keys, values))
+            sc = apply_overrides(scenario, {"planner.name": planner, **dict(settings)})
+            doc = sc.to_dict()
+            for seed in seeds:
+                runs.append(RunSpec(doc, planner, int(seed), settings,
+                                    f"runs/{planner}/{_slug(settings)}/seed-{int(seed):03d}",
+                                    duration_s, figures))
+    return runs
+
+
+def execute(spec: RunSpec) -> dict:
+    """Run one simulation (in a worker). Returns ``{"files": {name: bytes}}`` or, if it raised,
+    ``{"error": text, "traceback": text}``: an error is data, so one bad run cannot take the
+    sweep down."""
+    from swarm.simulation import Simulation
+
+    try:
+        sc = parse_scenario(spec.scenario, source=f"sweep run {spec.folder}")
+        with Simulation(sc, seed=spec.seed, duration_s=spec.duration_s) as sim:
+            result = sim.run()
+            return {"files": run_files(result, sim.scenario.to_dict(), figures=spec.figures)}
+    except Exception as exc:  # recorded in error.json, reported, retried next time
+        return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+
+
+def is_finished(out_dir: Path, spec: RunSpec) -> bool:
+    return (out_dir / spec.folder / "metrics.json").is_file()
+
+
+ProgressFn = Callable[[int, int, RunSpec, str], None]
+
+
+def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executor | None = None,
+              workers: int | None = None, progress: ProgressFn | None = None) -> SweepResult:
+    """Run what is not finished yet, write each run's folder as it completes, then the summary.
+
+    ``executor``: any ``concurrent.futures.Executor`` (``submit`` returning futures), e.g. a
+    Dask ``Client(...).get_executor()``; by default a local process pool of ``workers``
+    processes (default: the CPU count). ``progress(done, total, spec, status)`` is called after
+    each run with status ``"ok"`` or ``"error"`` (and once with ``"skipped"`` per finished run).
+    If interrupted (KeyboardInterrupt or an exception from ``progress``), pending runs are
+    cancelled, finished ones stay on disk, the summary of what finished is written, and the
+    exception propagates.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    todo = [s for s in runs if not is_finished(out, s)]
+    result = SweepResult(out, len(runs), len(runs) - len(todo), 0)
+    done = result.skipped
+    if progress is not None:
+        for s in runs:
+            if s not in todo:
+                progress(done, len(runs), s, "skipped")
+    own = executor is None and bool(todo)
+    if own:
+        executor = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1)
+    try:
+        futures: dict[Future, RunSpec] = {executor.submit(execute, s): s for s in todo}
+        for fut in as_completed(futures):
+            spec = futures[fut]
+            try:
+                outcome = fut.result()
+            except Exception as exc:  # the worker itself died (e.g. killed, out of memory)
+                outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+            folder = out / spec.folder
+            if "files" in outcome:
+                (folder / "error.json").unlink(missing_ok=True)
+                write_files(folder, outcome["files"])
+                status = "ok"
+            else:
+                write_files(folder, {"error.json": json.dumps(
+                    {"run": spec.label, "folder": spec.folder, **outcome}, indent=2).encode()})
+                result.failed.append({"run": spec.label, "folder": spec.folder, "error": outcome["error"]})
+                status = "error"
+            result.ran += 1
+            done += 1
+            if progress is not None:
+                progress(done, len(runs), spec, status)
+    except BaseException:
+        for f in futures if "futures" in locals() else ():
+            f.cancel()
+        write_summary(out, runs)
+        raise
+    finally:
+        if own:
+            executor.shutdown(wait=True, cancel_futures=True)
+    result.summary = write_summary(out, runs)
+    return result
+
+
+# --- statistics --------------------------------------------------------------------------------
+
+def _flatten(metrics: dict) -> dict[str, float]:
+    flat = {}
+    for k, v in metrics.items():
+        if k in _SKIP:
+            continue
+        if isinstance(v, bool):
+            continue
+        if isinstance(v, (int, float)):
+            flat[k] = float(v)
+        elif k in _NESTED and isinstance(v, dict):
+            for kk, vv in v.items():
+                if isinstance(vv, (int, float)) and not isinstance(vv, bool):
+                    flat[f"{k}.{kk}"] = float(vv)
+    return flat
+
+
+def describe(values: Sequence[float]) -> dict:
+    """Mean, sample standard deviation and the Student-t 95% interval of the mean."""
+    from scipy import stats
+
+    x = np.asarray(values, dtype=np.float64)
+    n = x.size
+    mean = float(x.mean()) if n else math.nan
+    if n > 1:
+        sd = float(x.std(ddof=1))
+        half = float(stats.t.ppf(0.975, n - 1)) * sd / math.sqrt(n)
+    else:
+        sd, half = 0.0, math.nan
+    ci = [mean - half, mean + half] if math.isfinite(half) else [mean, mean]
+    return {"n": int(n), "mean": mean, "sd": sd, "ci95": ci}
+
+
+def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
+    """Per planner and setting: mean, sd and 95% interval of every metric over finished seeds;
+    and, for each setting, each other planner compared with the first one seed by seed
+    (paired differences ``other - first`` with their 95% interval)."""
+    out = Path(out_dir)
+    groups: dict[tuple, dict] = {}
+    per_seed: dict[tuple, dict[int, dict[str, float]]] = {}
+    errors = []
+    for spec in runs:
+        key = (spec.planner, spec.settings)
+        g = groups.setdefault(key, {"planner": spec.planner, "settings": dict(spec.settings),
+                                    "runs": 0, "failed": 0, "metrics": {}})
+        mpath = out / spec.folder / "metrics.json"
+        if mpath.is_file():
+            g["runs"] += 1
+            per_seed.setdefault(key, {})[spec.seed] = _flatten(json.loads(mpath.read_text()))
+        elif (out / spec.folder / "error.json").is_file():
+            g["failed"] += 1
+            errors.append(json.loads((out / spec.folder / "error.json").read_text()).get("error", "?"))
+    for key, g in groups.items():
+        seeds = per_seed.get(key, {})
+        names = sorted({m for v in seeds.values() for m in v})
+        g["metrics"] = {m: describe([v[m] for v in seeds.values() if m in v]) for m in names}
+    comparisons = []
+    planners = list(dict.fromkeys(s.planner for s in runs))
+    settings_list = list(dict.fromkeys(s.settings for s in runs))
+    for settings in settings_list:
+        base = per_seed.get((planners[0], settings), {})
+        for other in planners[1:]:
+            theirs = per_seed.get((other, settings), {})
+            common = sorted(set(base) & set(theirs))
+            if not common:
+                continue
+            names = sorted(set.intersection(*(set(base[s]) & set(theirs[s]) for s in common)))
+            comparisons.append({
+                "settings": dict(settings), "planner": other, "baseline": planners[0],
+                "paired_seeds": len(common),
+                "difference": {m: describe([theirs[s][m] - base[s][m] for s in common]) for m in names},
+            })
+    return {
+        "runs_total": len(runs),
+        "runs_finished": sum(g["runs"] for g in groups.values()),
+        "runs_failed": sum(g["failed"] for g in groups.values()),
+        "errors": errors,
+        "groups": list(groups.values()),
+        "comparisons": comparisons,
+    }
+
+
+def _csv(summary: dict) -> str:
+    keys = sorted({k for g in summary["groups"] for k in g["settings"]})
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(["planner", *keys, "metric", "runs", "mean", "sd", "ci95_low", "ci95_high"])
+    for g in summary["groups"]:
+        for m, d in g["metrics"].items():
+            w.writerow([g["planner"], *(json.dumps(g["settings"].get(k)) for k in keys), m, d["n"],
+                        repr(d["mean"]), repr(d["sd"]), repr(d["ci95"][0]), repr(d["ci95"][1])])
+    return buf.getvalue()
+
+
+def write_summary(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
+    summary = summarize(out_dir, runs)
+    write_files(out_dir, {"summary.csv": _csv(summary).encode(),
+                          "summary.json": json.dumps(summary, indent=2).encode()})
+    return summary
+
+
+def sweep(scenario: str | os.PathLike | Scenario, out_dir: str | Path, *, seeds: int | Iterable[int] = 30,
+          planners: Sequence[str] = ("dacmp", "greedy"), grid: Mapping[str, Sequence[Any]] | None = None,
+          executor: Executor | None = None, workers: int | None = None, duration_s: float | None = None,
+          figures: bool = False, progress: ProgressFn | None = None) -> SweepResult:
+    """Plan and run a sweep in one call (the Python form of ``swarm sweep``).
+
+    ``seeds``: a count (seeds 0..n-1) or the seeds themselves. See :func:`plan_runs` and
+    :func:`run_sweep` for the rest.
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    seed_list = range(seeds) if isinstance(seeds, int) else list(seeds)
+    runs = plan_runs(sc, seeds=seed_list, planners=planners, grid=grid, duration_s=duration_s, figures=figures)
+    return run_sweep(runs, out_dir, executor=executor, workers=workers, progress=progress)
+
+
+def split_values(text: str) -> list[str]:
+    """Split ``v1,v2,[1,2]`` at top-level commas (commas inside brackets or quotes stay)."""
+    parts, depth, quote, cur = [], 0, None, []
+    for ch in text:
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append("".join(cur))
+            cur = []
+            continue
+        cur.append(ch)
+    parts.append("".join(cur))
+    return [p.strip() for p in parts if p.strip()]
