@@ -72,9 +72,7 @@ PAPER = {
     "fig11": {"duration_s": 2000.0, "runs": 30, "targets_total": 14,
               "coverage": {"greedy": 0.712, "dacmp": 0.763},
               "targets_found": {"greedy": 12.1, "dacmp": 13.7}},
-    "case1": {"duration_s": 350.0},
     "case2": {"targets_total": 6, "targets_found": 6, "watched_end": 6, "handovers_fast_to_slow": 4},
-    "case3": {"join_s": 300.0},
 }
 
 ProgressFn = Callable[[str, str, float, float, str], None]
@@ -274,10 +272,10 @@ def run_case3(out_dir: str | Path, *, seeds: int | Sequence[int] = 10, duration_
     without = {r["seed"]: r for r in _finished(root / "case2" / "seeds", "dacmp", seed_list)}
     with_ = {r["seed"]: r for r in _finished(out / "seeds", "dacmp", seed_list)}
     common = sorted(set(without) & set(with_))
-    join_s = _join_time(out / "seeds", seed_list)
+    join_s, joiner = _join_time(out / "seeds", seed_list)
     rep.figures.append(case3_coverage([without[s] for s in common], [with_[s] for s in common], join_s,
-                                      out / "case3_coverage.png"))
-    results = {"experiment": "case3", "seeds": common, "failed": len(rep.failed), "join_s": join_s,
+                                      out / "case3_coverage.png", joiner=joiner))
+    results = {"experiment": "case3", "seeds": common, "failed": len(rep.failed), "join_s": join_s, "joiner": joiner,
                "window_from_s": CASE3_WINDOW_FROM_S,
                "duration_s": _expected_duration(load_scenario("paper-case3"), duration_s)}
     if common:
@@ -399,15 +397,18 @@ def _finished(sweep_dir: Path, planner: str, seeds: Sequence[int]) -> list[dict]
     return out
 
 
-def _join_time(sweep_dir: Path, seeds: Sequence[int]) -> float | None:
+def _join_time(sweep_dir: Path, seeds: Sequence[int]) -> tuple[float | None, str | None]:
+    """The first late joiner of paper-case3: (join time, UAV name), from a run's scenario.json."""
+    uavs = None
     for s in seeds:
         p = sweep_dir / "runs" / "dacmp" / "default" / f"seed-{int(s):03d}" / "scenario.json"
         if p.is_file():
-            joins = [u["join_s"] for u in json.loads(p.read_text())["uavs"] if u.get("join_s")]
-            return float(min(joins)) if joins else None
-    sc = load_scenario("paper-case3")
-    joins = [u.join_s for u in sc.uavs if u.join_s]
-    return float(min(joins)) if joins else None
+            uavs = json.loads(p.read_text())["uavs"]
+            break
+    if uavs is None:
+        uavs = load_scenario("paper-case3").to_dict()["uavs"]
+    joins = sorted((float(u["join_s"]), u["name"]) for u in uavs if u.get("join_s"))
+    return joins[0] if joins else (None, None)
 
 
 def _stack(runs: Sequence[dict], column: str) -> tuple[np.ndarray, np.ndarray]:
@@ -584,6 +585,18 @@ def case1_measures(log: RunLog) -> dict:
            "to_slow": log.is_slow(b), "from_fast": not log.is_slow(a)}
           for t, m, a, b in log.handovers]
     to_slow_t1 = [h for h in ho if h["target"] == 1 and h["to_slow"]]
+    if to_slow_t1 and 0 in log.targets:
+        h = to_slow_t1[0]
+        uid = log.uid(h["to"])
+        p = log.poses.get(uid)
+        if p is not None:
+            txy = log.target_at(0, p[:, 0])
+            d = np.hypot(p[:, 1] - txy[:, 0], p[:, 2] - txy[:, 1])
+            i = min(int(np.searchsorted(p[:, 0], h["t"])), len(p) - 1)
+            h["to_distance_km"] = float(d[i]) / 1000
+            r = float(log.type_specs[log.types[uid]]["detect_radius_m"])
+            inside = np.nonzero(d <= r)[0]
+            h["to_in_range_t"] = float(p[inside[0], 0]) if inside.size else None
     slow_names = sorted(name[u] for u in name if log.is_slow(u))
     b1 = log.uid("B1")
     return {
@@ -708,7 +721,8 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
                edgecolor=[PLANNER_COLOUR[p] for p in FIG11_PLANNERS], hatch="//", label="paper (quoted, 2000 s)")
         for i, (m, n) in enumerate(zip(means, ns)):
             if math.isfinite(m):
-                ax.text(x[i] - 0.2, m, f"{m:.3g}\nn={n}", ha="center", va="bottom", fontsize=7)
+                top_i = m + (e[1][i] if math.isfinite(e[1][i]) else 0.0)
+                ax.text(x[i] - 0.2, top_i, f"{m:.3g}\nn={n}", ha="center", va="bottom", fontsize=7)
             ax.text(x[i] + 0.2, quoted[key][FIG11_PLANNERS[i]], f"{quoted[key][FIG11_PLANNERS[i]]:g}",
                     ha="center", va="bottom", fontsize=7)
         ax.set_xticks(x, [PLANNER_LABEL[p] for p in FIG11_PLANNERS])
@@ -855,7 +869,8 @@ def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path
     return _save(fig, path)
 
 
-def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float | None, path: Path) -> Path:
+def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float | None, path: Path,
+                   joiner: str | None = None) -> Path:
     """Mean coverage over seeds with and without the joining UAV (paper Fig. 18), join time
     marked; below, the paired difference with its 95% interval."""
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(8.5, 7.5), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
@@ -873,12 +888,18 @@ def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float
         ax.legend(fontsize=7, loc="lower right")
         bx.legend(fontsize=7, loc="upper left")
     else:
+        t_end = 0.0
         _no_data(ax)
     if join_s is not None:
         for a in (ax, bx):
             a.axvline(join_s, color="black", ls="--", lw=1.0)
-        ax.annotate(f"UAV B6 (paper: UAV 11) joins at {join_s:g} s", (join_s, 0.02), xycoords=("data", "axes fraction"),
-                    rotation=90, ha="right", va="bottom", fontsize=8)
+        ax.annotate(f"{joiner or 'a UAV'} (paper: UAV 11) joins at {join_s:g} s", (join_s, 0.02),
+                    xycoords=("data", "axes fraction"), rotation=90, ha="right", va="bottom", fontsize=8)
+    if without and with_ and t_end >= CASE3_WINDOW_FROM_S:
+        for a in (ax, bx):
+            a.axvspan(CASE3_WINDOW_FROM_S, t_end, color="grey", alpha=0.07, lw=0)
+        ax.annotate(f"table: mean from {CASE3_WINDOW_FROM_S:g} s on", (CASE3_WINDOW_FROM_S, 0.98),
+                    xycoords=("data", "axes fraction"), ha="left", va="top", fontsize=7, color="grey")
     ax.set_ylabel("coverage rate")
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
@@ -951,6 +972,17 @@ def _watchers_text(watchers: list[dict], slow: Sequence[str]) -> str:
                      f"{'in' if w['in_range'] else 'out of'} detection range at the last tick)" for w in watchers)
 
 
+def _handover_text(h: dict) -> str:
+    text = f"yes: {h['from']} → {h['to']} at {h['t']:g} s"
+    extra = []
+    if h.get("to_distance_km") is not None:
+        extra.append(f"{h['to']} then {h['to_distance_km']:.1f} km from target 1")
+    if "to_in_range_t" in h:
+        extra.append(f"in its detection range from {h['to_in_range_t']:g} s" if h["to_in_range_t"] is not None
+                     else "never in its detection range")
+    return text + (f" ({'; '.join(extra)})" if extra else "")
+
+
 def _rows_case1(res: dict | None) -> list[dict]:
     e = "Case 1 (paper-case1)"
     note = ""
@@ -962,7 +994,7 @@ def _rows_case1(res: dict | None) -> list[dict]:
                      (f"{f1['by']} at {f1['t']:g} s" if f1 else "not found") if res else NOT_RUN, note=note))
     h = (res or {}).get("handover_t1_to_slow")
     rows.append(_row(e, "target 1 handed over to the slow UAV", "yes: UAV 1 → UAV 3 (our B1 → A1), between 250 s and 350 s (Fig. 12b-c)",
-                     (f"yes: {h['from']} → {h['to']} at {h['t']:g} s" if h else "no") if res else NOT_RUN, note=note))
+                     (_handover_text(h) if h else "no") if res else NOT_RUN, note=note))
     if res:
         ours1 = _watchers_text(res["watchers_end"].get("1", []), res["slow_uavs"])
         ours2 = _watchers_text(res["watchers_end"].get("2", []), res["slow_uavs"])
@@ -989,17 +1021,17 @@ def _rows_case2(res: dict | None) -> list[dict]:
     def single(quantity, paper, ours):
         rows.append(_row(e, quantity, paper, ours if run else NOT_RUN, note=note))
 
-    single("targets found (of 6)", "6 (every target found)", f"{run['targets_found']} of {run['targets_total']}" if run else "")
+    single("targets found (of 6)", f"{q['targets_found']} (every target found)", f"{run['targets_found']} of {run['targets_total']}" if run else "")
     if run:
         who = "; ".join(f"T{k}: " + "+".join(w["uav"] + ("" if w["in_range"] else " (out of range)") for w in v)
                         for k, v in run["watchers_end"].items() if v)
         w = (f"{run['watched_end']} of {run['targets_total']}, {run['watched_end_in_range']} in detection range "
              f"at the last tick" + (f"; {who}" if who else ""))
     single("targets watched at end (a UAV in surveillance mode assigned to it)",
-           "6, each by one UAV (5 by slow UAVs, 1 by fast UAV 2)", w if run else "")
+           f"{q['watched_end']}, each by one UAV (5 by slow UAVs, 1 by fast UAV 2)", w if run else "")
     if run:
         hl = ", ".join(f"{h['from']}→{h['to']} (T{h['target']}, {h['t']:g} s)" for h in run["handover_list"])
-    single("fast → slow handovers", "4: UAV 3→9, 5→10, 4→8, 1→6 (our B3→A4, B5→A5, B4→A3, B1→A1)",
+    single("fast → slow handovers", f"{q['handovers_fast_to_slow']}: UAV 3→9, 5→10, 4→8, 1→6 (our B3→A4, B5→A5, B4→A3, B1→A1)",
            (f"{run['handovers_fast_to_slow']}" + (f" (all {run['handovers']} handovers: {hl})" if hl else ""))
            if run else "")
     single("threat violations", "0 (threats avoided)", f"{run['threat_violations']}" if run else "")
