@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Callable
+from functools import partial
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,6 +26,7 @@ from agents.planners.base import Plan, Planner, PlanView
 from agents.types import UavType
 from agents.umap import UncertaintyMap
 from comms.codec import FrameError, decode, encode
+from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
     MODE_SURVEIL,
@@ -106,6 +108,7 @@ class UavActor:
         rng: np.random.Generator,
         settings: ActorSettings,
         mailbox: Mailbox,
+        decoder: DecodeCache | None = None,
     ):
         self.uid = uid
         self.name = name
@@ -116,6 +119,10 @@ class UavActor:
         self.settings = settings
         self.mailbox = mailbox
         self.umap = UncertaintyMap(grid, tau)
+        # Shared by the simulation's actors so each broadcast frame is decoded once (a pure
+        # memo: the same bytes give the same immutable Frame).
+        self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes)
+        self._lookup = decoder.lookup if decoder is not None else None
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
         self.counters = ActorCounters()
@@ -162,7 +169,9 @@ class UavActor:
         received = self._drain_inbox(t)
 
         radius = self.kind.detect_radius
-        self.umap.scan(r.x, r.y, radius, t)
+        d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
+        if d is not None:
+            self.umap.stamp(d, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
         k = self.knowledge
         for st in r.targets:
@@ -198,41 +207,66 @@ class UavActor:
         return p is not None and p.mode != MODE_SURVEIL and math.hypot(p.wx - r.x, p.wy - r.y) < 1.5 * r.v * self.settings.dt
 
     def _drain_inbox(self, t: float) -> list[tuple[int, int, bool]]:
-        received = []
+        received: list[tuple[int, int, bool]] = []
+        frames = self.mailbox.drain()
+        if not frames:
+            return received
+        append = received.append
         k = self.knowledge
-        for _arrival, sender, data in self.mailbox.drain():
-            try:
-                frame = decode(data, self.settings.frame_max_bytes)
-            except FrameError:
-                self.counters.rejected += 1
-                received.append((sender, len(data), False))
-                continue
-            self.counters.delivered += 1
-            received.append((sender, len(data), True))
+        peers = k.peers
+        me = self.uid
+        stamp = self.umap.stamp
+        disk_stamp = self.grid.disk_stamp
+        decode_frame = self._decode
+        lookup = self._lookup
+        counters = self.counters
+        delivered = 0
+        for _arrival, sender, data in frames:
+            # Another receiver may have decoded these very bytes already (shared cache).
+            frame = lookup(data) if lookup is not None and type(data) is bytes else None
+            if frame is None:
+                try:
+                    frame = decode_frame(data)
+                except FrameError:
+                    counters.rejected += 1
+                    append((sender, len(data), False))
+                    continue
+            delivered += 1
+            append((sender, len(data), True))
+            ft = frame.t
             for m in frame.messages:
                 tm = type(m)
                 if tm is ScanRecords:
                     rec = m.records
                     for i in range(0, len(rec), 4):
                         # A scan from the future would pin cells at q=0: only accept the past.
-                        if rec[i] <= t and rec[i + 3] >= 0.0:
-                            self.umap.scan(rec[i + 1], rec[i + 2], rec[i + 3], rec[i])
+                        tr = rec[i]
+                        if tr <= t and rec[i + 3] >= 0.0:
+                            # = umap.scan(x, y, r, t_rec); the disk is shared by every map
+                            # applying this record (grid memo).
+                            d = disk_stamp(rec[i + 1], rec[i + 2], rec[i + 3])
+                            if d is not None:
+                                stamp(d, tr)
                 elif tm is Hello:
-                    if m.uav != self.uid:
-                        p = k.peer(m.uav)
-                        if frame.t >= p.t_pose:
-                            p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, frame.t
+                    if m.uav != me:
+                        p = peers.get(m.uav) or k.peer(m.uav)
+                        if ft >= p.t_pose:
+                            p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
                 elif tm is Intent:
-                    if m.uav != self.uid:
-                        p = k.peer(m.uav)
-                        if frame.t >= p.t_intent:
-                            p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, frame.t
+                    if m.uav != me:
+                        p = peers.get(m.uav) or k.peer(m.uav)
+                        if ft >= p.t_intent:
+                            p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, ft
                 elif tm is Tracks:
+                    tracks = k.tracks
                     for item in m.items:
-                        k.merge_track(item)
+                        tr = tracks.get(item.target)
+                        if tr is None or item.t >= tr.t:  # else merge_track would keep the newer track
+                            k.merge_track(item)
                 elif tm is Threats:
                     for th in m.items:
                         k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+        counters.delivered += delivered
         return received
 
     def _frame(self, t: float, messages: list) -> bytes:

@@ -3,13 +3,157 @@
 A map is a 2-D array indexed ``[row, col]`` = ``[iy, ix]``; cell ``(ix, iy)`` covers
 ``[ix*cell, (ix+1)*cell) x [iy*cell, (iy+1)*cell)`` and its centre is at ``(ix+0.5)*cell``.
 A cell is *scanned* by a sensor when its centre lies inside the detection circle.
+
+Scanning is the simulator's hottest operation: every scan record a UAV makes is applied to its
+own map, to the ground-truth map and to the map of every UAV that hears it, each time with the
+same ``(x, y, radius)``. :meth:`Grid.disk_stamp` therefore memoises the disk geometry (bounding
+box and mask, the scan's values ``where(mask, t, -inf)`` and their split over map tiles) per
+exact ``(x, y, radius)`` in a small first-in-first-out cache owned by the grid, and
+:meth:`Grid.prefetch_disks` builds many at once. The cache is a pure memo of :meth:`Grid.disk`:
+hits, misses and prefetched disks give the same cells, so it can never change a result.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
+from itertools import islice
 
 import numpy as np
+
+# Disks remembered per grid by default (about 10 KB each for a 2 km radius on 100 m cells). A
+# record is reused within a few ticks (own scan, ground truth, every receiver); a simulation
+# sizes the cache to its swarm (set_disk_cache_size). A miss only costs recomputing the disk.
+DISK_CACHE_SIZE = 1024
+# Fewer disks than this are cheaper one by one (numpy call overhead of the batch).
+PREFETCH_MIN = 16
+
+
+class _GridCache:
+    __slots__ = ("disks", "centres", "size", "nx", "ny")
+
+    def __init__(self) -> None:
+        self.nx: int | None = None
+        self.ny: int | None = None
+        self.disks: dict[tuple[float, float, float], Disk | None] = {}
+        self.centres: tuple[np.ndarray, np.ndarray] | None = None
+        self.size = DISK_CACHE_SIZE
+
+
+class Disk:
+    """The cells of one detection disk: bounding box ``[iy0:iy1, ix0:ix1]`` and a mask over it.
+
+    Immutable once built (the mask is read-only); shared by every map that applies the same
+    scan. ``pieces(tile_h, tile_w, ntx)`` splits it over tiles of a tiled map (memoised).
+    """
+
+    __slots__ = ("iy0", "iy1", "ix0", "ix1", "rows", "cols", "mask", "_near", "_pieces", "_vmemo", "_smemo")
+
+    def __init__(self, iy0: int, iy1: int, ix0: int, ix1: int, mask: np.ndarray, near):
+        self.iy0, self.iy1, self.ix0, self.ix1 = iy0, iy1, ix0, ix1  # half-open bounds
+        # Box row/column whose centre is nearest the disk's centre (least dy**2, dx**2), for
+        # splitting over tiles: (row, col), or the (dy**2, dx**2) arrays to find them in.
+        self._near = near
+        self.rows = slice(iy0, iy1)
+        self.cols = slice(ix0, ix1)
+        mask.flags.writeable = False
+        self.mask = mask
+        self._pieces: dict[tuple[int, int], list] = {}
+        # Memos, each one tuple replaced whole (never seen half-updated): (t, values(t)) and
+        # (tile shape, t, stamps). t as given: a float compares fast, float32(t) is derived.
+        self._vmemo: tuple = (None, None)
+        self._smemo: tuple = (None, None, None)
+
+    def _nearest(self) -> tuple[int, int]:
+        near = self._near
+        if not isinstance(near[0], int):
+            near = self._near = (int(near[0].argmin()), int(near[1].argmin()))
+        return near
+
+    def values(self, t: float) -> np.ndarray:
+        """``where(mask, float32(t), -inf)`` over the box (float32, read-only): ``maximum(box,
+        values(t))`` is the scan. Memoised for the last ``t`` (a record is applied by many maps
+        at its own t)."""
+        memo = self._vmemo
+        if memo[0] == t and memo[1] is not None:
+            return memo[1]
+        v = np.where(self.mask, np.float32(t), np.float32(-np.inf))
+        v.flags.writeable = False
+        self._vmemo = (t, v)
+        return v
+
+    def stamps(self, th: int, tw: int, ntx: int, t: float, bands: np.ndarray | None = None) -> list[tuple[int, int, int, np.ndarray]]:
+        """The scan at ``t`` for a map of flat ``th * tw`` tiles: ``[(tile_key, start, stop,
+        values), ...]`` with ``maximum(tile[start:stop], values)`` the scan's effect on the tile.
+        Each piece spans whole tile rows (contiguous memory, one fast 1-D ``maximum``); cells of
+        those rows outside the disk get ``-inf`` (no change). Memoised for the last tile shape
+        and ``t`` (a record is applied by many maps at its own t). ``bands`` (from
+        :meth:`Grid.prefetch_disks`): the values already laid out over the touched tile columns."""
+        memo = self._smemo
+        if memo[1] == t and memo[0] == (th, tw):
+            return memo[2]
+        iy0, iy1, ix0, ix1 = self.iy0, self.iy1, self.ix0, self.ix1
+        tx0, tx1 = ix0 // tw, (ix1 - 1) // tw
+        if bands is None:
+            # The box's rows over the full width of each tile column it touches.
+            v = self.values(t)
+            bands = np.empty((tx1 - tx0 + 1, iy1 - iy0, tw), dtype=np.float32)
+            bands.fill(-np.inf)
+            for b in range(tx1 - tx0 + 1):
+                tx = tx0 + b
+                c0, c1 = max(ix0, tx * tw), min(ix1, (tx + 1) * tw)
+                bands[b, :, c0 - tx * tw : c1 - tx * tw] = v[:, c0 - ix0 : c1 - ix0]
+            bands.flags.writeable = False
+        # A tile holds a cell of the disk iff its cell nearest the disk's centre does (see pieces()).
+        near_r, near_c = self._nearest()
+        item = self.mask.item
+        st = []
+        for ty in range(iy0 // th, (iy1 - 1) // th + 1):
+            r0, r1 = max(iy0, ty * th) - iy0, min(iy1, (ty + 1) * th) - iy0
+            nr = min(max(near_r, r0), r1 - 1)
+            base = iy0 - ty * th
+            for b in range(tx1 - tx0 + 1):
+                tx = tx0 + b
+                c0, c1 = max(ix0, tx * tw) - ix0, min(ix1, (tx + 1) * tw) - ix0
+                if item(nr, min(max(near_c, c0), c1 - 1)):
+                    st.append((ty * ntx + tx, (r0 + base) * tw, (r1 + base) * tw, bands[b, r0:r1].reshape(-1)))
+        self._smemo = ((th, tw), t, st)
+        return st
+
+    def pieces(self, th: int, tw: int, ntx: int) -> list[tuple[int, slice, slice, np.ndarray, tuple[slice, slice]]]:
+        """``[(tile_key, rows_in_tile, cols_in_tile, mask_piece, box_slices), ...]`` for tiles of
+        ``th x tw`` cells, ``tile_key = ty * ntx + tx``, ``box_slices`` the piece within the
+        disk's box; tiles the disk touches without covering any cell centre are left out (so
+        they are never allocated)."""
+        key = (th, tw)
+        p = self._pieces.get(key)
+        if p is not None:
+            return p
+        p = []
+        mask = self.mask
+        iy0, iy1, ix0, ix1 = self.iy0, self.iy1, self.ix0, self.ix1
+        ty0, tx0 = iy0 // th, ix0 // tw
+        if ty0 == (iy1 - 1) // th and tx0 == (ix1 - 1) // tw:  # inside one tile (a disk is never empty)
+            p.append((ty0 * ntx + tx0, slice(iy0 - ty0 * th, iy1 - ty0 * th), slice(ix0 - tx0 * tw, ix1 - tx0 * tw),
+                      mask, (slice(0, iy1 - iy0), slice(0, ix1 - ix0))))
+            self._pieces[key] = p
+            return p
+        # A piece holds a cell of the disk iff its cell nearest the disk's centre does: dx**2 and
+        # dy**2 (as computed, rounding included) grow monotonically away from the nearest
+        # row/column, and so does their sum. One lookup instead of scanning the piece.
+        near_r, near_c = self._nearest()
+        item = mask.item
+        for ty in range(iy0 // th, (iy1 - 1) // th + 1):
+            r0, r1 = max(iy0, ty * th) - iy0, min(iy1, (ty + 1) * th) - iy0
+            nr = min(max(near_r, r0), r1 - 1)
+            for tx in range(ix0 // tw, (ix1 - 1) // tw + 1):
+                c0, c1 = max(ix0, tx * tw) - ix0, min(ix1, (tx + 1) * tw) - ix0
+                if item(nr, min(max(near_c, c0), c1 - 1)):
+                    box = (slice(r0, r1), slice(c0, c1))
+                    p.append((ty * ntx + tx, slice(r0 + iy0 - ty * th, r1 + iy0 - ty * th),
+                              slice(c0 + ix0 - tx * tw, c1 + ix0 - tx * tw), mask[box], box))
+        self._pieces[key] = p
+        return p
 
 
 @dataclass(frozen=True, slots=True)
@@ -17,14 +161,22 @@ class Grid:
     width_m: float
     height_m: float
     cell_m: float
+    # Memo of disk_stamp() and the cell centres; not part of the grid's value (equality, hash, repr).
+    _cache: _GridCache = field(default_factory=lambda: _GridCache(), init=False, repr=False, compare=False, hash=False)
 
     @property
     def nx(self) -> int:
-        return int(round(self.width_m / self.cell_m))
+        c = self._cache
+        if c.nx is None:
+            c.nx = int(round(self.width_m / self.cell_m))
+        return c.nx
 
     @property
     def ny(self) -> int:
-        return int(round(self.height_m / self.cell_m))
+        c = self._cache
+        if c.ny is None:
+            c.ny = int(round(self.height_m / self.cell_m))
+        return c.ny
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -44,25 +196,133 @@ class Grid:
     def contains(self, x: float, y: float) -> bool:
         return 0.0 <= x <= self.width_m and 0.0 <= y <= self.height_m
 
+    def _disk_bounds(self, x: float, y: float, radius: float):
+        """``(iy0, iy1, ix0, ix1, mask, dy**2, dx**2)`` (inclusive bounds) or ``None``."""
+        c = self.cell_m
+        # Centres are at (i + 0.5) * c; first/last index whose centre may lie inside.
+        # One spare cell each side: the box only has to contain the disk, the mask decides (a
+        # rounded box edge could otherwise drop a centre lying exactly on the circle).
+        # (math.ceil/floor equal int(np.ceil/np.floor(...)) for every float, errors included.)
+        ix0 = max(math.ceil((x - radius) / c - 0.5) - 1, 0)
+        ix1 = min(math.floor((x + radius) / c - 0.5) + 1, self.nx - 1)
+        iy0 = max(math.ceil((y - radius) / c - 0.5) - 1, 0)
+        iy1 = min(math.floor((y + radius) / c - 0.5) + 1, self.ny - 1)
+        if ix1 < ix0 or iy1 < iy0:
+            return None
+        # (arange(i0, i1 + 1) + 0.5) * c, the cell centres, computed once per grid.
+        centres_x, centres_y = self._centres()
+        dx2 = (centres_x[ix0 : ix1 + 1] - x) ** 2
+        dy2 = (centres_y[iy0 : iy1 + 1] - y) ** 2
+        mask = np.add.outer(dy2, dx2) <= radius * radius  # = dy[:, None]**2 + dx[None, :]**2 <= r**2
+        # A centre inside the area with radius >= one cell always covers the centre of the cell
+        # it lies in (at most cell * sqrt(2) / 2 away): only other disks need the check.
+        if not (radius >= c and 0.0 <= x <= self.width_m and 0.0 <= y <= self.height_m) and not mask.any():
+            return None
+        return iy0, iy1, ix0, ix1, mask, dy2, dx2
+
+    def _centres(self) -> tuple[np.ndarray, np.ndarray]:
+        cache = self._cache
+        if cache.centres is None:
+            cache.centres = ((np.arange(self.nx) + 0.5) * self.cell_m, (np.arange(self.ny) + 0.5) * self.cell_m)
+        return cache.centres
+
     def disk(self, x: float, y: float, radius: float) -> tuple[slice, slice, np.ndarray] | None:
         """The cells whose centres lie within ``radius`` of ``(x, y)``.
 
         Returns ``(rows, cols, mask)``: a bounding-box slice of the map and a boolean mask over
         it, or ``None`` when no cell centre is inside (disk entirely off the grid).
         """
-        c = self.cell_m
-        # Centres are at (i + 0.5) * c; first/last index whose centre may lie inside.
-        # One spare cell each side: the box only has to contain the disk, the mask decides (a
-        # rounded box edge could otherwise drop a centre lying exactly on the circle).
-        ix0 = max(int(np.ceil((x - radius) / c - 0.5)) - 1, 0)
-        ix1 = min(int(np.floor((x + radius) / c - 0.5)) + 1, self.nx - 1)
-        iy0 = max(int(np.ceil((y - radius) / c - 0.5)) - 1, 0)
-        iy1 = min(int(np.floor((y + radius) / c - 0.5)) + 1, self.ny - 1)
-        if ix1 < ix0 or iy1 < iy0:
+        b = self._disk_bounds(x, y, radius)
+        if b is None:
             return None
-        dx = (np.arange(ix0, ix1 + 1) + 0.5) * c - x
-        dy = (np.arange(iy0, iy1 + 1) + 0.5) * c - y
-        mask = (dy[:, None] ** 2 + dx[None, :] ** 2) <= radius * radius
-        if not mask.any():
-            return None
+        iy0, iy1, ix0, ix1, mask = b[:5]
         return slice(iy0, iy1 + 1), slice(ix0, ix1 + 1), mask
+
+    def disk_stamp(self, x: float, y: float, radius: float) -> Disk | None:
+        """:meth:`disk` as a shared, read-only :class:`Disk`, memoised per exact ``(x, y, radius)``."""
+        key = (x, y, radius)
+        c = self._cache
+        cache = c.disks
+        try:
+            return cache[key]
+        except KeyError:
+            pass
+        b = self._disk_bounds(x, y, radius)
+        d = None if b is None else Disk(b[0], b[1] + 1, b[2], b[3] + 1, b[4], (b[5], b[6]))
+        if len(cache) >= c.size:
+            for k in list(islice(cache, max(1, c.size // 4))):  # oldest first (insertion order)
+                del cache[k]
+        cache[key] = d
+        return d
+
+    def prefetch_disks(self, xs, ys, radii, t: float | None = None, tiles: tuple[int, int] | None = None) -> None:
+        """Build the disks of many scans at once (vectorised) into :meth:`disk_stamp`'s memo.
+
+        Exactly what :meth:`disk_stamp` would build for each ``(x, y, radius)``: the same
+        element-wise arithmetic, only batched (a simulation prefetches the scans of all its
+        UAVs at the start of a tick). With ``t``, each disk's :meth:`Disk.values` for ``t`` is
+        prepared too, and with ``tiles=(th, tw)`` its :meth:`Disk.stamps` for maps of such
+        tiles. Disks near the grid's edge, already known, or smaller than a cell are left to
+        :meth:`disk_stamp`.
+        """
+        cache = self._cache
+        disks = cache.disks
+        todo = [(x, y, r) for x, y, r in zip(xs, ys, radii) if (x, y, r) not in disks]
+        if len(todo) < PREFETCH_MIN:
+            return
+        c = self.cell_m
+        a = np.array(todo, dtype=np.float64)
+        x, y, r = a[:, 0], a[:, 1], a[:, 2]
+        # The scalar path's bounds, element-wise (same float operations; ceil/floor are exact).
+        ix0 = np.ceil((x - r) / c - 0.5) - 1
+        ix1 = np.floor((x + r) / c - 0.5) + 1
+        iy0 = np.ceil((y - r) / c - 0.5) - 1
+        iy1 = np.floor((y + r) / c - 0.5) + 1
+        ok = ((r >= c) & (x >= 0.0) & (x <= self.width_m) & (y >= 0.0) & (y <= self.height_m)
+              & (ix0 >= 0) & (iy0 >= 0) & (ix1 <= self.nx - 1) & (iy1 <= self.ny - 1))
+        if not ok.any():
+            return
+        ix0, ix1, iy0, iy1 = (np.where(ok, v, 0.0).astype(np.int64) for v in (ix0, ix1, iy0, iy1))
+        groups: dict[tuple[float, int, int], list[int]] = {}
+        for i in np.flatnonzero(ok).tolist():
+            groups.setdefault((todo[i][2], int(iy1[i] - iy0[i] + 1), int(ix1[i] - ix0[i] + 1)), []).append(i)
+        centres_x, centres_y = self._centres()
+        t32 = None if t is None else np.float32(t)
+        ntx = -(-self.nx // tiles[1]) if tiles is not None else 0
+        for (radius, h, w), members in groups.items():
+            idx = np.array(members)
+            dx2 = (centres_x[ix0[idx][:, None] + np.arange(w)] - x[idx][:, None]) ** 2
+            dy2 = (centres_y[iy0[idx][:, None] + np.arange(h)] - y[idx][:, None]) ** 2
+            mask = (dy2[:, :, None] + dx2[:, None, :]) <= radius * radius
+            near_r = dy2.argmin(axis=1).tolist()
+            near_c = dx2.argmin(axis=1).tolist()
+            mask.flags.writeable = False
+            values = bands = None
+            if t32 is not None:
+                values = np.where(mask, t32, np.float32(-np.inf))
+                values.flags.writeable = False
+                if tiles is not None:
+                    # Each disk's values over the full width of the tile columns it touches:
+                    # column j of the box goes to band (a + j) // tw, column (a + j) % tw.
+                    tw = tiles[1]
+                    pos = (ix0[idx] % tw)[:, None] + np.arange(w)
+                    bands = np.empty((len(members), int(pos.max()) // tw + 1, h, tw), dtype=np.float32)
+                    bands.fill(-np.inf)
+                    bands[np.arange(len(members))[:, None], pos // tw, :, pos % tw] = np.swapaxes(values, 1, 2)
+                    bands.flags.writeable = False
+            for k, i in enumerate(members):
+                ix0i, ix1i = int(ix0[i]), int(ix1[i]) + 1
+                d = Disk(int(iy0[i]), int(iy1[i]) + 1, ix0i, ix1i, mask[k], (near_r[k], near_c[k]))
+                if values is not None:
+                    d._vmemo = (t, values[k])
+                    if bands is not None:
+                        th, tw = tiles
+                        d.stamps(th, tw, ntx, t, bands[k, : (ix1i - 1) // tw - ix0i // tw + 1])
+                disks[todo[i]] = d
+        if len(disks) > cache.size:
+            for k in list(islice(disks, len(disks) - cache.size)):  # oldest first
+                del disks[k]
+
+    def set_disk_cache_size(self, n: int) -> None:
+        """How many disks :meth:`disk_stamp` remembers (a simulation sizes it to its swarm)."""
+        self._cache.size = max(1, int(n))

@@ -8,60 +8,341 @@ Everything that changes the map is a per-cell ``max``: scanning a disk at time `
 heard scan record, merging a whole heard map. ``max`` is commutative, associative and
 idempotent, so frames lost, duplicated or reordered on the radio can delay agreement between
 UAVs but never corrupt it, and a map never forgets (last-seen times never decrease).
+
+Storage. The grid is cut into fixed-size tiles (64 x 64 cells by default, 16 KB of float32);
+a tile is allocated the first time a cell in it is written, and a tile never written is
+implicitly ``-inf`` everywhere. So a UAV's map costs memory for the tiles it (or a UAV it
+heard) has scanned, not for the whole area: on a 650 km square at 100 m cells a dense map
+would be 42 M cells (169 MB) per UAV. Grids of at most :data:`DENSE_MAX_CELLS` cells (the
+paper's 500 x 500 is 250 000) are one tile covering the whole grid, allocated at once: the
+fastest layout when every map ends up covering most of a small area anyway. Either way every
+method gives exactly the numbers of one dense ``float32`` array (``to_dense()``): the layout is
+invisible. Cells of edge tiles lying outside the grid stay ``-inf`` (writes are clipped to it).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from agents.grid import Grid
+from agents.grid import Disk, Grid
 
 NEVER = np.float32(-np.inf)
 
+DEFAULT_TILE = 64
+# Grids up to this many cells (4 MB of float32) are stored as one dense tile.
+DENSE_MAX_CELLS = 1 << 20
+
+
+def _tile_shape(grid: Grid, tile) -> tuple[tuple[int, int], bool]:
+    """``((tile_h, tile_w), dense)`` for a ``tile`` argument (see :class:`UncertaintyMap`)."""
+    ny, nx = grid.shape
+    if tile is None:
+        if ny * nx <= DENSE_MAX_CELLS:
+            return (ny, nx), True
+        tile = DEFAULT_TILE
+    elif isinstance(tile, str):
+        if tile != "dense":
+            raise ValueError(f"tile must be None, 'dense', a positive int or (rows, cols), got {tile!r}")
+        return (ny, nx), True
+    if isinstance(tile, (int, np.integer)):
+        th = tw = int(tile)
+    else:
+        th, tw = (int(v) for v in tile)
+    if th < 1 or tw < 1:
+        raise ValueError(f"tile sizes must be >= 1, got {(th, tw)}")
+    return (max(1, min(th, ny)), max(1, min(tw, nx))), False
+
 
 class UncertaintyMap:
-    __slots__ = ("grid", "tau", "last_seen")
+    """Per-cell last-seen times (float32) of one grid, stored in lazily allocated tiles.
 
-    def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None):
+    ``tile``: ``None`` (default) = one dense tile for grids of at most :data:`DENSE_MAX_CELLS`
+    cells, else 64 x 64 tiles; ``"dense"`` = always one dense tile; an int ``n`` or ``(rows,
+    cols)`` = tiles of that size, allocated on first write. ``last_seen`` (optional) is a full
+    ``(ny, nx)`` array to start from (copied).
+    """
+
+    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles")
+
+    def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None, *, tile=None):
         self.grid = grid
         self.tau = float(tau)
-        if last_seen is None:
-            last_seen = np.full(grid.shape, NEVER, dtype=np.float32)
-        elif last_seen.shape != grid.shape:
-            raise ValueError(f"last_seen has shape {last_seen.shape}, expected {grid.shape}")
-        self.last_seen = last_seen
+        ny, nx = grid.shape
+        if last_seen is not None:
+            last_seen = np.asarray(last_seen)
+            if last_seen.shape != grid.shape:
+                raise ValueError(f"last_seen has shape {last_seen.shape}, expected {grid.shape}")
+        (th, tw), dense = _tile_shape(grid, tile)
+        self.tile_shape = (th, tw)
+        self.dense = dense
+        self._nty = -(-ny // th)
+        self._ntx = -(-nx // tw)
+        # tile key ty * ntx + tx -> float32 cells (dense: the (ny, nx) grid; tiled: th * tw flat,
+        # row-major); an absent tile is all -inf.
+        self._tiles: dict[int, np.ndarray] = {}
+        if dense:
+            if last_seen is not None:
+                self._tiles[0] = np.array(last_seen, dtype=np.float32)
+            else:
+                self._tiles[0] = np.full((ny, nx), NEVER, dtype=np.float32)
+        elif last_seen is not None:
+            self.merge(last_seen)
+
+    # --- storage ----------------------------------------------------------------------------
+
+    def _alloc(self, key: int) -> np.ndarray:
+        """A new all-``-inf`` tile (tiled maps keep tiles flat: ``th * tw`` cells, row-major)."""
+        th, tw = self.tile_shape
+        tile = self._tiles[key] = np.empty(th * tw, dtype=np.float32)
+        tile.fill(NEVER)
+        return tile
+
+    @property
+    def tiles_allocated(self) -> int:
+        return len(self._tiles)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of cell storage allocated."""
+        return sum(a.nbytes for a in self._tiles.values())
+
+    # --- writes -----------------------------------------------------------------------------
 
     def scan(self, x: float, y: float, radius: float, t: float) -> int:
         """Mark the cells inside a detection circle as seen at ``t``; returns cells changed."""
-        d = self.grid.disk(x, y, radius)
+        d = self.grid.disk_stamp(x, y, radius)
         if d is None:
             return 0
-        rows, cols, mask = d
-        view = self.last_seen[rows, cols]
-        newer = mask & (view < t)
-        view[newer] = t
-        return int(np.count_nonzero(newer))
+        return self.scan_disk(d, t)
+
+    def scan_disk(self, d: Disk, t: float) -> int:
+        """Apply a scan whose disk is ``d`` (from ``grid.disk_stamp``) at ``t``; returns cells changed."""
+        t = np.float32(t)
+        if self.dense:
+            view = self._tiles[0][d.rows, d.cols]
+            newer = d.mask & (view < t)
+            view[newer] = t
+            return int(np.count_nonzero(newer))
+        th, tw = self.tile_shape
+        tiles = self._tiles
+        changed = 0
+        for key, rows, cols, mask, _box in d.pieces(th, tw, self._ntx):
+            tile = tiles.get(key)
+            if tile is None:
+                tile = self._alloc(key)
+            view = tile.reshape(th, tw)[rows, cols]
+            newer = mask & (view < t)
+            view[newer] = t
+            changed += int(np.count_nonzero(newer))
+        return changed
+
+    def stamp(self, d: Disk, t: float) -> None:
+        """:meth:`scan_disk` without the count: one ``maximum`` with the disk's shared
+        ``where(mask, t, -inf)`` per tile piece (the fast path for heard scan records)."""
+        if self.dense:
+            view = self._tiles[0][d.rows, d.cols]
+            memo = d._vmemo  # Disk.values() memo, inlined (the per-receiver hot path)
+            np.maximum(view, memo[1] if memo[0] == t and memo[1] is not None else d.values(t), out=view)
+            return
+        tiles = self._tiles
+        shape = self.tile_shape
+        memo = d._smemo  # Disk.stamps() memo, inlined (the per-receiver hot path)
+        pieces = memo[2] if memo[1] == t and memo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
+        for key, start, stop, values in pieces:
+            tile = tiles.get(key)
+            if tile is None:
+                tile = self._alloc(key)
+            view = tile[start:stop]
+            np.maximum(view, values, out=view)
+
+    def cover(self, d: Disk, t: float) -> int:
+        """Like :meth:`stamp`, but returns how many of the disk's cells had never been seen."""
+        if self.dense:
+            view = self._tiles[0][d.rows, d.cols]
+            new = int(np.count_nonzero(d.mask & (view == NEVER)))
+            np.maximum(view, d.values(t), out=view)
+            return new
+        th, tw = self.tile_shape
+        tiles = self._tiles
+        values = d.values(t)
+        new = 0
+        for key, rows, cols, mask, box in d.pieces(th, tw, self._ntx):
+            tile = tiles.get(key)
+            if tile is None:
+                tile = self._alloc(key)
+            view = tile.reshape(th, tw)[rows, cols]
+            new += int(np.count_nonzero(mask & (view == NEVER)))
+            np.maximum(view, values[box], out=view)
+        return new
 
     def merge(self, other: "UncertaintyMap | np.ndarray") -> None:
-        """Per-cell max with another map (in place)."""
-        theirs = other.last_seen if isinstance(other, UncertaintyMap) else other
-        np.maximum(self.last_seen, theirs, out=self.last_seen)
+        """Per-cell max with another map or a full ``(ny, nx)`` array (in place)."""
+        if isinstance(other, UncertaintyMap):
+            if other.grid.shape != self.grid.shape:
+                raise ValueError(f"cannot merge a {other.grid.shape} map into a {self.grid.shape} map")
+            if other.tile_shape == self.tile_shape and other.dense == self.dense:
+                for key, theirs in list(other._tiles.items()):
+                    mine = self._tiles.get(key)
+                    if mine is None:
+                        self._tiles[key] = theirs.copy()
+                    else:
+                        np.maximum(mine, theirs, out=mine)
+                return
+            theirs = other.to_dense()
+        else:
+            theirs = np.broadcast_to(np.asarray(other), self.grid.shape)
+        if self.dense:
+            mine = self._tiles[0]
+            np.maximum(mine, theirs, out=mine)
+            return
+        th, tw = self.tile_shape
+        ny, nx = self.grid.shape
+        for ty in range(self._nty):
+            r0, r1 = ty * th, min(ny, (ty + 1) * th)
+            for tx in range(self._ntx):
+                c0, c1 = tx * tw, min(nx, (tx + 1) * tw)
+                piece = theirs[r0:r1, c0:c1]
+                key = ty * self._ntx + tx
+                mine = self._tiles.get(key)
+                if mine is None:
+                    if np.isneginf(piece).all():
+                        continue  # max(-inf, -inf): nothing to store
+                    mine = self._alloc(key)
+                view = mine.reshape(th, tw)[: r1 - r0, : c1 - c0]
+                np.maximum(view, piece, out=view)
 
     def copy(self) -> "UncertaintyMap":
-        return UncertaintyMap(self.grid, self.tau, self.last_seen.copy())
+        new = object.__new__(UncertaintyMap)
+        new.grid = self.grid
+        new.tau = self.tau
+        new.tile_shape = self.tile_shape
+        new.dense = self.dense
+        new._nty, new._ntx = self._nty, self._ntx
+        new._tiles = {k: v.copy() for k, v in self._tiles.items()}
+        return new
 
-    def uncertainty(self, t: float, out: np.ndarray | None = None) -> np.ndarray:
-        """q per cell at time ``t`` (float32)."""
-        age = np.subtract(np.float32(t), self.last_seen, out=out, dtype=np.float32)
+    # --- reads ------------------------------------------------------------------------------
+
+    def _check_window(self, window) -> tuple[int, int, int, int]:
+        try:
+            ix0, iy0, w, h = (int(v) for v in window)
+        except (TypeError, ValueError):
+            raise ValueError(f"window must be (ix0, iy0, nx, ny), got {window!r}") from None
+        ny, nx = self.grid.shape
+        if w < 1 or h < 1 or ix0 < 0 or iy0 < 0 or ix0 + w > nx or iy0 + h > ny:
+            raise ValueError(f"window (ix0={ix0}, iy0={iy0}, nx={w}, ny={h}) is not inside the {nx} x {ny} grid")
+        return ix0, iy0, w, h
+
+    def _gather(self, ix0: int, iy0: int, w: int, h: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Last-seen times of cells ``[iy0:iy0+h, ix0:ix0+w]`` (a new C-contiguous array, or ``out``)."""
+        if out is None:
+            out = np.empty((h, w), np.float32)
+        th, tw = self.tile_shape
+        tiles = self._tiles
+        ntx = self._ntx
+        for ty in range(iy0 // th, (iy0 + h - 1) // th + 1):
+            r0, r1 = max(iy0, ty * th), min(iy0 + h, (ty + 1) * th)
+            for tx in range(ix0 // tw, (ix0 + w - 1) // tw + 1):
+                c0, c1 = max(ix0, tx * tw), min(ix0 + w, (tx + 1) * tw)
+                dst = out[r0 - iy0 : r1 - iy0, c0 - ix0 : c1 - ix0]
+                tile = tiles.get(ty * ntx + tx)
+                if tile is None:
+                    dst.fill(NEVER)
+                else:
+                    dst[...] = tile.reshape(th, tw)[r0 - ty * th : r1 - ty * th, c0 - tx * tw : c1 - tx * tw]
+        return out
+
+    def to_dense(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """A new ``(ny, nx)`` float32 array of last-seen times: the whole grid, or with
+        ``window=(ix0, iy0, nx, ny)`` the cells ``[iy0:iy0+ny, ix0:ix0+nx]``."""
+        if window is not None:
+            ix0, iy0, w, h = self._check_window(window)
+            if self.dense:
+                return self._tiles[0][iy0 : iy0 + h, ix0 : ix0 + w].copy()
+            return self._gather(ix0, iy0, w, h)
+        if self.dense:
+            return self._tiles[0].copy()
+        ny, nx = self.grid.shape
+        return self._gather(0, 0, nx, ny)
+
+    @property
+    def last_seen(self) -> np.ndarray:
+        """A read-only snapshot of the full last-seen array (compatibility; use :meth:`to_dense`)."""
+        a = self.to_dense()
+        a.flags.writeable = False
+        return a
+
+    def to_dense_view(self) -> np.ndarray:
+        """The live ``(ny, nx)`` array of a dense map (read-only view; it changes with the map)."""
+        if not self.dense:
+            raise ValueError("to_dense_view() needs a dense map (tile='dense'); use to_dense()")
+        v = self._tiles[0].view()
+        v.flags.writeable = False
+        return v
+
+    def q_into(self, t: float, last_seen: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """q of the given last-seen values, written into ``out`` (the same numbers as
+        :meth:`uncertainty` gives for those cells)."""
+        return self._q(t, last_seen, out)
+
+    def _q(self, t: float, last_seen: np.ndarray, out: np.ndarray | None) -> np.ndarray:
+        age = np.subtract(np.float32(t), last_seen, out=out, dtype=np.float32)
         np.multiply(age, np.float32(-self.tau), out=age)
         np.exp(age, out=age)
         np.subtract(np.float32(1.0), age, out=age)
         return age
 
+    def uncertainty(self, t: float, out: np.ndarray | None = None,
+                    window: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """q per cell at time ``t`` (float32): the full ``(ny, nx)`` grid, or with
+        ``window=(ix0, iy0, nx, ny)`` the ``(ny, nx)`` block of cells ``[iy0:iy0+ny, ix0:ix0+nx]``
+        (it must lie inside the grid, else ValueError). Same numbers either way."""
+        if window is not None:
+            ix0, iy0, w, h = self._check_window(window)
+            if self.dense:
+                return self._q(t, self._tiles[0][iy0 : iy0 + h, ix0 : ix0 + w], out)
+        elif self.dense:
+            return self._q(t, self._tiles[0], out)
+        else:
+            ix0, iy0 = 0, 0
+            h, w = self.grid.shape
+        if out is not None and out.dtype == np.float32 and out.shape == (h, w):
+            return self._q(t, self._gather(ix0, iy0, w, h, out), out)
+        return self._q(t, self._gather(ix0, iy0, w, h), out)
+
+    def _cells(self, ix, iy) -> np.ndarray:
+        if self.dense:
+            return self._tiles[0][iy, ix]
+        ny, nx = self.grid.shape
+        ix, iy = np.broadcast_arrays(np.asarray(ix), np.asarray(iy))
+        for a, n, name in ((ix, nx, "ix"), (iy, ny, "iy")):
+            if a.dtype.kind not in "iu":
+                raise IndexError(f"{name} must be integers, got {a.dtype}")
+            if a.size and (a.min() < -n or a.max() >= n):
+                raise IndexError(f"{name} out of range for a grid of {n}")
+        th, tw = self.tile_shape
+        ty, ly = np.divmod(iy % ny, th)
+        tx, lx = np.divmod(ix % nx, tw)
+        key = ty * self._ntx + tx
+        seen = np.full(key.shape, NEVER, dtype=np.float32)
+        tiles = self._tiles
+        flat = ly * tw + lx
+        if key.ndim == 0:
+            tile = tiles.get(int(key))
+            return seen[()] if tile is None else tile[flat]
+        for k in np.unique(key).tolist():
+            tile = tiles.get(k)
+            if tile is not None:
+                sel = key == k
+                seen[sel] = tile[flat[sel]]
+        return seen
+
     def q_at(self, ix: np.ndarray, iy: np.ndarray, t: float) -> np.ndarray:
         """q at selected cells only (cheap for a planner reading a few cells)."""
-        seen = self.last_seen[iy, ix]
+        seen = self._cells(ix, iy)
         return 1.0 - np.exp(-self.tau * (t - seen.astype(np.float64)))
 
     def seen_fraction(self) -> float:
-        return float(np.count_nonzero(np.isfinite(self.last_seen))) / self.last_seen.size
+        ny, nx = self.grid.shape
+        seen = sum(int(np.count_nonzero(np.isfinite(tile))) for tile in self._tiles.values())
+        return float(seen) / (ny * nx)

@@ -26,13 +26,16 @@ class Mailbox:
         self.stats = MailboxStats()
 
     def put(self, t: float, sender: int, data: bytes) -> bool:
-        if len(self._items) >= self.capacity:
-            self.stats.dropped_full += 1
+        items = self._items
+        stats = self.stats
+        n = len(items)
+        if n >= self.capacity:
+            stats.dropped_full += 1
             return False
-        self._items.append((t, sender, data))
-        self.stats.accepted += 1
-        if len(self._items) > self.stats.max_depth:
-            self.stats.max_depth = len(self._items)
+        items.append((t, sender, data))
+        stats.accepted += 1
+        if n >= stats.max_depth:
+            stats.max_depth = n + 1
         return True
 
     def drain(self) -> list[tuple[float, int, bytes]]:

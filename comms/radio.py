@@ -1,8 +1,10 @@
 """The simulated radio: a networkx graph of who can hear whom, and a per-link loss model.
 
 Every tick the simulator hands the radio the positions of the live UAVs; the radio finds the
-pairs in range with a k-d tree (scipy ``cKDTree``) and updates its ``networkx.Graph`` (nodes are
-live UAV ids, edges carry ``distance`` and ``loss``). A broadcast frame becomes one copy per
+pairs in range with a k-d tree (scipy ``cKDTree``) and updates its ``networkx.Graph`` in place
+(nodes are live UAV ids, edges carry ``distance`` and ``loss``; edges that left range are removed,
+new ones added, the rest refreshed: the same graph a rebuild would give, for a fraction of the
+cost when most links persist). A broadcast frame becomes one copy per
 neighbour; each copy is decided with the random stream of its own directed link, so one link's
 draws never depend on another's (or on task interleaving):
 
@@ -21,7 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import networkx as nx
 import numpy as np
@@ -46,8 +48,7 @@ class LinkModel:
         return self.loss_base + (self.loss_at_range - self.loss_base) * f * f
 
 
-@dataclass(frozen=True, slots=True)
-class Delivery:
+class Delivery(NamedTuple):
     arrival_t: float
     sender: int
     receiver: int
@@ -94,33 +95,115 @@ class Radio:
         self.counters = RadioCounters()
         self._tokens: dict[int, float] = {}
         self._neighbours: dict[int, list[int]] = {}
+        self._edge_codes = np.empty(0, np.int64)  # (u << 32) | v of the graph's edges, u < v
+        self._ids: list[int] = []  # the ids of the last update
+        self._all_pair_ids: list[tuple[int, int]] = []  # unlimited range: the edges, in pair order
+        self._all_pairs: tuple[int, tuple[np.ndarray, np.ndarray]] = (-1, (np.empty(0, np.int64),) * 2)
+        # Every link's loss probability is 0: no per-link draw is ever made for loss.
+        self._lossless = model.loss_base == 0.0 and (
+            model.range_m is None or not math.isfinite(model.range_m) or model.loss_at_range == 0.0
+        )
 
     # --- topology ---------------------------------------------------------------------------
 
     def update_topology(self, ids: list[int], xy: np.ndarray, dt: float) -> None:
-        """Rebuild the edges from positions (``ids`` sorted, ``xy`` shape (n, 2))."""
+        """Bring the edges up to date with positions (``ids`` sorted, ``xy`` shape (n, 2)).
+
+        Pairs in range come from a k-d tree (or all pairs when the range is unlimited). The
+        graph is updated in place: edges that left range are removed, new ones added, and the
+        ``distance``/``loss`` of the others refreshed; the result equals a graph rebuilt from
+        scratch (same nodes, edges and attributes).
+        """
         g = self.graph
+        adj = g._adj  # networkx's adjacency dict-of-dicts: the edge data dicts themselves
         alive = set(ids)
-        g.remove_nodes_from([n for n in list(g.nodes) if n not in alive])
-        g.add_nodes_from(ids)
-        g.clear_edges()
+        dead = [u for u in g if u not in alive]
+        if dead:
+            g.remove_nodes_from(dead)
+        new_nodes = [u for u in ids if u not in adj]
+        if new_nodes:
+            g.add_nodes_from(new_nodes)
         n = len(ids)
+        model = self.model
+        rng_m = model.range_m
+        unlimited = rng_m is None or not math.isfinite(rng_m)
+        if unlimited and n >= 2 and ids == self._ids:
+            # Everyone hears everyone and nobody came or went: same edges, new distances.
+            ii, jj = self._all_pairs[1]
+            d = np.hypot(xy[ii, 0] - xy[jj, 0], xy[ii, 1] - xy[jj, 1])
+            loss = model.loss_base
+            for (u, v), dd in zip(self._all_pair_ids, d.tolist()):
+                e = adj[u][v]
+                e["distance"] = dd
+                e["loss"] = loss
+            self._refill_tokens(ids, dt)
+            return
+        empty = np.empty(0, np.int64)
+        ii = jj = empty
         if n >= 2:
-            r = self.model.range_m
+            r = model.range_m
             if r is None or not math.isfinite(r):
-                ii, jj = np.triu_indices(n, 1)
+                if self._all_pairs[0] != n:
+                    self._all_pairs = (n, np.triu_indices(n, 1))
+                ii, jj = self._all_pairs[1]
             else:
                 pairs = cKDTree(xy).query_pairs(r, output_type="ndarray")
                 if len(pairs):
                     order = np.lexsort((pairs[:, 1], pairs[:, 0]))
                     pairs = pairs[order]
-                ii, jj = (pairs[:, 0], pairs[:, 1]) if len(pairs) else (np.empty(0, int), np.empty(0, int))
-            d = np.hypot(xy[ii, 0] - xy[jj, 0], xy[ii, 1] - xy[jj, 1])
-            g.add_edges_from(
-                (ids[i], ids[j], {"distance": float(dd), "loss": self.model.loss(float(dd))})
-                for i, j, dd in zip(ii.tolist(), jj.tolist(), d.tolist())
-            )
-        self._neighbours = {u: sorted(g.adj[u]) for u in ids}
+                    ii, jj = pairs[:, 0], pairs[:, 1]
+        ida = np.asarray(ids, dtype=np.int64)
+        a, b = ida[ii], ida[jj]
+        if unlimited:
+            self._all_pair_ids = list(zip(a.tolist(), b.tolist()))
+        d = np.hypot(xy[ii, 0] - xy[jj, 0], xy[ii, 1] - xy[jj, 1])
+        # LinkModel.loss, vectorised with the same operations in the same order.
+        if unlimited:
+            loss = np.full(len(d), model.loss_base)
+        else:
+            f = np.minimum(d / rng_m, 1.0)
+            loss = model.loss_base + (model.loss_at_range - model.loss_base) * f * f
+        codes = (a << 32) | b
+        old = self._edge_codes
+        same_edges = len(old) == len(codes) and np.array_equal(old, codes)
+        if len(old) and not same_edges:
+            stale = np.setdiff1d(old, codes, assume_unique=True)
+            for code in stale.tolist():
+                u, v = code >> 32, code & 0xFFFFFFFF
+                if u in adj and v in adj[u]:  # edges of dead nodes went with them
+                    g.remove_edge(u, v)
+        self._edge_codes = codes
+        add = []
+        for u, v, dd, ll in zip(a.tolist(), b.tolist(), d.tolist(), loss.tolist()):
+            e = adj[u].get(v)
+            if e is None:
+                add.append((u, v, {"distance": dd, "loss": ll}))
+            else:
+                e["distance"] = dd
+                e["loss"] = ll
+        if add:
+            g.add_edges_from(add)
+        # Neighbour lists (sorted ids) straight from the pairs (unless nothing changed).
+        if same_edges and ids == self._ids:
+            pass
+        elif len(a):
+            src = np.concatenate([ii, jj])
+            dst = np.concatenate([b, a])
+            order = np.lexsort((dst, src))
+            dst_l = dst[order].tolist()
+            ends = np.cumsum(np.bincount(src, minlength=n)).tolist()
+            start = 0
+            nb = {}
+            for u, e in zip(ids, ends):
+                nb[u] = dst_l[start:e]
+                start = e
+            self._neighbours = nb
+        else:
+            self._neighbours = {u: [] for u in ids}
+        self._ids = list(ids)
+        self._refill_tokens(ids, dt)
+
+    def _refill_tokens(self, ids: list[int], dt: float) -> None:
         bw = self.model.bandwidth_bytes_per_s
         if bw is not None:
             # Token bucket refilled each tick, holding at most one second of traffic.
@@ -159,12 +242,44 @@ class Radio:
                 return
             self._tokens[src] -= size
         model = self.model
-        adj = self.graph.adj[src]
+        flt = self.filter
+        if flt is not None and getattr(flt, "idle", False):
+            flt = None  # an idle filter passes every copy unchanged and draws nothing
+        if flt is None and self._lossless and model.jitter_s <= 0.0:
+            # Nothing can happen to any copy and nothing is drawn: one delivery per neighbour.
+            arrival = t + model.latency_s
+            new = tuple.__new__  # = Delivery(...), without the namedtuple's Python-level __new__
+            out.extend([new(Delivery, (arrival, src, dst, data)) for dst in nbrs])
+            return
+        adj = self.graph._adj[src]
+        if flt is None:
+            # No fault acts: only the link's own loss and jitter draw (in that order).
+            base = model.latency_s + 0.0
+            jitter = model.jitter_s
+            rngs = self._link_rngs
+            new = tuple.__new__
+            append = out.append
+            for dst in nbrs:
+                p = adj[dst]["loss"]
+                if p > 0.0 or jitter > 0.0:
+                    rng = rngs.get((src, dst))
+                    if rng is None:
+                        rng = rngs[(src, dst)] = self._link_rng_factory(src, dst)
+                    if p > 0.0 and rng.random() < p:
+                        c.drop("loss")
+                        if on_lost is not None:
+                            on_lost(src, dst, size, "loss")
+                        continue
+                    if jitter > 0.0:
+                        append(new(Delivery, (t + (base + jitter * rng.random()), src, dst, data)))
+                        continue
+                append(new(Delivery, (t + base, src, dst, data)))
+            return
         for dst in nbrs:
             rng = self._rng(src, dst)
             copies: list[tuple[float, bytes]] = [(0.0, data)]
-            if self.filter is not None:
-                copies, cause = self.filter.filter(t, src, dst, data, rng)
+            if flt is not None:
+                copies, cause = flt.filter(t, src, dst, data, rng)
                 if not copies:
                     c.drop(cause or "fault")
                     if on_lost is not None:

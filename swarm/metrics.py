@@ -17,8 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from agents.grid import Grid
-from agents.umap import UncertaintyMap
+from agents.umap import DENSE_MAX_CELLS, UncertaintyMap
 from comms.messages import MODE_SURVEIL
+
+
+_BLOCK = 64  # cells per side of the blocks whose q certainty() recomputes on large areas
 
 
 @dataclass(slots=True)
@@ -48,26 +51,54 @@ class Metrics:
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
 
     def __post_init__(self) -> None:
-        self.union = UncertaintyMap(self.grid, self.tau)
+        # The ground truth is one dense map for the whole area (one per simulation): certainty
+        # (eq. 8) is a mean over every cell anyway.
+        self.union = UncertaintyMap(self.grid, self.tau, tile="dense")
+        # Large areas: remember which 64 x 64 blocks were ever scanned, and keep q in a buffer
+        # where every other cell is exactly 1 (never seen), so certainty only recomputes q
+        # where something was seen: the same array, so the same mean, as computing q everywhere
+        # (on small grids that is as fast: they do so). Needs the union to be written through
+        # scan() only.
+        self._touched: np.ndarray | None = None
+        self._q: np.ndarray | None = None
+        if self.grid.nx * self.grid.ny > DENSE_MAX_CELLS:
+            self._touched = np.zeros((-(-self.grid.ny // _BLOCK), -(-self.grid.nx // _BLOCK)), dtype=bool)
 
     @property
     def n_cells(self) -> int:
         return self.grid.nx * self.grid.ny
 
     def scan(self, x: float, y: float, radius: float, t: float) -> None:
-        d = self.grid.disk(x, y, radius)
-        if d is None:
-            return
-        rows, cols, mask = d
-        view = self.union.last_seen[rows, cols]
-        self.covered_cells += int(np.count_nonzero(mask & np.isneginf(view)))
-        np.maximum(view, np.where(mask, np.float32(t), view), out=view)
+        d = self.grid.disk_stamp(x, y, radius)  # shared with the scanning UAV's own map
+        if d is not None:
+            self.covered_cells += self.union.cover(d, t)
+            if self._touched is not None:
+                self._touched[d.iy0 // _BLOCK : (d.iy1 - 1) // _BLOCK + 1, d.ix0 // _BLOCK : (d.ix1 - 1) // _BLOCK + 1] = True
 
     def coverage(self) -> float:
         return self.covered_cells / self.n_cells
 
     def certainty(self, t: float) -> float:
-        return 1.0 - float(np.mean(self.union.uncertainty(t), dtype=np.float64))
+        """Eq. 8, ``1 - mean(q)`` over every cell: exactly ``np.mean(union.uncertainty(t))``."""
+        if self._touched is None:
+            return 1.0 - float(np.mean(self.union.uncertainty(t), dtype=np.float64))
+        q = self._q
+        if q is None:
+            q = self._q = np.ones(self.grid.shape, dtype=np.float32)  # q of a never-seen cell
+        seen = self.union.to_dense_view()
+        touched = self._touched
+        # Runs of touched blocks along each block row: starts where a block is touched and its
+        # left neighbour is not, ends where the next one is not.
+        padded = np.zeros((touched.shape[0], touched.shape[1] + 2), dtype=np.int8)
+        padded[:, 1:-1] = touched
+        edges = np.diff(padded, axis=1)
+        starts = np.argwhere(edges == 1)
+        stops = np.argwhere(edges == -1)
+        for (by, bx0), (_, bx1) in zip(starts.tolist(), stops.tolist()):
+            rows = slice(by * _BLOCK, (by + 1) * _BLOCK)
+            cols = slice(bx0 * _BLOCK, bx1 * _BLOCK)
+            self.union.q_into(t, seen[rows, cols], q[rows, cols])
+        return 1.0 - float(np.mean(q, dtype=np.float64))
 
     def observe(self, t: float, dt: float, plans: dict[int, tuple[int, int]], sensed: dict[int, list[int]],
                 types: dict[int, str], speed_max: dict[int, float]) -> list[tuple]:

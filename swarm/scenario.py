@@ -43,6 +43,7 @@ __all__ = [
     "MapSettings",
     "UavTypeSpec",
     "UavSpec",
+    "FleetSpec",
     "PlacedTarget",
     "TargetSettings",
     "ThreatSpec",
@@ -243,6 +244,56 @@ class UavSpec(_Model):
     # None = the type's speed_max; the range is checked against the type by Scenario.
     speed: Num | None = _num(None, gt=0, note="m/s within the type's speed range", optional=True)
     join_s: Num | None = _num(None, ge=0, note="time the UAV enters the world", optional=True)
+
+
+class FleetSpec(_Model):
+    """Many UAVs of one type at once, laid out deterministically (large swarms, benchmarks).
+
+    Expanded into ``uavs`` when the scenario loads (after the ``[[uavs]]`` entries, named like
+    unnamed UAVs: type + number within the type); the loaded scenario lists every UAV, so
+    ``scenario.json`` and ``--set uavs[N]...`` see them like any other.
+    """
+
+    type: Str = Field(..., description="a UAV type name defined in [uav_types]")
+    count: Int = _int(..., ge=1, le=100_000)
+    # grid: a near-square lattice over the region, row by row from the south-west corner, each
+    # UAV at the centre of its lattice cell; random: uniform in the region.
+    layout: Literal["grid", "random"] = Field("grid", description="one of: grid, random")
+    region: list[Num] | None = Field(
+        None, description="[x0_m, y0_m, x1_m, y1_m] inside the area with x0 < x1 and y0 < y1, or leave it out (the whole area)"
+    )
+    # None: each UAV gets a random heading from the layout stream.
+    heading_deg: Num | None = _num(None, note="degrees, 0 = east; absent = random per UAV", optional=True)
+    speed: Num | None = _num(None, gt=0, note="m/s within the type's speed range", optional=True)
+    join_s: Num | None = _num(None, ge=0, note="time the UAVs enter the world", optional=True)
+    # The layout's own random stream (positions, headings): independent of the run's seed, so
+    # every seed flies the same fleet.
+    layout_seed: Int = _int(0, ge=0)
+
+    def expand(self, index: int, area: Area) -> list[UavSpec]:
+        import numpy as np
+
+        x0, y0, x1, y1 = self.region if self.region is not None else (0.0, 0.0, area.width_m, area.height_m)
+        w, h = x1 - x0, y1 - y0
+        n = self.count
+        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy=self.layout_seed, spawn_key=(index,))))
+        if self.layout == "grid":
+            cols = max(1, min(n, math.ceil(math.sqrt(n * w / h))))
+            rows = math.ceil(n / cols)
+            xs = [x0 + (k % cols + 0.5) * w / cols for k in range(n)]
+            ys = [y0 + (k // cols + 0.5) * h / rows for k in range(n)]
+        else:
+            xs = rng.uniform(x0, x1, n).tolist()
+            ys = rng.uniform(y0, y1, n).tolist()
+        if self.heading_deg is None:
+            headings = rng.uniform(0.0, 360.0, n).tolist()
+        else:
+            headings = [self.heading_deg] * n
+        return [
+            UavSpec(type=self.type, x_m=min(max(x, 0.0), area.width_m), y_m=min(max(y, 0.0), area.height_m),
+                    heading_deg=hd, speed=self.speed, join_s=self.join_s)
+            for x, y, hd in zip(xs, ys, headings)
+        ]
 
 
 class PlacedTarget(_Model):
@@ -516,7 +567,9 @@ class Scenario(_Model):
     uav_types: dict[Str, UavTypeSpec] = Field(
         default_factory=lambda: dict(DEFAULT_UAV_TYPES), description="a table of UAV types [uav_types.NAME]"
     )
-    uavs: list[UavSpec] = Field(..., min_length=1, description="an array of tables [[uavs]] with at least one UAV")
+    uavs: list[UavSpec] = Field(..., description="an array of tables [[uavs]] with at least one UAV (here or in [[fleet]])")
+    # Expanded into uavs by the validator, which then empties this list (see FleetSpec).
+    fleet: list[FleetSpec] = Field(default_factory=list, description="an array of tables [[fleet]]")
     targets: TargetSettings = _table(TargetSettings, "targets")
     threats: list[ThreatSpec] = Field(default_factory=list, description="an array of tables [[threats]]")
     radio: RadioSettings = _table(RadioSettings, "radio")
@@ -526,6 +579,14 @@ class Scenario(_Model):
     planner: PlannerSettings = _table(PlannerSettings, "planner")
     safety: SafetySettings = _table(SafetySettings, "safety")
     metrics: MetricsSettings = _table(MetricsSettings, "metrics")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fleet_only(cls, data: Any) -> Any:
+        # A document with [[fleet]] needs no [[uavs]]; without either, "uavs" is missing.
+        if isinstance(data, dict) and data.get("fleet") and "uavs" not in data:
+            data = {**data, "uavs": []}
+        return data
 
     @field_validator("uav_types", mode="before")
     @classmethod
@@ -540,6 +601,13 @@ class Scenario(_Model):
     def _complete_and_cross_check(self) -> Scenario:
         # Filling in names and folding joins replaces items of lists this model has just built
         # (pydantic copies input lists), so the frozen model's attributes are never reassigned.
+        if self.fleet:
+            _raise_if(self._fleet_problems())
+            for i, fleet in enumerate(self.fleet):
+                self.uavs.extend(fleet.expand(i, self.area))
+            self.fleet.clear()  # consumed: the scenario now lists every UAV in uavs
+        if not self.uavs:
+            _raise_if([_Problem(("uavs",), self.uavs, "an array of tables [[uavs]] with at least one UAV (here or in [[fleet]])")])
         per_type: dict[str, int] = {}
         for i, uav in enumerate(self.uavs):
             per_type[uav.type] = per_type.get(uav.type, 0) + 1
@@ -554,6 +622,24 @@ class Scenario(_Model):
                 i = self.uav_names.index(fault.uav)
                 self.uavs[i] = self.uavs[i].model_copy(update={"join_s": fault.at_s})
         return self
+
+    def _fleet_problems(self) -> list[_Problem]:
+        problems: list[_Problem] = []
+        area = self.area
+        types_list = ", ".join(self.uav_types)
+        for i, fleet in enumerate(self.fleet):
+            spec = self.uav_types.get(fleet.type)
+            if spec is None:
+                problems.append(_Problem(("fleet", i, "type"), fleet.type, f"a UAV type defined in [uav_types]: {types_list}"))
+            elif fleet.speed is not None and not spec.speed_min <= fleet.speed <= spec.speed_max:
+                problems.append(_Problem(("fleet", i, "speed"), fleet.speed,
+                                         f"a number in [{_fmt(spec.speed_min)}, {_fmt(spec.speed_max)}] (type {fleet.type}'s speed range)"))
+            r = fleet.region
+            if r is not None and not (len(r) == 4 and 0.0 <= r[0] < r[2] <= area.width_m and 0.0 <= r[1] < r[3] <= area.height_m):
+                problems.append(_Problem(("fleet", i, "region"), r,
+                                         f"[x0_m, y0_m, x1_m, y1_m] with 0 <= x0 < x1 <= {_fmt(area.width_m)} "
+                                         f"and 0 <= y0 < y1 <= {_fmt(area.height_m)} (inside the area)"))
+        return problems
 
     def _cross_problems(self) -> list[_Problem]:
         """Checks that need more than one table: names, types, positions, fault references."""

@@ -36,11 +36,12 @@ import numpy as np
 
 from agents.actor import ActorOutput, ActorSettings, UavActor
 from agents.apf import ApfSettings
-from agents.grid import Grid
+from agents.grid import PREFETCH_MIN, Grid
 from agents.knowledge import KnownThreat
 from agents.planners import make_planner
 from agents.planners.base import Plan
 from agents.types import UavType
+from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.radio import Delivery, LinkModel, Radio
 from faults.injector import FaultInjector
@@ -179,6 +180,7 @@ class Simulation:
             link_filter=self.injector,
         )
         ap = sc.planner.apf
+        self._decoder = DecodeCache(r.frame_max_bytes)  # each broadcast frame decoded once
         self._actor_settings = ActorSettings(
             dt=self.dt,
             replan_s=sc.planner.replan_s,
@@ -242,11 +244,14 @@ class Simulation:
                        PENDING, spec.join_s or 0.0)
         self.world.add_uav(body)
         self.names[name] = uid
+        # Scan disks and decoded frames are shared by every UAV using them within a few ticks.
+        self.grid.set_disk_cache_size(max(256, 3 * len(self.world.uavs)))
+        self._decoder.size = max(256, 4 * len(self.world.uavs))
         planner = make_planner(self.scenario.planner, levels=self.scenario.map.levels,
                                speed_max_by_type=self.speed_max_by_type)
         self.actors[uid] = UavActor(
             uid, name, kind, self.grid, self.tau, planner, self.rng.generator("uav", name),
-            self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity),
+            self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity), decoder=self._decoder,
         )
         self._paths[uid] = []
         self.clock.schedule(max(body.join_s, self.clock.now), lambda: self._join(uid), FAULT)
@@ -282,7 +287,7 @@ class Simulation:
 
     def uav_map(self, name: str) -> np.ndarray:
         """A copy of one UAV's own last-seen map (what it believes, not the truth)."""
-        return self.actors[self._uid(name)].umap.last_seen.copy()
+        return self.actors[self._uid(name)].umap.to_dense()
 
     def subscribe(self, callback: Callable[[tuple], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
         """Call ``callback(event)`` for each event (optionally only some kinds); returns an unsubscribe function."""
@@ -380,14 +385,15 @@ class Simulation:
 
     def _deliver(self, batch: list[Delivery]) -> None:
         uavs = self.world.uavs
+        actors = self.actors
         self._in_flight -= len(batch)
-        for d in batch:
-            if uavs[d.receiver].state != ALIVE:
+        for arrival_t, sender, receiver, data in batch:
+            if uavs[receiver].state != ALIVE:
                 self.radio.counters.drop("receiver_down")
-                self.log.emit("lost", self.clock.now, d.sender, d.receiver, len(d.data), "receiver_down")
-            elif not self.actors[d.receiver].mailbox.put(d.arrival_t, d.sender, d.data):
+                self.log.emit("lost", self.clock.now, sender, receiver, len(data), "receiver_down")
+            elif not actors[receiver].mailbox.put(arrival_t, sender, data):
                 self.radio.counters.drop("mailbox_full")
-                self.log.emit("lost", self.clock.now, d.sender, d.receiver, len(d.data), "mailbox_full")
+                self.log.emit("lost", self.clock.now, sender, receiver, len(data), "mailbox_full")
 
     # --- the tick ---------------------------------------------------------------------------
 
@@ -418,6 +424,13 @@ class Simulation:
             if uid not in self._tasks:
                 self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report), name=f"uav-{world.uavs[uid].name}")
             readings[uid] = world.sense(uid, t)
+        # Every live UAV scans its disk this tick (its own map, then the ground truth and every
+        # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
+        if len(alive) >= PREFETCH_MIN:
+            bodies = [world.uavs[uid] for uid in alive]
+            umap = self.actors[alive[0]].umap
+            self.grid.prefetch_disks([b.x for b in bodies], [b.y for b in bodies], [b.kind.detect_radius for b in bodies],
+                                     t, None if umap.dense else umap.tile_shape)
         self._outputs = {}
         if alive:
             self._barrier = loop.create_future()
@@ -430,31 +443,38 @@ class Simulation:
                 self._barrier = None
         outputs = self._outputs
         log = self.log
+        emit = log.emit
 
         # Ground truth: scans, sightings, modes (positions at t, as the agents saw them).
         plans: dict[int, tuple[int, int]] = {}
         sensed: dict[int, list[int]] = {}
+        uavs = world.uavs
+        last_plans = self._plans
+        metrics_scan = self.metrics.scan
+        paths = self._paths
         for uid in alive:
-            b = world.uavs[uid]
+            b = uavs[uid]
             out = outputs[uid]
-            prev = self._plans.get(uid)
-            self._plans[uid] = out.plan
-            if prev is None or prev.mode != out.plan.mode or prev.target != out.plan.target:
-                log.emit("mode", t, uid, out.plan.mode, out.plan.target)
-            self.metrics.scan(b.x, b.y, b.kind.detect_radius, t)
-            plans[uid] = (out.plan.mode, out.plan.target)
+            plan = out.plan
+            prev = last_plans.get(uid)
+            last_plans[uid] = plan
+            if prev is None or prev.mode != plan.mode or prev.target != plan.target:
+                emit("mode", t, uid, plan.mode, plan.target)
+            metrics_scan(b.x, b.y, b.kind.detect_radius, t)
+            plans[uid] = (plan.mode, plan.target)
             sensed[uid] = [s.target for s in readings[uid].targets]
-            log.emit("pose", t, uid, b.x, b.y, b.v, b.theta, out.plan.mode, out.plan.target)
-            self._paths[uid].append((t, b.x, b.y))
+            emit("pose", t, uid, b.x, b.y, b.v, b.theta, plan.mode, plan.target)
+            paths[uid].append((t, b.x, b.y))
             for sender, nbytes, ok in out.received:
-                log.emit("rx", t, sender, uid, nbytes, ok)
+                emit("rx", t, sender, uid, nbytes, ok)
         types = {u: world.uavs[u].kind.name for u in alive}
         for ev in self.metrics.observe(t, dt, plans, sensed, types, self.speed_max_by_type):
             log.emit(*ev)
         tg = self.targets
-        for i in range(len(tg)):
-            log.emit("target", t, i, tg.x[i], tg.y[i])
-            self._target_paths[i].append((t, tg.x[i], tg.y[i]))
+        target_paths = self._target_paths
+        for i, (x, y) in enumerate(zip(tg.x, tg.y)):
+            emit("target", t, i, x, y)
+            target_paths[i].append((t, x, y))
 
         # Radio: topology from positions at t, then every frame in UAV-id order.
         xy = world.positions(alive)
@@ -466,12 +486,16 @@ class Simulation:
         def lost(src: int, dst: int, nbytes: int, cause: str) -> None:
             log.emit("lost", t, src, dst, nbytes, cause)
 
+        broadcast = self.radio.broadcast
         for uid in alive:
             for frame in outputs[uid].frames:
-                self.radio.broadcast(t, uid, frame, deliveries, lost)
+                broadcast(t, uid, frame, deliveries, lost)
         by_time: dict[float, list[Delivery]] = defaultdict(list)
-        for d in deliveries:
-            by_time[d.arrival_t].append(d)
+        if deliveries and deliveries[0][0] == deliveries[-1][0] and all(d[0] == deliveries[0][0] for d in deliveries):
+            by_time[deliveries[0][0]] = deliveries  # one arrival time (no jitter or delay): one batch
+        else:
+            for d in deliveries:
+                by_time[d[0]].append(d)
         for at in sorted(by_time):
             batch = by_time[at]
             self._in_flight += len(batch)
@@ -683,7 +707,7 @@ class Simulation:
             events=events,
             paths={self.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in self._paths.items()},
             target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in self._target_paths.items()},
-            union_last_seen=self.metrics.union.last_seen.copy(),
+            union_last_seen=self.metrics.union.to_dense(),
             threats=list(self.world.threats),
             area=(self.grid.width_m, self.grid.height_m),
             uav_types={b.name: b.kind.name for b in self.world.uavs.values()},

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 
+import networkx as nx
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -205,6 +206,39 @@ def test_edge_loss_attribute_follows_distance():
     assert radio.graph.edges[0, 1]["loss"] == pytest.approx(0.1 + 0.4 * 0.25)
     assert radio.graph.edges[0, 2]["loss"] == pytest.approx(0.5)
     assert not radio.graph.has_edge(1, 2)  # 1118 m apart
+
+
+# ---------------------------------------------------------------------------------------------
+# incremental topology: the same graph as one rebuilt from scratch every tick
+# ---------------------------------------------------------------------------------------------
+
+moving_swarm = st.lists(  # per tick: {id: (x, y)} of the live nodes (ids come and go)
+    st.dictionaries(st.integers(0, 11), st.tuples(st.integers(0, 40), st.integers(0, 40)), max_size=12),
+    min_size=1, max_size=8,
+)
+
+
+@settings(deadline=None, max_examples=150)
+@given(moving_swarm, st.sampled_from([None, 250.0, 400.0, 1000.0]), st.sampled_from([(0.0, 0.0), (0.1, 0.6)]))
+def test_incremental_topology_equals_rebuilt_graph(ticks, range_m, loss):
+    model = LinkModel(range_m=range_m, loss_base=loss[0], loss_at_range=loss[1])
+    radio = make_radio(model)
+    for nodes in ticks:
+        ids = sorted(nodes)
+        xy = np.array([(nodes[u][0] * 25.0, nodes[u][1] * 25.0) for u in ids], dtype=float).reshape(-1, 2)
+        radio.update_topology(ids, xy, 1.0)
+        fresh = make_radio(model)
+        fresh.update_topology(ids, xy, 1.0)
+        assert nx.utils.graphs_equal(radio.graph, fresh.graph)  # nodes, edges and edge data
+        assert list(radio.graph.nodes) == [u for u in radio.graph.nodes if u in nodes]  # no dead node kept
+        # and the edge attributes are exactly the link model's, at the exact distance
+        for u, v, attrs in radio.graph.edges(data=True):
+            i, j = ids.index(u), ids.index(v)
+            d = float(np.hypot(xy[i, 0] - xy[j, 0], xy[i, 1] - xy[j, 1]))
+            assert attrs == {"distance": d, "loss": model.loss(d)}
+        for u in range(12):
+            expected = sorted(radio.graph.adj[u]) if u in nodes else []
+            assert radio.neighbours(u) == fresh.neighbours(u) == expected
 
 
 # ---------------------------------------------------------------------------------------------

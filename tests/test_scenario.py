@@ -49,7 +49,8 @@ def error_for(tmp_path, text: str) -> ScenarioError:
 
 # --- built-ins -----------------------------------------------------------------------------
 def test_builtins_are_listed_sorted():
-    assert builtin_scenarios() == ["paper-case1", "paper-case2", "paper-case3", "paper-fig11"]
+    assert builtin_scenarios() == ["bench-100", "bench-1000", "bench-dense-300",
+                                   "paper-case1", "paper-case2", "paper-case3", "paper-fig11"]
 
 
 @pytest.mark.parametrize("name", ["paper-case1", "paper-case2", "paper-case3", "paper-fig11"])
@@ -322,7 +323,8 @@ def test_missing_file(tmp_path):
         load_scenario(path)
     err = info.value
     assert err.source == str(path) and err.key == ""
-    assert err.expected.startswith("a path to an existing .toml file or a built-in name (paper-case1, ")
+    assert err.expected.startswith("a path to an existing .toml file or a built-in name (bench-100, ")
+    assert "paper-case1, " in err.expected
     assert str(path) in str(err)
 
 

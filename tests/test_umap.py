@@ -412,3 +412,225 @@ def test_scan_includes_cells_exactly_on_the_circle(grid, x, y, r):
     m = UncertaintyMap(g, 0.1)
     assert m.scan(x, y, r, 1.0) == int(inside.sum())
     assert np.array_equal(m.last_seen == 1.0, inside)
+
+
+# ---------------------------------------------------------------------------------------------
+# tiled storage: the same numbers as one dense array, whatever the tile size
+# ---------------------------------------------------------------------------------------------
+
+
+class DenseReference:
+    """The map as it was before tiling: one float32 array, scans as boolean-mask assignments."""
+
+    def __init__(self, g: Grid, tau: float):
+        self.g, self.tau = g, tau
+        self.a = np.full(g.shape, NEG_INF, np.float32)
+
+    def scan(self, x, y, r, t) -> int:
+        d = self.g.disk(x, y, r)
+        if d is None:
+            return 0
+        rows, cols, mask = d
+        view = self.a[rows, cols]
+        newer = mask & (view < t)
+        view[newer] = t
+        return int(np.count_nonzero(newer))
+
+    def q(self, t) -> np.ndarray:
+        age = np.subtract(np.float32(t), self.a, dtype=np.float32)
+        np.multiply(age, np.float32(-self.tau), out=age)
+        np.exp(age, out=age)
+        np.subtract(np.float32(1.0), age, out=age)
+        return age
+
+
+tile_args = st.one_of(st.none(), st.just("dense"), st.integers(1, 9), st.tuples(st.integers(1, 9), st.integers(1, 9)))
+
+
+@st.composite
+def windows(draw, g: Grid):
+    ny, nx = g.shape
+    ix0 = draw(st.integers(0, nx - 1))
+    iy0 = draw(st.integers(0, ny - 1))
+    return ix0, iy0, draw(st.integers(1, nx - ix0)), draw(st.integers(1, ny - iy0))
+
+
+@settings(deadline=None, max_examples=150)
+@given(st.data())
+def test_tiled_map_equals_dense_reference(data):
+    g = data.draw(grids(max_cells=23))
+    tau = data.draw(st.floats(1e-3, 0.5))
+    tile = data.draw(tile_args, label="tile")
+    m = UncertaintyMap(g, tau, tile=tile)
+    ref = DenseReference(g, tau)
+    other = UncertaintyMap(g, tau, tile=data.draw(tile_args, label="other tile"))
+    other_ref = DenseReference(g, tau)
+    for _ in range(data.draw(st.integers(1, 12))):
+        op = data.draw(st.sampled_from(["scan", "stamp", "other", "merge_map", "merge_array", "copy"]))
+        if op in ("scan", "stamp", "other"):
+            x, y, r = data.draw(circles(g))
+            t = data.draw(st.one_of(st.sampled_from([0.0, 1.0, 2.5, 100.0]), st.floats(-1e3, 1e3, width=32)))
+            if op == "scan":
+                assert m.scan(x, y, r, t) == ref.scan(x, y, r, t)
+            elif op == "stamp":
+                d = g.disk_stamp(x, y, r)
+                if d is not None:
+                    m.stamp(d, t)
+                ref.scan(x, y, r, t)
+            else:
+                other.scan(x, y, r, t)
+                other_ref.scan(x, y, r, t)
+        elif op == "merge_map":
+            m.merge(other)
+            np.maximum(ref.a, other_ref.a, out=ref.a)
+        elif op == "merge_array":
+            arr = data.draw(last_seen_arrays(g.shape))
+            m.merge(arr)
+            np.maximum(ref.a, arr, out=ref.a)
+        else:
+            m = m.copy()
+        assert np.array_equal(m.to_dense(), ref.a)
+    t = data.draw(st.floats(0.0, 2e3, width=32))
+    iy, ix = np.indices(g.shape)
+    with np.errstate(over="ignore"):  # times after t (merged arrays) overflow exp: same either way
+        assert np.array_equal(m.uncertainty(t), ref.q(t))
+        expected = 1.0 - np.exp(-tau * (t - ref.a.astype(np.float64)))
+        assert np.array_equal(m.q_at(ix, iy, t), expected)
+        assert np.array_equal(m.q_at(ix.ravel()[::-1], iy.ravel()[::-1], t), expected.ravel()[::-1])
+    assert m.seen_fraction() == float(np.count_nonzero(np.isfinite(ref.a))) / ref.a.size
+    w = data.draw(windows(g))
+    ix0, iy0, nx, ny = w
+    assert np.array_equal(m.to_dense(window=w), ref.a[iy0 : iy0 + ny, ix0 : ix0 + nx])
+
+
+@settings(deadline=None, max_examples=100)
+@given(st.data())
+def test_window_read_equals_slice_of_full_map(data):
+    g = data.draw(grids(max_cells=40))
+    m = UncertaintyMap(g, data.draw(st.floats(1e-3, 0.5)), tile=data.draw(tile_args))
+    for _ in range(data.draw(st.integers(0, 6))):
+        x, y, r = data.draw(circles(g))
+        m.scan(x, y, r, data.draw(st.floats(0.0, 100.0, width=32)))
+    t = data.draw(st.floats(0.0, 500.0, width=32))
+    full = m.uncertainty(t)
+    w = data.draw(windows(g))
+    ix0, iy0, nx, ny = w
+    q = m.uncertainty(t, window=w)
+    assert q.shape == (ny, nx) and q.dtype == np.float32
+    assert np.array_equal(q, full[iy0 : iy0 + ny, ix0 : ix0 + nx])
+    out = np.empty((ny, nx), np.float32)
+    assert m.uncertainty(t, out=out, window=w) is out and np.array_equal(out, q)
+
+
+def test_window_outside_the_grid_is_a_value_error():
+    g = Grid(100.0, 50.0, 10.0)  # 10 x 5 cells
+    for tile in (None, 3):
+        m = UncertaintyMap(g, 0.1, tile=tile)
+        assert m.uncertainty(0.0, window=(0, 0, 10, 5)).shape == (5, 10)
+        for w in [(-1, 0, 2, 2), (0, -1, 2, 2), (9, 0, 2, 1), (0, 4, 1, 2), (0, 0, 0, 1), (0, 0, 1, 0), (0, 0, 11, 5)]:
+            with pytest.raises(ValueError, match="window"):
+                m.uncertainty(0.0, window=w)
+        with pytest.raises(ValueError, match="window"):
+            m.uncertainty(0.0, window=(1, 2))
+
+
+def test_sparse_map_on_a_huge_grid_stays_small():
+    import tracemalloc
+
+    g = Grid(650_000.0, 650_000.0, 100.0)  # 42 M cells: 169 MB as one dense float32 array
+    tracemalloc.start()
+    try:
+        m = UncertaintyMap(g, 0.005)
+        assert not m.dense and m.tile_shape == (64, 64)
+        for k in range(200):  # a 40 km track: the tiles along it, nothing else
+            m.scan(100_000.0 + 200.0 * k, 300_000.0, 2000.0, float(k))
+        copy = m.copy()
+        copy.merge(m)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert m.tiles_allocated <= 2 * (40_000 // 6_400 + 2)
+    assert m.nbytes == m.tiles_allocated * 64 * 64 * 4 < 1_000_000
+    assert peak < 5_000_000, peak  # both maps and every temporary
+    assert m.seen_fraction() == pytest.approx((40_000 * 4000 + math.pi * 2000**2) / 650_000**2, rel=0.05)
+    # reading it back: unseen tiles are -inf, a window around the track has the scans
+    w = m.to_dense(window=(900, 2900, 600, 200))  # ix 900..1499: the track ends at ix 1418
+    assert np.isneginf(w[:, -1]).all() and (w[100, 100:300] >= 0).all()
+
+
+def test_paper_grid_is_one_dense_tile_and_large_grids_are_tiled():
+    assert UncertaintyMap(Grid(50_000.0, 50_000.0, 100.0), 0.005).dense
+    big = UncertaintyMap(Grid(200_000.0, 200_000.0, 100.0), 0.005)
+    assert not big.dense and big.tiles_allocated == 0 and big.nbytes == 0
+    assert UncertaintyMap(Grid(200_000.0, 200_000.0, 100.0), 0.005, tile="dense").dense
+    with pytest.raises(ValueError):
+        UncertaintyMap(Grid(10.0, 10.0, 1.0), 0.1, tile=0)
+    with pytest.raises(ValueError):
+        UncertaintyMap(Grid(10.0, 10.0, 1.0), 0.1, tile="sparse")
+
+
+def test_last_seen_is_a_read_only_snapshot():
+    g = Grid(30.0, 30.0, 10.0)
+    for tile in (None, 2):
+        m = UncertaintyMap(g, 0.1, tile=tile)
+        snap = m.last_seen
+        with pytest.raises(ValueError):
+            snap[0, 0] = 1.0
+        m.scan(15.0, 15.0, 1.0, 4.0)
+        assert np.isneginf(snap[1, 1]) and m.last_seen[1, 1] == 4.0
+        dense = m.to_dense()
+        dense[0, 0] = 99.0  # a copy: the map does not change
+        assert np.isneginf(m.to_dense()[0, 0])
+
+
+def test_disk_stamp_is_a_cached_disk():
+    g = Grid(1000.0, 800.0, 10.0)
+    d = g.disk_stamp(123.4, 567.8, 45.0)
+    rows, cols, mask = g.disk(123.4, 567.8, 45.0)
+    assert (d.rows, d.cols) == (rows, cols) and np.array_equal(d.mask, mask)
+    assert g.disk_stamp(123.4, 567.8, 45.0) is d
+    assert g.disk_stamp(-500.0, 0.0, 10.0) is None
+    g.set_disk_cache_size(1)  # evictions only cost recomputation
+    m1, m2 = UncertaintyMap(g, 0.1, tile=7), UncertaintyMap(g, 0.1)
+    for k in range(30):
+        m1.scan(17.0 * k, 23.0 * k, 35.0, float(k))
+        m2.scan(17.0 * k, 23.0 * k, 35.0, float(k))
+    assert np.array_equal(m1.to_dense(), m2.to_dense())
+
+
+@settings(deadline=None, max_examples=100)
+@given(st.data())
+def test_prefetched_disks_and_tile_splits_equal_the_one_by_one_ones(data):
+    """Grid.prefetch_disks (vectorised) builds exactly the disks disk_stamp builds one by one,
+    and a disk's split over tiles holds exactly the tiles with a cell of the disk."""
+    import agents.grid as grid_module
+
+    c = data.draw(st.sampled_from([100.0, 0.3, 7.0, 1.0]))
+    nx, ny = data.draw(st.integers(3, 120)), data.draw(st.integers(3, 120))
+    g1, g2 = Grid(nx * c, ny * c, c), Grid(nx * c, ny * c, c)
+    coords = st.integers(-20, 20 * max(nx, ny) + 20).map(lambda k: k * c / 20)  # lattice-aligned often
+    n = data.draw(st.integers(grid_module.PREFETCH_MIN, grid_module.PREFETCH_MIN + 8))
+    xs = [data.draw(coords) for _ in range(n)]
+    ys = [data.draw(coords) for _ in range(n)]
+    rs = [data.draw(st.sampled_from([0.5 * c, c, 2.5 * c, 7.0 * c, 20.0 * c])) for _ in range(n)]
+    th, tw = data.draw(st.integers(1, 40)), data.draw(st.integers(1, 40))
+    ntx = -(-nx // tw)
+    g1.prefetch_disks(xs, ys, rs, 3.0, (th, tw))
+    for x, y, r in zip(xs, ys, rs):
+        a, b, ref = g1.disk_stamp(x, y, r), g2.disk_stamp(x, y, r), g2.disk(x, y, r)
+        assert (a is None) == (b is None) == (ref is None)
+        if a is None:
+            continue
+        assert (a.rows, a.cols) == (b.rows, b.cols) == ref[:2] and np.array_equal(a.mask, ref[2])
+        assert np.array_equal(a.values(3.0), b.values(3.0))
+        sa, sb = a.stamps(th, tw, ntx, 3.0), b.stamps(th, tw, ntx, 3.0)
+        assert [p[:3] for p in sa] == [p[:3] for p in sb]
+        assert all(np.array_equal(p[3], q[3]) for p, q in zip(sa, sb))
+        touched = set()
+        for ty in range(b.iy0 // th, (b.iy1 - 1) // th + 1):
+            for tx in range(b.ix0 // tw, (b.ix1 - 1) // tw + 1):
+                r0, r1 = max(b.iy0, ty * th) - b.iy0, min(b.iy1, (ty + 1) * th) - b.iy0
+                c0, c1 = max(b.ix0, tx * tw) - b.ix0, min(b.ix1, (tx + 1) * tw) - b.ix0
+                if b.mask[r0:r1, c0:c1].any():
+                    touched.add(ty * ntx + tx)
+        assert [p[0] for p in sa] == [p[0] for p in b.pieces(th, tw, ntx)] and set(p[0] for p in sa) == touched

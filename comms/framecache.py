@@ -1,0 +1,53 @@
+"""Decode each broadcast frame once, however many UAVs receive it.
+
+A broadcast reaches every neighbour as the *same* ``bytes`` object (unless a fault corrupted
+that copy, which makes it a different byte string). Decoding is a pure function of the bytes
+and the size cap, and a decoded :class:`~comms.codec.Frame` is immutable (frozen dataclasses
+and tuples all the way down), so receivers can share one decoded frame: :class:`DecodeCache`
+keeps the frames it decoded, keyed by their bytes, for a while.
+
+Failures are not remembered: a frame that does not decode is rejected by each receiver that
+gets it, each time (a corrupted copy is almost always unique to one link anyway). The cache
+only changes how often the codec runs, never what a receiver gets: a hit returns the frame
+decoding those bytes would give, a miss decodes them.
+"""
+
+from __future__ import annotations
+
+from itertools import islice
+
+from comms.codec import DEFAULT_MAX_BYTES, Frame, decode
+
+DECODE_CACHE_SIZE = 8192
+
+
+class DecodeCache:
+    __slots__ = ("max_bytes", "size", "_frames", "decoded", "lookup")
+
+    def __init__(self, max_bytes: int = DEFAULT_MAX_BYTES, size: int = DECODE_CACHE_SIZE):
+        self.max_bytes = max_bytes
+        self.size = max(1, size)
+        self._frames: dict[bytes, Frame] = {}
+        self.decoded = 0  # frames actually run through the codec
+        # lookup(data) -> the cached Frame or None, without decoding (``data`` must be bytes):
+        # the receivers' fast path, a plain dict lookup.
+        self.lookup = self._frames.get
+
+    def decode(self, data: bytes) -> Frame:
+        """:func:`comms.codec.decode` ``(data, max_bytes)``, memoised for ``bytes`` that decode."""
+        frames = self._frames
+        if type(data) is bytes:
+            frame = frames.get(data)
+            if frame is not None:
+                return frame
+        self.decoded += 1
+        frame = decode(data, self.max_bytes)  # raises FrameError: not cached
+        if type(data) is bytes:
+            if len(frames) >= self.size:
+                for k in list(islice(frames, max(1, self.size // 4))):  # oldest first
+                    del frames[k]
+            frames[data] = frame
+        return frame
+
+    def __len__(self) -> int:
+        return len(self._frames)

@@ -1,0 +1,77 @@
+"""comms.framecache.DecodeCache: each distinct frame decoded once, shared by its receivers; a
+copy corrupted on one link is other bytes, rejected by that receiver alone."""
+
+from __future__ import annotations
+
+import pytest
+
+from comms.codec import FrameError, decode, encode
+from comms.framecache import DecodeCache
+from comms.messages import Hello, Intent, ScanRecords
+
+
+def frame(seq: int) -> bytes:
+    return encode(3, seq, 1.0 * seq, [Hello(3, "B", 1.0, 2.0, 80.0, 0.1), Intent(3, 5.0, 6.0, 0, -1),
+                                      ScanRecords(3, (1.0 * seq, 10.0, 20.0, 2000.0))])
+
+
+def test_decodes_once_and_returns_what_decode_returns():
+    cache = DecodeCache()
+    data = frame(1)
+    first = cache.decode(data)
+    assert first == decode(data)
+    assert cache.decode(data) is first and cache.lookup(data) is first
+    assert cache.decode(bytes(bytearray(data))) is first  # equal bytes, another object
+    assert cache.decoded == 1
+    assert cache.decode(bytearray(data)) == first  # not hashable: decoded, not cached
+
+
+def test_corrupted_copies_are_rejected_every_time_and_never_cached():
+    cache = DecodeCache()
+    good = frame(2)
+    bad = bytearray(good)
+    bad[7] ^= 0x5A
+    bad = bytes(bad)
+    cache.decode(good)
+    for _ in range(2):
+        with pytest.raises(FrameError):
+            cache.decode(bad)
+    assert cache.lookup(bad) is None and cache.decoded == 3 and len(cache) == 1
+    assert cache.decode(good) == decode(good)  # the good copy is unharmed
+
+
+def test_size_bound_evicts_oldest_without_changing_results():
+    cache = DecodeCache(size=4)
+    frames = [frame(k) for k in range(10)]
+    for data in frames:
+        cache.decode(data)
+        assert len(cache) <= 4
+    assert cache.lookup(frames[0]) is None and cache.lookup(frames[-1]) is not None
+    assert [cache.decode(d) for d in frames] == [decode(d) for d in frames]
+
+
+def test_receivers_sharing_a_cache_count_their_own_rejections():
+    import numpy as np
+
+    from agents.actor import ActorSettings, UavActor
+    from agents.grid import Grid
+    from agents.planners.greedy import GreedyPlanner
+    from agents.types import UavType
+    from comms.mailbox import Mailbox
+
+    kind = UavType("B", 60.0, 90.0, 0.6, 0.35, 2000.0, 2.0, 2.1, 4000.0)
+    grid = Grid(50_000.0, 50_000.0, 100.0)
+    cache = DecodeCache()
+    actors = [UavActor(u, f"B{u}", kind, grid, 0.005, GreedyPlanner(), np.random.default_rng(u), ActorSettings(),
+                       Mailbox(16), decoder=cache) for u in (1, 2)]
+    good = frame(5)
+    bad = bytearray(good)
+    bad[-1] ^= 0xFF  # the CRC
+    actors[0].mailbox.put(1.0, 3, bytes(bad))
+    actors[1].mailbox.put(1.0, 3, good)
+    assert actors[0]._drain_inbox(10.0) == [(3, len(good), False)]
+    assert actors[1]._drain_inbox(10.0) == [(3, len(good), True)]
+    assert (actors[0].counters.rejected, actors[0].counters.delivered) == (1, 0)
+    assert (actors[1].counters.rejected, actors[1].counters.delivered) == (0, 1)
+    assert 3 in actors[1].knowledge.peers and 3 not in actors[0].knowledge.peers
+    assert np.isfinite(actors[1].umap.to_dense()).any() and not np.isfinite(actors[0].umap.to_dense()).any()
