@@ -113,6 +113,19 @@ def _parse_grid(assignments: list[str]) -> dict[str, list]:
     return grid
 
 
+def _dask_executor(args):
+    """``(executor, client)`` for ``--scheduler ADDRESS``, or ``(None, None)`` for a local pool."""
+    if not args.scheduler:
+        return None, None
+    from distributed import Client
+
+    try:
+        client = Client(args.scheduler, timeout=args.connect_timeout)
+    except OSError as exc:
+        raise UsageError(f"--scheduler {args.scheduler}: cannot reach a Dask scheduler there ({exc})") from exc
+    return client.get_executor(), client
+
+
 def _cmd_sweep(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
@@ -128,15 +141,7 @@ def _cmd_sweep(args) -> int:
     sc = load_scenario(args.scenario)
     runs = plan_runs(sc, seeds=range(args.first_seed, args.first_seed + args.seeds), planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
-    executor, client = None, None
-    if args.scheduler:
-        from distributed import Client
-
-        try:
-            client = Client(args.scheduler, timeout=args.connect_timeout)
-        except OSError as exc:
-            raise UsageError(f"--scheduler {args.scheduler}: cannot reach a Dask scheduler there ({exc})") from exc
-        executor = client.get_executor()
+    executor, client = _dask_executor(args)
     err = _console(stderr=True)
     try:
         with Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[last]}"),
@@ -188,15 +193,7 @@ def _cmd_paper(args) -> int:
 
     if args.seeds is not None and args.seeds < 1:
         raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
-    executor, client = None, None
-    if args.scheduler:
-        from distributed import Client
-
-        try:
-            client = Client(args.scheduler, timeout=args.connect_timeout)
-        except OSError as exc:
-            raise UsageError(f"--scheduler {args.scheduler}: cannot reach a Dask scheduler there ({exc})") from exc
-        executor = client.get_executor()
+    executor, client = _dask_executor(args)
     err = _console(stderr=True)
     try:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),

@@ -301,7 +301,8 @@ class Checker:
         """Called once when a monitor attaches to a live simulation (after :meth:`bind`)."""
 
     def on_group(self, t: float, events: list[Sequence]) -> None:
-        raise NotImplementedError
+        """The events of one tick at time ``t``; every checker must implement it."""
+        raise NotImplementedError(f"{type(self).__name__} must implement on_group")
 
     def finish(self, t_end: float) -> None:
         """The run ended at ``t_end`` (judge pending liveness obligations)."""
