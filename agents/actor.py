@@ -7,13 +7,16 @@ UAV-id order, so the result does not depend on which task the event loop happens
 
 A step: drain the inbox (decode, schema-check, merge; malformed frames are counted as rejected
 and skipped) -> own scan and sightings -> replan if due -> local planner (APF) -> outbox.
+The replan sits between two halves (:meth:`UavActor.observe`, :meth:`UavActor.act`) so that the
+simulator can serve every UAV due in one tick with one batched planner call
+(:mod:`agents.batching`); a decision is still made from the UAV's own view and random stream.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from functools import partial
 from dataclasses import dataclass, field
 
@@ -130,6 +133,7 @@ class UavActor:
         self._next_beacon = -math.inf
         self._next_tracks = -math.inf
         self._pending_scans: list[float] = []
+        self._received: list[tuple[int, int, bool]] = []
         self._seq = 0
         # Task plumbing (see run()).
         self._pending: SensorReading | None = None
@@ -144,8 +148,14 @@ class UavActor:
         else:
             self._pending = reading
 
-    async def run(self, report: Callable[[int, ActorOutput | None, BaseException | None], None]) -> None:
-        """The actor task: wait for a tick, step, report; until cancelled (crash or end)."""
+    async def run(self, report: Callable[[int, ActorOutput | None, BaseException | None], None],
+                  plan_source: Callable[["UavActor", PlanView], Awaitable[Plan]] | None = None) -> None:
+        """The actor task: wait for a tick, step, report; until cancelled (crash or end).
+
+        With ``plan_source`` the actor hands its :class:`PlanView` to it and awaits the plan, so
+        the simulator can plan every UAV that is due this tick in one vectorised pass (each still
+        with its own map and random stream); without it the actor calls its planner itself.
+        """
         loop = asyncio.get_running_loop()
         while True:
             if self._pending is not None:
@@ -155,7 +165,11 @@ class UavActor:
                 reading = await self._waiter
                 self._waiter = None
             try:
-                out = self.step(reading)
+                view = self.observe(reading)
+                if view is not None:
+                    plan = await plan_source(self, view) if plan_source is not None else self.planner.plan(view)
+                    self.adopt(plan, reading.t)
+                out = self.act(reading)
             except Exception as exc:  # surfaced by the simulator with the UAV's name
                 report(self.uid, None, exc)
                 raise
@@ -164,10 +178,17 @@ class UavActor:
     # --- one tick ---------------------------------------------------------------------------
 
     def step(self, r: SensorReading) -> ActorOutput:
-        t = r.t
-        s = self.settings
-        received = self._drain_inbox(t)
+        """One tick, synchronously: :meth:`observe`, plan if due, :meth:`act`."""
+        view = self.observe(r)
+        if view is not None:
+            self.adopt(self.planner.plan(view), r.t)
+        return self.act(r)
 
+    def observe(self, r: SensorReading) -> PlanView | None:
+        """First half of a tick: merge the inbox, own scan and sightings. Returns the view to
+        plan from when a replan is due (time, or waypoint reached), else ``None``."""
+        t = r.t
+        self._received = self._drain_inbox(t)
         radius = self.kind.detect_radius
         d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
         if d is not None:
@@ -178,16 +199,25 @@ class UavActor:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
         for th in r.threats:
             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
-
         if self.plan is None or t >= self._next_replan or self._reached(r):
-            self.plan = self.planner.plan(
-                PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
-                         self.grid, s.replan_s, s.surveillance, self.plan)
-            )
-            self.counters.plans += 1
-            self._next_replan = t + s.replan_s
-        plan = self.plan
+            s = self.settings
+            return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
+                            self.grid, s.replan_s, s.surveillance, self.plan)
+        return None
 
+    def adopt(self, plan: Plan, t: float) -> None:
+        """Take a new plan (made from this tick's :class:`PlanView`)."""
+        self.plan = plan
+        self.counters.plans += 1
+        self._next_replan = t + self.settings.replan_s
+
+    def act(self, r: SensorReading) -> ActorOutput:
+        """Second half of a tick: the local planner (APF) towards the plan, then the outbox."""
+        s = self.settings
+        t = r.t
+        k = self.knowledge
+        plan = self.plan
+        radius = self.kind.detect_radius
         speed = self.kind.speed_max
         goal_x, goal_y = plan.wx, plan.wy
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
@@ -199,6 +229,7 @@ class UavActor:
                   for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
         a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
                                list(k.threats.values()), others, s.apf, s.dt)
+        received, self._received = self._received, []
         return ActorOutput(a, omega, self._outbox(r, plan), plan, received)
 
     def _reached(self, r: SensorReading) -> bool:

@@ -65,33 +65,56 @@ _TWO_PI = 2.0 * math.pi
 
 
 def dubins_length(
-    x0: float,
-    y0: float,
-    theta0: float,
+    x0: float | np.ndarray,
+    y0: float | np.ndarray,
+    theta0: float | np.ndarray,
     px: np.ndarray,
     py: np.ndarray,
-    r_min: float,
+    r_min: float | np.ndarray,
 ) -> np.ndarray:
     """Shortest forward path length from pose ``(x0, y0, theta0)`` to each point ``(px, py)``.
 
     Final heading free (minimum over all final headings); turning radius at least ``r_min``.
     Returns float64 with the broadcast shape of ``px`` and ``py`` (the shape of ``px`` when they
     have the same shape).  See the module docstring for the cases and formulas.
+
+    Several start poses at once: ``x0``, ``y0``, ``r_min`` as arrays that broadcast against the
+    points (e.g. shape ``(n, 1)`` for ``(n, m)`` points) and ``theta0`` as ``n`` headings, one per
+    row. Each row then gets exactly the numbers of a call with that row's scalars (the heading's
+    sine and cosine come from :mod:`math` either way).
     """
     px = np.asarray(px, dtype=np.float64)
     py = np.asarray(py, dtype=np.float64)
     px, py = np.broadcast_arrays(px, py)
-    dx = px - float(x0)
-    dy = py - float(y0)
-    r = float(r_min)
-    if math.isnan(r):
-        raise ValueError("r_min is NaN")
-    if not r > 0.0:
-        return np.hypot(dx, dy)
+    if np.ndim(theta0) == 0:
+        dx = px - float(x0)
+        dy = py - float(y0)
+        r = float(r_min)
+        if math.isnan(r):
+            raise ValueError("r_min is NaN")
+        if not r > 0.0:
+            return np.hypot(dx, dy)
+        c = math.cos(theta0)
+        s = math.sin(theta0)
+        inv_r = 1.0 / r
+    else:
+        dx = px - np.asarray(x0, dtype=np.float64)
+        dy = py - np.asarray(y0, dtype=np.float64)
+        r = np.asarray(r_min, dtype=np.float64)
+        if np.isnan(r).any():
+            raise ValueError("r_min is NaN")
+        if not (r > 0.0).all():
+            # Poses without a turning constraint (r_min <= 0) get the straight-line distance,
+            # as a single such pose would.
+            free = ~(r > 0.0)
+            turning = dubins_length(x0, y0, theta0, px, py, np.where(free, 1.0, r))
+            return np.where(free, np.hypot(dx, dy), turning)
+        theta = [float(a) for a in np.ravel(theta0)]
+        shape = (len(theta),) + (1,) * (px.ndim - 1)
+        c = np.array([math.cos(a) for a in theta]).reshape(shape)
+        s = np.array([math.sin(a) for a in theta]).reshape(shape)
+        inv_r = 1.0 / r
 
-    c = math.cos(theta0)
-    s = math.sin(theta0)
-    inv_r = 1.0 / r
     # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
     x = (c * dx + s * dy) * inv_r
     y = np.abs(c * dy - s * dx) * inv_r

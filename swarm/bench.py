@@ -82,7 +82,7 @@ def classify(frame) -> str:
         if path.startswith(_PLANNER_DIR):
             return "planning"  # wherever a planner runs (per actor or batched)
         if phase == "world":
-            if name == "step" and path == _ACTOR_FILE:
+            if path == _ACTOR_FILE and name in ("run", "step", "observe", "act"):
                 phase = "actors"
             elif path == _RADIO_FILE and name in ("broadcast", "update_topology"):
                 return "radio"

@@ -36,6 +36,7 @@ import numpy as np
 
 from agents.actor import ActorOutput, ActorSettings, UavActor
 from agents.apf import ApfSettings
+from agents.batching import PlanBatcher
 from agents.grid import PREFETCH_MIN, Grid
 from agents.knowledge import KnownThreat
 from agents.planners import make_planner
@@ -129,7 +130,11 @@ class Simulation:
         seed: int | None = None,
         planner: str | None = None,
         duration_s: float | None = None,
+        batch_planning: bool = True,
     ):
+        """``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
+        planner call (same event log as planning one by one, only faster; see
+        :mod:`agents.batching`). ``False`` makes each actor call its planner itself."""
         if not isinstance(scenario, Scenario):
             scenario = load_scenario(scenario)
         overrides = {}
@@ -212,6 +217,7 @@ class Simulation:
         self._barrier: asyncio.Future | None = None
         self._waiting = 0
         self._outputs: dict[int, ActorOutput] = {}
+        self._batcher = PlanBatcher() if batch_planning else None
         self._failed: BaseException | None = None
         self._closed = False
         self._wall = 0.0
@@ -411,6 +417,21 @@ class Simulation:
         self._waiting -= 1
         if self._waiting == 0:
             barrier.set_result(None)
+        else:
+            self._flush_plans_if_all_waiting()
+
+    async def _plan_for(self, actor: UavActor, view) -> Plan:
+        """An actor's plan request (see :mod:`agents.batching`)."""
+        fut = self._batcher.request(actor, view)
+        self._flush_plans_if_all_waiting()
+        return await fut
+
+    def _flush_plans_if_all_waiting(self) -> None:
+        # Every actor that has not answered this tick is waiting for a plan: nothing else can
+        # happen before they get one, so plan them all in one go.
+        b = self._batcher
+        if b is not None and b.pending and b.pending == self._waiting:
+            b.flush()
 
     async def _tick(self) -> None:
         t = self._tick_index * self.dt
@@ -422,7 +443,8 @@ class Simulation:
         readings = {}
         for uid in alive:
             if uid not in self._tasks:
-                self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report), name=f"uav-{world.uavs[uid].name}")
+                plan_source = self._plan_for if self._batcher is not None else None
+                self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report, plan_source), name=f"uav-{world.uavs[uid].name}")
             readings[uid] = world.sense(uid, t)
         # Every live UAV scans its disk this tick (its own map, then the ground truth and every
         # UAV that hears the record): build those disks in one vectorised pass. A pure memo.

@@ -131,42 +131,179 @@ class DacmpPlanner:
         _, _, cx, cy = min((c for c in cands if c[0] >= best - tie_tol), key=lambda c: c[1])
         return cx, cy
 
-    @staticmethod
-    def _keep_near(view: PlanView, zx: np.ndarray, zy: np.ndarray, r_max: float, g) -> tuple[np.ndarray, np.ndarray]:
-        """Pull particles back to within ``r_max`` of the UAV, then into the area.
-
-        A particle is a candidate *next* waypoint (``x_j(t+1)`` in eq. 23, which other UAVs read
-        from the broadcast intent). Left free, PSO carries particles all the way to a target
-        10 km off; the announced waypoint would then claim the target long before the UAV
-        arrives, and a fast watcher would hand over to a slow UAV that is still minutes away.
-        """
-        dx, dy = zx - view.x, zy - view.y
-        d = np.hypot(dx, dy)
-        scale = np.where(d > r_max, r_max / np.maximum(d, 1e-9), 1.0)
-        return (np.clip(view.x + dx * scale, 0.0, g.width_m), np.clip(view.y + dy * scale, 0.0, g.height_m))
-
     def plan(self, view: PlanView) -> Plan:
+        return self.plan_many([view])[0]
+
+    def plan_many(self, views: list[PlanView]) -> list[Plan]:
+        """Plans for several UAVs at once: exactly ``[plan(v) for v in views]``.
+
+        Each UAV keeps its own map, pyramid, guide point, targets, peers, threats and random
+        stream (every draw is made up front from the UAV's own generator, in the order the
+        one-UAV algorithm makes them); only the PSO's array operations are shared, on arrays of
+        shape ``(UAVs, particles)``. Numpy's element-wise operations give each element the same
+        value whatever array it sits in, so a UAV's decision does not depend on its batch
+        (``tests/test_batching.py`` checks the event log).
+        """
+        if type(self).plan is not DacmpPlanner.plan:  # a subclass with its own plan(): honour it
+            return [self.plan(v) for v in views]
+        U, M, n_it = len(views), self.particles, self.iterations
+        g = views[0].grid
+        unit = self.field_unit_m
+        floor = g.cell_m / unit
+        uavs = [_UavSearch.build(self, v, M, n_it) for v in views]
+
+        def column(values) -> np.ndarray:
+            return np.array(values, dtype=np.float64)[:, None]
+
+        x0, y0 = column([u.view.x for u in uavs]), column([u.view.y for u in uavs])
+        R = column([u.R for u in uavs])
+        r_max = column([u.r_max for u in uavs])
+        ox = np.array([u.ix0 for u in uavs], dtype=np.int64)[:, None]
+        oy = np.array([u.iy0 for u in uavs], dtype=np.int64)[:, None]
+        # The combined multi-level search value of every cell a UAV's particles can reach, one
+        # padded window per UAV, stacked: one gather per fitness evaluation instead of 2 per level.
+        wh = max(u.level_sum.shape[0] for u in uavs)
+        ww = max(u.level_sum.shape[1] for u in uavs)
+        sums = np.zeros((U, wh, ww))
+        for i, u in enumerate(uavs):
+            sums[i, :u.level_sum.shape[0], :u.level_sum.shape[1]] = u.level_sum
+        row_base = (np.arange(U, dtype=np.int64) * wh)[:, None]
+        guided = [i for i, u in enumerate(uavs) if u.guide is not None]
+        gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
+        gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
+        g_norm = np.hypot(gax, gay)
+        has_guide = column([u.guide is not None for u in uavs]) > 0.5
+        dubins_args = (x0, y0, np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]))
+
+        def fitness(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            ix, iy = g.cells_of(px, py)
+            p_sum = np.take(sums, ((iy - oy + row_base) * ww + (ix - ox)))
+            dub = dubins_length(dubins_args[0], dubins_args[1], dubins_args[2], px, py, dubins_args[3])
+            f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
+            if guided:
+                bx, by = px - x0, py - y0
+                cosang = (gax * bx + gay * by) / np.maximum(g_norm * np.hypot(bx, by), 1e-9)
+                ang = np.arccos(np.clip(cosang, -1.0, 1.0))
+                f_sg = 1.0 / (1.0 + np.exp(ang / math.pi))
+                if len(guided) < U:
+                    f_sg = np.where(has_guide, f_sg, 0.5)
+            else:
+                f_sg = np.full(px.shape, 0.5)
+            f_s = self.eta * f_sl + (1.0 - self.eta) * f_sg
+            f_t = np.zeros(px.shape)
+            ok = (px >= 0) & (px <= g.width_m) & (py >= 0) & (py <= g.height_m)
+            for i, u in enumerate(uavs):
+                if u.targets:
+                    u.target_terms(px[i], py[i], f_t[i], unit, floor)
+                for th in u.threats:
+                    ok[i] &= np.hypot(px[i] - th.x, py[i] - th.y) > th.radius + self.threat_margin_m
+            f = np.where(ok, f_s + f_t, -np.inf)
+            return f, f_s, f_t
+
+        def keep_near(zx: np.ndarray, zy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """Pull particles back to within ``r_max`` of their UAV, then into the area.
+
+            A particle is a candidate *next* waypoint (``x_j(t+1)`` in eq. 23, which other UAVs
+            read from the broadcast intent). Left free, PSO carries particles all the way to a
+            target 10 km off; the announced waypoint would then claim the target long before the
+            UAV arrives, and a fast watcher would hand over to a slow UAV still minutes away.
+            """
+            dx, dy = zx - x0, zy - y0
+            d = np.hypot(dx, dy)
+            scale = np.where(d > r_max, r_max / np.maximum(d, 1e-9), 1.0)
+            return np.clip(x0 + dx * scale, 0.0, g.width_m), np.clip(y0 + dy * scale, 0.0, g.height_m)
+
+        # Particles in the ring outside the detection radius (section 3.1).
+        rows = np.arange(U)
+        radius = np.abs(np.stack([u.ring_radius for u in uavs]))
+        angle = np.stack([u.ring_angle for u in uavs])
+        zx, zy = keep_near(x0 + radius * np.cos(angle), y0 + radius * np.sin(angle))
+        vx = np.zeros((U, M))
+        vy = np.zeros((U, M))
+        f, _, _ = fitness(zx, zy)
+        bx, by, bf = zx.copy(), zy.copy(), f.copy()
+        gi = np.argmax(bf, axis=1)
+        for it in range(n_it):
+            frac = it / (n_it - 1) if n_it > 1 else 1.0
+            w = self.w_start + (self.w_end - self.w_start) * frac
+            c1 = self.c1_start + (self.c1_end - self.c1_start) * frac
+            c2 = self.c2_start + (self.c2_end - self.c2_start) * frac
+            r0, r1, r2 = (np.stack([u.pso_draws[it, k] for u in uavs]) for k in range(3))
+            gx, gy = bx[rows, gi][:, None], by[rows, gi][:, None]
+            vx = w * vx + c1 * r0 * (bx - zx) + c2 * r1 * (gx - zx)
+            vy = w * vy + c1 * r0 * (by - zy) + c2 * r1 * (gy - zy)
+            zx, zy = keep_near(zx + vx * r2, zy + vy * r2)  # eq. 15: z += dz * Q
+            f, _, _ = fitness(zx, zy)
+            better = f > bf
+            bx[better], by[better], bf[better] = zx[better], zy[better], f[better]
+            gi = np.argmax(bf, axis=1)
+        wx, wy, best = bx[rows, gi][:, None], by[rows, gi][:, None], bf[rows, gi]
+        _, f_s, f_t = fitness(wx, wy)
+        plans = []
+        for i, u in enumerate(uavs):
+            if not np.isfinite(best[i]):
+                # Nothing feasible (boxed in by threats or the border): head for the area centre.
+                plans.append(Plan(g.width_m / 2, g.height_m / 2))
+            else:
+                plans.append(u.decide(float(wx[i, 0]), float(wy[i, 0]), f_s[i, 0], f_t[i, 0]))
+        return plans
+
+
+@dataclass
+class _UavSearch:
+    """One UAV's share of a (batched) DACMP plan: everything that is its own."""
+
+    view: PlanView
+    R: float
+    r_max: float
+    r_min: float
+    D: float
+    v_i: float
+    ix0: int  # window of cells the particles can reach (level-0 indices)
+    iy0: int
+    level_sum: np.ndarray  # sum_l lambda_l P_l over the window (eq. 19's numerator)
+    guide: tuple[float, float] | None
+    targets: list[tuple[int, float, float, float]]
+    peers: list[tuple[float, float, float]]
+    threats: list
+    ring_radius: np.ndarray
+    ring_angle: np.ndarray
+    pso_draws: np.ndarray  # (iterations, 3, particles): r1, r2 and Q of eq. 15
+
+    @classmethod
+    def build(cls, planner: DacmpPlanner, view: PlanView, M: int, n_it: int) -> "_UavSearch":
         k = view.kind
         g = view.grid
         rng = view.rng
         R = k.detect_radius
         t = view.t
         q = view.umap.uncertainty(t)
-        pyr = gaussian_pyramid(q, self.levels + 1)  # G_0 .. G_L
+        pyr = gaussian_pyramid(q, planner.levels + 1)  # G_0 .. G_L
         # Eq. 19 sums layers 1..L; a map too small for even one layer falls back on G_0.
         search_levels = list(enumerate(pyr))[1:] or [(0, pyr[0])]
-        lam = self._weights(len(search_levels))
+        lam = planner._weights(len(search_levels))
         coarse = next((lv for lv in reversed(pyr) if min(lv.shape) >= 4), pyr[0])
         # Ties go to a neighbour drawn from the UAV's own stream: with the heading as tie-break,
         # UAVs flying side by side all picked the same sub-area and flew on in formation.
         tie_key = rng.random(9)
-        guide = self.guide_point(q, coarse.shape, g.cell_m, view.x, view.y, view.theta, tie_key=tie_key)
-        r_min = k.r_min(view.v)
-        unit = self.field_unit_m
-        floor = g.cell_m / unit
-        v_i = k.speed_max / unit
+        guide = planner.guide_point(q, coarse.shape, g.cell_m, view.x, view.y, view.theta, tie_key=tie_key)
 
-        threats = list(view.knowledge.threats.values())
+        # Particles never leave the disk of radius r_max around the UAV (clipped to the area):
+        # the cells they can sit on, with a cell of slack for rounding.
+        r_max = planner.ring_max_factor * R
+        ix0, iy0 = g.cell_of(max(view.x - r_max, 0.0), max(view.y - r_max, 0.0))
+        ix1, iy1 = g.cell_of(view.x + r_max, view.y + r_max)
+        ix0, iy0 = max(ix0 - 1, 0), max(iy0 - 1, 0)
+        ix1, iy1 = min(ix1 + 1, g.nx - 1), min(iy1 + 1, g.ny - 1)
+        wy_cells = np.arange(iy0, iy1 + 1)
+        wx_cells = np.arange(ix0, ix1 + 1)
+        level_sum = np.zeros((len(wy_cells), len(wx_cells)))
+        for w_l, (lv, G) in zip(lam, search_levels):
+            rows = np.minimum(level_index(wy_cells, lv), G.shape[0] - 1)
+            cols = np.minimum(level_index(wx_cells, lv), G.shape[1] - 1)
+            level_sum += w_l * G[np.ix_(rows, cols)]
+
+        unit = planner.field_unit_m
         targets: list[tuple[int, float, float, float]] = []
         peers: list[tuple[float, float, float]] = []
         if view.surveillance:
@@ -177,83 +314,40 @@ class DacmpPlanner:
             if targets:
                 for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S):
                     if p.uav != view.uav and math.isfinite(p.wx) and t - p.t_intent <= _INTENT_MAX_AGE_S:
-                        vmax_j = self.speed_max_by_type.get(p.type, k.speed_max)
+                        vmax_j = planner.speed_max_by_type.get(p.type, k.speed_max)
                         peers.append((p.wx, p.wy, vmax_j / unit))
-        D = k.influence_radius
+        # The rest of the UAV's draws, in the one-UAV order: ring radii, ring angles, then per
+        # PSO iteration three rows (r1, r2, Q).
+        ring_radius = rng.normal(planner.ring_mean_factor * R, planner.ring_sd_factor * R, M)
+        ring_angle = view.theta + rng.normal(0.0, planner.heading_sd_rad, M)
+        pso_draws = rng.random((n_it, 3, M))
+        return cls(view, R, r_max, k.r_min(view.v), k.influence_radius, k.speed_max / unit, ix0, iy0,
+                   level_sum, guide, targets, peers, list(view.knowledge.threats.values()),
+                   ring_radius, ring_angle, pso_draws)
 
-        def fitness(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            ix, iy = g.cells_of(px, py)
-            p_sum = np.zeros(px.shape)
-            for w_l, (lv, G) in zip(lam, search_levels):
-                rows = np.minimum(level_index(iy, lv), G.shape[0] - 1)
-                cols = np.minimum(level_index(ix, lv), G.shape[1] - 1)
-                p_sum += w_l * G[rows, cols]
-            dub = dubins_length(view.x, view.y, view.theta, px, py, r_min)
-            f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
-            if guide is not None:
-                ax, ay = guide[0] - view.x, guide[1] - view.y
-                bx, by = px - view.x, py - view.y
-                cosang = (ax * bx + ay * by) / np.maximum(np.hypot(ax, ay) * np.hypot(bx, by), 1e-9)
-                ang = np.arccos(np.clip(cosang, -1.0, 1.0))
-                f_sg = 1.0 / (1.0 + np.exp(ang / math.pi))
-            else:
-                f_sg = np.full(px.shape, 0.5)
-            f_s = self.eta * f_sl + (1.0 - self.eta) * f_sg
-            f_t = np.zeros(px.shape)
-            for _tid, tx, ty, value in targets:
-                d = np.hypot(px - tx, py - ty)
-                near = d < D
-                if not near.any():
-                    continue
-                f_t += np.where(near, k.w_t * value / (np.maximum(d / unit, floor) * v_i * v_i), 0.0)
-                for wx, wy, v_j in peers:
-                    if math.hypot(wx - tx, wy - ty) < D:
-                        dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
-                        f_t -= np.where(near, k.w_r / (dj * v_i * v_j), 0.0)
-            ok = (px >= 0) & (px <= g.width_m) & (py >= 0) & (py <= g.height_m)
-            for th in threats:
-                ok &= np.hypot(px - th.x, py - th.y) > th.radius + self.threat_margin_m
-            f = np.where(ok, f_s + f_t, -np.inf)
-            return f, f_s, f_t
+    def target_terms(self, px: np.ndarray, py: np.ndarray, f_t: np.ndarray, unit: float, floor: float) -> None:
+        """Add eq. 22 (target attraction) and eq. 23 (competing repulsion) into ``f_t``."""
+        k = self.view.kind
+        D, v_i = self.D, self.v_i
+        for _tid, tx, ty, value in self.targets:
+            d = np.hypot(px - tx, py - ty)
+            near = d < D
+            if not near.any():
+                continue
+            f_t += np.where(near, k.w_t * value / (np.maximum(d / unit, floor) * v_i * v_i), 0.0)
+            for wx, wy, v_j in self.peers:
+                if math.hypot(wx - tx, wy - ty) < D:
+                    dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
+                    f_t -= np.where(near, k.w_r / (dj * v_i * v_j), 0.0)
 
-        # Particles in the ring outside the detection radius (section 3.1).
-        M = self.particles
-        radius = rng.normal(self.ring_mean_factor * R, self.ring_sd_factor * R, M)
-        angle = view.theta + rng.normal(0.0, self.heading_sd_rad, M)
-        r_max = self.ring_max_factor * R
-        zx, zy = self._keep_near(view, view.x + np.abs(radius) * np.cos(angle),
-                                 view.y + np.abs(radius) * np.sin(angle), r_max, g)
-        vx = np.zeros(M)
-        vy = np.zeros(M)
-        f, _, _ = fitness(zx, zy)
-        bx, by, bf = zx.copy(), zy.copy(), f.copy()
-        gi = int(np.argmax(bf))
-        n_it = self.iterations
-        for it in range(n_it):
-            frac = it / (n_it - 1) if n_it > 1 else 1.0
-            w = self.w_start + (self.w_end - self.w_start) * frac
-            c1 = self.c1_start + (self.c1_end - self.c1_start) * frac
-            c2 = self.c2_start + (self.c2_end - self.c2_start) * frac
-            r = rng.random((3, M))
-            gx, gy = bx[gi], by[gi]
-            vx = w * vx + c1 * r[0] * (bx - zx) + c2 * r[1] * (gx - zx)
-            vy = w * vy + c1 * r[0] * (by - zy) + c2 * r[1] * (gy - zy)
-            zx, zy = self._keep_near(view, zx + vx * r[2], zy + vy * r[2], r_max, g)  # eq. 15: z += dz * Q
-            f, _, _ = fitness(zx, zy)
-            better = f > bf
-            bx[better], by[better], bf[better] = zx[better], zy[better], f[better]
-            gi = int(np.argmax(bf))
-        wx, wy = float(bx[gi]), float(by[gi])
-        if not np.isfinite(bf[gi]):
-            # Nothing feasible (boxed in by threats or the border): head for the area centre.
-            return Plan(g.width_m / 2, g.height_m / 2)
-        _, f_s, f_t = fitness(np.array([wx]), np.array([wy]))
+    def decide(self, wx: float, wy: float, f_s: float, f_t: float) -> Plan:
+        """Mode switch at the chosen waypoint: surveillance of the nearest target within ``D``
+        when the target term dominates (spec "mode switching")."""
         mode, target = MODE_SEARCH, NO_TARGET
-        if targets and f_t[0] > f_s[0]:
-            d_best = D
-            for tid, tx, ty, _v in targets:
+        if self.targets and f_t > f_s:
+            d_best = self.D
+            for tid, tx, ty, _v in self.targets:
                 d = math.hypot(wx - tx, wy - ty)
                 if d < d_best:
                     mode, target, d_best = MODE_SURVEIL, tid, d
         return Plan(wx, wy, mode, target)
-
