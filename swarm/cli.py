@@ -157,8 +157,12 @@ def _cmd_sweep(args) -> int:
         if client is not None:
             client.close()
     summary = result.summary
+    from swarm.report import write_sweep_report
+
+    report = write_sweep_report(args.out, summary)
     if not args.quiet:
         _console().print(_sweep_table(summary))
+    print(f"report: {report}", file=sys.stderr)
     print(f"{result.total} runs: {result.skipped} already finished, {result.ran} ran, "
           f"{len(result.failed)} failed; summary in {Path(args.out) / 'summary.json'}", file=sys.stderr)
     for f in result.failed:

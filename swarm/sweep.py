@@ -11,10 +11,15 @@ Layout of ``out_dir``::
     runs/<planner>/<setting>/seed-<n>/   one run's outputs (see swarm.outputs); metrics.json last
     runs/.../error.json                  a run that raised: the error and its traceback
     summary.json, summary.csv            statistics per planner and setting (see summarize)
+    report.html                          the summary as a page with figures (``swarm sweep``)
+    sweep.json                           what each run folder holds (scenario, seed, duration)
 
 A run folder with ``metrics.json`` is finished, so running the same sweep again skips it: an
 interrupted sweep keeps the runs it finished and resumes where it stopped. A run that raises is
-recorded and does not stop the others; it is tried again on the next invocation.
+recorded and does not stop the others; it is tried again on the next invocation. A finished
+folder is only reused for the very run that made it: ``sweep.json`` keeps a fingerprint of each
+run (scenario document, planner, seed, duration), and asking the same folder for a different run
+(another ``--duration``, an edited scenario) is refused with an error naming the folder.
 """
 
 from __future__ import annotations
@@ -129,6 +134,35 @@ def is_finished(out_dir: Path, spec: RunSpec) -> bool:
     return (out_dir / spec.folder / "metrics.json").is_file()
 
 
+def fingerprint(spec: RunSpec) -> str:
+    """What makes a run what it is (not how it is executed)."""
+    import hashlib
+
+    doc = json.dumps([spec.scenario, spec.planner, spec.seed, spec.duration_s], sort_keys=True, default=str)
+    return hashlib.sha256(doc.encode()).hexdigest()
+
+
+def _check_manifest(out: Path, runs: Sequence[RunSpec]) -> None:
+    """Refuse to reuse a finished folder made by a different run; record these runs."""
+    path = out / "sweep.json"
+    known: dict[str, str] = {}
+    if path.is_file():
+        try:
+            known = json.loads(path.read_text())["runs"]
+        except (ValueError, KeyError, TypeError):
+            raise UsageError(f"{path}: not a sweep manifest (delete it, or use another output folder)") from None
+    for spec in runs:
+        fp = fingerprint(spec)
+        old = known.get(spec.folder)
+        if old is not None and old != fp and is_finished(out, spec):
+            raise UsageError(
+                f"{out / spec.folder} holds a finished run of a different configuration (scenario, "
+                f"seed or duration changed since it ran); use another output folder, or delete that "
+                f"folder to run it again")
+        known[spec.folder] = fp
+    write_files(out, {"sweep.json": json.dumps({"runs": dict(sorted(known.items()))}, indent=1).encode()})
+
+
 ProgressFn = Callable[[int, int, RunSpec, str], None]
 
 
@@ -146,6 +180,7 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    _check_manifest(out, runs)
     todo = [s for s in runs if not is_finished(out, s)]
     result = SweepResult(out, len(runs), len(runs) - len(todo), 0)
     done = result.skipped

@@ -157,8 +157,15 @@ def test_cli_sweep_and_resume(small_scenario_path, tmp_path, capsys):
     rows = (tmp_path / "summary.csv").read_text().splitlines()
     assert rows[0] == "planner,radio.loss_base,metric,runs,mean,sd,ci95_low,ci95_high"
     assert any(r.startswith("greedy,0.5,coverage,2,") for r in rows)
+    assert (tmp_path / "report.html").read_text().count("<img") >= 1  # the sweep's report page
     assert main(args) == 0
     assert "4 runs: 4 already finished, 0 ran" in capsys.readouterr().err
+    # The same folder asked for another duration: refused, naming a run folder, nothing lost.
+    longer = [a if a != str(DUR) else str(2 * DUR) for a in args]
+    assert main(longer) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "seed-000 holds a finished run of a different configuration" in err
+    assert len(list(tmp_path.glob("runs/**/metrics.json"))) == 4
 
 
 @pytest.mark.parametrize("bad, expected", [
