@@ -26,6 +26,7 @@ from agents.apf import ApfSettings, apf_command
 from agents.grid import Grid
 from agents.knowledge import KnownThreat, Knowledge
 from agents.planners.base import Plan, Planner, PlanView
+from agents.scanlog import ScanLog
 from agents.types import UavType
 from agents.umap import UncertaintyMap
 from comms.codec import FrameError, decode, encode
@@ -36,6 +37,7 @@ from comms.messages import (
     NO_TARGET,
     Hello,
     Intent,
+    ScanDigest,
     ScanRecords,
     ThreatItem,
     Threats,
@@ -45,6 +47,9 @@ from comms.messages import (
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
 _TRACKS_PER_FRAME = 400
+# Bytes of a packed scan (four msgpack floats) and room left in a frame for its header.
+_SCAN_BYTES = 36
+_FRAME_SLACK = 256
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,6 +93,9 @@ class ActorSettings:
     frame_max_bytes: int = 65536
     surveillance: bool = True
     peer_timeout_s: float = 5.0
+    sync_every_s: float = 5.0  # anti-entropy digest period (0: off); see agents.scanlog
+    sync_settle_s: float = 2.0  # the digest covers scans up to this long ago (in flight: not missing)
+    sync_max_records: int = 4000  # scans resent in answer to one digest
     apf: ApfSettings = field(default_factory=ApfSettings)
 
 
@@ -97,6 +105,9 @@ class ActorCounters:
     rejected: int = 0  # frames that failed decoding or the schema
     frames_sent: int = 0
     plans: int = 0
+    scans_resent: int = 0  # scans sent in answer to neighbours' digests
+    scans_recovered: int = 0  # heard scans that were new to this UAV, from any frame
+    scans_ignored: int = 0  # heard scan records outside any sane range (time, place, radius)
 
 
 class UavActor:
@@ -122,6 +133,15 @@ class UavActor:
         self.settings = settings
         self.mailbox = mailbox
         self.umap = UncertaintyMap(grid, tau)
+        self.scans = ScanLog(settings.dt)
+        self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
+        self._next_digest = -math.inf
+        self._digest_start = 0  # where the next digest begins when one frame cannot hold it all
+        self._scans_per_frame = max(1, (settings.frame_max_bytes - _FRAME_SLACK) // _SCAN_BYTES)
+        # A scan is applied and logged only if it is plausible: a radius up to the area's size and
+        # a centre at most that far outside the area (absurd numbers would make the disk's bounds
+        # overflow). Own scans obey the same rule, so every logged scan is one peers accept.
+        self._max_scan_r = max(grid.width_m, grid.height_m)
         # Shared by the simulation's actors so each broadcast frame is decoded once (a pure
         # memo: the same bytes give the same immutable Frame).
         self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes)
@@ -194,6 +214,8 @@ class UavActor:
         if d is not None:
             self.umap.stamp(d, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
+        if self._plausible(r.x, r.y, radius):
+            self.scans.add(self.uid, t, r.x, r.y, radius)
         k = self.knowledge
         for st in r.targets:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
@@ -232,6 +254,10 @@ class UavActor:
         received, self._received = self._received, []
         return ActorOutput(a, omega, self._outbox(r, plan), plan, received)
 
+    def _plausible(self, x: float, y: float, radius: float) -> bool:
+        m = self._max_scan_r
+        return 0.0 <= radius <= m and -m <= x <= self.grid.width_m + m and -m <= y <= self.grid.height_m + m
+
     def _reached(self, r: SensorReading) -> bool:
         p = self.plan
         # A watcher circles its target: reaching that waypoint is not a reason to replan.
@@ -251,6 +277,8 @@ class UavActor:
         decode_frame = self._decode
         lookup = self._lookup
         counters = self.counters
+        log_add = self.scans.add
+        max_r, width, height = self._max_scan_r, self.grid.width_m, self.grid.height_m
         delivered = 0
         for _arrival, sender, data in frames:
             # Another receiver may have decoded these very bytes already (shared cache).
@@ -269,13 +297,18 @@ class UavActor:
                 tm = type(m)
                 if tm is ScanRecords:
                     rec = m.records
+                    origin = m.uav
                     for i in range(0, len(rec), 4):
+                        tr, x, y, rr = rec[i], rec[i + 1], rec[i + 2], rec[i + 3]
                         # A scan from the future would pin cells at q=0: only accept the past.
-                        tr = rec[i]
-                        if tr <= t and rec[i + 3] >= 0.0:
+                        if not (0.0 <= tr <= t and 0.0 <= rr <= max_r and -max_r <= x <= width + max_r
+                                and -max_r <= y <= height + max_r):  # = not self._plausible(...)
+                            counters.scans_ignored += 1
+                        elif log_add(origin, tr, x, y, rr):  # new to us (else already applied)
+                            counters.scans_recovered += 1
                             # = umap.scan(x, y, r, t_rec); the disk is shared by every map
                             # applying this record (grid memo).
-                            d = disk_stamp(rec[i + 1], rec[i + 2], rec[i + 3])
+                            d = disk_stamp(x, y, rr)
                             if d is not None:
                                 stamp(d, tr)
                 elif tm is Hello:
@@ -297,8 +330,36 @@ class UavActor:
                 elif tm is Threats:
                     for th in m.items:
                         k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+                elif tm is ScanDigest:
+                    if m.uav != me:
+                        self._digests.append(m)
         counters.delivered += delivered
         return received
+
+    def _answer_digests(self, t: float) -> list[bytes]:
+        """Resend the scans each digest heard this tick lacks (anti-entropy, agents.scanlog)."""
+        frames: list[bytes] = []
+        budget = self.settings.sync_max_records
+        per_frame = self._scans_per_frame
+        for dg in self._digests:
+            msgs: list = []
+            room = per_frame  # scans the current frame can still take
+            for origin, flat in self.scans.missing(dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget):
+                budget -= len(flat) // 4
+                self.counters.scans_resent += len(flat) // 4
+                while flat:
+                    take, flat = flat[:4 * room], flat[4 * room:]
+                    msgs.append(ScanRecords(origin, tuple(take)))
+                    room -= len(take) // 4
+                    if room == 0:
+                        frames.append(self._frame(t, msgs))
+                        msgs, room = [], per_frame
+            if msgs:
+                frames.append(self._frame(t, msgs))
+            if budget <= 0:
+                break
+        self._digests = []
+        return frames
 
     def _frame(self, t: float, messages: list) -> bytes:
         self._seq += 1
@@ -314,11 +375,21 @@ class UavActor:
                 Hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
                 Intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
             ]
+            room = s.frame_max_bytes - _FRAME_SLACK - _SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:
                 msgs.append(ScanRecords(self.uid, tuple(self._pending_scans)))
                 self._pending_scans = []
+            if s.sync_every_s > 0 and t >= self._next_digest and room > _FRAME_SLACK:
+                # The digest rides on the beacon (no extra frame); a long run's digest is split
+                # over several beacons (agents.scanlog.ScanLog.digest).
+                t_cut = t - s.sync_settle_s
+                lo, hi, bitmaps, self._digest_start = self.scans.digest(t_cut, self._digest_start, room)
+                msgs.append(ScanDigest(self.uid, t_cut, lo, hi, bitmaps))
+                self._next_digest = t + s.sync_every_s - 1e-9
             frames.append(self._frame(t, msgs))
             self._next_beacon = t + s.beacon_every_s - 1e-9
+        if self._digests:
+            frames.extend(self._answer_digests(t))
         k = self.knowledge
         if t >= self._next_tracks and (k.tracks or k.threats):
             items = [TrackItem(tr.target, tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value)

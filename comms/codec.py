@@ -23,6 +23,7 @@ from comms.messages import (
     Hello,
     Intent,
     Message,
+    ScanDigest,
     ScanRecords,
     ThreatItem,
     Threats,
@@ -34,7 +35,7 @@ MAGIC = 0x5357  # "SW"
 VERSION = 1
 DEFAULT_MAX_BYTES = 65536
 
-K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS = 1, 2, 3, 4, 5
+K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST = 1, 2, 3, 4, 5, 6
 
 
 class FrameError(ValueError):
@@ -60,6 +61,8 @@ def _pack_message(m: Message) -> list:
         return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in m.items]]
     if type(m) is Threats:
         return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
+    if type(m) is ScanDigest:
+        return [K_DIGEST, m.uav, m.t_cut, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
     raise TypeError(f"not a message: {m!r}")
 
 
@@ -138,6 +141,15 @@ def _message(raw) -> Message:
                 raise FrameError("threat: bad radius")
             items.append(item)
         return Threats(tuple(items))
+    if kind == K_DIGEST:
+        _list(raw, 6)
+        bitmaps = []
+        for it in _list(raw[5]):
+            it = _list(it, 2)
+            if type(it[1]) is not bytes:
+                raise FrameError("digest: bitmap is not bytes")
+            bitmaps.append((_int(it[0]), it[1]))
+        return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), tuple(bitmaps))
     raise FrameError(f"unknown message kind {kind}")
 
 

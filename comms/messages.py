@@ -82,4 +82,22 @@ class Threats:
     items: tuple[ThreatItem, ...]
 
 
-Message = Hello | Intent | ScanRecords | Tracks | Threats
+@dataclass(frozen=True, slots=True)
+class ScanDigest:
+    """Anti-entropy: which scans the sender knows (see :mod:`agents.scanlog`).
+
+    ``bitmaps`` holds ``(origin, bits)`` pairs: bit ``k % 8`` of byte ``k // 8`` set when the
+    sender knows ``origin``'s scan of tick ``k``, for ticks up to ``t_cut``. The digest speaks
+    for the origins ``lo..hi``: one of those not listed is one the sender knows nothing of (a
+    long run's digest is split over several beacons). A neighbour answers with
+    :class:`ScanRecords` of the scans the sender lacks.
+    """
+
+    uav: int
+    t_cut: float
+    lo: int
+    hi: int
+    bitmaps: tuple[tuple[int, bytes], ...]
+
+
+Message = Hello | Intent | ScanRecords | Tracks | Threats | ScanDigest

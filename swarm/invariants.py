@@ -38,7 +38,7 @@ The invariants (``name``: class, parameters and their defaults):
   delay (radio latency + jitter + every delay fault) before the ``rx``.
 * ``map_monotonic`` (live): :class:`MapMonotonicityChecker`: no cell's last-seen time ever
   decreases in any UAV's map.
-* ``map_agreement`` (live, liveness): :class:`MapAgreementChecker(quiet_s=20, lag_s=5)`: once the
+* ``map_agreement`` (live, liveness): :class:`MapAgreementChecker(quiet_s=20, lag_s=10)`: once the
   swarm has been connected, with no active link fault or partition and no crash or join, for
   ``quiet_s``, every live UAV knows every cell any live UAV knew ``lag_s`` earlier.
 * ``joiner_catch_up`` (live, liveness): :class:`JoinerCatchUpChecker(bound_s=20)`: within
@@ -59,13 +59,15 @@ The invariants (``name``: class, parameters and their defaults):
 
 Why these defaults: the planners replan every 10 s (``planner.replan_s``), so a settled
 assignment may take a few replans (settle 30 s; takeover and release 60 s; a target may go
-unwatched for one replan, 10 s); UAVs beacon every second, so 5 s covers a few hops of map
-deltas and 20 s of quiet is ample for a design with anti-entropy.
+unwatched for one replan, 10 s). Maps: a neighbour's scans arrive with its next beacon (1 s);
+everything else (lost, from beyond one hop, from before a heal or a join) comes back through
+anti-entropy (:mod:`agents.scanlog`): a digest every ``radio.sync_every_s`` (5 s) covering scans
+up to ``radio.sync_settle_s`` (2 s) old, answered the next tick. A scan can therefore reach a UAV
+two hops away up to about 5 + 2 + 1 s late: ``lag_s = 10``; 20 s of quiet lets that settle.
 
-Known breaks of the current simulator (pinned as strict xfails in ``tests/test_invariants.py``):
-``map_agreement`` after a partition or over several hops, ``joiner_catch_up`` always (scan
-records are neither relayed nor re-sent), and ``separation`` whenever UAVs cannot hear each
-other (they learn of each other only over the radio).
+Known breaks of the current simulator (pinned as xfails in ``tests/test_invariants.py``):
+``separation`` whenever UAVs cannot hear each other (they learn of each other only over the
+radio).
 """
 
 from __future__ import annotations
@@ -558,7 +560,7 @@ class MapAgreementChecker(_LiveChecker):
 
     name = "map_agreement"
 
-    def __init__(self, quiet_s: float = 20.0, lag_s: float = 5.0, tolerance: float = 0.0, every_s: float = 10.0,
+    def __init__(self, quiet_s: float = 20.0, lag_s: float = 10.0, tolerance: float = 0.0, every_s: float = 10.0,
                  allow_radio_loss: bool = False):
         super().__init__()
         self.quiet_s, self.lag_s, self.tolerance, self.every_s = quiet_s, lag_s, tolerance, every_s

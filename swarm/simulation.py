@@ -191,6 +191,9 @@ class Simulation:
             replan_s=sc.planner.replan_s,
             beacon_every_s=r.beacon_every_s,
             tracks_every_s=r.tracks_every_s,
+            sync_every_s=r.sync_every_s,
+            sync_settle_s=r.sync_settle_s,
+            sync_max_records=r.sync_max_records,
             frame_max_bytes=r.frame_max_bytes,
             surveillance=sc.planner.surveillance,
             apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m),
@@ -691,6 +694,9 @@ class Simulation:
                 "mailbox_dropped_full": a.mailbox.stats.dropped_full,
                 "mailbox_max_depth": a.mailbox.stats.max_depth,
                 "plans": a.counters.plans,
+                "scans_known": a.scans.count,  # own and heard scans in its log (agents.scanlog)
+                "scans_resent": a.counters.scans_resent,  # answers to neighbours' digests
+                "scans_ignored": a.counters.scans_ignored,  # heard scans with absurd values
             }
         surv = m.surveillance_ratio(t)
         return {

@@ -24,7 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from comms.codec import Frame, FrameError, decode, encode
-from comms.messages import Hello, Intent, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
+from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
 from swarm import Simulation
 from swarm.errors import ScenarioError, SimulationError
 from swarm.scenario import _key, parse_scenario, scenario_from_toml
@@ -46,7 +46,7 @@ def _valid_frame(rng: np.random.Generator) -> bytes:
 
     msgs = []
     for _ in range(int(rng.integers(1, 5))):
-        k = int(rng.integers(0, 5))
+        k = int(rng.integers(0, 6))
         uav = int(rng.integers(0, 6))
         if k == 0:
             msgs.append(Hello(uav, "AB"[int(rng.integers(0, 2))], num(), num(), abs(num()), num()))
@@ -61,9 +61,12 @@ def _valid_frame(rng: np.random.Generator) -> bytes:
             msgs.append(Tracks(tuple(TrackItem(int(rng.integers(0, 9)), num(), num(), num(), num(),
                                                float(rng.uniform(0, 50)), 1.0)
                                      for _ in range(int(rng.integers(0, 4))))))
-        else:
+        elif k == 4:
             r = float(rng.uniform(100, 3000))
             msgs.append(Threats((ThreatItem(int(rng.integers(0, 4)), num(), num(), r, r + 3000.0),)))
+        else:
+            bitmaps = tuple((int(o), rng.bytes(int(rng.integers(0, 12)))) for o in range(int(rng.integers(0, 4))))
+            msgs.append(ScanDigest(uav, float(rng.uniform(-10, 100)), 0, int(rng.integers(0, 8)), bitmaps))
     return encode(int(rng.integers(0, 6)), int(rng.integers(0, 1 << 20)), float(rng.uniform(0, 100)), msgs)
 
 
@@ -199,16 +202,18 @@ def test_live_receivers_count_fuzzed_frames_as_rejected_and_keep_running(planner
 
 
 # Well-formed frames with absurd content: the schema accepts any finite number, so the receiver
-# itself must cope. A scan record whose centre plus radius overflows to infinity crashes the
-# receiving actor today (OverflowError in the map's disk bounds), which stops the whole run.
+# itself must cope. A scan record whose centre plus radius overflows to infinity used to crash the
+# receiving actor (OverflowError in the map's disk bounds); receivers now ignore (and count)
+# scans outside any sane time, place or radius.
 ABSURD = {
     "hello_huge": [Hello(0, "B", 1e308, -1e308, 1e308, 1e308)],
     "intent_huge_target": [Intent(0, 1e308, -1e308, 1, 10**18)],
     "tracks_huge": [Tracks((TrackItem(9, 1e308, 1e308, 1e308, -1e308, 0.0, 1e308),))],
     "threat_huge": [Threats((ThreatItem(7, 1e308, 1e308, 1e308, 1e308),))],
     "scan_far_away": [ScanRecords(0, (0.0, 1e300, 1e300, 1.0))],
-    "scan_overflowing_disk": pytest.param([ScanRecords(0, (0.0, 1e308, 0.0, 1e308))], marks=pytest.mark.xfail(
-        strict=True, raises=SimulationError, reason="known: receiver crashes on a scan record whose x + r overflows")),
+    "scan_overflowing_disk": [ScanRecords(0, (0.0, 1e308, 0.0, 1e308))],
+    "digest_from_the_far_future": [ScanDigest(0, 1e300, -5, 2**62, ((0, b"\xff" * 4000), (2**40, b"")))],
+    "digest_claiming_nothing": [ScanDigest(0, -1e300, 0, 0, ())],
 }
 
 
@@ -222,6 +227,8 @@ def test_well_formed_absurd_frames_do_not_harm_the_receiver(messages):
         sim.actors[1].mailbox.put(sim.now, 0, encode(0, 1, 0.0, messages))
         sim.step(10)
         assert sim.snapshot().uavs[1].state == "alive"
+        if messages is ABSURD["scan_overflowing_disk"] or messages is ABSURD["scan_far_away"]:
+            assert sim.actors[1].counters.scans_ignored == 1
 
 
 # --- scenario document fuzzing -----------------------------------------------------------------------

@@ -1,0 +1,71 @@
+"""The scan log behind anti-entropy: digests name exactly what a peer lacks."""
+
+from __future__ import annotations
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from agents.scanlog import ORIGIN_MAX, ScanLog
+
+DT = 1.0
+
+
+def _scan(origin: int, k: int) -> tuple[int, float, float, float, float]:
+    return origin, k * DT, 100.0 * origin + k, 7.0 * k, 1500.0
+
+
+def _log(scans) -> ScanLog:
+    log = ScanLog(DT)
+    for s in scans:
+        log.add(*s)
+    return log
+
+
+def test_add_tells_new_from_known_and_rejects_negative_ticks():
+    log = ScanLog(DT)
+    assert log.add(*_scan(3, 5))
+    assert not log.add(*_scan(3, 5))  # the same origin and tick: already applied
+    assert log.add(*_scan(4, 5))
+    assert not log.add(3, -1.0, 0.0, 0.0, 1.0)
+    assert log.count == 2
+
+
+def test_digest_cuts_at_t_cut_and_missing_returns_the_scans_themselves():
+    a = _log([_scan(1, k) for k in range(20)])
+    lo, hi, bitmaps, nxt = a.digest(9.0)
+    assert (lo, hi, nxt) == (0, ORIGIN_MAX, 0)
+    assert bitmaps == ((1, bytes([0xFF, 0x03])),)  # ticks 0..9
+    b = _log([_scan(1, k) for k in (0, 2, 4)])
+    got = dict(a.missing(*b.digest(9.0)[:3], t_cut=9.0, limit=100))
+    assert [got[1][i] for i in range(0, len(got[1]), 4)] == [1.0, 3.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+    assert got[1][0:8] == [*_scan(1, 1)[1:], *_scan(1, 3)[1:]]
+
+
+ticks = st.sets(st.integers(0, 60), max_size=40)
+logs = st.dictionaries(st.integers(0, 5), ticks, max_size=5)
+
+
+@settings(max_examples=200, deadline=None)
+@given(mine=logs, theirs=logs, t_cut=st.integers(-3, 70), max_bytes=st.sampled_from([None, 12, 30]))
+def test_answering_every_digest_leaves_the_peer_knowing_everything_up_to_t_cut(mine, theirs, t_cut, max_bytes):
+    a = _log(_scan(o, k) for o, ks in mine.items() for k in ks)
+    b = _log(_scan(o, k) for o, ks in theirs.items() for k in ks)
+    start = 0
+    for _ in range(10):  # a split digest covers every origin over successive rounds
+        lo, hi, bitmaps, start = b.digest(float(t_cut), start, max_bytes)
+        for origin, flat in a.missing(lo, hi, bitmaps, float(t_cut), limit=10_000):
+            assert flat, "an origin is listed only with something to send"
+            for i in range(0, len(flat), 4):
+                assert flat[i] <= t_cut
+                assert b.add(origin, *flat[i:i + 4]), "only scans the peer lacked are sent"
+        if start == 0:
+            break
+    for o, k in {(o, k) for o, ks in mine.items() for k in ks if k <= t_cut}:
+        assert not b.add(*_scan(o, k)), f"still lacks origin {o} tick {k}"
+
+
+def test_missing_respects_the_limit_oldest_first():
+    a = _log([_scan(o, k) for o in (1, 2) for k in range(10)])
+    out = list(a.missing(0, ORIGIN_MAX, (), 100.0, limit=12))
+    assert [o for o, _ in out] == [1, 2]
+    assert len(out[0][1]) == 40 and len(out[1][1]) == 8 and out[1][1][0] == 0.0
