@@ -90,7 +90,8 @@ class SwarmMachine(RuleBasedStateMachine):
 
     * ``checkers``: names from :data:`CHECKERS` checked after every rule (default: those that
       the current simulator keeps under any planner and any fault: threat clearance, dynamic
-      limits, radio legality, map monotonicity);
+      limits, radio legality, map monotonicity, and, thanks to anti-entropy, map agreement once
+      quiet and late-joiner catch-up);
     * ``max_time_s``: no ``advance`` past this simulated time (keeps examples cheap);
     * ``max_uavs``: no ``join`` beyond this many UAVs;
     * ``max_steps_per_advance``: ticks one ``advance`` may take;
@@ -104,7 +105,8 @@ class SwarmMachine(RuleBasedStateMachine):
     ``"separation"`` to ``checkers`` to see it.
     """
 
-    checkers: ClassVar[tuple[str, ...]] = ("threat", "dynamics", "radio", "map_monotonic")
+    checkers: ClassVar[tuple[str, ...]] = ("threat", "dynamics", "radio", "map_monotonic", "map_agreement",
+                                           "joiner_catch_up")
     max_time_s: ClassVar[float] = 90.0
     max_uavs: ClassVar[int] = 6
     max_steps_per_advance: ClassVar[int] = 30
