@@ -241,6 +241,82 @@ def _cmd_paper(args) -> int:
     return 1 if failed else 0
 
 
+def _cmd_resilience(args) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from swarm.resilience import parse_values, run_resilience
+
+    if args.seeds < 1:
+        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
+    if args.duration is not None and not args.duration > 0:
+        raise UsageError(f"--duration {args.duration:g}: expected a positive number of seconds")
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers {args.workers}: expected a whole number >= 1")
+    values = None
+    if args.values is not None:
+        if args.axis == "all":
+            raise UsageError("--values needs one axis (loss, burst, range or crash), not all")
+        values = parse_values(args.axis, args.values)
+    executor, client = _dask_executor(args)
+    err = _console(stderr=True)
+    try:
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
+                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TimeRemainingColumn(), console=err,
+                      transient=False, disable=args.quiet) as progress:
+            tasks: dict[str, int] = {}
+
+            def on_progress(key: str, desc: str, done: float, total: float, info: str) -> None:
+                count = f"{done:.0f}/{total:.0f}"
+                if key not in tasks:
+                    tasks[key] = progress.add_task(desc, total=total, count=count, info=info)
+                progress.update(tasks[key], completed=done, total=total, count=count, info=info)
+
+            report = run_resilience(args.axis, args.out, values=values, scenario=args.scenario, seeds=args.seeds,
+                                    duration_s=args.duration, crash_at_s=args.crash_at, burst_loss=args.burst_loss,
+                                    executor=executor, workers=args.workers, progress=on_progress)
+    finally:
+        if client is not None:
+            client.close()
+    failed = []
+    for rep in report.axes:
+        res = rep.sweep
+        print(f"{rep.axis}: {rep.out_dir}: {res.total} runs: {res.skipped} already finished, {res.ran} ran, "
+              f"{len(res.failed)} failed", file=sys.stderr)
+        for fig in rep.figures:
+            print(f"{rep.axis}: figure {fig}", file=sys.stderr)
+        t = rep.results.get("target")
+        if t and t.get("available"):
+            k = t["dacmp"]["kept_coverage"]
+            print(f"{rep.axis}: DACMP keeps {k['mean']:.3f} [{k['ci95'][0]:.3f}, {k['ci95'][1]:.3f}] of its loss-free "
+                  f"coverage at {t['loss']:g} loss (target >= {t['kept_at_least']:g}: "
+                  f"{'met' if t['met'] else 'not met'})", file=sys.stderr)
+        failed += [f for f in res.failed]
+    if not args.quiet:
+        _console().print(_resilience_table(report))
+    print(f"table: {report.table_md} and {report.table_csv}", file=sys.stderr)
+    for f in failed:
+        print(f"failed: {f['run']}: {f['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _resilience_table(report):
+    from rich.table import Table
+
+    t = Table(title="resilience (mean [95% interval] over seeds)")
+    for col in ("axis", "value", "coverage DACMP", "coverage greedy", "targets DACMP", "targets greedy"):
+        t.add_column(col, justify="right" if col != "axis" else "left")
+
+    def cell(d, digits):
+        return f"{d['mean']:.{digits}f} [{d['ci95'][0]:.{digits}f}, {d['ci95'][1]:.{digits}f}]" if d else "-"
+
+    for rep in report.axes:
+        for pt in rep.results["points"]:
+            pl = pt["planners"]
+            t.add_row(rep.axis, pt["label"], cell(pl["dacmp"]["coverage"], 3), cell(pl["greedy"]["coverage"], 3),
+                      cell(pl["dacmp"]["targets_found"], 2), cell(pl["greedy"]["targets_found"], 2))
+    return t
+
+
 def _cmd_bench(args) -> int:
     from swarm.bench import CASES, main as bench_main
 
@@ -341,6 +417,28 @@ def build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--out", default="results/paper", help="output folder (default results/paper)")
     pa.add_argument("--quiet", action="store_true", help="no progress bars or table")
     pa.set_defaults(func=_cmd_paper)
+
+    rs = sub.add_parser("resilience", help="coverage and targets found under loss, burst loss, limited range, crashes")
+    rs.add_argument("axis", choices=["loss", "burst", "range", "crash", "all"],
+                    help="loss (i.i.d. loss 0..1), burst (Gilbert-Elliott bursts at 30%% mean loss), range "
+                         "(2..20 km, unlimited), crash (0..5 UAVs crash), or all of them")
+    rs.add_argument("--scenario", default="paper-fig11", help="built-in name or .toml file (default paper-fig11)")
+    rs.add_argument("--seeds", type=int, default=10, help="seeds 0..N-1 per planner and value (default 10)")
+    rs.add_argument("--values", default=None, metavar="V1,V2,...",
+                    help="values of one axis instead of its defaults: loss rates, burst lengths in frames, "
+                         "ranges in km (inf = unlimited), numbers of crashed UAVs")
+    rs.add_argument("--duration", type=float, default=None, help="simulated seconds per run (default: the scenario's)")
+    rs.add_argument("--crash-at", type=float, default=300.0, metavar="S", help="crash time of the crash axis (default 300 s)")
+    rs.add_argument("--burst-loss", type=float, default=0.3, metavar="RATE",
+                    help="mean loss rate of the burst axis (default 0.3)")
+    rwhere = rs.add_mutually_exclusive_group()
+    rwhere.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    rwhere.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="submit the runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    rs.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+    rs.add_argument("--out", default="results/resilience", help="output folder (default results/resilience)")
+    rs.add_argument("--quiet", action="store_true", help="no progress bars or table")
+    rs.set_defaults(func=_cmd_resilience)
 
     ls = sub.add_parser("list", help="list the built-in scenarios")
     ls.set_defaults(func=_cmd_list)
