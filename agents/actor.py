@@ -47,6 +47,19 @@ from comms.messages import (
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
 _TRACKS_PER_FRAME = 400
+# Neighbours expected to answer one digest (see UavActor._answer_digests).
+_ANSWERERS = 2
+
+
+def _answer_hash(me: int, sender: int, t_cut: float) -> int:
+    """A well-mixed non-negative integer of (me, sender, round): who answers which digest."""
+    h = (me * 0x9E3779B97F4A7C15 + sender * 0xC2B2AE3D27D4EB4F + int(t_cut * 16) * 0x165667B19E3779F9)
+    h &= 0xFFFFFFFFFFFFFFFF
+    h ^= h >> 31
+    h = (h * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    return h ^ (h >> 29)
+
+
 # Bytes of a packed scan (four msgpack floats) and room left in a frame for its header.
 _SCAN_BYTES = 36
 _FRAME_SLACK = 256
@@ -82,6 +95,7 @@ class ActorOutput:
     frames: list[bytes]
     plan: Plan
     received: list[tuple[int, int, bool]]  # (sender, nbytes, accepted) for frames drained this tick
+    replies: list[tuple[int, bytes]] = field(default_factory=list)  # (receiver, frame): unicast
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,6 +110,7 @@ class ActorSettings:
     sync_every_s: float = 5.0  # anti-entropy digest period (0: off); see agents.scanlog
     sync_settle_s: float = 2.0  # the digest covers scans up to this long ago (in flight: not missing)
     sync_max_records: int = 4000  # scans resent in answer to one digest
+    sync_horizon_s: float = 600.0  # scans older than this are neither kept nor compared
     apf: ApfSettings = field(default_factory=ApfSettings)
 
 
@@ -133,7 +148,7 @@ class UavActor:
         self.settings = settings
         self.mailbox = mailbox
         self.umap = UncertaintyMap(grid, tau)
-        self.scans = ScanLog(settings.dt)
+        self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
         self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
         self._next_digest = -math.inf
         self._digest_start = 0  # where the next digest begins when one frame cannot hold it all
@@ -252,7 +267,9 @@ class UavActor:
         a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
                                list(k.threats.values()), others, s.apf, s.dt)
         received, self._received = self._received, []
-        return ActorOutput(a, omega, self._outbox(r, plan), plan, received)
+        frames = self._outbox(r, plan)
+        replies = self._answer_digests(t) if self._digests else []
+        return ActorOutput(a, omega, frames, plan, received, replies)
 
     def _plausible(self, x: float, y: float, radius: float) -> bool:
         m = self._max_scan_r
@@ -336,15 +353,28 @@ class UavActor:
         counters.delivered += delivered
         return received
 
-    def _answer_digests(self, t: float) -> list[bytes]:
-        """Resend the scans each digest heard this tick lacks (anti-entropy, agents.scanlog)."""
-        frames: list[bytes] = []
+    def _answer_digests(self, t: float) -> list[tuple[int, bytes]]:
+        """Send each digest's sender the scans it lacks (anti-entropy, agents.scanlog), as
+        frames addressed to it alone.
+
+        Not every neighbour answers: in a dense swarm a digest is heard by hundreds of UAVs,
+        and all answering would send the same scans hundreds of times. Each UAV answers when a
+        hash of (itself, the sender, the digest's cut) falls in the first ``2 / n`` of its range,
+        ``n`` the neighbours it hears: about two answer each digest, different ones each round
+        (no random draw: the UAVs' streams are their planners'). With two or fewer neighbours
+        every one answers.
+        """
+        replies: list[tuple[int, bytes]] = []
         budget = self.settings.sync_max_records
         per_frame = self._scans_per_frame
+        timeout = self.settings.peer_timeout_s
+        n = sum(1 for p in self.knowledge.peers.values() if t - p.t_pose <= timeout)
         for dg in self._digests:
+            if n > _ANSWERERS and _answer_hash(self.uid, dg.uav, dg.t_cut) % n >= _ANSWERERS:
+                continue
             msgs: list = []
             room = per_frame  # scans the current frame can still take
-            for origin, flat in self.scans.missing(dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget):
+            for origin, flat in self.scans.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget):
                 budget -= len(flat) // 4
                 self.counters.scans_resent += len(flat) // 4
                 while flat:
@@ -352,14 +382,14 @@ class UavActor:
                     msgs.append(ScanRecords(origin, tuple(take)))
                     room -= len(take) // 4
                     if room == 0:
-                        frames.append(self._frame(t, msgs))
+                        replies.append((dg.uav, self._frame(t, msgs)))
                         msgs, room = [], per_frame
             if msgs:
-                frames.append(self._frame(t, msgs))
+                replies.append((dg.uav, self._frame(t, msgs)))
             if budget <= 0:
                 break
         self._digests = []
-        return frames
+        return replies
 
     def _frame(self, t: float, messages: list) -> bytes:
         self._seq += 1
@@ -383,13 +413,12 @@ class UavActor:
                 # The digest rides on the beacon (no extra frame); a long run's digest is split
                 # over several beacons (agents.scanlog.ScanLog.digest).
                 t_cut = t - s.sync_settle_s
-                lo, hi, bitmaps, self._digest_start = self.scans.digest(t_cut, self._digest_start, room)
-                msgs.append(ScanDigest(self.uid, t_cut, lo, hi, bitmaps))
+                self.scans.forget_before(t)
+                tick0, lo, hi, bitmaps, self._digest_start = self.scans.digest(t_cut, self._digest_start, room)
+                msgs.append(ScanDigest(self.uid, t_cut, tick0, lo, hi, bitmaps))
                 self._next_digest = t + s.sync_every_s - 1e-9
             frames.append(self._frame(t, msgs))
             self._next_beacon = t + s.beacon_every_s - 1e-9
-        if self._digests:
-            frames.extend(self._answer_digests(t))
         k = self.knowledge
         if t >= self._next_tracks and (k.tracks or k.threats):
             items = [TrackItem(tr.target, tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value)

@@ -1,4 +1,4 @@
-"""Every scan a UAV knows of, by origin and tick: what anti-entropy compares and resends.
+"""Every recent scan a UAV knows of, by origin and tick: what anti-entropy compares and resends.
 
 A UAV's map is the union (per-cell max of last-seen times) of scan disks: its own, one per tick,
 and those it heard in other UAVs' :class:`~comms.messages.ScanRecords`. A lost frame loses the
@@ -8,44 +8,60 @@ scans* each side knows is exact and cheap, because a UAV makes at most one scan 
 
 * the log keeps, per origin UAV, a bitmap of the ticks whose scan it knows, and the scans
   themselves ``(t, x, y, r)``;
-* a *digest* is those bitmaps (up to a cut-off time); a peer ANDs its own bitmaps with the
+* a *digest* is those bitmaps over a window of ticks; a peer ANDs its own bitmaps with the
   complement of the digest's and resends exactly the scans the sender lacks, including scans
   of third UAVs it relayed: so knowledge also crosses several radio hops.
 
-Applying a scan twice changes nothing (the map is a max-CRDT), so the log also lets a receiver
-skip scans it already applied.
+Only the last ``horizon_s`` seconds are kept and compared: a scan that old carries little
+information (``q`` is back near 1 after a few ``1/tau``) and memory stays bounded by
+``origins x horizon_s / dt`` scans per UAV however long the run. Applying a scan twice changes
+nothing (the map is a max-CRDT), so the log also lets a receiver skip scans it already applied.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
+FORGET_SLACK_TICKS = 64
 
 
 class ScanLog:
-    __slots__ = ("dt", "_bits", "_scans", "count", "_version", "_cut_cache")
+    __slots__ = ("dt", "horizon_ticks", "_floor", "_bits", "_base", "_scans", "count", "_version", "_cut_cache")
 
-    def __init__(self, dt: float):
+    def __init__(self, dt: float, horizon_s: float = math.inf):
         self.dt = dt
-        self._bits: dict[int, bytearray] = {}  # origin -> bit k set: the scan of tick k is known
+        self.horizon_ticks = math.inf if math.isinf(horizon_s) else max(1, math.ceil(horizon_s / dt))
+        # origin -> bitmap of ticks >= _base[origin] (bit k - base set: the scan of tick k is known)
+        self._bits: dict[int, bytearray] = {}
+        self._base: dict[int, int] = {}  # a multiple of 8: bitmaps start on a byte
+        self._floor = 0  # ticks before this are forgotten (forget_before)
         self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}
-        self.count = 0
-        self._version = 0  # bumped by every add: invalidates _cut_cache
-        self._cut_cache: tuple[int, int, dict[int, bytes]] | None = None
-
-    def tick_of(self, t: float) -> int:
-        return round(t / self.dt)
+        self.count = 0  # scans held
+        self._version = 0  # bumped by every change: invalidates _cut_cache
+        self._cut_cache: tuple[int, int, int, dict[int, bytes], tuple] | None = None
 
     def add(self, origin: int, t: float, x: float, y: float, r: float) -> bool:
-        """Record a scan; False if this origin's scan of that tick was known already (or ``t < 0``)."""
-        k = round(t / self.dt)
-        if k < 0:
+        """Record a scan. False if this origin's scan of that tick was known already (or
+        ``t < 0``): the caller need not apply it again. A scan older than what the log keeps
+        (see :meth:`forget_before`) is reported new (applying it twice is harmless), not stored."""
+        tick = round(t / self.dt)
+        if tick < 0:
             return False
+        if tick < self._floor:
+            return True
         bits = self._bits.get(origin)
         if bits is None:
             bits = self._bits[origin] = bytearray()
+            self._base[origin] = tick & ~7
             self._scans[origin] = {}
+        base = self._base[origin]
+        if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
+            grow = (base - (tick & ~7)) >> 3
+            bits[:0] = bytes(grow)
+            base = self._base[origin] = base - 8 * grow
+        k = tick - base
         i = k >> 3
         bit = 1 << (k & 7)
         if i < len(bits):
@@ -56,85 +72,129 @@ class ScanLog:
         else:
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
-        self._scans[origin][k] = (t, x, y, r)
+        self._scans[origin][tick] = (t, x, y, r)
         self.count += 1
         self._version += 1
         return True
 
-    def _cut(self, k_cut: int) -> dict[int, bytes]:
-        """Per origin, the bitmap bytes of ticks ``<= k_cut`` (trailing zero bytes dropped):
-        exactly what a digest with that cut carries. Memoised until the next :meth:`add`, so the
-        digests heard in one tick (same cut) are compared against one computation."""
+    def forget_before(self, t: float) -> None:
+        """Drop scans (and their bits) of ticks well before ``t - horizon_s``: a slack of
+        :data:`FORGET_SLACK_TICKS` keeps every tick of the log's own digest windows (cut a few
+        seconds back), or it would claim to lack scans it dropped and be sent them every time."""
+        if math.isinf(self.horizon_ticks):
+            return
+        k_min = (round(t / self.dt) - self.horizon_ticks - FORGET_SLACK_TICKS) & ~7
+        if k_min <= self._floor:
+            return
+        self._floor = k_min
+        for origin, base in self._base.items():
+            if base >= k_min:
+                continue
+            drop = (k_min - base) >> 3
+            del self._bits[origin][:drop]
+            self._base[origin] = base + 8 * drop
+            scans = self._scans[origin]
+            for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
+                if scans.pop(k, None) is not None:
+                    self.count -= 1
+            self._version += 1
+
+    def window(self, t_cut: float) -> tuple[int, int]:
+        """``(tick0, k_cut)``: the ticks a digest cut at ``t_cut`` covers (tick0 a multiple of 8)."""
+        k_cut = math.floor(t_cut / self.dt)
+        lo = 0 if math.isinf(self.horizon_ticks) else max(0, k_cut - self.horizon_ticks)
+        return lo & ~7, k_cut
+
+    def _cut(self, tick0: int, k_cut: int) -> tuple[dict[int, bytes], tuple]:
+        """Per origin, the bitmap bytes of ticks ``tick0..k_cut`` (bit ``k - tick0``; trailing
+        zero bytes dropped, origins with none left out): what a digest with that window
+        carries, as a dict and as the digest's tuple. Memoised until the log changes, so the
+        digests heard in one tick (same window) are compared against one computation."""
         c = self._cut_cache
-        if c is not None and c[0] == k_cut and c[1] == self._version:
-            return c[2]
-        n = (k_cut >> 3) + 1
-        keep = (1 << ((k_cut & 7) + 1)) - 1  # bits 0..k_cut%8 of the last byte
+        if c is not None and c[0] == tick0 and c[1] == k_cut and c[2] == self._version:
+            return c[3], c[4]
         out = {}
         for origin in sorted(self._bits):
-            b = self._bits[origin][:n]
+            base = self._base[origin]
+            bits = self._bits[origin]
+            if base > tick0:  # the log starts later: pad (tick0 and base are multiples of 8)
+                bits = bytes((base - tick0) >> 3) + bits
+            else:
+                bits = bits[(tick0 - base) >> 3:]
+            n = ((k_cut - tick0) >> 3) + 1
+            b = bytearray(bits[:n])
             if len(b) == n:
-                b[-1] &= keep
-            out[origin] = bytes(b.rstrip(b"\0"))
-        self._cut_cache = (k_cut, self._version, out)
-        return out
+                b[-1] &= (1 << (((k_cut - tick0) & 7) + 1)) - 1  # ticks up to k_cut only
+            b = bytes(b.rstrip(b"\0"))
+            if b:
+                out[origin] = b
+        items = tuple(out.items())
+        self._cut_cache = (tick0, k_cut, self._version, out, items)
+        return out, items
 
     def digest(self, t_cut: float, start: int = 0, max_bytes: int | None = None
-               ) -> tuple[int, int, tuple[tuple[int, bytes], ...], int]:
-        """``(lo, hi, bitmaps, next_start)``: per origin (ascending) in ``[lo, hi]``, the bitmap of
-        known scans at ticks ``<= t_cut`` (little-endian: bit ``k % 8`` of byte ``k // 8``).
+               ) -> tuple[int, int, int, tuple[tuple[int, bytes], ...], int]:
+        """``(tick0, lo, hi, bitmaps, next_start)``: per origin (ascending) in ``[lo, hi]``, the
+        bitmap of known scans at ticks ``tick0..t_cut`` (little-endian: bit ``j % 8`` of byte
+        ``j // 8`` is tick ``tick0 + j``).
 
         All origins if they fit in ``max_bytes`` of bitmaps; otherwise those from the
-        ``start``-th known origin on that fit, and ``next_start`` says where the next digest
-        should begin, so successive digests cover everything. An origin in ``[lo, hi]`` that is
-        not listed is one this log knows nothing of.
+        ``start``-th on that fit, and ``next_start`` says where the next digest should begin,
+        so successive digests cover everything. An origin in ``[lo, hi]`` that is not listed is
+        one this log knows no scan of in the window.
         """
-        k_cut = int(t_cut // self.dt)
-        if k_cut < 0 or not self._bits:
-            return 0, ORIGIN_MAX, (), 0
-        cut = self._cut(k_cut)
-        origins = list(cut)
-        start = start if 0 <= start < len(origins) else 0
+        tick0, k_cut = self.window(t_cut)
+        if k_cut < 0:
+            return 0, 0, ORIGIN_MAX, (), 0
+        _, items = self._cut(tick0, k_cut)
+        if max_bytes is None or sum(len(b) + 8 for _, b in items) <= max_bytes:
+            return tick0, 0, ORIGIN_MAX, items, 0
+        start = start if 0 <= start < len(items) else 0
         out = []
         used = 0
         i = start
-        while i < len(origins):
-            b = cut[origins[i]]
-            if max_bytes is not None and out and used + len(b) + 8 > max_bytes:
+        while i < len(items):
+            b = items[i][1]
+            if out and used + len(b) + 8 > max_bytes:
                 break
-            out.append((origins[i], b))
+            out.append(items[i])
             used += len(b) + 8
             i += 1
-        lo = 0 if start == 0 else origins[start]
-        hi = ORIGIN_MAX if i == len(origins) else origins[i] - 1
-        return lo, hi, tuple(out), (i if i < len(origins) else 0)
+        lo = 0 if start == 0 else items[start][0]
+        hi = ORIGIN_MAX if i == len(items) else items[i][0] - 1
+        return tick0, lo, hi, tuple(out), (i if i < len(items) else 0)
 
-    def missing(self, lo: int, hi: int, bitmaps, t_cut: float, limit: int) -> Iterator[tuple[int, list[float]]]:
-        """The scans this log knows at ticks ``<= t_cut`` of origins in ``[lo, hi]`` that the
-        digest ``bitmaps`` lacks, as ``(origin, [t, x, y, r, ...])`` per origin (ascending), at
-        most ``limit`` scans in all, oldest first within an origin."""
-        k_cut = int(t_cut // self.dt)
-        if k_cut < 0 or limit <= 0 or not self._bits:
+    def missing(self, tick0: int, lo: int, hi: int, bitmaps, t_cut: float, limit: int
+                ) -> Iterator[tuple[int, list[float]]]:
+        """The scans this log holds at ticks ``tick0..t_cut`` of origins in ``[lo, hi]`` that
+        the digest ``bitmaps`` (relative to ``tick0``) lacks, as ``(origin, [t, x, y, r, ...])``
+        per origin (ascending), at most ``limit`` scans in all, oldest first within an origin."""
+        k_cut = math.floor(t_cut / self.dt)
+        if k_cut < 0 or limit <= 0 or not self._bits or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
             return
+        mine, items = self._cut(tick0, k_cut)
+        if lo == 0 and hi == ORIGIN_MAX and bitmaps == items:
+            return  # the usual case on a good radio: the same knowledge, nothing to send
         theirs = dict(bitmaps)
         left = limit
-        for origin, mine in self._cut(k_cut).items():
-            if not lo <= origin <= hi or not mine:
+        for origin, b in mine.items():
+            if not lo <= origin <= hi:
                 continue
             other = theirs.get(origin, b"")
-            if other == mine:  # the usual case on a good radio: nothing to send
+            if other == b:
                 continue
-            lack = int.from_bytes(mine, "little") & ~int.from_bytes(other, "little")
-            if not lack:
-                continue
+            lack = int.from_bytes(b, "little") & ~int.from_bytes(other, "little")
             scans = self._scans[origin]
             flat: list[float] = []
             while lack and left:
                 low = lack & -lack
-                flat.extend(scans[low.bit_length() - 1])
+                scan = scans.get(tick0 + low.bit_length() - 1)
+                if scan is not None:
+                    flat.extend(scan)
+                    left -= 1
                 lack ^= low
-                left -= 1
-            yield origin, flat
+            if flat:
+                yield origin, flat
             if not left:
                 return
 

@@ -62,7 +62,7 @@ def _pack_message(m: Message) -> list:
     if type(m) is Threats:
         return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
     if type(m) is ScanDigest:
-        return [K_DIGEST, m.uav, m.t_cut, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
+        return [K_DIGEST, m.uav, m.t_cut, m.tick0, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
     raise TypeError(f"not a message: {m!r}")
 
 
@@ -142,14 +142,14 @@ def _message(raw) -> Message:
             items.append(item)
         return Threats(tuple(items))
     if kind == K_DIGEST:
-        _list(raw, 6)
+        _list(raw, 7)
         bitmaps = []
-        for it in _list(raw[5]):
+        for it in _list(raw[6]):
             it = _list(it, 2)
             if type(it[1]) is not bytes:
                 raise FrameError("digest: bitmap is not bytes")
             bitmaps.append((_int(it[0]), it[1]))
-        return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), tuple(bitmaps))
+        return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), _int(raw[5]), tuple(bitmaps))
     raise FrameError(f"unknown message kind {kind}")
 
 

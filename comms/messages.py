@@ -86,15 +86,16 @@ class Threats:
 class ScanDigest:
     """Anti-entropy: which scans the sender knows (see :mod:`agents.scanlog`).
 
-    ``bitmaps`` holds ``(origin, bits)`` pairs: bit ``k % 8`` of byte ``k // 8`` set when the
-    sender knows ``origin``'s scan of tick ``k``, for ticks up to ``t_cut``. The digest speaks
-    for the origins ``lo..hi``: one of those not listed is one the sender knows nothing of (a
-    long run's digest is split over several beacons). A neighbour answers with
-    :class:`ScanRecords` of the scans the sender lacks.
+    ``bitmaps`` holds ``(origin, bits)`` pairs: bit ``j % 8`` of byte ``j // 8`` set when the
+    sender knows ``origin``'s scan of tick ``tick0 + j``, for ticks up to ``t_cut``. The digest
+    speaks for the origins ``lo..hi``: one of those not listed is one the sender knows nothing
+    of in the window (a swarm's digest may be split over several beacons). A neighbour answers
+    with :class:`ScanRecords` of the scans the sender lacks.
     """
 
     uav: int
     t_cut: float
+    tick0: int
     lo: int
     hi: int
     bitmaps: tuple[tuple[int, bytes], ...]

@@ -221,12 +221,17 @@ class Radio:
 
     # --- transmission -----------------------------------------------------------------------
 
-    def broadcast(self, t: float, src: int, data: bytes, out: list[Delivery], on_lost=None) -> None:
+    def broadcast(self, t: float, src: int, data: bytes, out: list[Delivery], on_lost=None,
+                  to: int | None = None) -> None:
         """Offer one frame to every neighbour of ``src``; surviving copies are appended to ``out``.
 
         ``on_lost(src, dst, nbytes, cause)`` is called for every lost copy (for the event log).
+        ``to``: a unicast frame, offered to that neighbour only (nothing if it is out of range);
+        the same link, loss and faults as its copy of a broadcast.
         """
         nbrs = self._neighbours.get(src)
+        if to is not None and nbrs:
+            nbrs = [to] if to in self.graph._adj[src] else None
         if not nbrs:
             return
         c = self.counters

@@ -367,11 +367,12 @@ class RadioSettings(_Model):
     beacon_every_s: Num = _num(1.0, gt=0)
     tracks_every_s: Num = _num(5.0, gt=0)
     # Anti-entropy (agents.scanlog): every sync_every_s a UAV's beacon carries a digest of the
-    # scans it knows up to sync_settle_s ago; neighbours resend what it lacks, at most
-    # sync_max_records scans each time. 0 turns it off.
+    # scans it knows from the last sync_horizon_s up to sync_settle_s ago; neighbours resend what
+    # it lacks, at most sync_max_records scans each time. sync_every_s = 0 turns it off.
     sync_every_s: Num = _num(5.0, ge=0, note="seconds; 0 = no anti-entropy")
     sync_settle_s: Num = _num(2.0, ge=0)
     sync_max_records: Int = _int(4000, ge=0)
+    sync_horizon_s: Num = _num(600.0, gt=0, note="seconds; scans older than this are not resent")
 
     @property
     def range_limit_m(self) -> float:

@@ -194,6 +194,7 @@ class Simulation:
             sync_every_s=r.sync_every_s,
             sync_settle_s=r.sync_settle_s,
             sync_max_records=r.sync_max_records,
+            sync_horizon_s=r.sync_horizon_s,
             frame_max_bytes=r.frame_max_bytes,
             surveillance=sc.planner.surveillance,
             apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m),
@@ -513,8 +514,11 @@ class Simulation:
 
         broadcast = self.radio.broadcast
         for uid in alive:
-            for frame in outputs[uid].frames:
+            out = outputs[uid]
+            for frame in out.frames:
                 broadcast(t, uid, frame, deliveries, lost)
+            for dst, frame in out.replies:  # anti-entropy answers, to one neighbour each
+                broadcast(t, uid, frame, deliveries, lost, to=dst)
         by_time: dict[float, list[Delivery]] = defaultdict(list)
         if deliveries and deliveries[0][0] == deliveries[-1][0] and all(d[0] == deliveries[0][0] for d in deliveries):
             by_time[deliveries[0][0]] = deliveries  # one arrival time (no jitter or delay): one batch

@@ -99,7 +99,7 @@ def assert_well_typed(f: Frame) -> None:
                 assert 0 < i.radius <= i.d_max
                 nums += (i.x, i.y, i.radius, i.d_max)
         elif type(m) is ScanDigest:
-            assert type(m.uav) is int and type(m.lo) is int and type(m.hi) is int
+            assert type(m.uav) is int and type(m.tick0) is int and type(m.lo) is int and type(m.hi) is int
             assert all(type(o) is int and type(b) is bytes for o, b in m.bitmaps)
             nums = (m.t_cut,)
         else:  # pragma: no cover - the assertion is the point
@@ -138,7 +138,7 @@ threat_items = positive.flatmap(
     )
 )
 threats = st.builds(Threats, st.lists(threat_items, max_size=6).map(tuple))
-digests = st.builds(ScanDigest, ints, finite, ints, ints,
+digests = st.builds(ScanDigest, ints, finite, ints, ints, ints,
                     st.lists(st.tuples(ints, st.binary(max_size=40)), max_size=5).map(tuple))
 messages = st.one_of(hellos, intents, scans, tracks, threats, digests)
 frames = st.builds(Frame, ints, ints, finite, st.lists(messages, max_size=6).map(tuple))
@@ -409,9 +409,9 @@ def test_hand_built_valid_frame_decodes():
         (frame_obj([[]]), "empty message"),
         (frame_obj([[0]]), "unknown message kind 0"),
         (frame_obj([[7, 1]]), "unknown message kind 7"),
-        (frame_obj([[6, 1, 0.0, 0, 9, [[1, "not bytes"]]]]), "digest: bitmap is not bytes"),
-        (frame_obj([[6, 1, 0.0, 0, 9, [[1]]]]), "expected 2 fields, got 1"),
-        (frame_obj([[6, 1, 0.0, 0, 9]]), "expected 6 fields, got 5"),
+        (frame_obj([[6, 1, 0.0, 0, 0, 9, [[1, "not bytes"]]]]), "digest: bitmap is not bytes"),
+        (frame_obj([[6, 1, 0.0, 0, 0, 9, [[1]]]]), "expected 2 fields, got 1"),
+        (frame_obj([[6, 1, 0.0, 0, 9, []]]), "expected 7 fields, got 6"),
         (frame_obj([[-1]]), "unknown message kind -1"),
         (frame_obj([[True, 1, "A", 1.0, 2.0, 3.0, 4.0]]), "expected an integer, got bool"),
         (frame_obj([[1.0, 1, "A", 1.0, 2.0, 3.0, 4.0]]), "expected an integer, got float"),

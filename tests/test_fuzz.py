@@ -66,7 +66,8 @@ def _valid_frame(rng: np.random.Generator) -> bytes:
             msgs.append(Threats((ThreatItem(int(rng.integers(0, 4)), num(), num(), r, r + 3000.0),)))
         else:
             bitmaps = tuple((int(o), rng.bytes(int(rng.integers(0, 12)))) for o in range(int(rng.integers(0, 4))))
-            msgs.append(ScanDigest(uav, float(rng.uniform(-10, 100)), 0, int(rng.integers(0, 8)), bitmaps))
+            msgs.append(ScanDigest(uav, float(rng.uniform(-10, 100)), 8 * int(rng.integers(-1, 3)), 0,
+                                   int(rng.integers(0, 8)), bitmaps))
     return encode(int(rng.integers(0, 6)), int(rng.integers(0, 1 << 20)), float(rng.uniform(0, 100)), msgs)
 
 
@@ -212,8 +213,9 @@ ABSURD = {
     "threat_huge": [Threats((ThreatItem(7, 1e308, 1e308, 1e308, 1e308),))],
     "scan_far_away": [ScanRecords(0, (0.0, 1e300, 1e300, 1.0))],
     "scan_overflowing_disk": [ScanRecords(0, (0.0, 1e308, 0.0, 1e308))],
-    "digest_from_the_far_future": [ScanDigest(0, 1e300, -5, 2**62, ((0, b"\xff" * 4000), (2**40, b"")))],
-    "digest_claiming_nothing": [ScanDigest(0, -1e300, 0, 0, ())],
+    "digest_from_the_far_future": [ScanDigest(0, 1e300, 0, -5, 2**62, ((0, b"\xff" * 4000), (2**40, b"")))],
+    "digest_with_a_huge_window": [ScanDigest(0, 5.0, -(2**60), 0, 9, ((0, b"\x01"),))],
+    "digest_claiming_nothing": [ScanDigest(0, -1e300, 2**40, 0, 0, ())],
 }
 
 

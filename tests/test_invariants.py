@@ -412,9 +412,9 @@ def test_map_agreement_holds_on_an_ideal_radio_and_catches_a_radio_that_loses_fr
     with Simulation(parse_scenario(_ideal())) as sim:
         send = sim.radio.broadcast
 
-        def lossy(t, src, data, out, on_lost=None):  # the planted bug: B1's frames vanish
+        def lossy(t, src, data, out, on_lost=None, to=None):  # the planted bug: B1's frames vanish
             if src != 0:
-                send(t, src, data, out, on_lost)
+                send(t, src, data, out, on_lost, to)
 
         sim.radio.broadcast = lossy
         bad = _run_live(sim, [MapAgreementChecker()])

@@ -15,7 +15,9 @@ History:
   stream, particles kept within 2.5 R_s. All intended behaviour changes.
 - anti-entropy (agents.scanlog): beacons carry a scan digest every 5 s and UAVs resend scans a
   neighbour lacks, so lost, partitioned and pre-join scans reach every map; heard scans with
-  absurd centres or radii are ignored. Frames and maps change: intended.
+  absurd centres or radii are ignored. Frames and maps change: intended. Then: answers are
+  unicast, about two neighbours answer a digest, scans older than 600 s are forgotten (dense
+  swarms sent every scan hundreds of times): intended.
 - (batched planning and the faster guide sums left these hashes unchanged, as they must.)
 """
 
@@ -26,8 +28,8 @@ import pytest
 from swarm import Simulation
 
 PINNED = {
-    "greedy": "7bc2a682e01017e0c0f428da18e0b08eb2ffbfaafe6283423ba95a569f50596f",
-    "dacmp": "2cbdb591681a2feb28817322d5ed85efbaeccdd1406d81f270a172976a536d52",
+    "greedy": "28ac6a09c44b534c028ac764ff241b191238cf8874c828dda12d1a4c75244b20",
+    "dacmp": "e8512ba9155e565baede0e5f4436620a79d9e2069785173c9b1538fae07d08b3",
 }
 
 
