@@ -357,6 +357,14 @@ def _cmd_report(args) -> int:
     return 0
 
 
+def _add_executor_args(parser: argparse.ArgumentParser, scheduler_help: str) -> None:
+    """``--workers K`` or ``--scheduler ADDRESS`` (see :func:`_dask_executor`)."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help=scheduler_help)
+    parser.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
     sub = p.add_subparsers(dest="command", required=True)
@@ -390,11 +398,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                     help="sweep a scenario setting over values, e.g. --set radio.loss_base=0,0.3 (repeatable)")
     sw.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
-    where = sw.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="submit to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    sw.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+    _add_executor_args(sw, "submit to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
     sw.add_argument("--figures", action="store_true", help="write trajectories.png for every run")
     sw.add_argument("--out", required=True, help="sweep folder (runs/, summary.json, summary.csv)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar or table")
@@ -409,11 +413,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "all: case2 gets case3's count)")
     pa.add_argument("--duration", type=float, default=None,
                     help="simulated seconds per run (default: each scenario's; shorter for quick trials)")
-    pwhere = pa.add_mutually_exclusive_group()
-    pwhere.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    pwhere.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="submit the multi-seed runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    pa.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+    _add_executor_args(pa, "submit the multi-seed runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
     pa.add_argument("--out", default="results/paper", help="output folder (default results/paper)")
     pa.add_argument("--quiet", action="store_true", help="no progress bars or table")
     pa.set_defaults(func=_cmd_paper)
@@ -431,11 +431,7 @@ def build_parser() -> argparse.ArgumentParser:
     rs.add_argument("--crash-at", type=float, default=300.0, metavar="S", help="crash time of the crash axis (default 300 s)")
     rs.add_argument("--burst-loss", type=float, default=0.3, metavar="RATE",
                     help="mean loss rate of the burst axis (default 0.3)")
-    rwhere = rs.add_mutually_exclusive_group()
-    rwhere.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    rwhere.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="submit the runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    rs.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
+    _add_executor_args(rs, "submit the runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
     rs.add_argument("--out", default="results/resilience", help="output folder (default results/resilience)")
     rs.add_argument("--quiet", action="store_true", help="no progress bars or table")
     rs.set_defaults(func=_cmd_resilience)
