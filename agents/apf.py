@@ -14,8 +14,16 @@ radius (plus margin) of a threat edge and heading towards it: full turn away, mi
 The same holds between UAVs: at 180 m/s closing speed the eq. 31-32 field acts for only a few
 seconds. So each UAV also predicts the closest point of approach with every UAV it hears
 (constant velocities) and, if they would pass closer than twice the minimum separation within
-``cpa_horizon_s``, turns right at full rate; both turning right resolves head-on and crossing
-conflicts (the rule of the air), deterministically and without negotiation.
+``cpa_horizon_s``, turns at full rate away from where the other will be: right when it will be
+on its left, left when on its right. When the predicted miss is under the minimum separation
+its side, computed from poses heard a second ago, is noise (two B UAVs read a 20 m miss the
+same way round, turned into each other and flew 10 s closer than 200 m), so both take the
+side given by their relative velocity turned clockwise, which they agree on: head-on both turn
+right (the rule of the air), overtaking the two turn apart. (Always turning right, as before,
+does not resolve overtaking or side-by-side conflicts: both turn the same way, the slower one
+faster.) It also speeds up when the other will pass behind it and slows down when ahead: two
+UAVs converging at a shallow angle have that point almost on both headings, where turning
+barely helps. Deterministic and without negotiation.
 The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_command`).
 """
 
@@ -38,7 +46,7 @@ class ApfSettings:
     uav_dmax_m: float = 1000.0
     min_separation_m: float = 200.0
     threat_margin_m: float = 300.0
-    cpa_horizon_s: float = 15.0
+    cpa_horizon_s: float = 15.0  # scenario: planner.apf.lookahead_s
 
 
 def apf_command(
@@ -84,7 +92,9 @@ def apf_command(
             guard_turn = 1.0 if side >= 0 else -1.0
 
     vx, vy = v * math.cos(theta), v * math.sin(theta)
-    conflict = False
+    conflict = 0.0  # turn direction for the earliest predicted conflict (+1 left, -1 right)
+    conflict_speed = speed
+    t_first = math.inf
     for ox, oy, ovx, ovy in others:
         ex, ey = x - ox, y - oy
         dd = math.hypot(ex, ey)
@@ -95,8 +105,22 @@ def apf_command(
             t_cpa = (ex * wx_ + ey * wy_) / w2  # = -(p . w)/|w|^2 with p = other - me = -e
             if 0.0 < t_cpa < s.cpa_horizon_s:
                 mx, my = -ex + wx_ * t_cpa, -ey + wy_ * t_cpa
-                if mx * mx + my * my < (2.0 * s.min_separation_m) ** 2:
-                    conflict = True
+                miss2 = mx * mx + my * my
+                if miss2 < (2.0 * s.min_separation_m) ** 2 and t_cpa < t_first:
+                    t_first = t_cpa
+                    if miss2 < (0.25 * s.min_separation_m) ** 2:
+                        # Nearly a collision course: the side of a miss this small is noise
+                        # (heard poses, turning), and the two UAVs could read it the same way
+                        # round and turn into each other. Use a side both agree on: the
+                        # relative velocity turned clockwise (the other UAV computes the
+                        # opposite vector). Head-on, that has both turn right.
+                        mx, my = wy_, -wx_
+                    # Move away from where the other will be: turn right if it is on our
+                    # left, and speed up if it will be behind us, slow down if ahead. (When
+                    # two UAVs converge at a shallow angle it lies almost along both headings:
+                    # a turn barely moves either away from it, a change of speed does.)
+                    conflict = -1.0 if math.cos(theta) * my - math.sin(theta) * mx >= 0.0 else 1.0
+                    conflict_speed = kind.speed_min if math.cos(theta) * mx + math.sin(theta) * my > 0.0 else kind.speed_max
         if dd < 1e-9 or dd > s.uav_dmax_m:
             continue
         c = s.uav_c
@@ -110,7 +134,8 @@ def apf_command(
         omega = guard_turn * kind.turn_rate_max(v)
         speed = kind.speed_min
     elif conflict:
-        omega = -kind.turn_rate_max(v)  # turn right
+        omega = conflict * kind.turn_rate_max(v)
+        speed = conflict_speed
     elif fx == 0.0 and fy == 0.0:
         omega = 0.0
     else:

@@ -50,7 +50,8 @@ The invariants (``name``: class, parameters and their defaults):
 * ``handover``: :class:`HandoverChecker(takeover_s=60, release_s=60)`: a target watched by a
   fast UAV, with a free (searching) slower UAV inside the slower one's influence radius ``D``
   of the target that can talk to the watcher, is taken over within ``takeover_s``; once the
-  slower UAV watches it the fast one stops within ``release_s`` and returns to search.
+  slower UAV watches it from within its detection radius (it has arrived) the fast one stops
+  within ``release_s`` and returns to search.
 * ``no_drop``: :class:`NoDropChecker(grace_s=10)`: a watched target is never left unwatched by
   a watcher that is still flying (unless someone else watches it within ``grace_s``).
 
@@ -756,7 +757,12 @@ class HandoverChecker(_WatchChecker):
                     continue
                 slower_watching = [s for s in ws if s != f and ctx.kind(s) is not None
                                    and ctx.kind(s).speed_max < kf.speed_max]
-                for s in slower_watching:
+                # The release clock starts when the slower UAV has arrived (watches the target
+                # from within its detection radius), as the handover metric counts it: a slow
+                # UAV declaring a target from 10 km away has not taken it over yet.
+                arrived = [s for s in slower_watching if pos is not None
+                           and math.hypot(poses[s][0] - pos[0], poses[s][1] - pos[1]) <= ctx.kind(s).detect_radius]
+                for s in arrived:
                     if ctx.can_talk(f, s, t, poses):
                         key = (m, f, s)
                         overlaps.add(key)

@@ -5,8 +5,19 @@
 * ``targets_found``: targets seen at least once;
 * surveillance: per target, the share of time since first detection during which some UAV in
   surveillance mode had it inside its detection radius; per UAV, seconds in each mode;
-  handovers (a target's watcher changing, with the UAV types, and the time from the new
-  watcher's start to the old one's release).
+  handovers (below).
+
+A UAV *watches* a target while it is in surveillance mode assigned to it, and *holds* it while
+it also has it inside its detection radius (ground truth): a UAV on its way to a target watches
+it but does not hold it yet. A target's *owner* is the UAV that held it last. A handover (the
+paper's "the low-speed UAVs replaced the high-speed UAVs to monitor the target") is a new UAV
+taking a target over from its owner: it holds the target, and it started watching it before
+the owner stopped watching it (the two assignments overlap: it came because of the target,
+not by chance after the target was dropped). It is logged when both hold: at the owner's
+release, or at the newcomer's arrival if the owner had already let go. Its ``latency_s`` is the
+spec's "time from the slow UAV's arrival to the fast UAV's release" (negative when the owner
+left before the newcomer arrived). An owner that stops watching while nobody holds the target
+logs a ``release``.
 """
 
 from __future__ import annotations
@@ -32,7 +43,7 @@ class Handover:
     to_uav: int
     from_type: str
     to_type: str
-    latency_s: float  # release time minus the time the new watcher started watching
+    latency_s: float  # the owner's release time minus the newcomer's arrival
 
 
 @dataclass
@@ -44,8 +55,10 @@ class Metrics:
     found_t: dict[int, float] = field(default_factory=dict)
     watched_s: dict[int, float] = field(default_factory=dict)
     mode_s: dict[int, dict[str, float]] = field(default_factory=dict)
-    holder: dict[int, int] = field(default_factory=dict)
-    watch_since: dict[tuple[int, int], float] = field(default_factory=dict)
+    owner: dict[int, int] = field(default_factory=dict)  # target -> UAV that held it last
+    released_at: dict[int, float] = field(default_factory=dict)  # target -> when its owner stopped watching
+    watch_since: dict[tuple[int, int], float] = field(default_factory=dict)  # (uid, target) -> start
+    arrived: dict[tuple[int, int], float] = field(default_factory=dict)  # (uid, target) -> first hold
     handovers: list[Handover] = field(default_factory=list)
     rows: list[dict] = field(default_factory=list)
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
@@ -110,40 +123,48 @@ class Metrics:
                 if m not in self.found_t:
                     self.found_t[m] = t
                     events.append(("found", t, m, uid))
-        watching: dict[int, list[int]] = {}
+        watching: dict[int, set[int]] = {}
+        holding: dict[int, set[int]] = {}
         covered: set[int] = set()
         for uid, (mode, target) in plans.items():
             ms = self.mode_s.setdefault(uid, {"search": 0.0, "surveil": 0.0})
             if mode == MODE_SURVEIL:
                 ms["surveil"] += dt
-                covered.update(sensed.get(uid, ()))
+                seen = sensed.get(uid, ())
+                covered.update(seen)
                 if target >= 0:
-                    watching.setdefault(target, []).append(uid)
+                    watching.setdefault(target, set()).add(uid)
                     self.watch_since.setdefault((uid, target), t)
+                    if target in seen:
+                        holding.setdefault(target, set()).add(uid)
+                        self.arrived.setdefault((uid, target), t)
             else:
                 ms["search"] += dt
-        for key in [k for k in self.watch_since if k[1] not in watching or k[0] not in watching[k[1]]]:
+        for key in [k for k in self.watch_since if k[0] not in watching.get(k[1], ())]:
             del self.watch_since[key]
+            self.arrived.pop(key, None)
         for m in self.found_t:
             if m in covered:
                 self.watched_s[m] = self.watched_s.get(m, 0.0) + dt
-        for m in sorted(set(self.holder) | set(watching)):
-            now = sorted(watching.get(m, []))
-            old = self.holder.get(m)
-            if old is not None and old in now:
+        for m in sorted(set(self.owner) | set(holding)):
+            old = self.owner.get(m)
+            if old is not None and old in watching.get(m, ()):
+                self.released_at.pop(m, None)
+                continue  # the owner is (again) on it: a newcomer waits for its release
+            if old is not None and m not in self.released_at:
+                self.released_at[m] = t
+                if not holding.get(m):
+                    events.append(("release", t, m, old))
+            arrivals = sorted((self.arrived[(u, m)], u) for u in holding.get(m, ()) if u != old)
+            if not arrivals:
                 continue
-            if old is not None and now:
-                new = now[0]
-                since = self.watch_since.get((new, m), t)
-                h = Handover(t, m, old, new, types.get(old, "?"), types.get(new, "?"), t - since)
-                self.handovers.append(h)
+            arrived, new = arrivals[0]
+            if old is not None and self.watch_since[(new, m)] <= self.released_at[m]:
+                latency = self.released_at[m] - arrived
+                self.handovers.append(Handover(t, m, old, new, types.get(old, "?"), types.get(new, "?"), latency))
                 events.append(("handover", t, m, old, new))
-            elif old is not None:
-                events.append(("release", t, m, old))
-            if now:
-                self.holder[m] = now[0]
-            else:
-                self.holder.pop(m, None)
+            self.owner[m] = new
+            self.released_at.pop(m, None)
         return events
 
     def surveillance_ratio(self, t_end: float) -> dict[int, float]:

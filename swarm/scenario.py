@@ -518,6 +518,11 @@ class DacmpSettings(_Model):
     field_unit_m: Num = _num(1000.0, gt=0, note="metres per distance unit of eq. 22-23")
     # Particles closer than this to a known threat's edge are infeasible (on top of the circle).
     threat_margin_m: Num = _num(300.0, ge=0)
+    # Our choice: a track nobody has refreshed for this long no longer attracts (eq. 22 needs the
+    # target's state g_m(t)); a watcher that lost its target returns to search. Left out: the
+    # map's memory time 1 / tau (200 s with the defaults), the time a target needs to cross a
+    # sensor footprint.
+    track_max_age_s: Num | None = _num(None, gt=0, note="seconds", optional=True)
     # lambda_1..lambda_L of eq. 19; None = equal weights summing to 1; the length is checked
     # against map.levels by Scenario.
     level_weights: list[Annotated[float, Strict(), Field(ge=0)]] | None = Field(
@@ -539,7 +544,9 @@ class ApfSettings(_Model):
     uav_b: Num = _num(400.0, gt=0)
     uav_c: Num = _num(200.0, gt=0)
     uav_dmax_m: Num = _num(1000.0, gt=0)
-    lookahead_s: Num = _num(20.0, gt=0)
+    # Collision avoidance looks this far ahead for a closest approach under 2 * min separation
+    # (agents/apf.py).
+    lookahead_s: Num = _num(15.0, gt=0, note="seconds")
 
 
 class PlannerSettings(_Model):
@@ -547,6 +554,12 @@ class PlannerSettings(_Model):
     replan_s: Num = _num(10.0, gt=0)
     # False: a sighting ends interest in a target (search only, as in paper-fig11).
     surveillance: Bool = Field(True, description="true or false")
+    # Our choice (the paper does not say how a watcher flies): it circles its target at radius
+    # max(loiter_radius_factor * R_s, loiter_turn_factor * turn radius at minimum speed),
+    # following a vector field with approach gain loiter_gain.
+    loiter_radius_factor: Num = _num(0.5, gt=0, note="times the detection radius")
+    loiter_turn_factor: Num = _num(1.25, ge=1, note="times the turn radius at minimum speed")
+    loiter_gain: Num = _num(1.0, gt=0)
     greedy: GreedySettings = _table(GreedySettings, "planner.greedy")
     dacmp: DacmpSettings = _table(DacmpSettings, "planner.dacmp")
     apf: ApfSettings = _table(ApfSettings, "planner.apf")

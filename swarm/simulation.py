@@ -162,6 +162,7 @@ class Simulation:
         self.log = EventLog()
         self.types = {name: uav_type_from_spec(name, spec) for name, spec in sc.uav_types.items()}
         self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
+        self.detect_radius_by_type = {n: t.detect_radius for n, t in self.types.items()}
 
         tm = sc.targets
         self.targets = Targets(TargetMotion(tm.speed_max, tm.accel_max, tm.accel_sigma, tm.turn_sigma, tm.turn_rate_max,
@@ -197,7 +198,11 @@ class Simulation:
             sync_horizon_s=r.sync_horizon_s,
             frame_max_bytes=r.frame_max_bytes,
             surveillance=sc.planner.surveillance,
-            apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m),
+            loiter_radius_factor=sc.planner.loiter_radius_factor,
+            loiter_turn_factor=sc.planner.loiter_turn_factor,
+            loiter_gain=sc.planner.loiter_gain,
+            apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m,
+                            cpa_horizon_s=ap.lookahead_s),
         )
 
         for p in tm.placed:
@@ -258,7 +263,8 @@ class Simulation:
         self.grid.set_disk_cache_size(max(256, 3 * len(self.world.uavs)))
         self._decoder.size = max(256, 4 * len(self.world.uavs))
         planner = make_planner(self.scenario.planner, levels=self.scenario.map.levels,
-                               speed_max_by_type=self.speed_max_by_type)
+                               speed_max_by_type=self.speed_max_by_type,
+                               detect_radius_by_type=self.detect_radius_by_type)
         self.actors[uid] = UavActor(
             uid, name, kind, self.grid, self.tau, planner, self.rng.generator("uav", name),
             self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity), decoder=self._decoder,

@@ -256,9 +256,16 @@ def test_handover_flags_slow_uav_that_never_takes_over():
 
 
 def test_handover_flags_fast_uav_that_does_not_release():
-    log = _handover_log(slow_modes=_watching(10, 999), fast_modes=_watching(0, 999))
+    log = _handover_log(slow_modes=_watching(10, 999), fast_modes=_watching(0, 999), slow_at=1000.0)
     (v,) = _check(log, HandoverChecker())
     assert "kept watching" in v.message and v.t == 71.0
+
+
+def test_handover_release_clock_starts_when_the_slow_uav_arrives():
+    # The slow UAV declares the target from 5 km, outside its 1.5 km detection radius: it has
+    # not taken it over yet, so the fast one still watching it is no violation.
+    log = _handover_log(slow_modes=_watching(10, 999), fast_modes=_watching(0, 999))
+    assert _check(log, HandoverChecker()) == []
 
 
 def test_handover_flags_fast_uav_that_does_not_return_to_search():

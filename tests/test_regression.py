@@ -13,11 +13,16 @@ History:
   every run with targets (greedy too). DACMP: pyramid layers read at the nearest coarse centre,
   eq. 19 over layers 1..L, guide from 4 x 4 sub-area means with ties drawn from the UAV's own
   stream, particles kept within 2.5 R_s. All intended behaviour changes.
+- Case 2 work (DACMP only; greedy unchanged): a UAV in surveillance mode of a target within
+  one planning step of it counts as being at the target in other UAVs' eq. 23 (same-type
+  exclusion, eq. 27, held only by chance before), the nearer of two same-type claimants keeps
+  it, a watcher keeps its target while its term dominates there and circles it (vector-field
+  loiter) instead of overflying it, stale tracks stop attracting, and the collision-avoidance
+  turn goes away from the other UAV instead of always right. Intended behaviour changes.
 - anti-entropy (agents.scanlog): beacons carry a scan digest every 5 s and UAVs resend scans a
-  neighbour lacks, so lost, partitioned and pre-join scans reach every map; heard scans with
-  absurd centres or radii are ignored. Frames and maps change: intended. Then: answers are
-  unicast, about two neighbours answer a digest, scans older than 600 s are forgotten (dense
-  swarms sent every scan hundreds of times): intended.
+  neighbour lacks (unicast, about two answerers, 600 s window), so lost, partitioned and
+  pre-join scans reach every map; heard scans with absurd centres or radii are ignored. Frames
+  and maps change: intended.
 - (batched planning and the faster guide sums left these hashes unchanged, as they must.)
 """
 
@@ -29,7 +34,7 @@ from swarm import Simulation
 
 PINNED = {
     "greedy": "28ac6a09c44b534c028ac764ff241b191238cf8874c828dda12d1a4c75244b20",
-    "dacmp": "e8512ba9155e565baede0e5f4436620a79d9e2069785173c9b1538fae07d08b3",
+    "dacmp": "f5d2755cef6c3b6229acad3475ff4eac1ec2d396b19743c5d8d516a9a0fe0f01",
 }
 
 

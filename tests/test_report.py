@@ -105,12 +105,14 @@ def test_run_report_content(reported_run):
     html = (reported_run / "report.html").read_text()
     for text in ("faults-small", "greedy", "coverage", "certainty", "task load per UAV".split()[0],
                  "CRASH B2", "JOIN A2", "partition B1 | B2,A1 begins", "partition healed", "drop 30% on",
-                 "receiver_down", "event log SHA-256", "B1", "A2"):
+                 "event log SHA-256", "B1", "A2"):
         assert text in html, text
     import json
 
     m = json.loads((reported_run / "metrics.json").read_text())
     assert f"{m['coverage']:.4f}" in html and m["event_log_sha256"] in html
+    causes = m["radio"]["dropped_by_cause"]
+    assert causes and all(cause in html for cause in causes)  # every cause of lost frames is listed
 
 
 def test_report_without_animation_and_errors(reported_run, tmp_path, capsys):

@@ -8,7 +8,8 @@ from agents.planners.greedy import GreedyPlanner
 PLANNER_NAMES = ("greedy", "dacmp")
 
 
-def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, float] | None = None) -> Planner:
+def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, float] | None = None,
+                 detect_radius_by_type: dict[str, float] | None = None) -> Planner:
     """Build the planner named by a scenario's ``[planner]`` table (one instance per UAV)."""
     name = settings.name
     if name == "greedy":
@@ -16,7 +17,7 @@ def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, floa
     if name == "dacmp":
         from agents.planners.dacmp import DacmpPlanner
 
-        return DacmpPlanner.from_settings(settings, levels, speed_max_by_type)
+        return DacmpPlanner.from_settings(settings, levels, speed_max_by_type, detect_radius_by_type)
     raise ValueError(f"unknown planner {name!r}; expected one of {', '.join(PLANNER_NAMES)}")
 
 

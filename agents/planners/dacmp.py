@@ -64,13 +64,19 @@ class DacmpPlanner:
     level_weights: tuple[float, ...] | None = None
     field_unit_m: float = 1000.0
     threat_margin_m: float = 300.0
+    # Tracks not refreshed for this long no longer attract (eq. 22 needs g_m(t): nobody sees
+    # it); None: the map's memory time 1 / tau (a cell's uncertainty reaches 1 - 1/e).
+    track_max_age_s: float | None = None
     # Other UAVs' top speeds by type name (v_j of eq. 23); unknown types count as our own.
     speed_max_by_type: dict[str, float] = field(default_factory=dict)
+    # Other UAVs' detection radii by type name (how far their next waypoint goes); unknown: ours.
+    detect_radius_by_type: dict[str, float] = field(default_factory=dict)
     name: str = "dacmp"
 
     @classmethod
     def from_settings(cls, planner_settings, levels: int = 7,
-                      speed_max_by_type: dict[str, float] | None = None) -> "DacmpPlanner":
+                      speed_max_by_type: dict[str, float] | None = None,
+                      detect_radius_by_type: dict[str, float] | None = None) -> "DacmpPlanner":
         d = planner_settings.dacmp
         return cls(
             particles=d.particles, iterations=d.iterations, w_start=d.w_start, w_end=d.w_end,
@@ -78,8 +84,9 @@ class DacmpPlanner:
             ring_mean_factor=d.ring_mean_factor, ring_sd_factor=d.ring_sd_factor, ring_max_factor=d.ring_max_factor,
             heading_sd_rad=d.heading_sd_rad, eta=d.eta, levels=levels,
             level_weights=tuple(d.level_weights) if d.level_weights is not None else None,
-            field_unit_m=d.field_unit_m, threat_margin_m=d.threat_margin_m,
+            field_unit_m=d.field_unit_m, threat_margin_m=d.threat_margin_m, track_max_age_s=d.track_max_age_s,
             speed_max_by_type=dict(speed_max_by_type or {}),
+            detect_radius_by_type=dict(detect_radius_by_type or {}),
         )
 
     # --- pieces of the fitness --------------------------------------------------------------
@@ -134,88 +141,111 @@ class DacmpPlanner:
         _, _, cx, cy = min((c for c in cands if c[0] >= best - tie_tol), key=lambda c: c[1])
         return cx, cy
 
+    def rivals(self, view: PlanView, targets: list[tuple[int, float, float, float]],
+               D: float) -> dict[int, list[tuple[float, float, float]]]:
+        """Per target ``m``: the other UAVs of eq. 23, as ``(x_j(t+1), y_j(t+1), v_j,max)`` in
+        (m, m, field units / s), counting only those whose next waypoint is within ``D`` of ``m``.
+
+        ``x_j(t+1)`` is ``j``'s announced next waypoint. A UAV in surveillance mode of ``m``
+        within one planning step of it (``ring_max_factor`` times its detection radius: the
+        farthest a waypoint goes) announces the target itself (see ``keep``); we put that
+        waypoint at our own estimate of ``g_m``. Then ``d(k, x_j) = d(k, g_m)`` and eq. 22-23
+        compare only weights and speeds, which is what the paper's assignment rules (eq. 25-27)
+        assume. With the announced coordinates, the 50-200 m between its estimate of the target
+        and ours (track age, one-cell floor on distances) decided who keeps the target (Table 1's
+        ``w_t / w_r`` differ by 2-5%), and two UAVs of one type ended up watching one target for
+        minutes.
+
+        Two UAVs of one type that both claim ``m`` (surveillance mode of ``m``) repel each other
+        equally (eq. 27), so both would let go; the nearer one keeps it ("the nearest UAV could
+        prioritize its own surveillance relationship", paper, Case 1): we ignore a same-type
+        rival for ``m`` that is farther from it than we are while we claim ``m`` ourselves.
+        """
+        out: dict[int, list[tuple[float, float, float]]] = {tid: [] for tid, *_ in targets}
+        if not targets:
+            return out
+        k = view.kind
+        t = view.t
+        unit = self.field_unit_m
+        mine = view.plan
+        claim = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
+        for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S):
+            if p.uav == view.uav or not math.isfinite(p.wx) or t - p.t_intent > _INTENT_MAX_AGE_S:
+                continue
+            v_j = self.speed_max_by_type.get(p.type, k.speed_max) / unit
+            r_j = self.detect_radius_by_type.get(p.type, k.detect_radius)
+            for tid, tx, ty, _v in targets:
+                wx, wy = p.wx, p.wy
+                if p.mode == MODE_SURVEIL and p.target == tid:
+                    d_j = math.hypot(p.x - tx, p.y - ty)
+                    if (claim == tid and p.type == k.name
+                            and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav)):
+                        continue  # a same-type rival farther away: we keep the target
+                    if d_j <= self.ring_max_factor * r_j:
+                        wx, wy = tx, ty  # its next waypoint is the target
+                if math.hypot(wx - tx, wy - ty) < D:
+                    out[tid].append((wx, wy, v_j))
+        return out
+
     def plan(self, view: PlanView) -> Plan:
         return self.plan_many([view])[0]
 
     def plan_many(self, views: list[PlanView]) -> list[Plan]:
         """Plans for several UAVs at once: exactly ``[plan(v) for v in views]``.
 
-        Each UAV keeps its own map, pyramid, guide point, targets, peers, threats and random
-        stream (every draw is made up front from the UAV's own generator, in the order the
-        one-UAV algorithm makes them); only the PSO's array operations are shared, on arrays of
-        shape ``(UAVs, particles)``. Numpy's element-wise operations give each element the same
-        value whatever array it sits in, so a UAV's decision does not depend on its batch
-        (``tests/test_batching.py`` checks the event log).
+        Each UAV keeps its own map, pyramid, guide point, targets, rivals, threats and random
+        stream (its draws are made from its own generator, in the order the one-UAV algorithm
+        makes them); only the PSO's array operations are shared, on arrays of shape
+        ``(UAVs, particles)``. Numpy's element-wise operations give each element the same value
+        whatever array it sits in, so a UAV's decision does not depend on its batch
+        (``tests/test_batching.py`` checks plans and event logs).
+
+        Mode switching for a UAV already in surveillance mode comes first: it keeps its target
+        ``m`` while the target term still dominates on the target itself (``f_t > f_S`` at
+        ``g_m``), with ``g_m`` (pulled to within ``r_max``) as its next waypoint, and makes no
+        PSO draws. It lets go when a rival's claim makes the term negative there (eq. 23, see
+        :meth:`rivals`) or when the track is too old to attract. Without this, two targets a
+        few kilometres apart are two equal peaks of the ``1/d`` attraction (both saturate at
+        the one-cell floor) and PSO picks one at random each replanning: the UAV switched target
+        every 10 s and watched neither.
         """
         if type(self).plan is not DacmpPlanner.plan:  # a subclass with its own plan(): honour it
             return [self.plan(v) for v in views]
-        U, M, n_it = len(views), self.particles, self.iterations
         g = views[0].grid
-        unit = self.field_unit_m
-        floor = g.cell_m / unit
-        uavs = [_UavSearch.build(self, v, M, n_it) for v in views]
-
-        def column(values) -> np.ndarray:
-            return np.array(values, dtype=np.float64)[:, None]
-
-        x0, y0 = column([u.view.x for u in uavs]), column([u.view.y for u in uavs])
-        R = column([u.R for u in uavs])
-        r_max = column([u.r_max for u in uavs])
-        ox = np.array([u.ix0 for u in uavs], dtype=np.int64)[:, None]
-        oy = np.array([u.iy0 for u in uavs], dtype=np.int64)[:, None]
-        # The combined multi-level search value of every cell a UAV's particles can reach, one
-        # padded window per UAV, stacked: one gather per fitness evaluation instead of 2 per level.
-        wh = max(u.level_sum.shape[0] for u in uavs)
-        ww = max(u.level_sum.shape[1] for u in uavs)
-        sums = np.zeros((U, wh, ww))
+        uavs = [_UavSearch.build(self, v) for v in views]
+        plans: list[Plan | None] = [None] * len(uavs)
         for i, u in enumerate(uavs):
-            sums[i, :u.level_sum.shape[0], :u.level_sum.shape[1]] = u.level_sum
-        row_base = (np.arange(U, dtype=np.int64) * wh)[:, None]
-        guided = [i for i, u in enumerate(uavs) if u.guide is not None]
-        gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
-        gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
-        g_norm = np.hypot(gax, gay)
-        has_guide = column([u.guide is not None for u in uavs]) > 0.5
-        dubins_args = (x0, y0, np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]))
+            plans[i] = self._keep(u, g)
+        search = [i for i, p in enumerate(plans) if p is None]
+        for i in search:
+            uavs[i].draw(self)
+        if search:
+            for i, plan in zip(search, self._pso([uavs[i] for i in search], g)):
+                plans[i] = plan
+        return plans
 
-        def fitness(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            ix, iy = g.cells_of(px, py)
-            p_sum = np.take(sums, ((iy - oy + row_base) * ww + (ix - ox)))
-            dub = dubins_length(dubins_args[0], dubins_args[1], dubins_args[2], px, py, dubins_args[3])
-            f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
-            if guided:
-                bx, by = px - x0, py - y0
-                cosang = (gax * bx + gay * by) / np.maximum(g_norm * np.hypot(bx, by), 1e-9)
-                ang = np.arccos(np.clip(cosang, -1.0, 1.0))
-                f_sg = 1.0 / (1.0 + np.exp(ang / math.pi))
-                if len(guided) < U:
-                    f_sg = np.where(has_guide, f_sg, 0.5)
-            else:
-                f_sg = np.full(px.shape, 0.5)
-            f_s = self.eta * f_sl + (1.0 - self.eta) * f_sg
-            f_t = np.zeros(px.shape)
-            ok = (px >= 0) & (px <= g.width_m) & (py >= 0) & (py <= g.height_m)
-            for i, u in enumerate(uavs):
-                if u.targets:
-                    u.target_terms(px[i], py[i], f_t[i], unit, floor)
-                for th in u.threats:
-                    ok[i] &= np.hypot(px[i] - th.x, py[i] - th.y) > th.radius + self.threat_margin_m
-            f = np.where(ok, f_s + f_t, -np.inf)
-            return f, f_s, f_t
+    def _keep(self, u: "_UavSearch", g) -> Plan | None:
+        """The surveillance-mode rule of :meth:`plan_many` for one UAV (None: plan afresh)."""
+        mine = u.view.plan
+        if mine is None or mine.mode != MODE_SURVEIL:
+            return None
+        for tid, tx, ty, _v in u.targets:
+            if tid == mine.target:
+                px, py = np.array([[tx]]), np.array([[ty]])
+                batch = _Batch(self, [u], g)
+                _, f_s, f_t = batch.fitness(px, py, p_sum=u.level_sum_at(px, py, g))
+                if f_t[0, 0] > f_s[0, 0]:
+                    wx, wy = batch.keep_near(px, py)
+                    return Plan(float(wx[0, 0]), float(wy[0, 0]), MODE_SURVEIL, tid)
+                return None
+        return None
 
-        def keep_near(zx: np.ndarray, zy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            """Pull particles back to within ``r_max`` of their UAV, then into the area.
-
-            A particle is a candidate *next* waypoint (``x_j(t+1)`` in eq. 23, which other UAVs
-            read from the broadcast intent). Left free, PSO carries particles all the way to a
-            target 10 km off; the announced waypoint would then claim the target long before the
-            UAV arrives, and a fast watcher would hand over to a slow UAV still minutes away.
-            """
-            dx, dy = zx - x0, zy - y0
-            d = np.hypot(dx, dy)
-            scale = np.where(d > r_max, r_max / np.maximum(d, 1e-9), 1.0)
-            return np.clip(x0 + dx * scale, 0.0, g.width_m), np.clip(y0 + dy * scale, 0.0, g.height_m)
-
+    def _pso(self, uavs: list["_UavSearch"], g) -> list[Plan]:
+        """Particle swarms of several UAVs in lockstep (their draws made by :meth:`_UavSearch.draw`)."""
+        U, M, n_it = len(uavs), self.particles, self.iterations
+        batch = _Batch(self, uavs, g)
+        fitness, keep_near = batch.fitness, batch.keep_near
+        x0, y0 = batch.x0, batch.y0
         # Particles in the ring outside the detection radius (section 3.1).
         rows = np.arange(U)
         radius = np.abs(np.stack([u.ring_radius for u in uavs]))
@@ -252,6 +282,85 @@ class DacmpPlanner:
         return plans
 
 
+class _Batch:
+    """The fitness (eq. 16) and the particle bound of several UAVs, on ``(UAVs, points)`` arrays."""
+
+    def __init__(self, planner: DacmpPlanner, uavs: list["_UavSearch"], grid):
+        self.planner, self.uavs, self.grid = planner, uavs, grid
+        U = len(uavs)
+
+        def column(values) -> np.ndarray:
+            return np.array(values, dtype=np.float64)[:, None]
+
+        self.x0, self.y0 = column([u.view.x for u in uavs]), column([u.view.y for u in uavs])
+        self.R = column([u.R for u in uavs])
+        self.r_max = column([u.r_max for u in uavs])
+        self.ox = np.array([u.ix0 for u in uavs], dtype=np.int64)[:, None]
+        self.oy = np.array([u.iy0 for u in uavs], dtype=np.int64)[:, None]
+        # The combined multi-level search value of every cell a UAV's particles can reach, one
+        # padded window per UAV, stacked: one gather per fitness evaluation instead of 2 per level.
+        self.wh = max(u.level_sum.shape[0] for u in uavs)
+        self.ww = max(u.level_sum.shape[1] for u in uavs)
+        self.sums = np.zeros((U, self.wh, self.ww))
+        for i, u in enumerate(uavs):
+            self.sums[i, :u.level_sum.shape[0], :u.level_sum.shape[1]] = u.level_sum
+        self.row_base = (np.arange(U, dtype=np.int64) * self.wh)[:, None]
+        self.guided = [i for i, u in enumerate(uavs) if u.guide is not None]
+        self.gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
+        self.gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
+        self.g_norm = np.hypot(self.gax, self.gay)
+        self.has_guide = column([u.guide is not None for u in uavs]) > 0.5
+        self.theta = np.array([u.view.theta for u in uavs])
+        self.r_min = column([u.r_min for u in uavs])
+
+    def fitness(self, px: np.ndarray, py: np.ndarray, p_sum: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(f, f_S, f_t)`` at the points ``(px, py)`` (row ``i``: UAV ``i``'s points).
+        ``p_sum``: eq. 19's level sum at the points, when they may lie outside the windows."""
+        planner, g = self.planner, self.grid
+        if p_sum is None:
+            ix, iy = g.cells_of(px, py)
+            p_sum = np.take(self.sums, ((iy - self.oy + self.row_base) * self.ww + (ix - self.ox)))
+        dub = dubins_length(self.x0, self.y0, self.theta, px, py, self.r_min)
+        R = self.R
+        f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
+        if self.guided:
+            bx, by = px - self.x0, py - self.y0
+            cosang = (self.gax * bx + self.gay * by) / np.maximum(self.g_norm * np.hypot(bx, by), 1e-9)
+            ang = np.arccos(np.clip(cosang, -1.0, 1.0))
+            f_sg = 1.0 / (1.0 + np.exp(ang / math.pi))
+            if len(self.guided) < len(self.uavs):
+                f_sg = np.where(self.has_guide, f_sg, 0.5)
+        else:
+            f_sg = np.full(px.shape, 0.5)
+        f_s = planner.eta * f_sl + (1.0 - planner.eta) * f_sg
+        f_t = np.zeros(px.shape)
+        ok = (px >= 0) & (px <= g.width_m) & (py >= 0) & (py <= g.height_m)
+        unit = planner.field_unit_m
+        floor = g.cell_m / unit
+        for i, u in enumerate(self.uavs):
+            if u.targets:
+                u.target_terms(px[i], py[i], f_t[i], unit, floor)
+            for th in u.threats:
+                ok[i] &= np.hypot(px[i] - th.x, py[i] - th.y) > th.radius + planner.threat_margin_m
+        f = np.where(ok, f_s + f_t, -np.inf)
+        return f, f_s, f_t
+
+    def keep_near(self, zx: np.ndarray, zy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pull points back to within ``r_max`` of their UAV, then into the area.
+
+        A particle is a candidate *next* waypoint (``x_j(t+1)`` in eq. 23, which other UAVs read
+        from the broadcast intent). Left free, PSO carries particles all the way to a target
+        10 km off; the announced waypoint would then claim the target long before the UAV
+        arrives, and a fast watcher would hand over to a slow UAV still minutes away.
+        """
+        g = self.grid
+        dx, dy = zx - self.x0, zy - self.y0
+        d = np.hypot(dx, dy)
+        scale = np.where(d > self.r_max, self.r_max / np.maximum(d, 1e-9), 1.0)
+        return np.clip(self.x0 + dx * scale, 0.0, g.width_m), np.clip(self.y0 + dy * scale, 0.0, g.height_m)
+
+
 @dataclass
 class _UavSearch:
     """One UAV's share of a (batched) DACMP plan: everything that is its own."""
@@ -265,16 +374,18 @@ class _UavSearch:
     ix0: int  # window of cells the particles can reach (level-0 indices)
     iy0: int
     level_sum: np.ndarray  # sum_l lambda_l P_l over the window (eq. 19's numerator)
+    search_levels: list  # (level, array) pairs of eq. 19, and their weights
+    lam: np.ndarray
     guide: tuple[float, float] | None
     targets: list[tuple[int, float, float, float]]
-    peers: list[tuple[float, float, float]]
+    rivals: dict[int, list[tuple[float, float, float]]]
     threats: list
-    ring_radius: np.ndarray
-    ring_angle: np.ndarray
-    pso_draws: np.ndarray  # (iterations, 3, particles): r1, r2 and Q of eq. 15
+    ring_radius: np.ndarray | None = None  # draw(): only a UAV that runs PSO draws these
+    ring_angle: np.ndarray | None = None
+    pso_draws: np.ndarray | None = None  # (iterations, 3, particles): r1, r2 and Q of eq. 15
 
     @classmethod
-    def build(cls, planner: DacmpPlanner, view: PlanView, M: int, n_it: int) -> "_UavSearch":
+    def build(cls, planner: DacmpPlanner, view: PlanView) -> "_UavSearch":
         k = view.kind
         g = view.grid
         rng = view.rng
@@ -298,50 +409,48 @@ class _UavSearch:
         ix1, iy1 = g.cell_of(view.x + r_max, view.y + r_max)
         ix0, iy0 = max(ix0 - 1, 0), max(iy0 - 1, 0)
         ix1, iy1 = min(ix1 + 1, g.nx - 1), min(iy1 + 1, g.ny - 1)
-        wy_cells = np.arange(iy0, iy1 + 1)
-        wx_cells = np.arange(ix0, ix1 + 1)
-        level_sum = np.zeros((len(wy_cells), len(wx_cells)))
-        for w_l, (lv, G) in zip(lam, search_levels):
-            rows = np.minimum(level_index(wy_cells, lv), G.shape[0] - 1)
-            cols = np.minimum(level_index(wx_cells, lv), G.shape[1] - 1)
-            level_sum += w_l * G[np.ix_(rows, cols)]
+        level_sum = _level_sum(search_levels, lam, np.arange(iy0, iy1 + 1)[:, None], np.arange(ix0, ix1 + 1)[None, :])
 
-        unit = planner.field_unit_m
         targets: list[tuple[int, float, float, float]] = []
-        peers: list[tuple[float, float, float]] = []
+        max_age = planner.track_max_age_s if planner.track_max_age_s is not None else 1.0 / view.umap.tau
         if view.surveillance:
             for tid, tr in sorted(view.knowledge.tracks.items()):
+                if t - tr.t > max_age:
+                    continue  # nobody has seen it for a while: g_m(t) is unknown
                 tx, ty = tr.predict(t)
                 if math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
                     targets.append((tid, tx, ty, tr.value))
-            if targets:
-                for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S):
-                    if p.uav != view.uav and math.isfinite(p.wx) and t - p.t_intent <= _INTENT_MAX_AGE_S:
-                        vmax_j = planner.speed_max_by_type.get(p.type, k.speed_max)
-                        peers.append((p.wx, p.wy, vmax_j / unit))
-        # The rest of the UAV's draws, in the one-UAV order: ring radii, ring angles, then per
-        # PSO iteration three rows (r1, r2, Q).
-        ring_radius = rng.normal(planner.ring_mean_factor * R, planner.ring_sd_factor * R, M)
-        ring_angle = view.theta + rng.normal(0.0, planner.heading_sd_rad, M)
-        pso_draws = rng.random((n_it, 3, M))
-        return cls(view, R, r_max, k.r_min(view.v), k.influence_radius, k.speed_max / unit, ix0, iy0,
-                   level_sum, guide, targets, peers, list(view.knowledge.threats.values()),
-                   ring_radius, ring_angle, pso_draws)
+        rivals = planner.rivals(view, targets, k.influence_radius)
+        return cls(view, R, r_max, k.r_min(view.v), k.influence_radius, k.speed_max / planner.field_unit_m,
+                   ix0, iy0, level_sum, search_levels, lam, guide, targets, rivals,
+                   list(view.knowledge.threats.values()))
+
+    def draw(self, planner: DacmpPlanner) -> None:
+        """The rest of the UAV's draws, in the one-UAV order: ring radii, ring angles, then per
+        PSO iteration three rows (r1, r2, Q)."""
+        rng, R, M = self.view.rng, self.R, planner.particles
+        self.ring_radius = rng.normal(planner.ring_mean_factor * R, planner.ring_sd_factor * R, M)
+        self.ring_angle = self.view.theta + rng.normal(0.0, planner.heading_sd_rad, M)
+        self.pso_draws = rng.random((planner.iterations, 3, M))
+
+    def level_sum_at(self, px: np.ndarray, py: np.ndarray, g) -> np.ndarray:
+        """Eq. 19's level sum at any points (not only in the window)."""
+        ix, iy = g.cells_of(px, py)
+        return _level_sum(self.search_levels, self.lam, iy, ix)
 
     def target_terms(self, px: np.ndarray, py: np.ndarray, f_t: np.ndarray, unit: float, floor: float) -> None:
         """Add eq. 22 (target attraction) and eq. 23 (competing repulsion) into ``f_t``."""
         k = self.view.kind
         D, v_i = self.D, self.v_i
-        for _tid, tx, ty, value in self.targets:
+        for tid, tx, ty, value in self.targets:
             d = np.hypot(px - tx, py - ty)
             near = d < D
             if not near.any():
                 continue
             f_t += np.where(near, k.w_t * value / (np.maximum(d / unit, floor) * v_i * v_i), 0.0)
-            for wx, wy, v_j in self.peers:
-                if math.hypot(wx - tx, wy - ty) < D:
-                    dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
-                    f_t -= np.where(near, k.w_r / (dj * v_i * v_j), 0.0)
+            for wx, wy, v_j in self.rivals[tid]:
+                dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
+                f_t -= np.where(near, k.w_r / (dj * v_i * v_j), 0.0)
 
     def decide(self, wx: float, wy: float, f_s: float, f_t: float) -> Plan:
         """Mode switch at the chosen waypoint: surveillance of the nearest target within ``D``
@@ -354,3 +463,14 @@ class _UavSearch:
                 if d < d_best:
                     mode, target, d_best = MODE_SURVEIL, tid, d
         return Plan(wx, wy, mode, target)
+
+
+def _level_sum(search_levels, lam, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """``sum_l lambda_l G_l`` read at the coarse cells nearest level-0 cells ``(iy, ix)``
+    (broadcast), accumulated level by level in float64."""
+    out = np.zeros(np.broadcast_shapes(np.shape(iy), np.shape(ix)))
+    for w_l, (lv, G) in zip(lam, search_levels):
+        rows = np.minimum(level_index(iy, lv), G.shape[0] - 1)
+        cols = np.minimum(level_index(ix, lv), G.shape[1] - 1)
+        out += w_l * G[rows, cols]
+    return out
