@@ -20,6 +20,14 @@ def wrap_angle(a: float) -> float:
     return w - TWO_PI if w >= math.pi else w  # the modulo can round up to exactly 2 pi
 
 
+def clamp(v: float, lo: float, hi: float) -> float:
+    """``min(max(v, lo), hi)``: the same comparisons in the same order, so the same result for
+    every input (ties, signed zeros, NaN, ``lo > hi``), without the builtins' call overhead
+    (several times the cost of the comparisons on these per-UAV, per-tick paths)."""
+    v = lo if lo > v else v  # max(v, lo): the first argument wins a tie
+    return hi if hi < v else v  # min(v, hi)
+
+
 def limit_command(kind: UavType, v: float, a: float, omega: float, dt: float) -> tuple[float, float]:
     """Clip ``(a, omega)`` so that acceleration, speed range and turn radius all hold.
 
@@ -32,15 +40,18 @@ def limit_command(kind: UavType, v: float, a: float, omega: float, dt: float) ->
         a = 0.0
     if not math.isfinite(omega):
         omega = 0.0
-    lo = max(-kind.accel_max, (kind.speed_min - v) / dt)
-    hi = min(kind.accel_max, (kind.speed_max - v) / dt)
+    # Conditional expressions for max()/min() (see clamp()).
+    lo, hi = -kind.accel_max, kind.accel_max
+    slow, fast = (kind.speed_min - v) / dt, (kind.speed_max - v) / dt
+    lo = slow if slow > lo else lo  # max(-accel_max, slow)
+    hi = fast if fast < hi else hi  # min(accel_max, fast)
     if lo <= hi:
-        a = min(max(a, lo), hi)
+        a = clamp(a, lo, hi)
     else:  # speed outside the range and not recoverable in one step: brake/accelerate fully
         a = -kind.accel_max if v > kind.speed_max else kind.accel_max
     v_next = v + a * dt
-    w_max = kind.turn_rate_max(max(v, v_next))
-    omega = min(max(omega, -w_max), w_max)
+    w_max = kind.turn_rate_max(v_next if v_next > v else v)  # max(v, v_next)
+    omega = clamp(omega, -w_max, w_max)
     return a, omega
 
 
@@ -63,4 +74,4 @@ def command_violates(kind: UavType, v: float, a: float, omega: float, dt: float,
         return True
     if v_next < kind.speed_min * (1 - tol) - tol or v_next > kind.speed_max * (1 + tol) + tol:
         return True
-    return abs(omega) > kind.turn_rate_max(max(v, v_next)) * (1 + tol) + tol
+    return abs(omega) > kind.turn_rate_max(v_next if v_next > v else v) * (1 + tol) + tol  # max(v, v_next)

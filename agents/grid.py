@@ -77,7 +77,11 @@ class Disk:
         memo = self._vmemo
         if memo[0] == t and memo[1] is not None:
             return memo[1]
-        v = np.where(self.mask, np.float32(t), np.float32(-np.inf))
+        # = np.where(mask, float32(t), -inf), built by filling: about a third cheaper on a box
+        # this small (each UAV's scan builds one every tick).
+        v = np.empty(self.mask.shape, dtype=np.float32)
+        v.fill(-np.inf)
+        v[self.mask] = t
         v.flags.writeable = False
         self._vmemo = (t, v)
         return v
@@ -203,10 +207,15 @@ class Grid:
         # One spare cell each side: the box only has to contain the disk, the mask decides (a
         # rounded box edge could otherwise drop a centre lying exactly on the circle).
         # (math.ceil/floor equal int(np.ceil/np.floor(...)) for every float, errors included.)
-        ix0 = max(math.ceil((x - radius) / c - 0.5) - 1, 0)
-        ix1 = min(math.floor((x + radius) / c - 0.5) + 1, self.nx - 1)
-        iy0 = max(math.ceil((y - radius) / c - 0.5) - 1, 0)
-        iy1 = min(math.floor((y + radius) / c - 0.5) + 1, self.ny - 1)
+        ix0 = math.ceil((x - radius) / c - 0.5) - 1
+        ix1 = math.floor((x + radius) / c - 0.5) + 1
+        iy0 = math.ceil((y - radius) / c - 0.5) - 1
+        iy1 = math.floor((y + radius) / c - 0.5) + 1
+        # Clipped to the grid (conditional expressions: max()/min() would cost more than the
+        # arithmetic; every UAV's scan builds a disk every tick).
+        nx1, ny1 = self.nx - 1, self.ny - 1
+        ix0, iy0 = (ix0 if ix0 > 0 else 0), (iy0 if iy0 > 0 else 0)
+        ix1, iy1 = (ix1 if ix1 < nx1 else nx1), (iy1 if iy1 < ny1 else ny1)
         if ix1 < ix0 or iy1 < iy0:
             return None
         # (arange(i0, i1 + 1) + 0.5) * c, the cell centres, computed once per grid.

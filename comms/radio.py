@@ -116,21 +116,24 @@ class Radio:
         """
         g = self.graph
         adj = g._adj  # networkx's adjacency dict-of-dicts: the edge data dicts themselves
-        alive = set(ids)
-        dead = [u for u in g if u not in alive]
-        if dead:
-            g.remove_nodes_from(dead)
-        new_nodes = [u for u in ids if u not in adj]
-        if new_nodes:
-            g.add_nodes_from(new_nodes)
+        same_ids = ids == self._ids
+        if not same_ids:  # (else the nodes are those of the last update: nobody came or went)
+            alive = set(ids)
+            dead = [u for u in g if u not in alive]
+            if dead:
+                g.remove_nodes_from(dead)
+            new_nodes = [u for u in ids if u not in adj]
+            if new_nodes:
+                g.add_nodes_from(new_nodes)
         n = len(ids)
         model = self.model
         rng_m = model.range_m
         unlimited = rng_m is None or not math.isfinite(rng_m)
-        if unlimited and n >= 2 and ids == self._ids:
+        if unlimited and n >= 2 and same_ids:
             # Everyone hears everyone and nobody came or went: same edges, new distances.
             ii, jj = self._all_pairs[1]
-            d = np.hypot(xy[ii, 0] - xy[jj, 0], xy[ii, 1] - xy[jj, 1])
+            dxy = xy[ii] - xy[jj]
+            d = np.hypot(dxy[:, 0], dxy[:, 1])
             loss = model.loss_base
             for (u, v), dd in zip(self._all_pair_ids, d.tolist()):
                 e = adj[u][v]
@@ -184,7 +187,7 @@ class Radio:
         if add:
             g.add_edges_from(add)
         # Neighbour lists (sorted ids) straight from the pairs (unless nothing changed).
-        if same_edges and ids == self._ids:
+        if same_edges and same_ids:
             pass
         elif len(a):
             src = np.concatenate([ii, jj])

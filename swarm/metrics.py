@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from agents.grid import Grid
-from agents.umap import DENSE_MAX_CELLS, UncertaintyMap
+from agents.umap import DENSE_MAX_CELLS, NEVER, UncertaintyMap
 from comms.messages import MODE_SURVEIL
 
 
@@ -51,7 +51,6 @@ class Metrics:
     grid: Grid
     tau: float
     union: UncertaintyMap = field(init=False)
-    covered_cells: int = 0
     found_t: dict[int, float] = field(default_factory=dict)
     watched_s: dict[int, float] = field(default_factory=dict)
     mode_s: dict[int, dict[str, float]] = field(default_factory=dict)
@@ -70,8 +69,8 @@ class Metrics:
         # Large areas: remember which 64 x 64 blocks were ever scanned, and keep q in a buffer
         # where every other cell is exactly 1 (never seen), so certainty only recomputes q
         # where something was seen: the same array, so the same mean, as computing q everywhere
-        # (on small grids that is as fast: they do so). Needs the union to be written through
-        # scan() only.
+        # (on small grids that is as fast: they do so); coverage likewise only counts there.
+        # Needs the union to be written through scan() only.
         self._touched: np.ndarray | None = None
         self._q: np.ndarray | None = None
         if self.grid.nx * self.grid.ny > DENSE_MAX_CELLS:
@@ -84,12 +83,34 @@ class Metrics:
     def scan(self, x: float, y: float, radius: float, t: float) -> None:
         d = self.grid.disk_stamp(x, y, radius)  # shared with the scanning UAV's own map
         if d is not None:
-            self.covered_cells += self.union.cover(d, t)
+            self.union.stamp(d, t)
             if self._touched is not None:
                 self._touched[d.iy0 // _BLOCK : (d.iy1 - 1) // _BLOCK + 1, d.ix0 // _BLOCK : (d.ix1 - 1) // _BLOCK + 1] = True
 
+    @property
+    def covered_cells(self) -> int:
+        """Cells scanned at least once: those the union has seen. Counted when asked (a few
+        times per run) rather than per scan (every UAV, every tick): the same number."""
+        seen = self.union.to_dense_view()
+        if self._touched is None:
+            return int(np.count_nonzero(seen != NEVER))
+        return sum(int(np.count_nonzero(seen[rows, cols] != NEVER)) for rows, cols in self._touched_runs())
+
     def coverage(self) -> float:
         return self.covered_cells / self.n_cells
+
+    def _touched_runs(self) -> list[tuple[slice, slice]]:
+        """``(rows, cols)`` of each run of touched blocks along each block row (large areas)."""
+        touched = self._touched
+        # Runs start where a block is touched and its left neighbour is not, end where the next
+        # one is not.
+        padded = np.zeros((touched.shape[0], touched.shape[1] + 2), dtype=np.int8)
+        padded[:, 1:-1] = touched
+        edges = np.diff(padded, axis=1)
+        starts = np.argwhere(edges == 1)
+        stops = np.argwhere(edges == -1)
+        return [(slice(by * _BLOCK, (by + 1) * _BLOCK), slice(bx0 * _BLOCK, bx1 * _BLOCK))
+                for (by, bx0), (_, bx1) in zip(starts.tolist(), stops.tolist())]
 
     def certainty(self, t: float) -> float:
         """Eq. 8, ``1 - mean(q)`` over every cell: exactly ``np.mean(union.uncertainty(t))``."""
@@ -99,17 +120,7 @@ class Metrics:
         if q is None:
             q = self._q = np.ones(self.grid.shape, dtype=np.float32)  # q of a never-seen cell
         seen = self.union.to_dense_view()
-        touched = self._touched
-        # Runs of touched blocks along each block row: starts where a block is touched and its
-        # left neighbour is not, ends where the next one is not.
-        padded = np.zeros((touched.shape[0], touched.shape[1] + 2), dtype=np.int8)
-        padded[:, 1:-1] = touched
-        edges = np.diff(padded, axis=1)
-        starts = np.argwhere(edges == 1)
-        stops = np.argwhere(edges == -1)
-        for (by, bx0), (_, bx1) in zip(starts.tolist(), stops.tolist()):
-            rows = slice(by * _BLOCK, (by + 1) * _BLOCK)
-            cols = slice(bx0 * _BLOCK, bx1 * _BLOCK)
+        for rows, cols in self._touched_runs():
             self.union.q_into(t, seen[rows, cols], q[rows, cols])
         return 1.0 - float(np.mean(q, dtype=np.float64))
 

@@ -45,8 +45,7 @@ class EventLog:
         """Pack pending events (called once per tick and at the end)."""
         if not self._pending:
             return
-        pack = self._packer.pack
-        chunk = b"".join(pack(e) for e in self._pending)
+        chunk = b"".join(map(self._packer.pack, self._pending))
         self.count += len(self._pending)
         self._pending.clear()
         self._buf += chunk

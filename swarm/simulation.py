@@ -450,12 +450,14 @@ class Simulation:
         self.injector.begin_tick(t)
         alive = world.alive_ids()
         loop = asyncio.get_running_loop()
-        readings = {}
         for uid in alive:
             if uid not in self._tasks:
                 plan_source = self._plan_for if self._batcher is not None else None
                 self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report, plan_source), name=f"uav-{world.uavs[uid].name}")
-            readings[uid] = world.sense(uid, t)
+        # Positions at t: UAVs move only in the physics step at the end of the tick, so these
+        # also serve the safety check and the radio topology below.
+        xy = world.positions(alive)
+        readings = dict(zip(alive, world.sense_many(alive, t, xy)))
         # Every live UAV scans its disk this tick (its own map, then the ground truth and every
         # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
         if len(alive) >= PREFETCH_MIN:
@@ -508,8 +510,7 @@ class Simulation:
             emit("target", t, i, x, y)
             target_paths[i].append((t, x, y))
 
-        # Radio: topology from positions at t, then every frame in UAV-id order.
-        xy = world.positions(alive)
+        # Radio: topology from positions at t (xy), then every frame in UAV-id order.
         for kind, a, b in world.check_safety(alive, xy, self.scenario.safety.min_separation_m):
             log.emit("violation", t, kind, a, b)
         self.radio.update_topology(alive, xy, dt)
@@ -526,8 +527,9 @@ class Simulation:
             for dst, frame in out.replies:  # anti-entropy answers, to one neighbour each
                 broadcast(t, uid, frame, deliveries, lost, to=dst)
         by_time: dict[float, list[Delivery]] = defaultdict(list)
-        if deliveries and deliveries[0][0] == deliveries[-1][0] and all(d[0] == deliveries[0][0] for d in deliveries):
-            by_time[deliveries[0][0]] = deliveries  # one arrival time (no jitter or delay): one batch
+        arrivals = {d[0] for d in deliveries}
+        if len(arrivals) == 1:
+            by_time[arrivals.pop()] = deliveries  # one arrival time (no jitter or delay): one batch
         else:
             for d in deliveries:
                 by_time[d[0]].append(d)

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from agents.actor import SensedTarget, SensorReading
-from agents.dynamics import command_violates, integrate, limit_command, wrap_angle
+from agents.dynamics import clamp, command_violates, integrate, limit_command, wrap_angle
 from agents.grid import Grid
 from agents.knowledge import KnownThreat
 from agents.types import UavType
@@ -74,7 +74,7 @@ class Targets:
         self.omega.append(0.0)
         self.value.append(value)
         self.rngs.append(rng)
-        self._xy = np.column_stack([self.x, self.y]) if self.x else np.zeros((0, 2))
+        self._xy = np.array([self.x, self.y]).T  # (n, 2)
         return len(self.x) - 1
 
     @property
@@ -87,15 +87,20 @@ class Targets:
         # The turn rate relaxes towards 0 (Ornstein-Uhlenbeck): a pure Wiener turn rate drifts to
         # its limit and stays there, and the target circles on the spot instead of travelling.
         keep = math.exp(-dt / m.turn_reversion_s)
+        sigma_a, sigma_w = m.accel_sigma * sq, m.turn_sigma * sq
+        a_max, w_max, v_max = m.accel_max, m.turn_rate_max, m.speed_max
         w, h = grid.width_m, grid.height_m
+        xs, ys, vs, ths, accs, oms = self.x, self.y, self.v, self.theta, self.a, self.omega
         for i, rng in enumerate(self.rngs):
-            na, nw = rng.standard_normal(2)
-            a = min(max(self.a[i] + m.accel_sigma * sq * na, -m.accel_max), m.accel_max)
-            om = min(max(self.omega[i] * keep + m.turn_sigma * sq * nw, -m.turn_rate_max), m.turn_rate_max)
-            v = self.v[i]
+            # Python floats, not numpy scalars: the same numbers, and scalar arithmetic on them
+            # is several times faster.
+            na, nw = rng.standard_normal(2).tolist()
+            a = clamp(accs[i] + sigma_a * na, -a_max, a_max)
+            om = clamp(oms[i] * keep + sigma_w * nw, -w_max, w_max)
+            v = vs[i]
             # Keep the speed in [0, speed_max] by limiting the applied acceleration.
-            a = min(max(a, -v / dt), (m.speed_max - v) / dt)
-            x, y, v, th = integrate(self.x[i], self.y[i], v, self.theta[i], a, om, dt)
+            a = clamp(a, -v / dt, (v_max - v) / dt)
+            x, y, v, th = integrate(xs[i], ys[i], v, ths[i], a, om, dt)
             if x < 0.0:
                 x, th = -x, math.pi - th
             elif x > w:
@@ -104,10 +109,26 @@ class Targets:
                 y, th = -y, -th
             elif y > h:
                 y, th = 2 * h - y, -th
-            self.x[i], self.y[i], self.v[i], self.theta[i] = x, y, v, wrap_angle(th)
-            self.a[i], self.omega[i] = a, om
+            xs[i], ys[i], vs[i], ths[i] = x, y, v, wrap_angle(th)
+            accs[i], oms[i] = a, om
         if self.rngs:
-            self._xy = np.column_stack([self.x, self.y])
+            self._xy = np.array([xs, ys]).T
+
+
+# Up to this many UAVs, check_safety first compares every pair itself (cheaper than a k-d tree).
+_SCREEN_MAX = 16
+
+
+def _all_far_apart(xy: np.ndarray, r: float) -> bool:
+    """True if, for a small swarm, every pair of points is clearly (1%) more than ``r`` apart,
+    so that the k-d tree would find no pair within ``r`` (whatever its rounding); False when
+    some pair comes near ``r``, or for larger swarms (the k-d tree then decides)."""
+    if len(xy) > _SCREEN_MAX:
+        return False
+    pts = xy.tolist()
+    near = (1.01 * r) ** 2
+    return not any((xa - xb) ** 2 + (ya - yb) ** 2 <= near
+                   for k, (xa, ya) in enumerate(pts) for xb, yb in pts[k + 1:])
 
 
 class World:
@@ -132,18 +153,35 @@ class World:
     # --- sensing ----------------------------------------------------------------------------
 
     def sense(self, uid: int, t: float) -> SensorReading:
-        b = self.uavs[uid]
-        r = b.kind.detect_radius
-        seen: list[SensedTarget] = []
+        return self.sense_many([uid], t)[0]
+
+    def sense_many(self, ids: list[int], t: float, xy: np.ndarray | None = None) -> list[SensorReading]:
+        """:meth:`sense` for each UAV of ``ids``, with one distance test for all of them (a
+        simulation senses for its whole swarm every tick). ``xy``: ``positions(ids)`` if known."""
+        uavs = self.uavs
+        bodies = [uavs[u] for u in ids]
         tg = self.targets
-        if len(tg):
-            xy = tg.xy
-            d2 = (xy[:, 0] - b.x) ** 2 + (xy[:, 1] - b.y) ** 2
-            for i in np.flatnonzero(d2 <= r * r).tolist():
+        inside: list[list[int]] = [[] for _ in ids]
+        if len(tg) and ids:
+            if xy is None:
+                xy = self.positions(ids)
+            txy = tg.xy
+            radii = np.array([b.kind.detect_radius for b in bodies])
+            # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis.
+            d2 = (txy[:, 0] - xy[:, 0:1]) ** 2 + (txy[:, 1] - xy[:, 1:2]) ** 2
+            rows, cols = (d2 <= (radii * radii)[:, None]).nonzero()  # row-major: targets in id order
+            for k, i in zip(rows.tolist(), cols.tolist()):
+                inside[k].append(i)
+        readings = []
+        for b, hits in zip(bodies, inside):
+            r = b.kind.detect_radius
+            seen: list[SensedTarget] = []
+            for i in hits:
                 v, th = tg.v[i], tg.theta[i]
                 seen.append(SensedTarget(i, tg.x[i], tg.y[i], v * math.cos(th), v * math.sin(th), tg.value[i]))
-        threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
-        return SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats)
+            threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
+            readings.append(SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats))
+        return readings
 
     # --- motion -----------------------------------------------------------------------------
 
@@ -157,7 +195,7 @@ class World:
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
         """Count separation and threat-clearance violations now; returns them for the log."""
         found: list[tuple[str, int, int]] = []
-        if len(ids) >= 2:
+        if len(ids) >= 2 and not _all_far_apart(xy, min_sep):
             pairs = cKDTree(xy).query_pairs(min_sep, output_type="ndarray")
             for i, j in sorted(map(tuple, pairs.tolist())):
                 found.append(("separation", ids[i], ids[j]))

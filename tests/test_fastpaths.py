@@ -1,0 +1,149 @@
+"""The fast paths added for speed give exactly what the code they stand in for gives.
+
+* :func:`agents.dynamics.clamp` is ``min(max(v, lo), hi)`` for every float, NaN and signed
+  zeros included;
+* :meth:`swarm.world.World.sense_many` gives each UAV the reading the one-UAV formula gives;
+* ``comms.codec._nums`` converts and rejects exactly as ``_num`` value by value;
+* ``swarm.world._all_far_apart`` never hides a pair the k-d tree would report.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+
+from agents.dynamics import clamp
+from agents.grid import Grid
+from agents.knowledge import KnownThreat
+from agents.types import UavType
+from comms.codec import FrameError, _num, _nums
+from swarm.world import ALIVE, TargetMotion, Targets, UavBody, World, _all_far_apart
+
+any_float = st.floats(allow_nan=True, allow_infinity=True)
+edge_floats = st.sampled_from([0.0, -0.0, 1.0, -1.0, math.inf, -math.inf, math.nan])
+
+
+def _same(a: float, b: float) -> bool:
+    """Identical floats: NaN is NaN, and 0.0 is not -0.0."""
+    return (math.isnan(a) and math.isnan(b)) or (a == b and math.copysign(1.0, a) == math.copysign(1.0, b))
+
+
+@settings(max_examples=500)
+@given(st.one_of(any_float, edge_floats), st.one_of(any_float, edge_floats), st.one_of(any_float, edge_floats))
+def test_clamp_is_min_of_max(v, lo, hi):
+    assert _same(clamp(v, lo, hi), min(max(v, lo), hi))
+
+
+# --- sensing --------------------------------------------------------------------------------
+
+KIND_A = UavType("A", 20.0, 40.0, 1.0, 0.5, 1500.0, 1.0, 1.0, 5000.0)
+KIND_B = UavType("B", 60.0, 90.0, 0.6, 0.35, 2000.0, 2.0, 2.1, 4000.0)
+
+
+def _reading_by_formula(world: World, uid: int, t: float):
+    """What sense() computed per UAV before sense_many(): one distance test per UAV."""
+    b = world.uavs[uid]
+    r = b.kind.detect_radius
+    tg = world.targets
+    seen = []
+    if len(tg):
+        xy = tg.xy
+        d2 = (xy[:, 0] - b.x) ** 2 + (xy[:, 1] - b.y) ** 2
+        for i in np.flatnonzero(d2 <= r * r).tolist():
+            v, th = tg.v[i], tg.theta[i]
+            seen.append((i, tg.x[i], tg.y[i], v * math.cos(th), v * math.sin(th), tg.value[i]))
+    threats = [th.threat for th in world.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
+    return seen, threats
+
+
+coords = st.floats(0.0, 10_000.0)
+
+
+@settings(deadline=None, max_examples=100)
+@given(
+    st.lists(st.tuples(coords, coords, st.booleans()), min_size=0, max_size=8),
+    st.lists(st.tuples(coords, coords, st.floats(-math.pi, math.pi), st.floats(0.0, 20.0)), max_size=10),
+    st.lists(st.tuples(coords, coords, st.floats(100.0, 3000.0)), max_size=3),
+)
+def test_sense_many_equals_one_by_one(uavs, targets, threats):
+    tg = Targets(TargetMotion())
+    for k, (x, y, th, v) in enumerate(targets):
+        tg.add(x, y, th, v, 1.0 + k, np.random.default_rng(k))
+    world = World(Grid(10_000.0, 10_000.0, 100.0), tg,
+                  [KnownThreat(i, x, y, r, 2 * r) for i, (x, y, r) in enumerate(threats)])
+    for uid, (x, y, fast) in enumerate(uavs):
+        world.add_uav(UavBody(uid, f"U{uid}", KIND_B if fast else KIND_A, x, y, 50.0, 0.3, ALIVE))
+    ids = world.alive_ids()
+    readings = world.sense_many(ids, 7.0)
+    assert len(readings) == len(ids)
+    for uid, r in zip(ids, readings):
+        seen, threat_ids = _reading_by_formula(world, uid, 7.0)
+        assert [(s.target, s.x, s.y, s.vx, s.vy, s.value) for s in r.targets] == seen
+        assert [th.threat for th in r.threats] == threat_ids
+        b = world.uavs[uid]
+        assert (r.t, r.x, r.y, r.v, r.theta) == (7.0, b.x, b.y, b.v, b.theta)
+        assert world.sense(uid, 7.0) == r
+
+
+# --- codec ----------------------------------------------------------------------------------
+
+field_values = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True), st.integers(-(2**70), 2**70), st.booleans(),
+    st.none(), st.text(max_size=3), st.binary(max_size=3),
+)
+
+
+def _num_each(values: list):
+    try:
+        return tuple(_num(v) for v in values)
+    except FrameError as exc:
+        return ("FrameError", str(exc))
+
+
+@settings(max_examples=500)
+@given(st.one_of(st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=12), st.lists(field_values, max_size=8)))
+def test_nums_equals_num_of_each_value(values):
+    try:
+        got = _nums(values)
+    except FrameError as exc:
+        got = ("FrameError", str(exc))
+    expected = _num_each(values)
+    assert got == expected
+    if got and got[0] != "FrameError":
+        assert all(type(v) is float for v in got)
+
+
+# --- separation screen ----------------------------------------------------------------------
+
+
+@settings(deadline=None, max_examples=300)
+@given(st.lists(st.tuples(st.floats(0.0, 3000.0), st.floats(0.0, 3000.0)), min_size=2, max_size=20),
+       st.floats(1.0, 800.0))
+def test_separation_screen_never_hides_a_pair(points, r):
+    xy = np.array(points, dtype=float)
+    if _all_far_apart(xy, r):
+        assert len(cKDTree(xy).query_pairs(r)) == 0
+
+
+def test_separation_screen_defers_near_pairs_and_large_swarms():
+    assert _all_far_apart(np.array([[0.0, 0.0], [203.0, 0.0]]), 200.0)
+    assert not _all_far_apart(np.array([[0.0, 0.0], [201.0, 0.0]]), 200.0)  # near: the k-d tree decides
+    assert not _all_far_apart(np.array([[0.0, 0.0], [200.0, 0.0]]), 200.0)
+    far = np.array([[1000.0 * i, 0.0] for i in range(40)])
+    assert not _all_far_apart(far, 200.0)  # large swarm: always the k-d tree
+
+
+@pytest.mark.parametrize("n", [0, 1, 3])
+def test_targets_xy_is_an_n_by_2_array(n):
+    tg = Targets(TargetMotion())
+    for k in range(n):
+        tg.add(10.0 * k, 20.0 * k, 0.0, 1.0, 1.0, np.random.default_rng(k))
+    assert tg.xy.shape == (n, 2)
+    assert tg.xy.tolist() == [[10.0 * k, 20.0 * k] for k in range(n)]
+    tg.step(1.0, Grid(1000.0, 1000.0, 100.0))
+    assert tg.xy.tolist() == [[x, y] for x, y in zip(tg.x, tg.y)]
