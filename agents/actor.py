@@ -154,6 +154,7 @@ class UavActor:
         self.mailbox = mailbox
         self.umap = UncertaintyMap(grid, tau)
         self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
+        self._log_scans = settings.sync_every_s > 0  # without anti-entropy nothing reads the log
         self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
         self._next_digest = -math.inf
         self._digest_start = 0  # where the next digest begins when one frame cannot hold it all
@@ -234,7 +235,7 @@ class UavActor:
         if d is not None:
             self.umap.stamp(d, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
-        if self._plausible(r.x, r.y, radius):
+        if self._log_scans and self._plausible(r.x, r.y, radius):
             self.scans.add(self.uid, t, r.x, r.y, radius)
         k = self.knowledge
         for st in r.targets:
@@ -331,7 +332,7 @@ class UavActor:
         decode_frame = self._decode
         lookup = self._lookup
         counters = self.counters
-        log_add = self.scans.add
+        log_add = self.scans.add if self._log_scans else None
         max_r, width, height = self._max_scan_r, self.grid.width_m, self.grid.height_m
         delivered = 0
         for _arrival, sender, data in frames:
@@ -358,7 +359,7 @@ class UavActor:
                         if not (0.0 <= tr <= t and 0.0 <= rr <= max_r and -max_r <= x <= width + max_r
                                 and -max_r <= y <= height + max_r):  # = not self._plausible(...)
                             counters.scans_ignored += 1
-                        elif log_add(origin, tr, x, y, rr):  # new to us (else already applied)
+                        elif log_add is None or log_add(origin, tr, x, y, rr):  # new to us (else already applied)
                             counters.scans_recovered += 1
                             # = umap.scan(x, y, r, t_rec); the disk is shared by every map
                             # applying this record (grid memo).
