@@ -70,4 +70,4 @@ class PlanBatcher:
                     fut.set_result(plan)
 
 
-__all__ = ["PlanBatcher", "Plan"]
+__all__ = ["PlanBatcher"]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from swarm.errors import SwarmError, UsageError
@@ -190,19 +191,18 @@ def _sweep_table(summary: dict):
     return t
 
 
-def _cmd_paper(args) -> int:
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+@contextmanager
+def _experiment_runner(args):
+    """``(executor, on_progress)`` for the multi-sweep commands (paper, resilience): the Dask
+    executor of ``--scheduler`` (closed on exit) or None, and a progress callback
+    ``(key, description, done, total, info)`` drawing one rich bar per key."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from swarm.paper import run_paper
-
-    if args.seeds is not None and args.seeds < 1:
-        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
     executor, client = _dask_executor(args)
-    err = _console(stderr=True)
     try:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
-                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=err, transient=False,
-                      disable=args.quiet) as progress:
+                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+                      console=_console(stderr=True), transient=False, disable=args.quiet) as progress:
             tasks: dict[str, int] = {}
 
             def on_progress(key: str, desc: str, done: float, total: float, info: str) -> None:
@@ -211,11 +211,20 @@ def _cmd_paper(args) -> int:
                     tasks[key] = progress.add_task(desc, total=total, count=count, info=info)
                 progress.update(tasks[key], completed=done, total=total, count=count, info=info)
 
-            report = run_paper(args.experiment, args.out, seeds=args.seeds, duration_s=args.duration,
-                               executor=executor, workers=args.workers, progress=on_progress)
+            yield executor, on_progress
     finally:
         if client is not None:
             client.close()
+
+
+def _cmd_paper(args) -> int:
+    from swarm.paper import run_paper
+
+    if args.seeds is not None and args.seeds < 1:
+        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
+    with _experiment_runner(args) as (executor, on_progress):
+        report = run_paper(args.experiment, args.out, seeds=args.seeds, duration_s=args.duration,
+                           executor=executor, workers=args.workers, progress=on_progress)
     failed = []
     for rep in report.experiments:
         for folder, res in rep.sweeps:
@@ -242,8 +251,6 @@ def _cmd_paper(args) -> int:
 
 
 def _cmd_resilience(args) -> int:
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from swarm.resilience import parse_values, run_resilience
 
     if args.seeds < 1:
@@ -257,26 +264,10 @@ def _cmd_resilience(args) -> int:
         if args.axis == "all":
             raise UsageError("--values needs one axis (loss, burst, range or crash), not all")
         values = parse_values(args.axis, args.values)
-    executor, client = _dask_executor(args)
-    err = _console(stderr=True)
-    try:
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
-                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TimeRemainingColumn(), console=err,
-                      transient=False, disable=args.quiet) as progress:
-            tasks: dict[str, int] = {}
-
-            def on_progress(key: str, desc: str, done: float, total: float, info: str) -> None:
-                count = f"{done:.0f}/{total:.0f}"
-                if key not in tasks:
-                    tasks[key] = progress.add_task(desc, total=total, count=count, info=info)
-                progress.update(tasks[key], completed=done, total=total, count=count, info=info)
-
-            report = run_resilience(args.axis, args.out, values=values, scenario=args.scenario, seeds=args.seeds,
-                                    duration_s=args.duration, crash_at_s=args.crash_at, burst_loss=args.burst_loss,
-                                    executor=executor, workers=args.workers, progress=on_progress)
-    finally:
-        if client is not None:
-            client.close()
+    with _experiment_runner(args) as (executor, on_progress):
+        report = run_resilience(args.axis, args.out, values=values, scenario=args.scenario, seeds=args.seeds,
+                                duration_s=args.duration, crash_at_s=args.crash_at, burst_loss=args.burst_loss,
+                                executor=executor, workers=args.workers, progress=on_progress)
     failed = []
     for rep in report.axes:
         res = rep.sweep

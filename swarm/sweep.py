@@ -25,6 +25,7 @@ run (scenario document, planner, seed, duration), and asking the same folder for
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -136,8 +137,6 @@ def is_finished(out_dir: Path, spec: RunSpec) -> bool:
 
 def fingerprint(spec: RunSpec) -> str:
     """What makes a run what it is (not how it is executed)."""
-    import hashlib
-
     doc = json.dumps([spec.scenario, spec.planner, spec.seed, spec.duration_s], sort_keys=True, default=str)
     return hashlib.sha256(doc.encode()).hexdigest()
 
