@@ -60,6 +60,8 @@ def _answer_hash(me: int, sender: int, t_cut: float) -> int:
     return h ^ (h >> 29)
 
 
+_MISSING = object()  # a memo miss (None is a memoised value: a disk off the grid)
+
 # Bytes of a packed scan (four msgpack floats) and room left in a frame for its header.
 _SCAN_BYTES = 36
 _FRAME_SLACK = 256
@@ -329,12 +331,13 @@ class UavActor:
         me = self.uid
         stamp = self.umap.stamp
         disk_stamp = self.grid.disk_stamp
+        known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
         decode_frame = self._decode
         lookup = self._lookup
         counters = self.counters
         log_add = self.scans.add if self._log_scans else None
         max_r, width, height = self._max_scan_r, self.grid.width_m, self.grid.height_m
-        delivered = 0
+        delivered = recovered = ignored = 0
         for _arrival, sender, data in frames:
             # Another receiver may have decoded these very bytes already (shared cache).
             frame = lookup(data) if lookup is not None and type(data) is bytes else None
@@ -351,19 +354,20 @@ class UavActor:
             for m in frame.messages:
                 tm = type(m)
                 if tm is ScanRecords:
-                    rec = m.records
                     origin = m.uav
-                    for i in range(0, len(rec), 4):
-                        tr, x, y, rr = rec[i], rec[i + 1], rec[i + 2], rec[i + 3]
+                    it = iter(m.records)
+                    for tr, x, y, rr in zip(it, it, it, it):
                         # A scan from the future would pin cells at q=0: only accept the past.
                         if not (0.0 <= tr <= t and 0.0 <= rr <= max_r and -max_r <= x <= width + max_r
                                 and -max_r <= y <= height + max_r):  # = not self._plausible(...)
-                            counters.scans_ignored += 1
+                            ignored += 1
                         elif log_add is None or log_add(origin, tr, x, y, rr):  # new to us (else already applied)
-                            counters.scans_recovered += 1
+                            recovered += 1
                             # = umap.scan(x, y, r, t_rec); the disk is shared by every map
                             # applying this record (grid memo).
-                            d = disk_stamp(x, y, rr)
+                            d = known_disk((x, y, rr), _MISSING)
+                            if d is _MISSING:
+                                d = disk_stamp(x, y, rr)
                             if d is not None:
                                 stamp(d, tr)
                 elif tm is Hello:
@@ -389,6 +393,8 @@ class UavActor:
                     if m.uav != me:
                         self._digests.append(m)
         counters.delivered += delivered
+        counters.scans_recovered += recovered
+        counters.scans_ignored += ignored
         return received
 
     def _answer_digests(self, t: float) -> list[tuple[int, bytes]]:

@@ -264,6 +264,12 @@ class Grid:
         cache[key] = d
         return d
 
+    def disk_lookup(self):
+        """The memo of :meth:`disk_stamp` as a ``get``: ``lookup((x, y, radius), default)`` is the
+        memoised disk (``None``: off the grid) or ``default``; for hot loops, which fall back on
+        :meth:`disk_stamp` when it gives ``default``."""
+        return self._cache.disks.get
+
     def prefetch_disks(self, xs, ys, radii, t: float | None = None, tiles: tuple[int, int] | None = None) -> None:
         """Build the disks of many scans at once (vectorised) into :meth:`disk_stamp`'s memo.
 
