@@ -116,23 +116,33 @@ def _list(v, n: int | None = None) -> list:
 
 
 def _message(raw) -> Message:
-    raw = _list(raw)
+    # The checks of _list/_int written out for the three kinds every beacon carries (a frame is
+    # decoded once per broadcast, but there are many: this is the codec's hot path).
+    if type(raw) is not list:
+        raise FrameError(f"expected an array, got {type(raw).__name__}")
     if not raw:
         raise FrameError("empty message")
-    kind = _int(raw[0])
+    kind = raw[0]
+    if type(kind) is not int:
+        raise FrameError(f"expected an integer, got {type(kind).__name__}")
+    n = len(raw)
     if kind == K_HELLO:
-        _list(raw, 7)
-        if type(raw[2]) is not str or len(raw[2]) > 64:
+        if n != 7:
+            raise FrameError(f"expected 7 fields, got {n}")
+        name = raw[2]
+        if type(name) is not str or len(name) > 64:
             raise FrameError("hello: bad type name")
-        return Hello(_int(raw[1]), raw[2], _num(raw[3]), _num(raw[4]), _num(raw[5]), _num(raw[6]))
+        return Hello(_int(raw[1]), name, _num(raw[3]), _num(raw[4]), _num(raw[5]), _num(raw[6]))
     if kind == K_INTENT:
-        _list(raw, 6)
+        if n != 6:
+            raise FrameError(f"expected 6 fields, got {n}")
         mode = _int(raw[4])
         if mode not in (0, 1):
             raise FrameError("intent: bad mode")
         return Intent(_int(raw[1]), _num(raw[2]), _num(raw[3]), mode, _int(raw[5]))
     if kind == K_SCAN:
-        _list(raw, 3)
+        if n != 3:
+            raise FrameError(f"expected 3 fields, got {n}")
         recs = _list(raw[2])
         if len(recs) % 4:
             raise FrameError("scan: record list not a multiple of 4")
@@ -196,7 +206,7 @@ def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> Frame:
             raise FrameError("bad magic")
         if raw[1] != VERSION or type(raw[1]) is not int:
             raise FrameError(f"unsupported version {raw[1]!r}")
-        return Frame(_int(raw[2]), _int(raw[3]), _num(raw[4]), tuple(_message(m) for m in _list(raw[5])))
+        return Frame(_int(raw[2]), _int(raw[3]), _num(raw[4]), tuple([_message(m) for m in _list(raw[5])]))
     except FrameError:
         raise
     except (TypeError, ValueError, IndexError, RecursionError) as exc:
