@@ -41,7 +41,7 @@ import math
 import os
 import shutil
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +55,15 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from comms.messages import MODE_SURVEIL  # noqa: E402
 from swarm.errors import UsageError  # noqa: E402
+from swarm.experiment import (  # noqa: E402
+    executor_for,
+    expected_duration,
+    md_cell,
+    no_data,
+    save_figure,
+    seeds_from,
+    write_json,
+)
 from swarm.recorder import read_events  # noqa: E402
 from swarm.scenario import load_scenario  # noqa: E402
 from swarm.sweep import SweepResult, describe, plan_runs, run_sweep  # noqa: E402
@@ -99,10 +108,6 @@ class PaperReport:
 
 # --- running -----------------------------------------------------------------------------------
 
-def _expected_duration(scenario, duration_s: float | None) -> float:
-    return float(duration_s if duration_s is not None else scenario.duration_s)
-
-
 def _check_sim_seconds(metrics_path: Path, expected: float) -> None:
     m = json.loads(metrics_path.read_text())
     if not math.isclose(float(m.get("sim_seconds", math.nan)), expected, abs_tol=1e-6):
@@ -115,7 +120,7 @@ def _sweep(scenario_name: str, sweep_dir: Path, seeds: Sequence[int], planners: 
            duration_s: float | None, executor: Executor, progress: ProgressFn | None, key: str) -> SweepResult:
     sc = load_scenario(scenario_name)
     runs = plan_runs(sc, seeds=seeds, planners=planners, duration_s=duration_s)
-    expected = _expected_duration(sc, duration_s)
+    expected = expected_duration(sc, duration_s)
     for spec in runs:
         mp = sweep_dir / spec.folder / "metrics.json"
         if mp.is_file():
@@ -139,7 +144,7 @@ def _single(scenario_name: str, run_dir: Path, duration_s: float | None, progres
     from swarm.simulation import Simulation
 
     sc = load_scenario(scenario_name)
-    expected = _expected_duration(sc, duration_s)
+    expected = expected_duration(sc, duration_s)
     desc = f"{key}: {scenario_name} seed {sc.seed}"
     if (run_dir / "metrics.json").is_file():
         _check_sim_seconds(run_dir / "metrics.json", expected)
@@ -159,14 +164,6 @@ def _single(scenario_name: str, run_dir: Path, duration_s: float | None, progres
     return False
 
 
-def _seed_list(seeds: int | Sequence[int]) -> list[int]:
-    if isinstance(seeds, int):
-        if seeds < 1:
-            raise UsageError(f"--seeds {seeds}: expected a whole number >= 1")
-        return list(range(seeds))
-    return [int(s) for s in seeds]
-
-
 def _record(rep: ExperimentReport, sweep_dir: Path, res: SweepResult) -> None:
     rep.sweeps.append((sweep_dir, res))
     rep.failed.extend(res.failed)
@@ -178,15 +175,15 @@ def run_fig11(out_dir: str | Path, *, seeds: int | Sequence[int] = 30, duration_
     """DACMP vs greedy on ``paper-fig11`` over ``seeds`` (Fig. 10-11)."""
     out = Path(out_dir) / "fig11"
     rep = ExperimentReport("fig11")
-    seed_list = _seed_list(seeds)
-    with _executor(executor, workers) as ex:
+    seed_list = seeds_from(seeds)
+    with executor_for(executor, workers) as ex:
         res = _sweep(SCENARIO["fig11"], out, seed_list, FIG11_PLANNERS, duration_s, ex, progress, "fig11")
     _record(rep, out, res)
     runs = {p: _finished(out, p, seed_list) for p in FIG11_PLANNERS}
     rep.figures += [fig11_over_time(runs, out / "fig11_over_time.png"),
                     fig11_final(runs, out / "fig11_final.png")]
     results = {"experiment": "fig11", "scenario": SCENARIO["fig11"], "seeds": seed_list,
-               "duration_s": _expected_duration(load_scenario(SCENARIO["fig11"]), duration_s),
+               "duration_s": expected_duration(load_scenario(SCENARIO["fig11"]), duration_s),
                "failed": len(res.failed), "planners": {}, "difference": None}
     summary = res.summary
     for g in summary.get("groups", []):
@@ -202,7 +199,7 @@ def run_fig11(out_dir: str | Path, *, seeds: int | Sequence[int] = 30, duration_
                                      "targets_found": c["difference"].get("targets_found")}
     totals = [r["metrics"]["targets_total"] for p in runs.values() for r in p]
     results["targets_total"] = totals[0] if totals else PAPER["fig11"]["targets_total"]
-    _write_json(out / "results.json", results)
+    write_json(out / "results.json", results)
     return rep
 
 
@@ -216,7 +213,7 @@ def run_case1(out_dir: str | Path, *, duration_s: float | None = None,
     log = RunLog.load(run_dir)
     rep.figures.append(case1_distance(log, out / "case1_distance.png"))
     rep.figures.append(_copy(run_dir / "trajectories.png", out / "case1_trajectories.png"))
-    _write_json(out / "results.json", {"experiment": "case1", **case1_measures(log)})
+    write_json(out / "results.json", {"experiment": "case1", **case1_measures(log)})
     return rep
 
 
@@ -231,8 +228,8 @@ def run_case2(out_dir: str | Path, *, seeds: int | Sequence[int] | None = None, 
     seed_runs = []
     results: dict[str, Any] = {"experiment": "case2"}
     if seeds is not None:
-        seed_list = _seed_list(seeds)
-        with _executor(executor, workers) as ex:
+        seed_list = seeds_from(seeds)
+        with executor_for(executor, workers) as ex:
             res = _sweep(SCENARIO["case2"], out / "seeds", seed_list, ("dacmp",), duration_s, ex, progress,
                          "case2 seeds")
         _record(rep, out / "seeds", res)
@@ -252,7 +249,7 @@ def run_case2(out_dir: str | Path, *, seeds: int | Sequence[int] | None = None, 
     rep.figures.append(task_loads(log, out / "case2_task_loads.png",
                                   title="Task loads of the UAV swarm, Case 2 (paper Fig. 14)"))
     rep.figures.append(case2_coverage(run_dir, seed_runs, out / "case2_coverage.png"))
-    _write_json(out / "results.json", results)
+    write_json(out / "results.json", results)
     return rep
 
 
@@ -264,8 +261,8 @@ def run_case3(out_dir: str | Path, *, seeds: int | Sequence[int] = 10, duration_
     root = Path(out_dir)
     out = root / "case3"
     rep = ExperimentReport("case3")
-    seed_list = _seed_list(seeds)
-    with _executor(executor, workers) as ex:
+    seed_list = seeds_from(seeds)
+    with executor_for(executor, workers) as ex:
         for name, d, key in (("paper-case2", root / "case2" / "seeds", "case3 (case2 side)"),
                              ("paper-case3", out / "seeds", "case3")):
             _record(rep, d, _sweep(name, d, seed_list, ("dacmp",), duration_s, ex, progress, key))
@@ -277,7 +274,7 @@ def run_case3(out_dir: str | Path, *, seeds: int | Sequence[int] = 10, duration_
                                       out / "case3_coverage.png", joiner=joiner))
     results = {"experiment": "case3", "seeds": common, "failed": len(rep.failed), "join_s": join_s, "joiner": joiner,
                "window_from_s": CASE3_WINDOW_FROM_S,
-               "duration_s": _expected_duration(load_scenario("paper-case3"), duration_s)}
+               "duration_s": expected_duration(load_scenario("paper-case3"), duration_s)}
     if common:
         def window(r):
             t, c = r["ts"]["t"], r["ts"]["coverage"]
@@ -297,7 +294,7 @@ def run_case3(out_dir: str | Path, *, seeds: int | Sequence[int] = 10, duration_
         t, m2 = _mean_curve([without[s] for s in common], "coverage")
         _, m3 = _mean_curve([with_[s] for s in common], "coverage")
         results["above_from_s"] = _stays_above_from(t, m3, m2, join_s)
-    _write_json(out / "results.json", results)
+    write_json(out / "results.json", results)
     return rep
 
 
@@ -316,12 +313,12 @@ def run_paper(experiment: str, out_dir: str | Path = "results/paper", *, seeds: 
     if duration_s is not None and duration_s <= 0:
         raise UsageError(f"--duration {duration_s:g}: expected a positive number of seconds")
     if seeds is not None:
-        _seed_list(seeds)
+        seeds_from(seeds)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     names = EXPERIMENTS if experiment == "all" else (experiment,)
     reports = []
-    with _executor(executor, workers) as ex:
+    with executor_for(executor, workers) as ex:
         for name in names:
             if name == "case1":
                 kw: dict[str, Any] = {}
@@ -334,41 +331,7 @@ def run_paper(experiment: str, out_dir: str | Path = "results/paper", *, seeds: 
     return PaperReport(out, reports, md, csv_path, rows)
 
 
-class _executor:
-    """The given executor, or a process pool for the block (processes start on first use)."""
-
-    def __init__(self, executor: Executor | None, workers: int | None):
-        self.given = executor
-        self.workers = workers
-        self.own: Executor | None = None
-
-    def __enter__(self) -> Executor:
-        if self.given is not None:
-            return self.given
-        self.own = ProcessPoolExecutor(max_workers=self.workers or os.cpu_count() or 1)
-        return self.own
-
-    def __exit__(self, *exc) -> None:
-        if self.own is not None:
-            self.own.shutdown(wait=True, cancel_futures=True)
-
-
 # --- reading results ---------------------------------------------------------------------------
-
-def _write_json(path: Path, data: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_json_default))
-    os.replace(tmp, path)
-
-
-def _json_default(o):
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, (np.floating,)):
-        return float(o)
-    raise TypeError(type(o))
-
 
 def _copy(src: Path, dst: Path) -> Path:
     shutil.copyfile(src, dst)
@@ -639,14 +602,6 @@ def _uav_colours(names: Sequence[str]) -> dict[str, Any]:
     return {n: cmap(i % cmap.N) for i, n in enumerate(sorted(names))}
 
 
-def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None = None) -> None:
     """Mean line, 95% band of the mean and min-max spread over runs; ``bounds``: the range the
     quantity can take (the band of a few runs is clipped to it)."""
@@ -659,10 +614,6 @@ def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None 
     if n > 1:
         ax.fill_between(t, b["lo"], b["hi"], color=colour, alpha=0.30, lw=0, label=f"{label} 95% CI of mean")
     ax.plot(t, b["mean"], "-", color=colour, lw=1.6, label=f"{label} mean ({n} run{'s' if n != 1 else ''})")
-
-
-def _no_data(ax, text="no finished runs") -> None:
-    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="grey")
 
 
 def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
@@ -686,7 +637,7 @@ def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
                 ax.plot([t_end], [quoted[col][p]], marker="D", mfc="none", mec=PLANNER_COLOUR[p], ms=8, ls="none",
                         label=f"{PLANNER_LABEL[p]} paper (quoted): {quoted[col][p]:g}")
         if not any_data:
-            _no_data(ax)
+            no_data(ax)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(ylabel)
         ax.set_title(f"({letter}) {ylabel} over time, paper-fig11 (paper Fig. 11{letter})", fontsize=10)
@@ -695,7 +646,7 @@ def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
         ax.set_ylim(bottom=0)
         if any_data:
             ax.legend(fontsize=7, loc="lower right")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
@@ -733,7 +684,7 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
         top = np.nanmax([*(np.array(means) + e[1]), *(quoted[key][p] for p in FIG11_PLANNERS)])
         ax.set_ylim(0, 1.3 * top)
         ax.legend(fontsize=7, loc="upper center", ncol=2)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
@@ -743,8 +694,8 @@ def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
     names = [log.names[u] for u in log.poses]
     colours = _uav_colours(names)
     if target not in log.targets:
-        _no_data(ax, f"no target {target + 1} in this run")
-        return _save(fig, path)
+        no_data(ax, f"no target {target + 1} in this run")
+        return save_figure(fig, path)
     for uid in sorted(log.poses, key=lambda u: log.names[u]):
         p = log.poses[uid]
         name = log.names[uid]
@@ -792,7 +743,7 @@ def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
     ax.grid(alpha=0.3)
     ax.set_title(f"{log.metrics['scenario']}: distance between UAVs and target {target + 1} (paper Fig. 12d)",
                  fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 MODE_COLOUR = {"search": "#9ecae1", "surveil": "#fd8d3c", "pending": "#eeeeee", "down": "#636363"}
@@ -847,7 +798,7 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
     bx.set_xlabel("seconds per mode (s)")
     bx.set_title("task load", fontsize=10)
     bx.grid(axis="x", alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path:
@@ -866,7 +817,7 @@ def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
     ax.set_title(f"{m['scenario']}: coverage rate of the UAV swarm (paper Fig. 15)", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float | None, path: Path,
@@ -889,7 +840,7 @@ def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float
         bx.legend(fontsize=7, loc="upper left")
     else:
         t_end = 0.0
-        _no_data(ax)
+        no_data(ax)
     if join_s is not None:
         for a in (ax, bx):
             a.axvline(join_s, color="black", ls="--", lw=1.0)
@@ -907,7 +858,7 @@ def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float
     bx.set_xlabel("time (s)")
     bx.set_ylabel("coverage difference")
     bx.grid(alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # --- the table ---------------------------------------------------------------------------------
@@ -1106,10 +1057,6 @@ def table_rows(out_dir: str | Path) -> list[dict]:
     return rows
 
 
-def _md_cell(text: Any) -> str:
-    return str(text).replace("|", "\\|").replace("\n", " ")
-
-
 def write_table(out_dir: str | Path) -> tuple[Path, Path, list[dict]]:
     """Rewrite ``table.md`` and ``table.csv`` from the ``results.json`` files in ``out_dir``."""
     out = Path(out_dir)
@@ -1127,7 +1074,7 @@ def write_table(out_dir: str | Path) -> tuple[Path, Path, list[dict]]:
         "|" + "---|" * (len(MD_HEADER) + 1),
     ]
     for r in rows:
-        lines.append("| " + " | ".join(_md_cell(r[k]) for k in ("experiment", "quantity", "paper_quoted",
+        lines.append("| " + " | ".join(md_cell(r[k]) for k in ("experiment", "quantity", "paper_quoted",
                                                                  "ours_measured", "note")) + " |")
     md = "\n".join(lines) + "\n"
     buf = io.StringIO(newline="")

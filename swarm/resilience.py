@@ -57,20 +57,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from swarm.errors import UsageError  # noqa: E402
-from swarm.paper import (  # noqa: E402
-    FIG11_PLANNERS,
-    PLANNER_COLOUR,
-    PLANNER_LABEL,
-    _executor,
-    _expected_duration,
-    _md_cell,
-    _no_data,
-    _save,
-    _seed_list,
-    _write_json,
+from swarm.experiment import (  # noqa: E402
+    executor_for,
+    expected_duration,
+    md_cell,
+    no_data,
+    save_figure,
+    seeds_from,
+    write_json,
 )
+from swarm.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL  # noqa: E402
 from swarm.scenario import Scenario, apply_overrides, load_scenario  # noqa: E402
-from swarm.sweep import RunSpec, SweepResult, _slug, describe, plan_runs, run_sweep  # noqa: E402
+from swarm.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug  # noqa: E402
 
 AXES = ("loss", "burst", "range", "crash")
 PLANNERS = FIG11_PLANNERS  # greedy first: the sweep's paired comparisons are "dacmp - greedy"
@@ -232,7 +230,7 @@ def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, 
     ``runs/<planner>/<settings>/seed-NNN`` as in :func:`swarm.sweep.plan_runs`."""
     if axis not in AXES:
         raise UsageError(f"unknown axis {axis!r}; expected one of {', '.join(AXES)}")
-    run_s = _expected_duration(scenario, duration_s)
+    run_s = expected_duration(scenario, duration_s)
     if axis == "crash":
         n = len(crash_candidates(scenario))
         if values is None:
@@ -251,9 +249,9 @@ def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, 
     for v in values:
         settings, overrides = _point(axis, scenario, v, crash_at_s=crash_at_s, burst_loss=burst_loss)
         sc = apply_overrides(scenario, overrides) if overrides else scenario
-        slug = _slug(settings)
+        point = slug(settings)
         for spec in plan_runs(sc, seeds=seeds, planners=planners, duration_s=duration_s):
-            runs.append(replace(spec, settings=settings, folder=f"runs/{spec.planner}/{slug}/seed-{spec.seed:03d}"))
+            runs.append(replace(spec, settings=settings, folder=f"runs/{spec.planner}/{point}/seed-{spec.seed:03d}"))
     return runs
 
 
@@ -282,8 +280,8 @@ def _plan(axis: str, out_dir: str | Path, *, scenario: str | os.PathLike = DEFAU
     if duration_s is not None and not duration_s > 0:
         raise UsageError(f"--duration {duration_s:g}: expected a positive number of seconds")
     sc = load_scenario(scenario)
-    seed_list = _seed_list(seeds)
-    run_s = _expected_duration(sc, duration_s)
+    seed_list = seeds_from(seeds)
+    run_s = expected_duration(sc, duration_s)
     runs = plan_axis(axis, sc, values=values, seeds=seed_list, duration_s=duration_s, crash_at_s=crash_at_s,
                      burst_loss=burst_loss)
     _check_finished(Path(out_dir) / axis, runs, sc.name, run_s)
@@ -309,11 +307,11 @@ def run_axis(axis: str, out_dir: str | Path = "results/resilience", *, scenario:
 
     if progress is not None:
         progress(axis, desc, 0, len(runs), "")
-    with _executor(executor, workers) as ex:
+    with executor_for(executor, workers) as ex:
         res = run_sweep(runs, axis_dir, executor=ex, progress=cb)
     results = measure(axis, axis_dir, runs, res.summary, scenario=sc, seeds=seed_list, run_s=run_s,
                       crash_at_s=crash_at_s, burst_loss=burst_loss)
-    _write_json(axis_dir / "results.json", results)
+    write_json(axis_dir / "results.json", results)
     rep = AxisReport(axis, axis_dir, res, results=results)
     rep.figures.append(axis_figure(results, axis_dir / f"{axis}.png", reference=_loss_reference(Path(out_dir), results)))
     if axis == "loss":
@@ -335,7 +333,7 @@ def run_resilience(axis: str, out_dir: str | Path = "results/resilience", *, val
     for name in names:  # a mistake in any axis is reported before the first run
         _plan(name, out, values=values, **kw)
     reports = []
-    with _executor(executor, workers) as ex:
+    with executor_for(executor, workers) as ex:
         for name in names:
             reports.append(run_axis(name, out, values=values, executor=ex, **kw))
     md, csv_path = write_table(out)
@@ -526,7 +524,7 @@ def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Pat
     labels = [pt["label"] for pt in results["points"]]
     for ax, (q, ylabel, bounds) in zip(axes, panels):
         if not _errorbars(ax, results, q, x, bounds):
-            _no_data(ax)
+            no_data(ax)
         for name, ls in zip(reference or {}, (":", "--")):
             for p in PLANNERS:
                 v = reference[name][p].get(q)
@@ -542,7 +540,7 @@ def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Pat
         ax.set_title(ylabel, fontsize=10)
         ax.legend(fontsize=7, loc="best")
     fig.suptitle(f"Resilience: {AXIS_TITLE[results['axis']]}\n{_run_note(results)}", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def kept_figure(results: dict, path: Path) -> Path:
@@ -559,7 +557,7 @@ def kept_figure(results: dict, path: Path) -> Path:
             ax.axvline(x[i], color="grey", lw=0.8, alpha=0.6)
         ax.legend(fontsize=7, loc="lower left")
     else:
-        _no_data(ax, "needs finished runs at loss 0")
+        no_data(ax, "needs finished runs at loss 0")
     ax.set_xticks(x, [pt["label"] for pt in pts])
     ax.set_xlabel(AXIS_TITLE["loss"], fontsize=8)
     ax.set_ylabel("coverage / loss-free coverage (same seed)")
@@ -586,13 +584,13 @@ def kept_figure(results: dict, path: Path) -> Path:
         bx.set_xticks(xb, [PLANNER_LABEL[p] for p in PLANNERS])
         bx.legend(fontsize=7, loc="lower center")
     else:
-        _no_data(bx, f"needs finished runs at loss 0 and {TARGET_LOSS:g}")
+        no_data(bx, f"needs finished runs at loss 0 and {TARGET_LOSS:g}")
     bx.set_ylim(0, 1.35)
     bx.set_ylabel("coverage kept (mean, 95% CI)")
     bx.grid(axis="y", alpha=0.3)
     bx.set_title(f"at {TARGET_LOSS:.0%} i.i.d. loss", fontsize=10)
     fig.suptitle(f"Loss-free coverage kept under i.i.d. loss\n{_run_note(results)}", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # --- tables --------------------------------------------------------------------------------------
@@ -652,7 +650,7 @@ def _axis_md(results: dict, heading: str = "##") -> list[str]:
     lines.append("| " + " | ".join([results["title"], *(c for c, _ in cols)]) + " |")
     lines.append("|" + "---|" * (len(cols) + 1))
     for pt in results["points"]:
-        lines.append("| " + " | ".join(_md_cell(x) for x in [pt["label"], *(f(pt) for _, f in cols)]) + " |")
+        lines.append("| " + " | ".join(md_cell(x) for x in [pt["label"], *(f(pt) for _, f in cols)]) + " |")
     return lines
 
 

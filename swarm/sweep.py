@@ -80,7 +80,7 @@ class SweepResult:
     summary: dict = field(default_factory=dict)
 
 
-def _slug(settings: Sequence[tuple[str, Any]]) -> str:
+def slug(settings: Sequence[tuple[str, Any]]) -> str:
     if not settings:
         return "default"
     text = ",".join(f"{k}={json.dumps(v, separators=(',', ':'))}" for k, v in settings)
@@ -111,7 +111,7 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
             doc = sc.to_dict()
             for seed in seeds:
                 runs.append(RunSpec(doc, planner, int(seed), settings,
-                                    f"runs/{planner}/{_slug(settings)}/seed-{int(seed):03d}",
+                                    f"runs/{planner}/{slug(settings)}/seed-{int(seed):03d}",
                                     duration_s, figures))
     return runs
 
