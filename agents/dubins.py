@@ -97,26 +97,29 @@ def dubins_length(
         if not r > 0.0:
             return np.hypot(dx, dy)
         # (1-d while computing: the in-place steps need arrays, and a 0-d array stays 0-d.)
-        out = _lengths(dx.reshape(-1), dy.reshape(-1), math.cos(theta0), math.sin(theta0), r, 1.0 / r)
+        out = _lengths(np.stack([dx.reshape(-1), dy.reshape(-1)]), math.cos(theta0), math.sin(theta0), r, 1.0 / r)
         return out.reshape(dx.shape)
     poses = DubinsPoses(theta0, r_min, px.ndim)
-    dx = px - np.asarray(x0, dtype=np.float64)
-    dy = py - np.asarray(y0, dtype=np.float64)
+    dx, dy = np.broadcast_arrays(px - np.asarray(x0, dtype=np.float64), py - np.asarray(y0, dtype=np.float64))
     # Offsets spanning every pose (the in-place steps keep the shape of the first product).
     shape = np.broadcast_shapes(dx.shape, poses.c.shape, poses.r.shape)
-    return poses.lengths(np.broadcast_to(dx, shape), np.broadcast_to(dy, shape))
+    return poses.lengths(np.broadcast_to(np.stack([dx, dy]), (2, *shape)))
 
 
 class DubinsPoses:
     """``n`` start poses (headings ``theta0``, turning radii ``r_min``) whose lengths to many sets
     of points are wanted: the per-pose terms of :func:`dubins_length` computed once.
 
-    ``lengths(dx, dy)`` takes the points as offsets from the start positions (``px - x0``,
-    ``py - y0``, row ``i`` for pose ``i``, ``ndim`` dimensions) and returns exactly what
-    :func:`dubins_length` returns for those poses and points.
+    ``lengths(d)`` takes the points as offsets from the start positions, stacked: ``d[0] = px -
+    x0``, ``d[1] = py - y0`` (each with ``ndim`` dimensions, row ``i`` for pose ``i``), and returns
+    exactly what :func:`dubins_length` returns for those poses and points. With ``shape`` (the
+    shape of ``d[0]`` of every call) the per-pose terms are stored repeated to the shapes they
+    meet (``d``'s or ``d[0]``'s): numpy is faster on same-shape operands than when it
+    broadcasts, for the same numbers.
     """
 
-    def __init__(self, theta0: np.ndarray, r_min: float | np.ndarray, ndim: int = 2):
+    def __init__(self, theta0: np.ndarray, r_min: float | np.ndarray, ndim: int = 2,
+                 shape: tuple[int, ...] | None = None):
         r = np.asarray(r_min, dtype=np.float64)
         if np.isnan(r).any():
             raise ValueError("r_min is NaN")
@@ -126,32 +129,38 @@ class DubinsPoses:
         if self.free is not None:
             r = np.where(self.free, 1.0, r)
         theta = [float(a) for a in np.ravel(theta0)]
-        shape = (len(theta),) + (1,) * (ndim - 1)
-        self.c = np.array([math.cos(a) for a in theta]).reshape(shape)
-        self.s = np.array([math.sin(a) for a in theta]).reshape(shape)
+        column = (len(theta),) + (1,) * (ndim - 1)
+        self.c = np.array([math.cos(a) for a in theta]).reshape(column)
+        self.s = np.array([math.sin(a) for a in theta]).reshape(column)
         self.r = r
         self.inv_r = 1.0 / r
+        if shape is not None:
+            def full(a, shape):
+                return np.ascontiguousarray(np.broadcast_to(a, shape))
 
-    def lengths(self, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-        turning = _lengths(dx, dy, self.c, self.s, self.r, self.inv_r)
+            self.c, self.s, self.inv_r = (full(a, (2, *shape)) for a in (self.c, self.s, self.inv_r))
+            self.r = full(self.r, shape)
+
+    def lengths(self, d: np.ndarray) -> np.ndarray:
+        turning = _lengths(d, self.c, self.s, self.r, self.inv_r)
         if self.free is None:
             return turning
-        return np.where(self.free, np.hypot(dx, dy), turning)
+        return np.where(self.free, np.hypot(d[0], d[1]), turning)
 
 
-def _lengths(dx: np.ndarray, dy: np.ndarray, c, s, r, inv_r) -> np.ndarray:
-    """The closed form of the module docstring, for offsets ``(dx, dy)`` (arrays, at least 1-d)
-    from the start and the start's ``cos``, ``sin``, ``r`` and ``1 / r`` (scalars, or arrays
-    broadcasting into the offsets' shape). Temporaries are updated in place: the same
-    operations, fewer arrays."""
+def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
+    """The closed form of the module docstring, for stacked offsets ``d = (dx, dy)`` (each at
+    least 1-d) from the start and the start's ``cos``, ``sin``, ``r`` and ``1 / r`` (scalars, or
+    arrays broadcasting into the offsets' shape). Temporaries are updated in place and the two
+    coordinates share operations: the same numbers, fewer numpy calls."""
     # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
-    x = c * dx
-    x += s * dy
-    x *= inv_r
-    y = c * dy
-    y -= s * dx
+    xy = c * d  # (c dx, c dy)
+    sd = s * d  # (s dx, s dy)
+    x, y = xy
+    x += sd[1]  # c dx + s dy
+    y -= sd[0]  # c dy - s dx
     np.abs(y, out=y)
-    y *= inv_r
+    xy *= inv_r
 
     # |p - c_L|^2 - 1 = x^2 + (y-1)^2 - 1 = x^2 + y (y - 2)   (exact for y == 0: t == |x|)
     t2 = x * x
@@ -178,24 +187,26 @@ def _lengths(dx: np.ndarray, dy: np.ndarray, c, s, r, inv_r) -> np.ndarray:
 
     # --- CC (RL) for points strictly inside the left turning circle (usually none).
     if inside.any():
-        xi = x[inside]
-        yi = y[inside]
+        xi, yi = xy[:, inside]
         qy = yi + 1.0  # q = p - c_R, c_R = (0, -1); 1 < |q| < 3 here
         dq = np.hypot(xi, qy)
-        gamma = np.arccos(np.clip((dq * dq + 3.0) / (4.0 * dq), -1.0, 1.0))
+        cos_gamma = (dq * dq + 3.0) / (4.0 * dq)
+        # Clipped to [-1, 1] (np.clip's numbers, without its Python-level overhead).
+        np.maximum(cos_gamma, -1.0, out=cos_gamma)
+        np.minimum(cos_gamma, 1.0, out=cos_gamma)
+        gamma = np.arccos(cos_gamma)
         ang_u = np.arctan2(qy, xi) - gamma  # the root with the short first arc
         # first arc (clockwise): a = pi/2 - angle(u), in [0, pi/3]; wrap to [-pi, pi), clip rounding
         a = np.maximum(np.mod(0.5 * math.pi - ang_u + math.pi, _TWO_PI) - math.pi, 0.0)
         ux = np.cos(ang_u)
         uy = np.sin(ang_u)
         # second centre c_2 = c_R + 2u; the switch point is c_R + u, seen from c_2 in direction -u
-        b = np.mod(np.arctan2(yi + 1.0 - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
+        b = np.mod(np.arctan2(qy - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
         # b lies in (pi, 2 pi): a value near 0 is 2 pi lost to rounding (point at the start)
-        b = np.where(b < 0.5 * math.pi, b + _TWO_PI, b)
+        np.add(b, _TWO_PI, out=b, where=b < 0.5 * math.pi)
         out[inside] = a + b
 
     out *= r
-    at_start = dx == 0.0
-    at_start &= dy == 0.0
-    out[at_start] = 0.0
+    zero = d == 0.0
+    out[zero[0] & zero[1]] = 0.0
     return out

@@ -45,9 +45,6 @@ from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0
-# Uncertainty maps computed (and their pyramids built) together, at most this many cells at a
-# time (8 MB of float32): all six of a 500 x 500 paper batch, one UAV at a time on huge grids.
-_Q_STACK_CELLS = 1 << 21
 
 
 @dataclass
@@ -244,7 +241,7 @@ class DacmpPlanner:
         for tid, tx, ty, _v in u.targets:
             if tid == mine.target:
                 z = np.array([[[tx]], [[ty]]])
-                batch = _Batch(self, [u], g, layers)
+                batch = _Batch(self, [u], g, layers, 1)
                 _, f_s, f_t = batch.fitness(z)
                 if f_t[0, 0] > f_s[0, 0]:
                     wx, wy = batch.keep_near(z)[:, 0, 0]
@@ -255,7 +252,7 @@ class DacmpPlanner:
     def _pso(self, uavs: list["_UavSearch"], g, layers: "_Layers") -> list[Plan]:
         """Particle swarms of several UAVs in lockstep (their draws made by :meth:`_UavSearch.draw`)."""
         U, M, n_it = len(uavs), self.particles, self.iterations
-        batch = _Batch(self, uavs, g, layers)
+        batch = _Batch(self, uavs, g, layers, M)
         fitness, keep_near = batch.fitness, batch.keep_near
         # Positions and velocities as (axis, UAV, particle): x and y rows share every operation.
         rows = np.arange(U)
@@ -283,7 +280,7 @@ class DacmpPlanner:
             np.copyto(bf, f, where=better)
             gi = np.argmax(bf, axis=1)
         wz, best = best_z[:, rows, gi][:, :, None], bf[rows, gi]
-        _, f_s, f_t = fitness(wz)
+        _, f_s, f_t = fitness(np.repeat(wz, M, axis=2))  # (the batch's shape: M copies)
         plans = []
         for i, u in enumerate(uavs):
             if not np.isfinite(best[i]):
@@ -296,35 +293,40 @@ class DacmpPlanner:
 
 class _Batch:
     """The fitness (eq. 16) and the particle bound of several UAVs, on ``(2, UAVs, points)``
-    arrays of positions (x row, then y row)."""
+    arrays of positions (x row, then y row), ``points`` per UAV.
 
-    def __init__(self, planner: DacmpPlanner, uavs: list["_UavSearch"], grid, layers: "_Layers"):
+    Per-UAV values are stored repeated for each point: numpy is several times faster on
+    same-shape operands than when it has to broadcast a column, and the numbers are the same.
+    """
+
+    def __init__(self, planner: DacmpPlanner, uavs: list["_UavSearch"], grid, layers: "_Layers", points: int):
         self.planner, self.uavs, self.grid, self.layers = planner, uavs, grid, layers
+        shape = (len(uavs), points)
 
         def column(values) -> np.ndarray:
-            return np.array(values, dtype=np.float64)[:, None]
+            return np.repeat(np.array(values, dtype=np.float64)[:, None], points, axis=1)
 
         self.p0 = np.stack([column([u.view.x for u in uavs]), column([u.view.y for u in uavs])])
-        self.area = np.array([grid.width_m, grid.height_m])[:, None, None]
+        self.area = np.stack([np.full(shape, grid.width_m), np.full(shape, grid.height_m)])
         self.R = column([u.R for u in uavs])
         self.r_max = column([u.r_max for u in uavs])
-        self.layer_base = layers.base([u.slot for u in uavs])
+        self.layer_base, self.layer_weights = layers.operands([u.slot for u in uavs], points)
         self.guided = [i for i, u in enumerate(uavs) if u.guide is not None]
         gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
         gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
         self.guide_dir = np.stack([gax, gay])
         self.g_norm = np.hypot(gax, gay)
         self.has_guide = column([u.guide is not None for u in uavs]) > 0.5
-        self.dubins = DubinsPoses(np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]))
+        self.dubins = DubinsPoses(np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]), shape=shape)
 
     def fitness(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s points)."""
+        """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s ``points`` points)."""
         planner, g = self.planner, self.grid
         # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers).
         cells = (z // g.cell_m).astype(np.int64)
-        p_sum = self.layers.level_sum(self.layer_base, cells[0], cells[1])
+        p_sum = self.layers.level_sum(self.layer_base, self.layer_weights, cells[0], cells[1])
         d = z - self.p0  # from the UAV
-        dub = self.dubins.lengths(d[0], d[1])
+        dub = self.dubins.lengths(d)
         R = self.R
         f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
         if self.guided:
@@ -458,15 +460,16 @@ class _Layers:
     Eq. 19 sums layers 1..L (a map too small for even one layer falls back on G_0). They are
     kept for all UAVs in one flat float32 buffer, level by level and UAV by UAV within a level,
     so that the level sums of all particles of all UAVs are one gather (:meth:`level_sum`),
-    without ever forming a whole map of sums. Maps are computed a few at a time
-    (``_Q_STACK_CELLS``) into one stack and their pyramids built together, in buffers the
-    planner keeps between calls. Each UAV gets exactly the numbers of its own map alone.
+    without ever forming a whole map of sums. Each UAV's map is computed and reduced to G_1
+    while it is still in cache; the smaller levels are built for all UAVs together. All in
+    buffers the planner keeps between calls; each UAV gets exactly the numbers of its own map
+    alone.
     """
 
     def __init__(self, planner: DacmpPlanner, views: list[PlanView]):
         g = views[0].grid
         scratch = planner._scratch
-        n = len(views)
+        n = self.count = len(views)
         shapes = level_shapes(g.shape, planner.levels + 1)  # G_0 .. G_L
         self.search = list(range(1, len(shapes))) or [0]
         self.lam = planner._weights(len(self.search))[:, None, None]
@@ -486,43 +489,44 @@ class _Layers:
         # The coarsest layer with >= 4 x 4 cells sets the guide's sub-areas (eq. 20).
         regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
         self.guides: list[tuple[float, float] | None] = []
-        step = max(1, min(n, _Q_STACK_CELLS // (g.ny * g.nx)))
-        for s0 in range(0, n, step):
-            chunk = views[s0 : s0 + step]
-            q = scratch.get("q", (len(chunk), g.ny, g.nx))
-            for i, view in enumerate(chunk):
-                view.umap.uncertainty(view.t, out=q[i])
-                # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
-                # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
-                # formation.
-                tie_key = view.rng.random(9)
-                self.guides.append(planner.guide_point(q[i], regions, g.cell_m, view.x, view.y, view.theta,
-                                                       tie_key=tie_key))
-            lower = q
-            for j, l in enumerate(self.search):
-                out = self._level(j, s0, len(chunk), shapes[l])
-                if l == 0:
-                    np.copyto(out, q)
-                else:
-                    lower = pyr_down_stack(lower, out, scratch)
+        first = self._level(0, shapes[self.search[0]])  # G_1 (G_0 if it is the only level)
+        q = scratch.get("q", (1, g.ny, g.nx))
+        for i, view in enumerate(views):
+            view.umap.uncertainty(view.t, out=q[0])
+            # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
+            # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
+            # formation.
+            tie_key = view.rng.random(9)
+            self.guides.append(planner.guide_point(q[0], regions, g.cell_m, view.x, view.y, view.theta,
+                                                   tie_key=tie_key))
+            if self.search[0] == 0:
+                np.copyto(first[i], q[0])
+            else:
+                pyr_down_stack(q, first[i : i + 1], scratch)
+        for j in range(1, len(self.search)):
+            pyr_down_stack(self._level(j - 1, shapes[j]), self._level(j, shapes[j + 1]), scratch)
 
-    def _level(self, j: int, s0: int, count: int, shape: tuple[int, int]) -> np.ndarray:
-        """Search level ``j`` of UAV slots ``s0 .. s0 + count - 1``: a ``(count, h, w)`` view."""
-        start = int(self.level_start[j, 0]) + s0 * int(self.level_size[j, 0])
-        return self.flat[start : start + count * shape[0] * shape[1]].reshape(count, *shape)
+    def _level(self, j: int, shape: tuple[int, int]) -> np.ndarray:
+        """Search level ``j`` (of shape ``shape``) of every UAV: a ``(UAVs, h, w)`` view."""
+        start, size = int(self.level_start[j, 0]), int(self.level_size[j, 0])
+        return self.flat[start : start + size * self.count].reshape(self.count, *shape)
 
-    def base(self, slots: list[int]) -> np.ndarray:
-        """``(levels, UAVs, 1)`` flat start of each search level of the UAVs in these slots."""
-        return (self.level_start + np.array(slots) * self.level_size)[:, :, None]
+    def operands(self, slots: list[int], points: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(base, lam)`` for :meth:`level_sum` on ``(UAVs, points)`` arrays of the UAVs in these
+        slots: the flat start of each of their search levels and the levels' weights, both
+        ``(levels, UAVs, points)`` (full size: same-shape operands keep numpy on its fast path)."""
+        shape = (len(self.search), len(slots), points)
+        base = (self.level_start + np.array(slots) * self.level_size)[:, :, None]
+        return np.ascontiguousarray(np.broadcast_to(base, shape)), np.ascontiguousarray(np.broadcast_to(self.lam, shape))
 
-    def level_sum(self, base: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+    def level_sum(self, base: np.ndarray, lam: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
         """``sum_l lambda_l G_l`` read at the coarse cells nearest level-0 cells ``(iy, ix)``
-        (``(UAVs, points)`` int arrays; ``base`` from :meth:`base`), accumulated level by level
-        from 0 in float64: the numerator of eq. 19."""
+        (``(UAVs, points)`` int arrays; ``base``, ``lam`` from :meth:`operands`), accumulated
+        level by level from 0 in float64: the numerator of eq. 19."""
         # mode="clip": cells outside the grid read its border cells (as Grid.cells_of clips).
         idx = np.take(self.row_part, iy, axis=1, mode="clip")  # (levels, UAVs, points)
         idx += np.take(self.col_part, ix, axis=1, mode="clip")
         idx += base
-        terms = np.take(self.flat, idx) * self.lam  # float64: lambda_l * G_l
+        terms = np.take(self.flat, idx) * lam  # float64: lambda_l * G_l
         # A reduction over the first axis adds whole rows, one level after the other.
         return np.add.reduce(terms, axis=0, initial=0.0)
