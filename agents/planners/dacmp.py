@@ -264,7 +264,8 @@ class DacmpPlanner:
         f, _, _ = fitness(z)
         best_z, bf = z.copy(), f.copy()
         gi = np.argmax(bf, axis=1)
-        draws = np.stack([u.pso_draws for u in uavs], axis=2)  # (iteration, r1/r2/Q, UAV, particle)
+        # (iteration, r1/r2/Q, axis, UAV, particle): the draws repeated for the x and y rows.
+        draws = np.repeat(np.stack([u.pso_draws for u in uavs], axis=2)[:, :, None], 2, axis=2)
         for it in range(n_it):
             frac = it / (n_it - 1) if n_it > 1 else 1.0
             w = self.w_start + (self.w_end - self.w_start) * frac
@@ -317,6 +318,8 @@ class _Batch:
         self.guide_dir = np.stack([gax, gay])
         self.g_norm = np.hypot(gax, gay)
         self.has_guide = column([u.guide is not None for u in uavs]) > 0.5
+        self.with_targets = [(i, u) for i, u in enumerate(uavs) if u.targets]
+        self.with_threats = [(i, u) for i, u in enumerate(uavs) if u.threats]
         self.dubins = DubinsPoses(np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]), shape=shape)
 
     def fitness(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -348,9 +351,9 @@ class _Batch:
         px, py = z[0], z[1]
         unit = planner.field_unit_m
         floor = g.cell_m / unit
-        for i, u in enumerate(self.uavs):
-            if u.targets:
-                u.target_terms(px[i], py[i], f_t[i], unit, floor)
+        for i, u in self.with_targets:
+            u.target_terms(px[i], py[i], f_t[i], unit, floor)
+        for i, u in self.with_threats:
             for th in u.threats:
                 ok[i] &= np.hypot(px[i] - th.x, py[i] - th.y) > th.radius + planner.threat_margin_m
         f = np.where(ok, f_s + f_t, -np.inf)
@@ -524,9 +527,10 @@ class _Layers:
         (``(UAVs, points)`` int arrays; ``base``, ``lam`` from :meth:`operands`), accumulated
         level by level from 0 in float64: the numerator of eq. 19."""
         # mode="clip": cells outside the grid read its border cells (as Grid.cells_of clips).
-        idx = np.take(self.row_part, iy, axis=1, mode="clip")  # (levels, UAVs, points)
-        idx += np.take(self.col_part, ix, axis=1, mode="clip")
+        # (ndarray.take: np.take's Python wrapper costs more than the gather here.)
+        idx = self.row_part.take(iy, axis=1, mode="clip")  # (levels, UAVs, points)
+        idx += self.col_part.take(ix, axis=1, mode="clip")
         idx += base
-        terms = np.take(self.flat, idx) * lam  # float64: lambda_l * G_l
+        terms = self.flat.take(idx) * lam  # float64: lambda_l * G_l
         # A reduction over the first axis adds whole rows, one level after the other.
         return np.add.reduce(terms, axis=0, initial=0.0)
