@@ -34,6 +34,7 @@ may then be shorter than ``levels``.  (The paper's 500x500 grid with 7 levels ne
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -51,6 +52,16 @@ def _reflect(j: int, n: int) -> int:
     return 2 * n - 1 - j if j >= n else j
 
 
+@functools.lru_cache(maxsize=64)
+def _border_rows(n: int) -> tuple[tuple[int, tuple[int, ...]], ...]:
+    """``(i, five input rows)`` of each output row of a reduce over ``n`` rows that has an input
+    outside ``0..n-1`` (reflected): the first and the last, or every row when ``n < 5``."""
+    m = (n + 1) // 2
+    hi = (n - 3) // 2  # last output row i with 2i + 2 <= n - 1 (fully interior)
+    rows = [0, *range(hi + 1, m)] if hi >= 1 else range(m)
+    return tuple((i, tuple(_reflect(2 * i + t - 2, n) for t in range(5))) for i in rows)
+
+
 def _reduce_rows(a: np.ndarray, out: np.ndarray) -> None:
     """Unscaled [1,4,6,4,1] reduce along axis 1 of a C-contiguous stack ``a`` of 2-D arrays
     ``(k, n, ncols)``, kept rows only, into ``out`` ``(k, ceil(n/2), ncols)``.
@@ -61,20 +72,14 @@ def _reduce_rows(a: np.ndarray, out: np.ndarray) -> None:
     the same call for every row whatever ``k``); the one or two border rows use reflected indices.
     """
     k, n, ncols = a.shape
-    m = (n + 1) // 2
-    w = _WEIGHTS.astype(a.dtype)
     hi = (n - 3) // 2  # last output row i with 2i + 2 <= n - 1 (fully interior)
     if hi >= 1:
         sk, s0, s1 = a.strides
         # np.ndarray over a's buffer: the same view as as_strided, at a fraction of its call cost.
         view = np.ndarray((k, hi, ncols, 5), a.dtype, a, 0, (sk, 2 * s0, s1, s0))
         view.flags.writeable = False
-        np.matmul(view, w, out=out[:, 1 : hi + 1])
-        border = [0, *range(hi + 1, m)]
-    else:
-        border = list(range(m))
-    for i in border:  # at most two rows, or every row of a tiny array
-        j = [_reflect(2 * i + k - 2, n) for k in range(5)]
+        np.matmul(view, _WEIGHTS.astype(a.dtype), out=out[:, 1 : hi + 1])
+    for i, j in _border_rows(n):  # at most two rows, or every row of a tiny array
         r = out[:, i]
         np.add(a[:, j[0]], a[:, j[4]], out=r)
         r += 4 * (a[:, j[1]] + a[:, j[3]])
@@ -86,8 +91,8 @@ class Scratch:
     the same memory instead of allocating (and page-faulting) megabytes each time.
 
     ``get(name, shape, dtype)`` returns a C-contiguous array of that shape, with undefined
-    contents, backed by the name's buffer (grown when too small, never shrunk). An array is
-    valid until the next ``get`` of the same name.
+    contents, backed by the name's buffer (grown when too small, never shrunk: the memory held
+    is what the largest call needed). An array is valid until the next ``get`` of the same name.
     """
 
     def __init__(self) -> None:

@@ -18,6 +18,7 @@ from numpy.lib.stride_tricks import as_strided
 
 from agents.dubins import DubinsPoses, dubins_length
 from agents.grid import Grid
+from agents.planners import dacmp
 from agents.planners.dacmp import DacmpPlanner, _Layers
 from agents.pyramid import Scratch, gaussian_pyramid, level_index, level_shapes, pyr_down, pyr_down_stack
 from agents.umap import UncertaintyMap
@@ -214,14 +215,20 @@ def _views(rng, grid, n, t=900.0):
 
 @settings(max_examples=40, deadline=None)
 @given(nx=st.integers(1, 90), ny=st.integers(1, 90), n=st.integers(1, 4), levels=st.integers(0, 8),
-       weights=st.booleans(), seed=st.integers(0, 2**32 - 1))
-def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weights, seed):
+       weights=st.booleans(), seed=st.integers(0, 2**32 - 1), one_at_a_time=st.booleans())
+def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weights, seed, one_at_a_time):
     rng = np.random.default_rng(seed)
     grid = Grid(nx * 100.0, ny * 100.0, 100.0)
     planner = DacmpPlanner(levels=levels, level_weights=tuple(rng.uniform(0.1, 3.0, 9)) if weights else None)
     _Layers(planner, _views(rng, grid, 3))  # leaves other numbers in the planner's buffers
     views = _views(rng, grid, n)
-    layers = _Layers(planner, views)
+    stack_cells = dacmp._STACK_CELLS
+    if one_at_a_time:  # levels reduced one UAV at a time, as on huge grids
+        dacmp._STACK_CELLS = 1
+    try:
+        layers = _Layers(planner, views)
+    finally:
+        dacmp._STACK_CELLS = stack_cells
     pts = rng.uniform(-300.0, max(nx, ny) * 100.0 + 300.0, (2, n, 17))
     ix, iy = grid.cells_of(pts[0], pts[1])
     base, lam = layers.operands(list(range(n)), 17)

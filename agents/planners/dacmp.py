@@ -45,6 +45,8 @@ from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0
+# Pyramid levels of several UAVs are reduced together up to this many cells of input at a time.
+_STACK_CELLS = 1 << 21
 
 
 @dataclass
@@ -464,7 +466,7 @@ class _Layers:
     kept for all UAVs in one flat float32 buffer, level by level and UAV by UAV within a level,
     so that the level sums of all particles of all UAVs are one gather (:meth:`level_sum`),
     without ever forming a whole map of sums. Each UAV's map is computed and reduced to G_1
-    while it is still in cache; the smaller levels are built for all UAVs together. All in
+    while it is still in cache; the smaller levels are built for several UAVs together. All in
     buffers the planner keeps between calls; each UAV gets exactly the numbers of its own map
     alone.
     """
@@ -506,8 +508,13 @@ class _Layers:
                 np.copyto(first[i], q[0])
             else:
                 pyr_down_stack(q, first[i : i + 1], scratch)
+        # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
+        # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
+        step = max(1, _STACK_CELLS // first[0].size)
         for j in range(1, len(self.search)):
-            pyr_down_stack(self._level(j - 1, shapes[j]), self._level(j, shapes[j + 1]), scratch)
+            lower, upper = self._level(j - 1, shapes[j]), self._level(j, shapes[j + 1])
+            for s0 in range(0, n, step):
+                pyr_down_stack(lower[s0 : s0 + step], upper[s0 : s0 + step], scratch)
 
     def _level(self, j: int, shape: tuple[int, int]) -> np.ndarray:
         """Search level ``j`` (of shape ``shape``) of every UAV: a ``(UAVs, h, w)`` view."""
