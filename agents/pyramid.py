@@ -97,14 +97,20 @@ class Scratch:
 
     def __init__(self) -> None:
         self._buffers: dict[str, np.ndarray] = {}
+        self._arrays: dict[tuple, np.ndarray] = {}  # (name, shape, dtype) -> view of the buffer
 
     def get(self, name: str, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
-        dtype = np.dtype(dtype)
-        nbytes = math.prod(shape) * dtype.itemsize
-        buf = self._buffers.get(name)
-        if buf is None or buf.size < nbytes:
-            buf = self._buffers[name] = np.empty(nbytes, np.uint8)
-        return buf[:nbytes].view(dtype).reshape(shape)
+        key = (name, shape, dtype)
+        a = self._arrays.get(key)
+        if a is None:
+            dt = np.dtype(dtype)
+            nbytes = math.prod(shape) * dt.itemsize
+            buf = self._buffers.get(name)
+            if buf is None or buf.size < nbytes:
+                buf = self._buffers[name] = np.empty(nbytes, np.uint8)
+                self._arrays = {k: v for k, v in self._arrays.items() if k[0] != name}  # old buffer
+            a = self._arrays[key] = buf[:nbytes].view(dt).reshape(shape)
+        return a
 
 
 def pyr_down_stack(a: np.ndarray, out: np.ndarray, scratch: Scratch | None = None) -> np.ndarray:

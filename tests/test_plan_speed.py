@@ -273,10 +273,12 @@ def test_dubins_is_the_reference(poses, seed, m):
     px = x0[:, None] + rng.normal(0.0, 1.0, (len(poses), m)) * scale * rng.choice([0.5, 3.0, 30.0])
     py = y0[:, None] + rng.normal(0.0, 1.0, (len(poses), m)) * scale * rng.choice([0.5, 3.0, 30.0])
     px[:, 0], py[:, 0] = x0, y0  # at the start
-    ref = np.stack([ref_dubins(*p[:3], px[i], py[i], p[3]) for i, p in enumerate(poses)])
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"):  # extreme radii overflow, in the reference too
+        ref = np.stack([ref_dubins(*p[:3], px[i], py[i], p[3]) for i, p in enumerate(poses)])
         assert same(dubins_length(x0[:, None], y0[:, None], th, px, py, r[:, None]), ref)
-        assert same(DubinsPoses(th, r[:, None]).lengths(np.stack([px - x0[:, None], py - y0[:, None]])), ref)
+        d = np.stack([px - x0[:, None], py - y0[:, None]])
+        assert same(DubinsPoses(th, r[:, None]).lengths(d), ref)
+        assert same(DubinsPoses(th, r[:, None], shape=px.shape).lengths(d), ref)  # terms stored repeated
         for i, p in enumerate(poses):
             assert same(dubins_length(*p[:3], px[i], py[i], p[3]), ref[i])
 
@@ -285,3 +287,14 @@ def test_dubins_scalar_point_stays_0d():
     out = dubins_length(0.0, 0.0, 0.0, 5.0, 0.0, 1.0)
     assert isinstance(out, np.ndarray) and out.shape == () and float(out) == pytest.approx(5.0)
     assert same(dubins_length(1.0, 2.0, 0.3, 0.5, 0.4, 0.7), ref_dubins(1.0, 2.0, 0.3, 0.5, 0.4, 0.7))
+
+
+def test_clip_to_unit_by_maximum_minimum_is_np_clip():
+    """The planner and the Dubins CC branch clip cosines to [-1, 1] by maximum then minimum
+    (np.clip's Python wrapper costs more than the clip): the same bytes, signed zeros and NaN
+    included (ties only at the non-zero bounds)."""
+    x = np.array([-np.inf, -2.0, -1.0, -1.0 + 1e-16, -0.0, 0.0, 5e-324, 0.3, 1.0, 1.0 + 2e-16, np.inf, np.nan])
+    y = x.copy()
+    np.maximum(y, -1.0, out=y)
+    np.minimum(y, 1.0, out=y)
+    assert same(y, np.clip(x, -1.0, 1.0))

@@ -141,8 +141,10 @@ class DacmpPlanner:
                 if (dx or dy) and 0 <= yy < ny and 0 <= xx < nx:
                     cx = 0.5 * (cols[xx] + cols[xx + 1]) * cell_m
                     cy = 0.5 * (rows[yy] + rows[yy + 1]) * cell_m
-                    turn = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
-                    key = turn if tie_key is None else float(tie_key[(dy + 1) * 3 + dx + 1])
+                    if tie_key is None:  # the turn towards the sub-area's centre
+                        key = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
+                    else:
+                        key = float(tie_key[(dy + 1) * 3 + dx + 1])
                     mean = float(sums[yy - y0, xx - x0]) / ((rows[yy + 1] - rows[yy]) * (cols[xx + 1] - cols[xx]))
                     cands.append((mean, key, cx, cy))
         if not cands:
@@ -205,10 +207,11 @@ class DacmpPlanner:
 
         Each UAV keeps its own map, pyramid, guide point, targets, rivals, threats and random
         stream (its draws are made from its own generator, in the order the one-UAV algorithm
-        makes them); only the PSO's array operations are shared, on arrays of shape
-        ``(UAVs, particles)``. Numpy's element-wise operations give each element the same value
-        whatever array it sits in, so a UAV's decision does not depend on its batch
-        (``tests/test_batching.py`` checks plans and event logs).
+        makes them); only array operations are shared: the PSO's, on arrays of shape
+        ``(2, UAVs, particles)``, and the pyramid steps of the smaller levels (:class:`_Layers`).
+        Numpy's element-wise operations give each element the same value whatever array it sits
+        in, and each pyramid row is the same BLAS call, so a UAV's decision does not depend on
+        its batch (``tests/test_batching.py`` checks plans and event logs).
 
         Mode switching for a UAV already in surveillance mode comes first: it keeps its target
         ``m`` while the target term still dominates on the target itself (``f_t > f_S`` at
@@ -256,8 +259,8 @@ class DacmpPlanner:
         U, M, n_it = len(uavs), self.particles, self.iterations
         batch = _Batch(self, uavs, g, layers, M)
         fitness, keep_near = batch.fitness, batch.keep_near
-        # Positions and velocities as (axis, UAV, particle): x and y rows share every operation.
         rows = np.arange(U)
+        # Positions and velocities as (axis, UAV, particle): x and y rows share every operation.
         # Particles in the ring outside the detection radius (section 3.1).
         radius = np.abs(np.stack([u.ring_radius for u in uavs]))
         angle = np.stack([u.ring_angle for u in uavs])
