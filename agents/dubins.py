@@ -50,7 +50,9 @@ short arc; just inside: a long CC loop); that is a property of the problem, not 
 Points *exactly* at the start position get length 0 (the formula already gives it; it is also
 guarded explicitly).  ``r_min <= 0`` means no turning constraint: the Euclidean distance.
 
-Everything is vectorised with numpy (no Python loop over points).
+Everything is vectorised with numpy (no Python loop over points). :class:`DubinsPoses` keeps the
+start poses' terms for repeated calls (a planner's particle swarm evaluates the same poses a few
+dozen times per replanning).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ import math
 
 import numpy as np
 
-__all__ = ["dubins_length"]
+__all__ = ["DubinsPoses", "dubins_length"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -94,62 +96,117 @@ def dubins_length(
             raise ValueError("r_min is NaN")
         if not r > 0.0:
             return np.hypot(dx, dy)
-        c = math.cos(theta0)
-        s = math.sin(theta0)
-        inv_r = 1.0 / r
-    else:
-        dx = px - np.asarray(x0, dtype=np.float64)
-        dy = py - np.asarray(y0, dtype=np.float64)
+        # (1-d while computing: the in-place steps need arrays, and a 0-d array stays 0-d.)
+        out = _lengths(np.stack([dx.reshape(-1), dy.reshape(-1)]), math.cos(theta0), math.sin(theta0), r, 1.0 / r)
+        return out.reshape(dx.shape)
+    poses = DubinsPoses(theta0, r_min, px.ndim)
+    dx, dy = np.broadcast_arrays(px - np.asarray(x0, dtype=np.float64), py - np.asarray(y0, dtype=np.float64))
+    # Offsets spanning every pose (the in-place steps keep the shape of the first product).
+    shape = np.broadcast_shapes(dx.shape, poses.c.shape, poses.r.shape)
+    return poses.lengths(np.broadcast_to(np.stack([dx, dy]), (2, *shape)))
+
+
+class DubinsPoses:
+    """``n`` start poses (headings ``theta0``, turning radii ``r_min``) whose lengths to many sets
+    of points are wanted: the per-pose terms of :func:`dubins_length` computed once.
+
+    ``lengths(d)`` takes the points as offsets from the start positions, stacked: ``d[0] = px -
+    x0``, ``d[1] = py - y0`` (each with ``ndim`` dimensions, row ``i`` for pose ``i``), and returns
+    exactly what :func:`dubins_length` returns for those poses and points. With ``shape`` (the
+    shape of ``d[0]`` of every call) the per-pose terms are stored repeated to the shapes they
+    meet (``d``'s or ``d[0]``'s): numpy is faster on same-shape operands than when it
+    broadcasts, for the same numbers.
+    """
+
+    def __init__(self, theta0: np.ndarray, r_min: float | np.ndarray, ndim: int = 2,
+                 shape: tuple[int, ...] | None = None):
         r = np.asarray(r_min, dtype=np.float64)
         if np.isnan(r).any():
             raise ValueError("r_min is NaN")
-        if not (r > 0.0).all():
-            # Poses without a turning constraint (r_min <= 0) get the straight-line distance,
-            # as a single such pose would.
-            free = ~(r > 0.0)
-            turning = dubins_length(x0, y0, theta0, px, py, np.where(free, 1.0, r))
-            return np.where(free, np.hypot(dx, dy), turning)
+        # Poses without a turning constraint (r_min <= 0) get the straight-line distance, as a
+        # single such pose would; the others are computed with radius 1 in their place.
+        self.free = ~(r > 0.0) if not (r > 0.0).all() else None
+        if self.free is not None:
+            r = np.where(self.free, 1.0, r)
         theta = [float(a) for a in np.ravel(theta0)]
-        shape = (len(theta),) + (1,) * (px.ndim - 1)
-        c = np.array([math.cos(a) for a in theta]).reshape(shape)
-        s = np.array([math.sin(a) for a in theta]).reshape(shape)
-        inv_r = 1.0 / r
+        column = (len(theta),) + (1,) * (ndim - 1)
+        self.c = np.array([math.cos(a) for a in theta]).reshape(column)
+        self.s = np.array([math.sin(a) for a in theta]).reshape(column)
+        self.r = r
+        self.inv_r = 1.0 / r
+        if shape is not None:
+            def full(a, shape):
+                return np.ascontiguousarray(np.broadcast_to(a, shape))
 
+            self.c, self.s, self.inv_r = (full(a, (2, *shape)) for a in (self.c, self.s, self.inv_r))
+            self.r = full(self.r, shape)
+
+    def lengths(self, d: np.ndarray) -> np.ndarray:
+        turning = _lengths(d, self.c, self.s, self.r, self.inv_r)
+        if self.free is None:
+            return turning
+        return np.where(self.free, np.hypot(d[0], d[1]), turning)
+
+
+def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
+    """The closed form of the module docstring, for stacked offsets ``d = (dx, dy)`` (each at
+    least 1-d) from the start and the start's ``cos``, ``sin``, ``r`` and ``1 / r`` (scalars, or
+    arrays broadcasting into the offsets' shape). Temporaries are updated in place and the two
+    coordinates share operations: the same numbers, fewer numpy calls."""
     # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
-    x = (c * dx + s * dy) * inv_r
-    y = np.abs(c * dy - s * dx) * inv_r
+    xy = c * d  # (c dx, c dy)
+    sd = s * d  # (s dx, s dy)
+    x, y = xy
+    x += sd[1]  # c dx + s dy
+    y -= sd[0]  # c dy - s dx
+    np.abs(y, out=y)
+    xy *= inv_r
 
     # |p - c_L|^2 - 1 = x^2 + (y-1)^2 - 1 = x^2 + y (y - 2)   (exact for y == 0: t == |x|)
-    t2 = x * x + y * (y - 2.0)
+    t2 = x * x
+    t2 += y * (y - 2.0)
     inside = t2 < 0.0
 
     # --- CS (LS) for every point; overwritten below for points inside the left circle.
-    t = np.sqrt(np.maximum(t2, 0.0))
-    alpha = np.arctan2(x + t * (y - 1.0), t * x + 1.0 - y)
+    t = np.maximum(t2, 0.0)
+    np.sqrt(t, out=t)
+    num = t * (y - 1.0)
+    num += x  # x + t (y - 1)
+    den = t * x
+    den += 1.0
+    den -= y  # t x + 1 - y
+    alpha = np.arctan2(num, den, out=num)
+    np.add(alpha, _TWO_PI, out=alpha, where=alpha < 0.0)
     # Defensive: for x > 0 the true alpha lies in [0, pi], so a value near 2 pi there can only be a
     # rounded zero (point straight ahead).
-    alpha = np.where(alpha < 0.0, alpha + _TWO_PI, alpha)
-    alpha = np.where((x > 0.0) & (alpha > math.pi), 0.0, alpha)
-    out = np.array(alpha + t, dtype=np.float64)  # a real (possibly 0-d) array
+    ahead = x > 0.0
+    ahead &= alpha > math.pi
+    alpha[ahead] = 0.0
+    out = alpha
+    out += t
 
     # --- CC (RL) for points strictly inside the left turning circle (usually none).
-    if np.any(inside):
-        xi = x[inside]
-        yi = y[inside]
+    if inside.any():
+        xi, yi = xy[:, inside]
         qy = yi + 1.0  # q = p - c_R, c_R = (0, -1); 1 < |q| < 3 here
         dq = np.hypot(xi, qy)
-        gamma = np.arccos(np.clip((dq * dq + 3.0) / (4.0 * dq), -1.0, 1.0))
+        cos_gamma = (dq * dq + 3.0) / (4.0 * dq)
+        # Clipped to [-1, 1] (np.clip's numbers, without its Python-level overhead).
+        np.maximum(cos_gamma, -1.0, out=cos_gamma)
+        np.minimum(cos_gamma, 1.0, out=cos_gamma)
+        gamma = np.arccos(cos_gamma)
         ang_u = np.arctan2(qy, xi) - gamma  # the root with the short first arc
         # first arc (clockwise): a = pi/2 - angle(u), in [0, pi/3]; wrap to [-pi, pi), clip rounding
         a = np.maximum(np.mod(0.5 * math.pi - ang_u + math.pi, _TWO_PI) - math.pi, 0.0)
         ux = np.cos(ang_u)
         uy = np.sin(ang_u)
         # second centre c_2 = c_R + 2u; the switch point is c_R + u, seen from c_2 in direction -u
-        b = np.mod(np.arctan2(yi + 1.0 - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
+        b = np.mod(np.arctan2(qy - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
         # b lies in (pi, 2 pi): a value near 0 is 2 pi lost to rounding (point at the start)
-        b = np.where(b < 0.5 * math.pi, b + _TWO_PI, b)
+        np.add(b, _TWO_PI, out=b, where=b < 0.5 * math.pi)
         out[inside] = a + b
 
     out *= r
-    out[(dx == 0.0) & (dy == 0.0)] = 0.0
+    zero = d == 0.0
+    out[zero[0] & zero[1]] = 0.0
     return out

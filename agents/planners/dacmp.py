@@ -31,18 +31,22 @@ With ``surveillance = false`` (paper-fig11) targets exert no pull: search only.
 
 from __future__ import annotations
 
+import bisect
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.dubins import dubins_length
+from agents.dubins import DubinsPoses
 from agents.planners.base import Plan, PlanView
-from agents.pyramid import gaussian_pyramid, level_index
+from agents.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0
+# Pyramid levels of several UAVs are reduced together up to this many cells of input at a time.
+_STACK_CELLS = 1 << 21
 
 
 @dataclass
@@ -72,6 +76,8 @@ class DacmpPlanner:
     # Other UAVs' detection radii by type name (how far their next waypoint goes); unknown: ours.
     detect_radius_by_type: dict[str, float] = field(default_factory=dict)
     name: str = "dacmp"
+    # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
+    _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
 
     @classmethod
     def from_settings(cls, planner_settings, levels: int = 7,
@@ -116,15 +122,18 @@ class DacmpPlanner:
         h, w = q.shape
         if ny < 2 and nx < 2:
             return None
-        rows = np.linspace(0, h, ny + 1).round().astype(np.intp)
-        cols = np.linspace(0, w, nx + 1).round().astype(np.intp)
-        # Row blocks summed one by one (row after row, like add.reduceat along axis 0 but about
-        # twice as fast: no buffered casting), then the few columns.
-        strips = np.stack([q[r0:r1].sum(axis=0, dtype=np.float64) for r0, r1 in zip(rows[:-1], rows[1:])])
-        sums = np.add.reduceat(strips, cols[:-1], axis=1)
-        means = sums / np.outer(np.diff(rows), np.diff(cols))
-        ry = int(np.clip(np.searchsorted(rows, y / cell_m, side="right") - 1, 0, ny - 1))
-        rx = int(np.clip(np.searchsorted(cols, x / cell_m, side="right") - 1, 0, nx - 1))
+        rows, cols = _sub_areas(h, w, ny, nx)
+        ry = min(max(bisect.bisect_right(rows, y / cell_m) - 1, 0), ny - 1)
+        rx = min(max(bisect.bisect_right(cols, x / cell_m) - 1, 0), nx - 1)
+        # Only the UAV's sub-area and its neighbours are read (rows y0..y1-1, columns x0..x1-1
+        # of sub-areas). Row blocks summed one by one (row after row, like add.reduceat along
+        # axis 0 but about twice as fast: no buffered casting), then the few columns; each sum
+        # is the one a sum over the whole map would give.
+        y0, y1 = max(ry - 1, 0), min(ry + 2, ny)
+        x0, x1 = max(rx - 1, 0), min(rx + 2, nx)
+        c0, c1 = cols[x0], cols[x1]
+        strips = np.stack([q[rows[i] : rows[i + 1], c0:c1].sum(axis=0, dtype=np.float64) for i in range(y0, y1)])
+        sums = np.add.reduceat(strips, [c - c0 for c in cols[x0:x1]], axis=1)
         cands = []
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
@@ -132,9 +141,12 @@ class DacmpPlanner:
                 if (dx or dy) and 0 <= yy < ny and 0 <= xx < nx:
                     cx = 0.5 * (cols[xx] + cols[xx + 1]) * cell_m
                     cy = 0.5 * (rows[yy] + rows[yy + 1]) * cell_m
-                    turn = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
-                    key = turn if tie_key is None else float(tie_key[(dy + 1) * 3 + dx + 1])
-                    cands.append((float(means[yy, xx]), key, cx, cy))
+                    if tie_key is None:  # the turn towards the sub-area's centre
+                        key = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
+                    else:
+                        key = float(tie_key[(dy + 1) * 3 + dx + 1])
+                    mean = float(sums[yy - y0, xx - x0]) / ((rows[yy + 1] - rows[yy]) * (cols[xx + 1] - cols[xx]))
+                    cands.append((mean, key, cx, cy))
         if not cands:
             return None
         best = max(c[0] for c in cands)
@@ -195,10 +207,11 @@ class DacmpPlanner:
 
         Each UAV keeps its own map, pyramid, guide point, targets, rivals, threats and random
         stream (its draws are made from its own generator, in the order the one-UAV algorithm
-        makes them); only the PSO's array operations are shared, on arrays of shape
-        ``(UAVs, particles)``. Numpy's element-wise operations give each element the same value
-        whatever array it sits in, so a UAV's decision does not depend on its batch
-        (``tests/test_batching.py`` checks plans and event logs).
+        makes them); only array operations are shared: the PSO's, on arrays of shape
+        ``(2, UAVs, particles)``, and the pyramid steps of the smaller levels (:class:`_Layers`).
+        Numpy's element-wise operations give each element the same value whatever array it sits
+        in, and each pyramid row is the same BLAS call, so a UAV's decision does not depend on
+        its batch (``tests/test_batching.py`` checks plans and event logs).
 
         Mode switching for a UAV already in surveillance mode comes first: it keeps its target
         ``m`` while the target term still dominates on the target itself (``f_t > f_S`` at
@@ -212,141 +225,146 @@ class DacmpPlanner:
         if type(self).plan is not DacmpPlanner.plan:  # a subclass with its own plan(): honour it
             return [self.plan(v) for v in views]
         g = views[0].grid
-        uavs = [_UavSearch.build(self, v) for v in views]
+        layers = _Layers(self, views)
+        uavs = [_UavSearch.build(self, v, slot, guide) for slot, (v, guide) in enumerate(zip(views, layers.guides))]
         plans: list[Plan | None] = [None] * len(uavs)
         for i, u in enumerate(uavs):
-            plans[i] = self._keep(u, g)
+            plans[i] = self._keep(u, g, layers)
         search = [i for i, p in enumerate(plans) if p is None]
         for i in search:
             uavs[i].draw(self)
         if search:
-            for i, plan in zip(search, self._pso([uavs[i] for i in search], g)):
+            for i, plan in zip(search, self._pso([uavs[i] for i in search], g, layers)):
                 plans[i] = plan
         return plans
 
-    def _keep(self, u: "_UavSearch", g) -> Plan | None:
+    def _keep(self, u: "_UavSearch", g, layers: "_Layers") -> Plan | None:
         """The surveillance-mode rule of :meth:`plan_many` for one UAV (None: plan afresh)."""
         mine = u.view.plan
         if mine is None or mine.mode != MODE_SURVEIL:
             return None
         for tid, tx, ty, _v in u.targets:
             if tid == mine.target:
-                px, py = np.array([[tx]]), np.array([[ty]])
-                batch = _Batch(self, [u], g)
-                _, f_s, f_t = batch.fitness(px, py, p_sum=u.level_sum_at(px, py, g))
+                z = np.array([[[tx]], [[ty]]])
+                batch = _Batch(self, [u], g, layers, 1)
+                _, f_s, f_t = batch.fitness(z)
                 if f_t[0, 0] > f_s[0, 0]:
-                    wx, wy = batch.keep_near(px, py)
-                    return Plan(float(wx[0, 0]), float(wy[0, 0]), MODE_SURVEIL, tid)
+                    wx, wy = batch.keep_near(z)[:, 0, 0]
+                    return Plan(float(wx), float(wy), MODE_SURVEIL, tid)
                 return None
         return None
 
-    def _pso(self, uavs: list["_UavSearch"], g) -> list[Plan]:
+    def _pso(self, uavs: list["_UavSearch"], g, layers: "_Layers") -> list[Plan]:
         """Particle swarms of several UAVs in lockstep (their draws made by :meth:`_UavSearch.draw`)."""
         U, M, n_it = len(uavs), self.particles, self.iterations
-        batch = _Batch(self, uavs, g)
+        batch = _Batch(self, uavs, g, layers, M)
         fitness, keep_near = batch.fitness, batch.keep_near
-        x0, y0 = batch.x0, batch.y0
-        # Particles in the ring outside the detection radius (section 3.1).
         rows = np.arange(U)
+        # Positions and velocities as (axis, UAV, particle): x and y rows share every operation.
+        # Particles in the ring outside the detection radius (section 3.1).
         radius = np.abs(np.stack([u.ring_radius for u in uavs]))
         angle = np.stack([u.ring_angle for u in uavs])
-        zx, zy = keep_near(x0 + radius * np.cos(angle), y0 + radius * np.sin(angle))
-        vx = np.zeros((U, M))
-        vy = np.zeros((U, M))
-        f, _, _ = fitness(zx, zy)
-        bx, by, bf = zx.copy(), zy.copy(), f.copy()
+        z = keep_near(batch.p0 + radius * np.stack([np.cos(angle), np.sin(angle)]))
+        v = np.zeros((2, U, M))
+        f, _, _ = fitness(z)
+        best_z, bf = z.copy(), f.copy()
         gi = np.argmax(bf, axis=1)
+        # (iteration, r1/r2/Q, axis, UAV, particle): the draws repeated for the x and y rows.
+        draws = np.repeat(np.stack([u.pso_draws for u in uavs], axis=2)[:, :, None], 2, axis=2)
         for it in range(n_it):
             frac = it / (n_it - 1) if n_it > 1 else 1.0
             w = self.w_start + (self.w_end - self.w_start) * frac
             c1 = self.c1_start + (self.c1_end - self.c1_start) * frac
             c2 = self.c2_start + (self.c2_end - self.c2_start) * frac
-            r0, r1, r2 = (np.stack([u.pso_draws[it, k] for u in uavs]) for k in range(3))
-            gx, gy = bx[rows, gi][:, None], by[rows, gi][:, None]
-            vx = w * vx + c1 * r0 * (bx - zx) + c2 * r1 * (gx - zx)
-            vy = w * vy + c1 * r0 * (by - zy) + c2 * r1 * (gy - zy)
-            zx, zy = keep_near(zx + vx * r2, zy + vy * r2)  # eq. 15: z += dz * Q
-            f, _, _ = fitness(zx, zy)
+            r0, r1, r2 = draws[it]
+            g_best = best_z[:, rows, gi][:, :, None]
+            v = w * v + (c1 * r0) * (best_z - z) + (c2 * r1) * (g_best - z)
+            z = keep_near(z + v * r2)  # eq. 15: z += dz * Q
+            f, _, _ = fitness(z)
             better = f > bf
-            bx[better], by[better], bf[better] = zx[better], zy[better], f[better]
+            np.copyto(best_z, z, where=better)
+            np.copyto(bf, f, where=better)
             gi = np.argmax(bf, axis=1)
-        wx, wy, best = bx[rows, gi][:, None], by[rows, gi][:, None], bf[rows, gi]
-        _, f_s, f_t = fitness(wx, wy)
+        wz, best = best_z[:, rows, gi][:, :, None], bf[rows, gi]
+        _, f_s, f_t = fitness(np.repeat(wz, M, axis=2))  # (the batch's shape: M copies)
         plans = []
         for i, u in enumerate(uavs):
             if not np.isfinite(best[i]):
                 # Nothing feasible (boxed in by threats or the border): head for the area centre.
                 plans.append(Plan(g.width_m / 2, g.height_m / 2))
             else:
-                plans.append(u.decide(float(wx[i, 0]), float(wy[i, 0]), f_s[i, 0], f_t[i, 0]))
+                plans.append(u.decide(float(wz[0, i, 0]), float(wz[1, i, 0]), f_s[i, 0], f_t[i, 0]))
         return plans
 
 
 class _Batch:
-    """The fitness (eq. 16) and the particle bound of several UAVs, on ``(UAVs, points)`` arrays."""
+    """The fitness (eq. 16) and the particle bound of several UAVs, on ``(2, UAVs, points)``
+    arrays of positions (x row, then y row), ``points`` per UAV.
 
-    def __init__(self, planner: DacmpPlanner, uavs: list["_UavSearch"], grid):
-        self.planner, self.uavs, self.grid = planner, uavs, grid
-        U = len(uavs)
+    Per-UAV values are stored repeated for each point: numpy is several times faster on
+    same-shape operands than when it has to broadcast a column, and the numbers are the same.
+    """
+
+    def __init__(self, planner: DacmpPlanner, uavs: list["_UavSearch"], grid, layers: "_Layers", points: int):
+        self.planner, self.uavs, self.grid, self.layers = planner, uavs, grid, layers
+        shape = (len(uavs), points)
 
         def column(values) -> np.ndarray:
-            return np.array(values, dtype=np.float64)[:, None]
+            return np.repeat(np.array(values, dtype=np.float64)[:, None], points, axis=1)
 
-        self.x0, self.y0 = column([u.view.x for u in uavs]), column([u.view.y for u in uavs])
+        self.p0 = np.stack([column([u.view.x for u in uavs]), column([u.view.y for u in uavs])])
+        self.area = np.stack([np.full(shape, grid.width_m), np.full(shape, grid.height_m)])
         self.R = column([u.R for u in uavs])
         self.r_max = column([u.r_max for u in uavs])
-        self.ox = np.array([u.ix0 for u in uavs], dtype=np.int64)[:, None]
-        self.oy = np.array([u.iy0 for u in uavs], dtype=np.int64)[:, None]
-        # The combined multi-level search value of every cell a UAV's particles can reach, one
-        # padded window per UAV, stacked: one gather per fitness evaluation instead of 2 per level.
-        self.wh = max(u.level_sum.shape[0] for u in uavs)
-        self.ww = max(u.level_sum.shape[1] for u in uavs)
-        self.sums = np.zeros((U, self.wh, self.ww))
-        for i, u in enumerate(uavs):
-            self.sums[i, :u.level_sum.shape[0], :u.level_sum.shape[1]] = u.level_sum
-        self.row_base = (np.arange(U, dtype=np.int64) * self.wh)[:, None]
+        self.layer_base, self.layer_weights = layers.operands([u.slot for u in uavs], points)
         self.guided = [i for i, u in enumerate(uavs) if u.guide is not None]
-        self.gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
-        self.gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
-        self.g_norm = np.hypot(self.gax, self.gay)
+        gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
+        gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
+        self.guide_dir = np.stack([gax, gay])
+        self.g_norm = np.hypot(gax, gay)
         self.has_guide = column([u.guide is not None for u in uavs]) > 0.5
-        self.theta = np.array([u.view.theta for u in uavs])
-        self.r_min = column([u.r_min for u in uavs])
+        self.with_targets = [(i, u) for i, u in enumerate(uavs) if u.targets]
+        self.with_threats = [(i, u) for i, u in enumerate(uavs) if u.threats]
+        self.dubins = DubinsPoses(np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]), shape=shape)
 
-    def fitness(self, px: np.ndarray, py: np.ndarray, p_sum: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(f, f_S, f_t)`` at the points ``(px, py)`` (row ``i``: UAV ``i``'s points).
-        ``p_sum``: eq. 19's level sum at the points, when they may lie outside the windows."""
+    def fitness(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s ``points`` points)."""
         planner, g = self.planner, self.grid
-        if p_sum is None:
-            ix, iy = g.cells_of(px, py)
-            p_sum = np.take(self.sums, ((iy - self.oy + self.row_base) * self.ww + (ix - self.ox)))
-        dub = dubins_length(self.x0, self.y0, self.theta, px, py, self.r_min)
+        # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers).
+        cells = (z // g.cell_m).astype(np.int64)
+        p_sum = self.layers.level_sum(self.layer_base, self.layer_weights, cells[0], cells[1])
+        d = z - self.p0  # from the UAV
+        dub = self.dubins.lengths(d)
         R = self.R
         f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
         if self.guided:
-            bx, by = px - self.x0, py - self.y0
-            cosang = (self.gax * bx + self.gay * by) / np.maximum(self.g_norm * np.hypot(bx, by), 1e-9)
-            ang = np.arccos(np.clip(cosang, -1.0, 1.0))
+            dot = self.guide_dir * d
+            cosang = (dot[0] + dot[1]) / np.maximum(self.g_norm * np.hypot(d[0], d[1]), 1e-9)
+            # Clip to [-1, 1] (np.clip's numbers, without its Python-level overhead).
+            np.maximum(cosang, -1.0, out=cosang)
+            np.minimum(cosang, 1.0, out=cosang)
+            ang = np.arccos(cosang)
             f_sg = 1.0 / (1.0 + np.exp(ang / math.pi))
             if len(self.guided) < len(self.uavs):
                 f_sg = np.where(self.has_guide, f_sg, 0.5)
         else:
-            f_sg = np.full(px.shape, 0.5)
+            f_sg = np.full(p_sum.shape, 0.5)
         f_s = planner.eta * f_sl + (1.0 - planner.eta) * f_sg
-        f_t = np.zeros(px.shape)
-        ok = (px >= 0) & (px <= g.width_m) & (py >= 0) & (py <= g.height_m)
+        f_t = np.zeros(p_sum.shape)
+        inside = (z >= 0) & (z <= self.area)
+        ok = inside[0] & inside[1]
+        px, py = z[0], z[1]
         unit = planner.field_unit_m
         floor = g.cell_m / unit
-        for i, u in enumerate(self.uavs):
-            if u.targets:
-                u.target_terms(px[i], py[i], f_t[i], unit, floor)
+        for i, u in self.with_targets:
+            u.target_terms(px[i], py[i], f_t[i], unit, floor)
+        for i, u in self.with_threats:
             for th in u.threats:
                 ok[i] &= np.hypot(px[i] - th.x, py[i] - th.y) > th.radius + planner.threat_margin_m
         f = np.where(ok, f_s + f_t, -np.inf)
         return f, f_s, f_t
 
-    def keep_near(self, zx: np.ndarray, zy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def keep_near(self, z: np.ndarray) -> np.ndarray:
         """Pull points back to within ``r_max`` of their UAV, then into the area.
 
         A particle is a candidate *next* waypoint (``x_j(t+1)`` in eq. 23, which other UAVs read
@@ -354,11 +372,10 @@ class _Batch:
         10 km off; the announced waypoint would then claim the target long before the UAV
         arrives, and a fast watcher would hand over to a slow UAV still minutes away.
         """
-        g = self.grid
-        dx, dy = zx - self.x0, zy - self.y0
-        d = np.hypot(dx, dy)
-        scale = np.where(d > self.r_max, self.r_max / np.maximum(d, 1e-9), 1.0)
-        return np.clip(self.x0 + dx * scale, 0.0, g.width_m), np.clip(self.y0 + dy * scale, 0.0, g.height_m)
+        d = z - self.p0
+        dist = np.hypot(d[0], d[1])
+        scale = np.where(dist > self.r_max, self.r_max / np.maximum(dist, 1e-9), 1.0)
+        return np.clip(self.p0 + d * scale, 0.0, self.area)
 
 
 @dataclass
@@ -371,11 +388,7 @@ class _UavSearch:
     r_min: float
     D: float
     v_i: float
-    ix0: int  # window of cells the particles can reach (level-0 indices)
-    iy0: int
-    level_sum: np.ndarray  # sum_l lambda_l P_l over the window (eq. 19's numerator)
-    search_levels: list  # (level, array) pairs of eq. 19, and their weights
-    lam: np.ndarray
+    slot: int  # the UAV's index in the _Layers of the plan_many call (its map's pyramid)
     guide: tuple[float, float] | None
     targets: list[tuple[int, float, float, float]]
     rivals: dict[int, list[tuple[float, float, float]]]
@@ -385,32 +398,13 @@ class _UavSearch:
     pso_draws: np.ndarray | None = None  # (iterations, 3, particles): r1, r2 and Q of eq. 15
 
     @classmethod
-    def build(cls, planner: DacmpPlanner, view: PlanView) -> "_UavSearch":
+    def build(cls, planner: DacmpPlanner, view: PlanView, slot: int,
+              guide: tuple[float, float] | None) -> "_UavSearch":
+        """Everything but the map work (done for the whole batch by :class:`_Layers`)."""
         k = view.kind
-        g = view.grid
-        rng = view.rng
         R = k.detect_radius
         t = view.t
-        q = view.umap.uncertainty(t)
-        pyr = gaussian_pyramid(q, planner.levels + 1)  # G_0 .. G_L
-        # Eq. 19 sums layers 1..L; a map too small for even one layer falls back on G_0.
-        search_levels = list(enumerate(pyr))[1:] or [(0, pyr[0])]
-        lam = planner._weights(len(search_levels))
-        coarse = next((lv for lv in reversed(pyr) if min(lv.shape) >= 4), pyr[0])
-        # Ties go to a neighbour drawn from the UAV's own stream: with the heading as tie-break,
-        # UAVs flying side by side all picked the same sub-area and flew on in formation.
-        tie_key = rng.random(9)
-        guide = planner.guide_point(q, coarse.shape, g.cell_m, view.x, view.y, view.theta, tie_key=tie_key)
-
-        # Particles never leave the disk of radius r_max around the UAV (clipped to the area):
-        # the cells they can sit on, with a cell of slack for rounding.
         r_max = planner.ring_max_factor * R
-        ix0, iy0 = g.cell_of(max(view.x - r_max, 0.0), max(view.y - r_max, 0.0))
-        ix1, iy1 = g.cell_of(view.x + r_max, view.y + r_max)
-        ix0, iy0 = max(ix0 - 1, 0), max(iy0 - 1, 0)
-        ix1, iy1 = min(ix1 + 1, g.nx - 1), min(iy1 + 1, g.ny - 1)
-        level_sum = _level_sum(search_levels, lam, np.arange(iy0, iy1 + 1)[:, None], np.arange(ix0, ix1 + 1)[None, :])
-
         targets: list[tuple[int, float, float, float]] = []
         max_age = planner.track_max_age_s if planner.track_max_age_s is not None else 1.0 / view.umap.tau
         if view.surveillance:
@@ -422,8 +416,7 @@ class _UavSearch:
                     targets.append((tid, tx, ty, tr.value))
         rivals = planner.rivals(view, targets, k.influence_radius)
         return cls(view, R, r_max, k.r_min(view.v), k.influence_radius, k.speed_max / planner.field_unit_m,
-                   ix0, iy0, level_sum, search_levels, lam, guide, targets, rivals,
-                   list(view.knowledge.threats.values()))
+                   slot, guide, targets, rivals, list(view.knowledge.threats.values()))
 
     def draw(self, planner: DacmpPlanner) -> None:
         """The rest of the UAV's draws, in the one-UAV order: ring radii, ring angles, then per
@@ -432,11 +425,6 @@ class _UavSearch:
         self.ring_radius = rng.normal(planner.ring_mean_factor * R, planner.ring_sd_factor * R, M)
         self.ring_angle = self.view.theta + rng.normal(0.0, planner.heading_sd_rad, M)
         self.pso_draws = rng.random((planner.iterations, 3, M))
-
-    def level_sum_at(self, px: np.ndarray, py: np.ndarray, g) -> np.ndarray:
-        """Eq. 19's level sum at any points (not only in the window)."""
-        ix, iy = g.cells_of(px, py)
-        return _level_sum(self.search_levels, self.lam, iy, ix)
 
     def target_terms(self, px: np.ndarray, py: np.ndarray, f_t: np.ndarray, unit: float, floor: float) -> None:
         """Add eq. 22 (target attraction) and eq. 23 (competing repulsion) into ``f_t``."""
@@ -465,12 +453,94 @@ class _UavSearch:
         return Plan(wx, wy, mode, target)
 
 
-def _level_sum(search_levels, lam, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
-    """``sum_l lambda_l G_l`` read at the coarse cells nearest level-0 cells ``(iy, ix)``
-    (broadcast), accumulated level by level in float64."""
-    out = np.zeros(np.broadcast_shapes(np.shape(iy), np.shape(ix)))
-    for w_l, (lv, G) in zip(lam, search_levels):
-        rows = np.minimum(level_index(iy, lv), G.shape[0] - 1)
-        cols = np.minimum(level_index(ix, lv), G.shape[1] - 1)
-        out += w_l * G[rows, cols]
-    return out
+@functools.lru_cache(maxsize=16)
+def _sub_areas(h: int, w: int, ny: int, nx: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Row and column edges of the guide's ``ny x nx`` sub-areas of an ``h x w`` map."""
+    rows = np.linspace(0, h, ny + 1).round().astype(np.intp)
+    cols = np.linspace(0, w, nx + 1).round().astype(np.intp)
+    return tuple(rows.tolist()), tuple(cols.tolist())
+
+
+class _Layers:
+    """The map work of one :meth:`DacmpPlanner.plan_many` call: every UAV's uncertainty map,
+    global guide point and eq. 19 layers.
+
+    Eq. 19 sums layers 1..L (a map too small for even one layer falls back on G_0). They are
+    kept for all UAVs in one flat float32 buffer, level by level and UAV by UAV within a level,
+    so that the level sums of all particles of all UAVs are one gather (:meth:`level_sum`),
+    without ever forming a whole map of sums. Each UAV's map is computed and reduced to G_1
+    while it is still in cache; the smaller levels are built for several UAVs together. All in
+    buffers the planner keeps between calls; each UAV gets exactly the numbers of its own map
+    alone.
+    """
+
+    def __init__(self, planner: DacmpPlanner, views: list[PlanView]):
+        g = views[0].grid
+        scratch = planner._scratch
+        n = self.count = len(views)
+        shapes = level_shapes(g.shape, planner.levels + 1)  # G_0 .. G_L
+        self.search = list(range(1, len(shapes))) or [0]
+        self.lam = planner._weights(len(self.search))[:, None, None]
+        sizes = [shapes[l][0] * shapes[l][1] for l in self.search]
+        offsets = np.cumsum([0] + [n * s for s in sizes])
+        self.flat = scratch.get("layers", (int(offsets[-1]),))
+        # Flat index of UAV slot s on search level j: level_start[j] + s * sizes[j] + (cell).
+        self.level_start = offsets[:-1, None]
+        self.level_size = np.array(sizes)[:, None]
+        # Per-axis cell offsets on each search level: row part (times the level's width) and
+        # column part of the nearest coarse cell of every level-0 row / column (rounded to the
+        # nearest centre, clipped to the level: agents.pyramid.level_index).
+        self.row_part = np.stack([np.minimum(level_index(np.arange(g.ny), l), shapes[l][0] - 1) * shapes[l][1]
+                                  for l in self.search])
+        self.col_part = np.stack([np.minimum(level_index(np.arange(g.nx), l), shapes[l][1] - 1)
+                                  for l in self.search])
+        # The coarsest layer with >= 4 x 4 cells sets the guide's sub-areas (eq. 20).
+        regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
+        self.guides: list[tuple[float, float] | None] = []
+        first = self._level(0, shapes[self.search[0]])  # G_1 (G_0 if it is the only level)
+        q = scratch.get("q", (1, g.ny, g.nx))
+        for i, view in enumerate(views):
+            view.umap.uncertainty(view.t, out=q[0])
+            # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
+            # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
+            # formation.
+            tie_key = view.rng.random(9)
+            self.guides.append(planner.guide_point(q[0], regions, g.cell_m, view.x, view.y, view.theta,
+                                                   tie_key=tie_key))
+            if self.search[0] == 0:
+                np.copyto(first[i], q[0])
+            else:
+                pyr_down_stack(q, first[i : i + 1], scratch)
+        # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
+        # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
+        step = max(1, _STACK_CELLS // first[0].size)
+        for j in range(1, len(self.search)):
+            lower, upper = self._level(j - 1, shapes[j]), self._level(j, shapes[j + 1])
+            for s0 in range(0, n, step):
+                pyr_down_stack(lower[s0 : s0 + step], upper[s0 : s0 + step], scratch)
+
+    def _level(self, j: int, shape: tuple[int, int]) -> np.ndarray:
+        """Search level ``j`` (of shape ``shape``) of every UAV: a ``(UAVs, h, w)`` view."""
+        start, size = int(self.level_start[j, 0]), int(self.level_size[j, 0])
+        return self.flat[start : start + size * self.count].reshape(self.count, *shape)
+
+    def operands(self, slots: list[int], points: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(base, lam)`` for :meth:`level_sum` on ``(UAVs, points)`` arrays of the UAVs in these
+        slots: the flat start of each of their search levels and the levels' weights, both
+        ``(levels, UAVs, points)`` (full size: same-shape operands keep numpy on its fast path)."""
+        shape = (len(self.search), len(slots), points)
+        base = (self.level_start + np.array(slots) * self.level_size)[:, :, None]
+        return np.ascontiguousarray(np.broadcast_to(base, shape)), np.ascontiguousarray(np.broadcast_to(self.lam, shape))
+
+    def level_sum(self, base: np.ndarray, lam: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+        """``sum_l lambda_l G_l`` read at the coarse cells nearest level-0 cells ``(iy, ix)``
+        (``(UAVs, points)`` int arrays; ``base``, ``lam`` from :meth:`operands`), accumulated
+        level by level from 0 in float64: the numerator of eq. 19."""
+        # mode="clip": cells outside the grid read its border cells (as Grid.cells_of clips).
+        # (ndarray.take: np.take's Python wrapper costs more than the gather here.)
+        idx = self.row_part.take(iy, axis=1, mode="clip")  # (levels, UAVs, points)
+        idx += self.col_part.take(ix, axis=1, mode="clip")
+        idx += base
+        terms = self.flat.take(idx) * lam  # float64: lambda_l * G_l
+        # A reduction over the first axis adds whole rows, one level after the other.
+        return np.add.reduce(terms, axis=0, initial=0.0)

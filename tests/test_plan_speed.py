@@ -1,0 +1,300 @@
+"""The DACMP planner's fast paths give bit for bit the numbers of straightforward code.
+
+Each reference below is the plain formulation the planner used before it was sped up (one map
+at a time, whole-map sums, fresh arrays, a window of level sums). Decisions depend on exact
+float comparisons, so "close" is not enough: every comparison here is on the raw bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import types
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.lib.stride_tricks import as_strided
+
+from agents.dubins import DubinsPoses, dubins_length
+from agents.grid import Grid
+from agents.planners import dacmp
+from agents.planners.dacmp import DacmpPlanner, _Layers
+from agents.pyramid import Scratch, gaussian_pyramid, level_index, level_shapes, pyr_down, pyr_down_stack
+from agents.umap import UncertaintyMap
+
+
+def same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+# --- references -------------------------------------------------------------------------------
+
+def ref_reduce_rows(a: np.ndarray) -> np.ndarray:
+    n, ncols = a.shape
+    m = (n + 1) // 2
+    out = np.empty((m, ncols), dtype=a.dtype)
+    w = np.array([1.0, 4.0, 6.0, 4.0, 1.0]).astype(a.dtype)
+    hi = (n - 3) // 2
+    if hi >= 1:
+        s0, s1 = a.strides
+        view = as_strided(a, shape=(hi, ncols, 5), strides=(2 * s0, s1, s0), writeable=False)
+        np.matmul(view, w, out=out[1 : hi + 1])
+        border = [0, *range(hi + 1, m)]
+    else:
+        border = list(range(m))
+    for i in border:
+        j = []
+        for k in range(5):
+            r = (2 * i + k - 2) % (2 * n)
+            j.append(2 * n - 1 - r if r >= n else r)
+        out[i] = a[j[0]] + a[j[4]]
+        out[i] += 4 * (a[j[1]] + a[j[3]])
+        out[i] += 6 * a[j[2]]
+    return out
+
+
+def ref_pyr_down(a: np.ndarray) -> np.ndarray:
+    b = ref_reduce_rows(np.ascontiguousarray(a))
+    out = np.ascontiguousarray(ref_reduce_rows(np.ascontiguousarray(b.T)).T)
+    out *= a.dtype.type(1.0 / 256.0)
+    return out
+
+
+def ref_level_sum(search_levels, lam, iy, ix) -> np.ndarray:
+    out = np.zeros(np.broadcast_shapes(np.shape(iy), np.shape(ix)))
+    for w_l, (lv, G) in zip(lam, search_levels):
+        rows = np.minimum(level_index(iy, lv), G.shape[0] - 1)
+        cols = np.minimum(level_index(ix, lv), G.shape[1] - 1)
+        out += w_l * G[rows, cols]
+    return out
+
+
+def ref_guide_point(q, regions, cell_m, x, y, theta, tie_tol=0.02, tie_key=None):
+    ny, nx = regions
+    h, w = q.shape
+    if ny < 2 and nx < 2:
+        return None
+    rows = np.linspace(0, h, ny + 1).round().astype(np.intp)
+    cols = np.linspace(0, w, nx + 1).round().astype(np.intp)
+    strips = np.stack([q[r0:r1].sum(axis=0, dtype=np.float64) for r0, r1 in zip(rows[:-1], rows[1:])])
+    sums = np.add.reduceat(strips, cols[:-1], axis=1)
+    means = sums / np.outer(np.diff(rows), np.diff(cols))
+    ry = int(np.clip(np.searchsorted(rows, y / cell_m, side="right") - 1, 0, ny - 1))
+    rx = int(np.clip(np.searchsorted(cols, x / cell_m, side="right") - 1, 0, nx - 1))
+    cands = []
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            yy, xx = ry + dy, rx + dx
+            if (dx or dy) and 0 <= yy < ny and 0 <= xx < nx:
+                cx = 0.5 * (cols[xx] + cols[xx + 1]) * cell_m
+                cy = 0.5 * (rows[yy] + rows[yy + 1]) * cell_m
+                turn = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
+                key = turn if tie_key is None else float(tie_key[(dy + 1) * 3 + dx + 1])
+                cands.append((float(means[yy, xx]), key, cx, cy))
+    if not cands:
+        return None
+    best = max(c[0] for c in cands)
+    _, _, cx, cy = min((c for c in cands if c[0] >= best - tie_tol), key=lambda c: c[1])
+    return cx, cy
+
+
+def ref_dubins(x0, y0, theta0, px, py, r):
+    """One pose (scalars), points as arrays: the closed form with fresh arrays at every step."""
+    dx = np.asarray(px, dtype=np.float64) - x0
+    dy = np.asarray(py, dtype=np.float64) - y0
+    if not r > 0.0:
+        return np.hypot(dx, dy)
+    c, s, inv_r = math.cos(theta0), math.sin(theta0), 1.0 / r
+    x = (c * dx + s * dy) * inv_r
+    y = np.abs(c * dy - s * dx) * inv_r
+    t2 = x * x + y * (y - 2.0)
+    inside = t2 < 0.0
+    t = np.sqrt(np.maximum(t2, 0.0))
+    alpha = np.arctan2(x + t * (y - 1.0), t * x + 1.0 - y)
+    alpha = np.where(alpha < 0.0, alpha + 2.0 * math.pi, alpha)
+    alpha = np.where((x > 0.0) & (alpha > math.pi), 0.0, alpha)
+    out = np.array(alpha + t, dtype=np.float64)
+    if np.any(inside):
+        xi, yi = x[inside], y[inside]
+        qy = yi + 1.0
+        dq = np.hypot(xi, qy)
+        gamma = np.arccos(np.clip((dq * dq + 3.0) / (4.0 * dq), -1.0, 1.0))
+        ang_u = np.arctan2(qy, xi) - gamma
+        a = np.maximum(np.mod(0.5 * math.pi - ang_u + math.pi, 2.0 * math.pi) - math.pi, 0.0)
+        ux, uy = np.cos(ang_u), np.sin(ang_u)
+        b = np.mod(np.arctan2(yi + 1.0 - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), 2.0 * math.pi)
+        b = np.where(b < 0.5 * math.pi, b + 2.0 * math.pi, b)
+        out[inside] = a + b
+    out *= r
+    out[(dx == 0.0) & (dy == 0.0)] = 0.0
+    return out
+
+
+# --- inputs -----------------------------------------------------------------------------------
+
+def q_like(rng, shape) -> np.ndarray:
+    """An uncertainty map as the simulator makes them: float32 ``1 - exp(-tau age)``, with
+    never-seen (1), just-scanned (0) and everything between."""
+    age = rng.exponential(300.0, shape).astype(np.float32)
+    age[rng.random(shape) < 0.2] = np.inf
+    age[rng.random(shape) < 0.05] = 0.0
+    return np.float32(1.0) - np.exp(-np.float32(1 / 600) * age)
+
+
+def wide_range(rng, shape, dtype) -> np.ndarray:
+    """Values over many orders of magnitude (and exact zeros): any change in the order of
+    additions or in rounding shows."""
+    a = rng.random(shape) * 10.0 ** rng.integers(-12, 4, shape)
+    a[rng.random(shape) < 0.1] = 0.0
+    return a.astype(dtype)
+
+
+# --- pyramid ----------------------------------------------------------------------------------
+
+@settings(max_examples=150, deadline=None)
+@given(h=st.integers(1, 70), w=st.integers(1, 70), seed=st.integers(0, 2**32 - 1),
+       dtype=st.sampled_from([np.float32, np.float64]), kind=st.sampled_from(["q", "wide"]))
+def test_pyramid_is_the_reference_bit_for_bit(h, w, seed, dtype, kind):
+    rng = np.random.default_rng(seed)
+    q = q_like(rng, (h, w)).astype(dtype) if kind == "q" else wide_range(rng, (h, w), dtype)
+    pyr = gaussian_pyramid(q, 9)
+    assert [g.shape for g in pyr] == level_shapes((h, w), 9)
+    ref = q
+    for g in pyr[1:]:
+        ref = ref_pyr_down(ref)
+        assert same(g, ref)
+
+
+@settings(max_examples=60, deadline=None)
+@given(h=st.integers(1, 40), w=st.integers(1, 40), k=st.integers(1, 5), seed=st.integers(0, 2**32 - 1))
+def test_stacked_maps_each_get_their_own_numbers(h, w, k, seed):
+    rng = np.random.default_rng(seed)
+    a = np.stack([q_like(rng, (h, w)) for _ in range(k)])
+    scratch = Scratch()
+    out = np.empty((k, (h + 1) // 2, (w + 1) // 2), np.float32)
+    for _ in range(2):  # the second time through reused scratch buffers
+        pyr_down_stack(a, out, scratch)
+        for i in range(k):
+            assert same(out[i], ref_pyr_down(a[i]))
+            assert same(out[i], pyr_down(a[i]))
+
+
+def test_paper_sized_pyramid_is_the_reference():
+    q = q_like(np.random.default_rng(1), (500, 500))
+    ref = q
+    for g in gaussian_pyramid(q, 8)[1:]:
+        ref = ref_pyr_down(ref)
+        assert same(g, ref)
+
+
+def test_scratch_reuses_and_grows():
+    s = Scratch()
+    a = s.get("x", (4, 5))
+    assert a.shape == (4, 5) and a.dtype == np.float32 and a.flags["C_CONTIGUOUS"]
+    b = s.get("x", (2, 3), np.float64)
+    assert b.dtype == np.float64 and np.shares_memory(a, b)
+    c = s.get("x", (100,))
+    assert c.shape == (100,)
+
+
+# --- the planner's map work ------------------------------------------------------------------
+
+def _views(rng, grid, n, t=900.0):
+    views = []
+    for i in range(n):
+        seen = rng.uniform(0.0, t, grid.shape).astype(np.float32)
+        seen[rng.random(grid.shape) < 0.3] = -np.inf
+        seen[rng.random(grid.shape) < 0.02] = t
+        views.append(types.SimpleNamespace(
+            grid=grid, umap=UncertaintyMap(grid, 1 / 600, seen), t=t, x=float(rng.uniform(0, grid.width_m)),
+            y=float(rng.uniform(0, grid.height_m)), theta=float(rng.uniform(-4, 4)), rng=np.random.default_rng(i)))
+    return views
+
+
+@settings(max_examples=40, deadline=None)
+@given(nx=st.integers(1, 90), ny=st.integers(1, 90), n=st.integers(1, 4), levels=st.integers(0, 8),
+       weights=st.booleans(), seed=st.integers(0, 2**32 - 1), one_at_a_time=st.booleans())
+def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weights, seed, one_at_a_time):
+    rng = np.random.default_rng(seed)
+    grid = Grid(nx * 100.0, ny * 100.0, 100.0)
+    planner = DacmpPlanner(levels=levels, level_weights=tuple(rng.uniform(0.1, 3.0, 9)) if weights else None)
+    _Layers(planner, _views(rng, grid, 3))  # leaves other numbers in the planner's buffers
+    views = _views(rng, grid, n)
+    stack_cells = dacmp._STACK_CELLS
+    if one_at_a_time:  # levels reduced one UAV at a time, as on huge grids
+        dacmp._STACK_CELLS = 1
+    try:
+        layers = _Layers(planner, views)
+    finally:
+        dacmp._STACK_CELLS = stack_cells
+    pts = rng.uniform(-300.0, max(nx, ny) * 100.0 + 300.0, (2, n, 17))
+    ix, iy = grid.cells_of(pts[0], pts[1])
+    base, lam = layers.operands(list(range(n)), 17)
+    got = layers.level_sum(base, lam, (pts[0] // grid.cell_m).astype(np.int64), (pts[1] // grid.cell_m).astype(np.int64))
+    shapes = level_shapes(grid.shape, levels + 1)
+    regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
+    for i, v in enumerate(views):
+        q = v.umap.uncertainty(v.t)
+        pyr = gaussian_pyramid(q, levels + 1)
+        search = list(enumerate(pyr))[1:] or [(0, pyr[0])]
+        assert same(got[i], ref_level_sum(search, planner._weights(len(search)), iy[i], ix[i]))
+        tie_key = np.random.default_rng(i).random(9)
+        assert layers.guides[i] == ref_guide_point(q, regions, grid.cell_m, v.x, v.y, v.theta, tie_key=tie_key)
+
+
+@settings(max_examples=300, deadline=None)
+@given(h=st.integers(1, 60), w=st.integers(1, 60), ny=st.integers(1, 6), nx=st.integers(1, 6),
+       seed=st.integers(0, 2**32 - 1), tie_tol=st.sampled_from([0.02, 0.0]), keyed=st.booleans(),
+       dtype=st.sampled_from([np.float32, np.float64]))
+def test_guide_point_is_the_reference(h, w, ny, nx, seed, tie_tol, keyed, dtype):
+    ny, nx = min(ny, h), min(nx, w)
+    rng = np.random.default_rng(seed)
+    q = wide_range(rng, (h, w), dtype)
+    x, y = rng.uniform(-50.0, w * 10.0 + 50.0), rng.uniform(-50.0, h * 10.0 + 50.0)
+    key = rng.random(9) if keyed else None
+    got = DacmpPlanner.guide_point(q, (ny, nx), 10.0, x, y, 0.7, tie_tol=tie_tol, tie_key=key)
+    assert got == ref_guide_point(q, (ny, nx), 10.0, x, y, 0.7, tie_tol=tie_tol, tie_key=key)
+
+
+# --- Dubins -----------------------------------------------------------------------------------
+
+coord = st.floats(-5e4, 5e4, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(poses=st.lists(st.tuples(coord, coord, st.floats(-7.0, 7.0), st.floats(-10.0, 3e3)), min_size=1, max_size=6),
+       seed=st.integers(0, 2**32 - 1), m=st.integers(1, 40))
+def test_dubins_is_the_reference(poses, seed, m):
+    rng = np.random.default_rng(seed)
+    x0, y0, th, r = (np.array(col) for col in zip(*poses))
+    scale = np.maximum(np.abs(r), 1.0)[:, None]
+    px = x0[:, None] + rng.normal(0.0, 1.0, (len(poses), m)) * scale * rng.choice([0.5, 3.0, 30.0])
+    py = y0[:, None] + rng.normal(0.0, 1.0, (len(poses), m)) * scale * rng.choice([0.5, 3.0, 30.0])
+    px[:, 0], py[:, 0] = x0, y0  # at the start
+    with np.errstate(all="ignore"):  # extreme radii overflow, in the reference too
+        ref = np.stack([ref_dubins(*p[:3], px[i], py[i], p[3]) for i, p in enumerate(poses)])
+        assert same(dubins_length(x0[:, None], y0[:, None], th, px, py, r[:, None]), ref)
+        d = np.stack([px - x0[:, None], py - y0[:, None]])
+        assert same(DubinsPoses(th, r[:, None]).lengths(d), ref)
+        assert same(DubinsPoses(th, r[:, None], shape=px.shape).lengths(d), ref)  # terms stored repeated
+        for i, p in enumerate(poses):
+            assert same(dubins_length(*p[:3], px[i], py[i], p[3]), ref[i])
+
+
+def test_dubins_scalar_point_stays_0d():
+    out = dubins_length(0.0, 0.0, 0.0, 5.0, 0.0, 1.0)
+    assert isinstance(out, np.ndarray) and out.shape == () and float(out) == pytest.approx(5.0)
+    assert same(dubins_length(1.0, 2.0, 0.3, 0.5, 0.4, 0.7), ref_dubins(1.0, 2.0, 0.3, 0.5, 0.4, 0.7))
+
+
+def test_clip_to_unit_by_maximum_minimum_is_np_clip():
+    """The planner and the Dubins CC branch clip cosines to [-1, 1] by maximum then minimum
+    (np.clip's Python wrapper costs more than the clip): the same bytes, signed zeros and NaN
+    included (ties only at the non-zero bounds)."""
+    x = np.array([-np.inf, -2.0, -1.0, -1.0 + 1e-16, -0.0, 0.0, 5e-324, 0.3, 1.0, 1.0 + 2e-16, np.inf, np.nan])
+    y = x.copy()
+    np.maximum(y, -1.0, out=y)
+    np.minimum(y, 1.0, out=y)
+    assert same(y, np.clip(x, -1.0, 1.0))
