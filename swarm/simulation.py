@@ -680,6 +680,21 @@ class Simulation:
                 self._loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
             self._loop.close()
 
+    def __del__(self) -> None:
+        # Dropped without close() (``Simulation(...).run()`` in a script): close it here, or
+        # asyncio prints "Task was destroyed but it is pending!" once per UAV at exit. Only a
+        # private loop that is not running can be driven to finish the cancellations; in a
+        # host loop (run_until) the owner must close() or use `with`: a finaliser cannot wait
+        # for that loop.
+        if getattr(self, "_closed", True):
+            return
+        try:
+            if self._own_loop and self._loop is not None and (self._loop.is_running() or self._loop.is_closed()):
+                return
+            self.close()
+        except Exception:  # interpreter shutdown, or a host loop running in this thread
+            pass
+
     def __enter__(self) -> "Simulation":
         return self
 

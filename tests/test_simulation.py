@@ -131,3 +131,22 @@ def test_targets_stay_in_area_within_speed_limit(small_run):
         step = p[1:, 1:] - p[:-1, 1:]
         speeds = (step ** 2).sum(axis=1) ** 0.5 / sim.dt
         assert speeds.max() <= sim.scenario.targets.speed_max + 1e-6
+
+
+def _stderr_of(code: str) -> str:
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    return done.stderr
+
+
+def test_a_simulation_dropped_without_close_leaves_no_pending_tasks_behind():
+    # Simulation(...).run() in a script, never closed: asyncio must not report the actor tasks
+    # as destroyed while pending (one line per UAV at exit before __del__ closed it).
+    err = _stderr_of("from swarm import Simulation\n"
+                     "r = Simulation('paper-fig11', planner='greedy', duration_s=5).run()\n"
+                     "print(r.metrics['sim_seconds'])\n")
+    assert "Task was destroyed" not in err
+
