@@ -700,14 +700,16 @@ def test_closed_gaps_come_back_without_anti_entropy(case, tmp_path):
 
 KNOWN_FAILURES = {
     # UAVs learn of each other only over the radio (no detect-and-avoid sensor): when frames are
-    # lost they fly into each other, with either planner. (Found by the generated-run tests.)
-    **{f"separation_without_radio_{planner}": (
+    # lost they can fly into each other. (Found by the generated-run tests.) The same encounter
+    # flown by DACMP no longer collides since its Case 2 changes: its waypoints part the pair
+    # before they meet. That is luck of this geometry, not avoidance, so it is no test.
+    "separation_without_radio_greedy": (
         {"name": "head-on", "seed": 16, "duration_s": 60.0,
          "area": {"width_m": 9000.0, "height_m": 5000.0, "cell_m": 100.0},
          "uavs": [{"name": "B1", "type": "B", "x_m": 8500.0, "y_m": 2500.0, "heading_deg": 180.0},
                   {"name": "A1", "type": "A", "x_m": 4500.0, "y_m": 2500.0, "heading_deg": 0.0}],
-         "planner": {"name": planner}, "faults": [{"kind": "drop", "rate": 1.0}]},
-        lambda: [SeparationChecker()]) for planner in ("greedy", "dacmp")},
+         "planner": {"name": "greedy"}, "faults": [{"kind": "drop", "rate": 1.0}]},
+        lambda: [SeparationChecker()]),
 }
 
 
@@ -719,9 +721,8 @@ def test_head_on_pair_avoids_each_other_when_they_can_talk():
 
 
 @pytest.mark.parametrize("case", sorted(KNOWN_FAILURES))
-@pytest.mark.xfail(strict=False, raises=InvariantViolation,
-                   reason="known simulator gap, reported with its `swarm run` reproduction "
-                          "(not strict: the head-on DACMP case no longer collides after this session's planner changes)")
+@pytest.mark.xfail(strict=True, raises=InvariantViolation,
+                   reason="known simulator gap, reported with its `swarm run` reproduction")
 def test_known_failures(case, tmp_path):
     doc, checkers = KNOWN_FAILURES[case]
     scenario = _known(doc)
@@ -735,14 +736,9 @@ def test_known_failures(case, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, raises=AssertionError,
-                   reason="since the DACMP changes of this session B1 releases target 0 61 s after A1 "
-                          "declares surveillance from 12 km away; the handover checker counts the takeover "
-                          "from that declaration (release bound 60 s). To settle next: checker or planner.")
 def test_paper_case1_keeps_the_assignment_invariants():
-    """DACMP on paper-case1 with every log checker, the handover ones included. At the time of
-    writing it passes only vacuously: no UAV finds a target within 600 s (targets_found = 0),
-    so nobody ever watches one (the test prints how many UAV-seconds were spent watching)."""
+    """DACMP on paper-case1 with every log checker, the handover ones included, and not
+    vacuously: UAVs do watch targets in this run (about 1400 UAV-seconds in surveillance mode)."""
     scenario = load_scenario("paper-case1")
     watch_ticks = []
     with reproducible(scenario):
@@ -750,4 +746,4 @@ def test_paper_case1_keeps_the_assignment_invariants():
             sim.subscribe(lambda e: watch_ticks.append(e[2]) if e[7] == MODE_SURVEIL else None, kinds={"pose"})
             monitor = _run_live(sim, default_checkers(live=True, handover=True))
         assert monitor.violations == [], "\n".join(map(str, monitor.violations))
-    print(f"paper-case1: {len(watch_ticks)} UAV-seconds in surveillance mode")
+    assert len(watch_ticks) >= 600, f"only {len(watch_ticks)} UAV-seconds in surveillance mode: the handover checks saw little"
