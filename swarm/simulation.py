@@ -25,6 +25,7 @@ decisions), the world integrates commands and targets by ``dt``.
 from __future__ import annotations
 
 import asyncio
+import gc
 import math
 import time
 from collections import defaultdict
@@ -56,6 +57,9 @@ from swarm.scenario import Scenario, UavSpec, load_scenario
 from swarm.world import ALIVE, CRASHED, PENDING, TargetMotion, Targets, UavBody, World
 
 MODE_NAMES = {0: "search", 1: "surveil"}
+
+# Allocations between two young-generation collections during step()/run() (Python default: 700).
+_GC_THRESHOLD = 70_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -650,9 +654,18 @@ class Simulation:
         elif not self._own_loop:
             raise SimulationError("this Simulation is driven by a host event loop; use `await sim.run_until(t)`")
         start = time.perf_counter()
+        # Python's cyclic garbage collector re-traverses the run's caches (decoded frames, disks,
+        # scan logs: tens of thousands of small objects) every few hundred allocations and finds
+        # next to nothing: the run's garbage is freed by reference counting. Collecting 1/100 as
+        # often saves about 4% of a paper-fig11 run. Only here, where nothing else runs until we
+        # return, and restored after: the threshold belongs to the whole process.
+        thresholds = gc.get_threshold()
+        if thresholds[0] > 0:
+            gc.set_threshold(max(thresholds[0], _GC_THRESHOLD), *thresholds[1:])
         try:
             self._loop.run_until_complete(self._advance(t, progress))
         finally:
+            gc.set_threshold(*thresholds)
             self._wall += time.perf_counter() - start
 
     def step(self, n: int = 1) -> None:

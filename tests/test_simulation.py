@@ -150,3 +150,15 @@ def test_a_simulation_dropped_without_close_leaves_no_pending_tasks_behind():
                      "print(r.metrics['sim_seconds'])\n")
     assert "Task was destroyed" not in err
 
+
+
+def test_run_restores_the_processs_garbage_collector_thresholds():
+    import gc
+
+    before = gc.get_threshold()
+    seen = []
+    with Simulation("paper-fig11", planner="greedy", duration_s=3.0) as sim:
+        sim.subscribe(lambda e: seen.append(gc.get_threshold()), kinds={"pose"})
+        sim.run()
+    assert gc.get_threshold() == before
+    assert seen and all(th[0] >= before[0] for th in seen)  # raised (or kept) while it ran
