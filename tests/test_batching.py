@@ -108,6 +108,9 @@ def test_dubins_several_poses_equal_one_pose_at_a_time(poses, points):
     px = np.array([[p[0] for p in points]] * len(poses))
     py = np.array([[p[1] for p in points]] * len(poses))
     x0, y0, th, r = (np.array(col) for col in zip(*poses))
-    many = dubins_length(x0[:, None], y0[:, None], th, px, py, r[:, None])
-    for i, (a, b, h, rr) in enumerate(poses):
-        assert np.array_equal(many[i], dubins_length(a, b, h, px[i], py[i], rr), equal_nan=True)
+    # Hypothesis also draws subnormal radii, whose 1/r overflows (to inf, then NaN) in both
+    # paths alike: the comparison holds, numpy's warnings about it are noise here.
+    with np.errstate(over="ignore", invalid="ignore"):
+        many = dubins_length(x0[:, None], y0[:, None], th, px, py, r[:, None])
+        for i, (a, b, h, rr) in enumerate(poses):
+            assert np.array_equal(many[i], dubins_length(a, b, h, px[i], py[i], rr), equal_nan=True)
