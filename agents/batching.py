@@ -19,7 +19,7 @@ from __future__ import annotations
 import asyncio
 from typing import TYPE_CHECKING
 
-from agents.planners.base import Plan, Planner, PlanView
+from agents.planners.base import Planner, PlanView
 
 if TYPE_CHECKING:
     from agents.actor import UavActor

@@ -35,6 +35,24 @@ def small_scenario_path() -> Path:
     return DATA / "faults-small.toml"
 
 
+@pytest.fixture
+def seed1_fails(monkeypatch) -> str:
+    """Every ``Simulation.run`` of seed 1 raises ``RuntimeError`` with the returned message (the
+    sweeps must record such a run and go on; threads only: the patch is in this process)."""
+    from swarm import simulation
+
+    message = "planted failure"
+    real_run = simulation.Simulation.run
+
+    def flaky(self, *a, **kw):
+        if self.seed == 1:
+            raise RuntimeError(message)
+        return real_run(self, *a, **kw)
+
+    monkeypatch.setattr(simulation.Simulation, "run", flaky)
+    return message
+
+
 # --- fault-kind coverage across the session -------------------------------------------------------
 # Tests that run generated fault schedules record them here (the `fault_stats` fixture). At the
 # end of the session a summary says how often each kind was scheduled and how often the injector

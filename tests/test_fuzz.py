@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from comms.codec import Frame, FrameError, decode, encode
 from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
 from swarm import Simulation
-from swarm.errors import ScenarioError, SimulationError
+from swarm.errors import ScenarioError
 from swarm.scenario import _key, parse_scenario, scenario_from_toml
 from swarm.strategies import scenario_documents, scenario_toml
 

@@ -129,17 +129,7 @@ def test_burst_range_and_crash_axes(out, capsys):
     assert all(f"## {a}:" in top for a in ("loss", "burst", "range", "crash")) and "not run" not in top
 
 
-def test_a_failing_run_is_recorded_and_not_fatal(tmp_path, monkeypatch):
-    from swarm import simulation
-
-    real_run = simulation.Simulation.run
-
-    def flaky(self, *a, **kw):
-        if self.seed == 1:
-            raise RuntimeError("planted failure")
-        return real_run(self, *a, **kw)
-
-    monkeypatch.setattr(simulation.Simulation, "run", flaky)
+def test_a_failing_run_is_recorded_and_not_fatal(tmp_path, seed1_fails):
     with ThreadPoolExecutor(1) as ex:
         rep = run_axis("loss", tmp_path, values=[0.0], seeds=2, duration_s=30, executor=ex)
     assert len(rep.failed) == 2 and all("planted failure" in f["error"] for f in rep.failed)
