@@ -301,7 +301,11 @@ def test_wrong_documents_only_raise_scenario_error_with_a_key_path(case):
     except ScenarioError as err:
         assert err.key, f"no key path in: {err}"
         assert str(err).startswith("<fuzz>: ") and err.found and err.expected
-        if how in ("type", "unknown") or (how == "missing" and err.key == _key(path)):
+        if how == "unknown" and path[0] == "uav_types" and len(path) == 2:
+            # uav_types is open: a new name there is a new type, and what is wrong may be a
+            # setting inside it (a table {} lacks every required one).
+            assert err.key == _key(path) or err.key.startswith(_key(path) + "."), (how, _key(path), str(err))
+        elif how in ("type", "unknown") or (how == "missing" and err.key == _key(path)):
             assert err.key == _key(path), (how, _key(path), str(err))
     else:
         # Only some mutations can leave a valid document: an optional key removed, a number
