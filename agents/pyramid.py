@@ -39,11 +39,11 @@ import math
 
 import numpy as np
 
-__all__ = ["Scratch", "pyr_down", "pyr_down_stack", "gaussian_pyramid", "level_shapes", "level_index",
+__all__ = ["SCALE", "Scratch", "reduce_rows", "pyr_down", "pyr_down_stack", "gaussian_pyramid", "level_shapes", "level_index",
            "sample_levels"]
 
 _WEIGHTS = np.array([1.0, 4.0, 6.0, 4.0, 1.0])  # binomial, unnormalised
-_SCALE = 1.0 / 256.0  # (1/16) per axis, applied once at the end (exact: a power of two)
+SCALE = 1.0 / 256.0  # (1/16) per axis, applied once at the end (exact: a power of two)
 
 
 def _reflect(j: int, n: int) -> int:
@@ -62,28 +62,40 @@ def _border_rows(n: int) -> tuple[tuple[int, tuple[int, ...]], ...]:
     return tuple((i, tuple(_reflect(2 * i + t - 2, n) for t in range(5))) for i in rows)
 
 
-def _reduce_rows(a: np.ndarray, out: np.ndarray) -> None:
+def reduce_rows(a: np.ndarray, out: np.ndarray, n: int | None = None, row0: int = 0, lo: int = 0,
+                hi: int | None = None) -> None:
     """Unscaled [1,4,6,4,1] reduce along axis 1 of a C-contiguous stack ``a`` of 2-D arrays
-    ``(k, n, ncols)``, kept rows only, into ``out`` ``(k, ceil(n/2), ncols)``.
+    ``(k, rows, ncols)``, kept rows only, into ``out`` ``(k, ceil(n/2), ncols)``.
 
     Output row ``i`` is ``sum_k w_k * a[reflect(2i + k - 2)]``.  Rows whose five inputs are all in
     range (all but the first and the last) are one matrix-vector product per row over a read-only
     strided view ``V[s, i, c, k] = a[s, 2i + k, c]`` (no copy: BLAS gemv does the five-term sums,
     the same call for every row whatever ``k``); the one or two border rows use reflected indices.
+
+    Part of a reduce (:mod:`agents.pyramid_reuse`): ``a`` may hold only input rows ``row0 ..
+    row0 + rows - 1`` of an ``n``-row input (default: all of it, ``n = rows``), and only output
+    rows ``lo .. hi`` (default: all) are computed, into ``out[:, : hi - lo + 1]``; ``a`` must hold
+    every input row they read (``2i - 2 .. 2i + 2``, clipped to the input). Each output row gets
+    the numbers of the whole reduce: the same call on the same five rows.
     """
-    k, n, ncols = a.shape
-    hi = (n - 3) // 2  # last output row i with 2i + 2 <= n - 1 (fully interior)
-    if hi >= 1:
+    k, rows, ncols = a.shape
+    if n is None:
+        n = rows
+    if hi is None:
+        hi = (n + 1) // 2 - 1
+    i0, i1 = max(lo, 1), min(hi, (n - 3) // 2)  # the fully interior output rows wanted
+    if i1 >= i0:
         sk, s0, s1 = a.strides
         # np.ndarray over a's buffer: the same view as as_strided, at a fraction of its call cost.
-        view = np.ndarray((k, hi, ncols, 5), a.dtype, a, 0, (sk, 2 * s0, s1, s0))
+        view = np.ndarray((k, i1 - i0 + 1, ncols, 5), a.dtype, a, (2 * i0 - 2 - row0) * s0, (sk, 2 * s0, s1, s0))
         view.flags.writeable = False
-        np.matmul(view, _WEIGHTS.astype(a.dtype), out=out[:, 1 : hi + 1])
+        np.matmul(view, _WEIGHTS.astype(a.dtype), out=out[:, i0 - lo : i1 - lo + 1])
     for i, j in _border_rows(n):  # at most two rows, or every row of a tiny array
-        r = out[:, i]
-        np.add(a[:, j[0]], a[:, j[4]], out=r)
-        r += 4 * (a[:, j[1]] + a[:, j[3]])
-        r += 6 * a[:, j[2]]
+        if lo <= i <= hi:
+            r = out[:, i - lo]
+            np.add(a[:, j[0] - row0], a[:, j[4] - row0], out=r)
+            r += 4 * (a[:, j[1] - row0] + a[:, j[3] - row0])
+            r += 6 * a[:, j[2] - row0]
 
 
 class Scratch:
@@ -122,13 +134,13 @@ def pyr_down_stack(a: np.ndarray, out: np.ndarray, scratch: Scratch | None = Non
     m, mw = (h + 1) // 2, (w + 1) // 2
     work = scratch if scratch is not None else Scratch()
     b = work.get("pyr_rows", (k, m, w), a.dtype)
-    _reduce_rows(a, b)  # rows: (ceil(h/2), w)
+    reduce_rows(a, b)  # rows: (ceil(h/2), w)
     bt = work.get("pyr_rows_t", (k, w, m), a.dtype)
     np.copyto(bt, b.transpose(0, 2, 1))
     out_t = work.get("pyr_cols_t", (k, mw, m), a.dtype)
-    _reduce_rows(bt, out_t)  # columns, on the transpose
+    reduce_rows(bt, out_t)  # columns, on the transpose
     # Back to row-major, scaled on the way (exact: a power of two).
-    np.multiply(out_t.transpose(0, 2, 1), a.dtype.type(_SCALE), out=out)
+    np.multiply(out_t.transpose(0, 2, 1), a.dtype.type(SCALE), out=out)
     return out
 
 

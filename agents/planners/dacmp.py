@@ -41,6 +41,7 @@ import numpy as np
 from agents.dubins import DubinsPoses
 from agents.planners.base import Plan, PlanView
 from agents.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
+from agents.pyramid_reuse import FirstLevels
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
@@ -78,6 +79,7 @@ class DacmpPlanner:
     name: str = "dacmp"
     # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
     _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
+    _first_levels: FirstLevels = field(default_factory=FirstLevels, init=False, repr=False, compare=False)
 
     @classmethod
     def from_settings(cls, planner_settings, levels: int = 7,
@@ -123,14 +125,12 @@ class DacmpPlanner:
         if ny < 2 and nx < 2:
             return None
         rows, cols = _sub_areas(h, w, ny, nx)
-        ry = min(max(bisect.bisect_right(rows, y / cell_m) - 1, 0), ny - 1)
-        rx = min(max(bisect.bisect_right(cols, x / cell_m) - 1, 0), nx - 1)
+        ry, y0, y1 = _neighbour_blocks(rows, ny, y / cell_m)
+        rx, x0, x1 = _neighbour_blocks(cols, nx, x / cell_m)
         # Only the UAV's sub-area and its neighbours are read (rows y0..y1-1, columns x0..x1-1
-        # of sub-areas). Row blocks summed one by one (row after row, like add.reduceat along
-        # axis 0 but about twice as fast: no buffered casting), then the few columns; each sum
-        # is the one a sum over the whole map would give.
-        y0, y1 = max(ry - 1, 0), min(ry + 2, ny)
-        x0, x1 = max(rx - 1, 0), min(rx + 2, nx)
+        # of sub-areas: guide_window). Row blocks summed one by one (row after row, like
+        # add.reduceat along axis 0 but about twice as fast: no buffered casting), then the few
+        # columns; each sum is the one a sum over the whole map would give.
         c0, c1 = cols[x0], cols[x1]
         strips = np.stack([q[rows[i] : rows[i + 1], c0:c1].sum(axis=0, dtype=np.float64) for i in range(y0, y1)])
         sums = np.add.reduceat(strips, [c - c0 for c in cols[x0:x1]], axis=1)
@@ -152,6 +152,20 @@ class DacmpPlanner:
         best = max(c[0] for c in cands)
         _, _, cx, cy = min((c for c in cands if c[0] >= best - tie_tol), key=lambda c: c[1])
         return cx, cy
+
+    @staticmethod
+    @staticmethod
+    def guide_window(shape: tuple[int, int], regions: tuple[int, int], cell_m: float, x: float,
+                     y: float) -> tuple[int, int, int, int]:
+        """The cells of ``q`` that :meth:`guide_point` reads for a UAV at ``(x, y)``: rows
+        ``r0:r1``, columns ``c0:c1``, as ``(r0, r1, c0, c1)``."""
+        ny, nx = regions
+        if ny < 2 and nx < 2:
+            return 0, 0, 0, 0
+        rows, cols = _sub_areas(shape[0], shape[1], ny, nx)
+        _, y0, y1 = _neighbour_blocks(rows, ny, y / cell_m)
+        _, x0, x1 = _neighbour_blocks(cols, nx, x / cell_m)
+        return rows[y0], rows[y1], cols[x0], cols[x1]
 
     def rivals(self, view: PlanView, targets: list[tuple[int, float, float, float]],
                D: float) -> dict[int, list[tuple[float, float, float]]]:
@@ -453,6 +467,13 @@ class _UavSearch:
         return Plan(wx, wy, mode, target)
 
 
+def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, int, int]:
+    """Along one axis: the sub-area holding cell coordinate ``pos`` (clipped to ``0..n-1``) and
+    the range ``lo:hi`` of it and its neighbours."""
+    i = min(max(bisect.bisect_right(edges, pos) - 1, 0), n - 1)
+    return i, max(i - 1, 0), min(i + 2, n)
+
+
 @functools.lru_cache(maxsize=16)
 def _sub_areas(h: int, w: int, ny: int, nx: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
     """Row and column edges of the guide's ``ny x nx`` sub-areas of an ``h x w`` map."""
@@ -498,19 +519,22 @@ class _Layers:
         regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
         self.guides: list[tuple[float, float] | None] = []
         first = self._level(0, shapes[self.search[0]])  # G_1 (G_0 if it is the only level)
-        q = scratch.get("q", (1, g.ny, g.nx))
+        maps = planner._first_levels  # q and G_1, reusing the first map's work (agents.pyramid_reuse)
+        maps.start()
         for i, view in enumerate(views):
-            view.umap.uncertainty(view.t, out=q[0])
+            if self.search[0] == 0:
+                q = scratch.get("q", (g.ny, g.nx))
+                view.umap.uncertainty(view.t, out=q)
+                np.copyto(first[i], q)
+            else:
+                q = maps.compute(view.umap, view.t, first[i],
+                                 planner.guide_window(g.shape, regions, g.cell_m, view.x, view.y))
             # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
             # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
             # formation.
             tie_key = view.rng.random(9)
-            self.guides.append(planner.guide_point(q[0], regions, g.cell_m, view.x, view.y, view.theta,
+            self.guides.append(planner.guide_point(q, regions, g.cell_m, view.x, view.y, view.theta,
                                                    tie_key=tie_key))
-            if self.search[0] == 0:
-                np.copyto(first[i], q[0])
-            else:
-                pyr_down_stack(q, first[i : i + 1], scratch)
         # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
         # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
         step = max(1, _STACK_CELLS // first[0].size)

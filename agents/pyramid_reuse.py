@@ -1,0 +1,157 @@
+"""q and the first pyramid level of the maps planned in one tick, reusing the first map's work.
+
+The UAVs that replan in the same tick usually hold nearly the same map: in a swarm that hears
+itself well, every map has every scan up to the previous tick, and each adds its own scan of
+this tick. Their q (``1 - exp(-tau (t - last_seen))``) and their first pyramid level G_1 then
+differ only around those few disks, yet computing them is most of a plan's map work (a pass of
+``exp`` over every cell and a 5 x 5 blur of the whole map).
+
+:class:`FirstLevels` computes the first map of a planning call in full and keeps its q and the
+intermediates of its pyramid step (row pass, its transpose, column pass). For each further map
+it compares last-seen times with the first map's, row by row, and recomputes only where an
+input changed:
+
+* q on the rows that differ (plus the rows the row pass reads around them);
+* the row pass's output rows that read a changed row (each output row reads five input rows);
+* the column pass's output rows (G_1's columns) that read a changed column, on the first map's
+  transposed row pass with the new rows written in;
+
+and copies everything else from the first map. The numbers are exactly those of computing the
+map alone: q is element-wise, and numpy gives an element the same value in any array or slice
+(tested); each pyramid output row is the same BLAS call on the same five input rows whatever
+rows are computed with it (:func:`agents.pyramid.reduce_rows`). Maps that differ in many rows,
+tiled maps and maps at another time are computed in full.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agents.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
+from agents.umap import UncertaintyMap
+
+# A map is patched when at most this share of its rows differ from the first map's; beyond
+# that, recomputing the patched rows and columns costs about what the whole map costs.
+MAX_CHANGED_ROWS = 0.35
+# Runs of changed rows closer than this are patched as one band (the row-pass output rows
+# they touch would overlap).
+_MERGE_GAP = 8
+# Maps smaller than this (rows or columns) are always computed in full.
+_MIN_SIDE = 16
+
+
+class _Band:
+    """Rows ``r0:r1`` of a map that differ from the first map's, within columns ``c0:c1``; its
+    q on rows ``qa:qa + len(q)`` and row-pass output rows ``i_lo..i_hi``."""
+
+    __slots__ = ("r0", "r1", "c0", "c1", "qa", "q", "i_lo", "i_hi", "rows")
+
+    def __init__(self, r0: int, r1: int, c0: int, c1: int):
+        self.r0, self.r1, self.c0, self.c1 = r0, r1, c0, c1
+
+
+class FirstLevels:
+    """q and G_1 of a planning call's maps (see the module docstring). Keeps its buffers from
+    call to call; :meth:`start` begins a call, :meth:`compute` does one map."""
+
+    def __init__(self, reuse: bool = True) -> None:
+        self.reuse = reuse  # False: every map in full (the same numbers; for tests and benchmarks)
+        self._ref_work = Scratch()  # the first map's q and pyramid intermediates
+        self._other_work = Scratch()  # maps computed in full after the first
+        self.patched = 0  # maps computed by patching (for tests and benchmarks)
+        self.full = 0
+        self.start()
+
+    def start(self) -> None:
+        """A new planning call: the next map computed becomes the reference."""
+        self._ref: tuple | None = None
+
+    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
+        """Write the map's G_1 at ``t`` into ``g1`` and return its q, valid at least on the cells
+        ``window = (r0, r1, c0, c1)`` (rows ``r0:r1``, columns ``c0:c1``: the caller's other
+        reads of q; other cells may hold anything)."""
+        ny, nx = umap.grid.shape
+        ref = self._ref
+        if ref is not None and self.reuse and umap.dense and ref[1] == (ny, nx) and ref[2] == t and ref[3] == umap.tau:
+            q = self._patch(umap, t, g1, window)
+            if q is not None:
+                self.patched += 1
+                return q
+        self.full += 1
+        eligible = umap.dense and min(ny, nx) >= _MIN_SIDE
+        work = self._ref_work if ref is None and eligible else self._other_work
+        q = work.get("q", (1, ny, nx))
+        umap.uncertainty(t, out=q[0])
+        pyr_down_stack(q, g1[None], work)
+        if ref is None and eligible:
+            m, mw = (ny + 1) // 2, (nx + 1) // 2
+            # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
+            bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
+            self._ref = (umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw))
+        return q[0]
+
+    def _bands(self, ls: np.ndarray, ref_ls: np.ndarray) -> list[_Band] | None:
+        """Where ``ls`` differs from ``ref_ls`` (bit patterns): bands of rows, each with the
+        columns that differ in it; ``[]`` if nowhere, None if in too many rows."""
+        ny, nx = ls.shape
+        # Two cells per word where the row allows: fewer elements, the same rows.
+        unit = 2 if nx % 2 == 0 else 1
+        word = np.uint64 if unit == 2 else np.uint32
+        mine, theirs = ls.view(word), ref_ls.view(word)
+        ne = self._other_work.get("ne", mine.shape, np.bool_)
+        np.not_equal(mine, theirs, out=ne)
+        at = np.flatnonzero(ne)  # differing words, row by row
+        if at.size == 0:
+            return []
+        width = mine.shape[1]
+        rows = at // width
+        if rows[-1] - rows[0] >= MAX_CHANGED_ROWS * ny and np.unique(rows).size > MAX_CHANGED_ROWS * ny:
+            return None
+        cols = at - rows * width
+        # Bands: runs of changed rows with gaps of at most _MERGE_GAP rows.
+        cuts = (np.flatnonzero(np.diff(rows) > _MERGE_GAP) + 1).tolist()
+        bands = []
+        for a, b in zip([0] + cuts, cuts + [at.size]):
+            c = cols[a:b]
+            bands.append(_Band(int(rows[a]), int(rows[b - 1]) + 1, int(c.min()) * unit, (int(c.max()) + 1) * unit))
+        return bands
+
+    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray | None:
+        ref_ls, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw) = self._ref
+        ls = umap.to_dense_view()
+        bands = self._bands(ls, ref_ls)
+        if bands is None:
+            return None
+        np.copyto(g1, ref_g1)
+        if not bands:
+            return ref_q
+        # Row pass: output rows i read input rows 2i - 2 .. 2i + 2 (clipped to the map). Their q
+        # is the first map's except in the band's columns.
+        for b in bands:
+            b.i_lo, b.i_hi = max(0, (b.r0 - 1) // 2), min(m - 1, (b.r1 + 1) // 2)
+            b.qa, qb = max(0, 2 * b.i_lo - 2), min(ny, 2 * b.i_hi + 3)
+            b.q = ref_q[None, b.qa : qb].copy()
+            umap.q_into(t, ls[b.qa : qb, b.c0 : b.c1], b.q[0, :, b.c0 : b.c1])
+            b.rows = np.empty((1, b.i_hi - b.i_lo + 1, nx), np.float32)
+            reduce_rows(b.q, b.rows, n=ny, row0=b.qa, lo=b.i_lo, hi=b.i_hi)
+        # Column pass (on the transpose): G_1 column j reads row-pass columns 2j - 2 .. 2j + 2.
+        for b in bands:
+            j_lo, j_hi = max(0, (b.c0 - 1) // 2), min(mw - 1, (b.c1 + 1) // 2)
+            ca, cb = max(0, 2 * j_lo - 2), min(nx, 2 * j_hi + 3)
+            cols_t = ref_bt[ca:cb].copy()  # the first map's row pass, transposed, ...
+            for other in bands:  # ... with this map's new rows written in
+                cols_t[:, other.i_lo : other.i_hi + 1] = other.rows[0, :, ca:cb].T
+            out_t = np.empty((1, j_hi - j_lo + 1, m), np.float32)
+            reduce_rows(cols_t[None], out_t, n=nx, row0=ca, lo=j_lo, hi=j_hi)
+            np.multiply(out_t[0].T, np.float32(SCALE), out=g1[:, j_lo : j_hi + 1])
+        # q on the caller's window: the first map's, with this map's changed cells.
+        r0, r1, c0, c1 = window
+        touched = [b for b in bands if b.r0 < r1 and b.r1 > r0 and b.c0 < c1 and b.c1 > c0]
+        if not touched:
+            return ref_q
+        q = self._other_work.get("q_window", (ny, nx))
+        q[r0:r1, c0:c1] = ref_q[r0:r1, c0:c1]
+        for b in touched:
+            lo, hi = max(r0, b.r0), min(r1, b.r1)
+            q[lo:hi, c0:c1] = b.q[0, lo - b.qa : hi - b.qa, c0:c1]
+        return q

@@ -1,0 +1,122 @@
+"""agents.pyramid_reuse: maps patched from the first map of a planning call get exactly the q and
+G_1 they get computed alone, wherever and however much they differ."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from agents.grid import Grid
+from agents.pyramid import Scratch, pyr_down_stack, reduce_rows
+from agents.pyramid_reuse import FirstLevels
+from agents.umap import UncertaintyMap
+
+TAU = 1 / 600
+
+
+def same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def last_seen(rng, shape, t) -> np.ndarray:
+    """Last-seen times as a run leaves them: never (-inf), long ago, recently, now."""
+    ls = (t - rng.exponential(300.0, shape)).astype(np.float32)
+    ls[rng.random(shape) < 0.2] = -np.inf
+    ls[rng.random(shape) < 0.05] = np.float32(t)
+    return ls
+
+
+def alone(umap: UncertaintyMap, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """q and G_1 of one map computed on its own (the planner's path before reuse)."""
+    ny, nx = umap.grid.shape
+    q = umap.uncertainty(t)[None]
+    g1 = np.empty((1, (ny + 1) // 2, (nx + 1) // 2), np.float32)
+    pyr_down_stack(np.ascontiguousarray(q), g1, Scratch())
+    return q[0], g1[0]
+
+
+edits = st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.integers(1, 30), st.integers(1, 30),
+                           st.sampled_from(["now", "never", "older", "one"])), max_size=4)
+
+
+@settings(max_examples=80, deadline=None)
+@given(h=st.integers(16, 90), w=st.integers(16, 90), seed=st.integers(0, 2**32 - 1), maps=st.lists(edits, min_size=1, max_size=4))
+def test_patched_maps_get_the_numbers_they_get_alone(h, w, seed, maps):
+    rng = np.random.default_rng(seed)
+    t = 1000.0
+    grid = Grid(w * 100.0, h * 100.0, 100.0)
+    base = last_seen(rng, (h, w), t)
+    umaps = [UncertaintyMap(grid, TAU, base)]
+    for boxes in maps:  # each further map: the first with a few boxes changed
+        ls = base.copy()
+        for fy, fx, bh, bw, kind in boxes:
+            r0, c0 = int(fy * (h - 1)), int(fx * (w - 1))
+            box = ls[r0 : r0 + bh, c0 : c0 + bw]
+            if kind == "now":
+                box[...] = np.float32(t)
+            elif kind == "never":
+                box[...] = -np.inf
+            elif kind == "older":
+                box -= np.float32(50.0)
+            else:
+                box[0, 0] = np.nextafter(box[0, 0], np.float32(np.inf))  # one bit in one cell
+        umaps.append(UncertaintyMap(grid, TAU, ls))
+    levels = FirstLevels()
+    g1 = np.empty((len(umaps), (h + 1) // 2, (w + 1) // 2), np.float32)
+    window = (h // 4, h, 0, w // 2 + 1)
+    for _ in range(2):  # a second call reuses the buffers
+        levels.start()
+        for i, u in enumerate(umaps):
+            q = levels.compute(u, t, g1[i], window)
+            q_alone, g1_alone = alone(u, t)
+            assert same(g1[i], g1_alone)
+            r0, r1, c0, c1 = window
+            assert same(q[r0:r1, c0:c1], q_alone[r0:r1, c0:c1])
+    assert levels.full + levels.patched == 2 * len(umaps)
+
+
+def test_maps_are_patched_only_when_they_may_be():
+    grid = Grid(6400.0, 6400.0, 100.0)
+    rng = np.random.default_rng(3)
+    base = last_seen(rng, (64, 64), 500.0)
+    near = base.copy()
+    near[10:14, 20:30] = 500.0
+    far = base.copy()
+    far[::2] = 500.0  # half the rows differ
+    levels = FirstLevels()
+    g1 = np.empty((32, 32), np.float32)
+    levels.start()
+    for ls in (base, near, far):
+        levels.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, (0, 64, 0, 64))
+    assert (levels.full, levels.patched) == (2, 1)
+    # Another time, tau or a tiled map: computed in full.
+    for u, t in ((UncertaintyMap(grid, TAU, near), 501.0), (UncertaintyMap(grid, 2 * TAU, near), 500.0),
+                 (UncertaintyMap(grid, TAU, near, tile=16), 500.0)):
+        levels.compute(u, t, g1, (0, 64, 0, 64))
+        assert same(g1, alone(u, t)[1])
+    assert (levels.full, levels.patched) == (5, 1)
+    off = FirstLevels(reuse=False)
+    off.start()
+    for ls in (base, near):
+        off.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, (0, 64, 0, 64))
+    assert (off.full, off.patched) == (2, 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 40), ncols=st.integers(1, 9), lo=st.integers(0, 20), span=st.integers(0, 20),
+       seed=st.integers(0, 2**32 - 1))
+def test_part_of_a_row_reduce_is_the_whole_reduce_there(n, ncols, lo, span, seed):
+    rng = np.random.default_rng(seed)
+    a = rng.random((2, n, ncols)).astype(np.float32)
+    m = (n + 1) // 2
+    lo = min(lo, m - 1)
+    hi = min(lo + span, m - 1)
+    whole = np.empty((2, m, ncols), np.float32)
+    reduce_rows(a, whole)
+    # Only the input rows the wanted output rows read, offset.
+    row0, row1 = max(0, 2 * lo - 2), min(n, 2 * hi + 3)
+    part = np.empty((2, hi - lo + 1, ncols), np.float32)
+    reduce_rows(np.ascontiguousarray(a[:, row0:row1]), part, n=n, row0=row0, lo=lo, hi=hi)
+    assert same(part, whole[:, lo : hi + 1])
