@@ -280,27 +280,30 @@ class DacmpPlanner:
         angle = np.stack([u.ring_angle for u in uavs])
         z = keep_near(batch.p0 + radius * np.stack([np.cos(angle), np.sin(angle)]))
         v = np.zeros((2, U, M))
-        f, _, _ = fitness(z)
+        f, _, _ = fitness(z, kept=True)
         best_z, bf = z.copy(), f.copy()
         gi = np.argmax(bf, axis=1)
         # (iteration, r1/r2/Q, axis, UAV, particle): the draws repeated for the x and y rows.
         draws = np.repeat(np.stack([u.pso_draws for u in uavs], axis=2)[:, :, None], 2, axis=2)
+        # The coefficients of every iteration, and c1 * r1, c2 * r2 for all of them in one go
+        # (the same products as one iteration at a time).
+        fracs = [it / (n_it - 1) if n_it > 1 else 1.0 for it in range(n_it)]
+        ws = [self.w_start + (self.w_end - self.w_start) * frac for frac in fracs]
+        c1s = np.array([self.c1_start + (self.c1_end - self.c1_start) * frac for frac in fracs])
+        c2s = np.array([self.c2_start + (self.c2_end - self.c2_start) * frac for frac in fracs])
+        c1r0 = c1s[:, None, None, None] * draws[:, 0]
+        c2r1 = c2s[:, None, None, None] * draws[:, 1]
         for it in range(n_it):
-            frac = it / (n_it - 1) if n_it > 1 else 1.0
-            w = self.w_start + (self.w_end - self.w_start) * frac
-            c1 = self.c1_start + (self.c1_end - self.c1_start) * frac
-            c2 = self.c2_start + (self.c2_end - self.c2_start) * frac
-            r0, r1, r2 = draws[it]
             g_best = best_z[:, rows, gi][:, :, None]
-            v = w * v + (c1 * r0) * (best_z - z) + (c2 * r1) * (g_best - z)
-            z = keep_near(z + v * r2)  # eq. 15: z += dz * Q
-            f, _, _ = fitness(z)
+            v = ws[it] * v + c1r0[it] * (best_z - z) + c2r1[it] * (g_best - z)
+            z = keep_near(z + v * draws[it, 2])  # eq. 15: z += dz * Q
+            f, _, _ = fitness(z, kept=True)
             better = f > bf
             np.copyto(best_z, z, where=better)
             np.copyto(bf, f, where=better)
-            gi = np.argmax(bf, axis=1)
+            gi = bf.argmax(axis=1)
         wz, best = best_z[:, rows, gi][:, :, None], bf[rows, gi]
-        _, f_s, f_t = fitness(np.repeat(wz, M, axis=2))  # (the batch's shape: M copies)
+        _, f_s, f_t = fitness(np.repeat(wz, M, axis=2), kept=True)  # (the batch's shape: M copies)
         plans = []
         for i, u in enumerate(uavs):
             if not np.isfinite(best[i]):
@@ -340,9 +343,12 @@ class _Batch:
         self.with_targets = [(i, u) for i, u in enumerate(uavs) if u.targets]
         self.with_threats = [(i, u) for i, u in enumerate(uavs) if u.threats]
         self.dubins = DubinsPoses(np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]), shape=shape)
+        self.no_targets = np.zeros(shape)  # f_t where no UAV has a target term
+        self.no_targets.flags.writeable = False
 
-    def fitness(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s ``points`` points)."""
+    def fitness(self, z: np.ndarray, kept: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s ``points`` points).
+        ``kept``: the points come from :meth:`keep_near`, so they lie inside the area."""
         planner, g = self.planner, self.grid
         # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers).
         cells = (z // g.cell_m).astype(np.int64)
@@ -364,6 +370,9 @@ class _Batch:
         else:
             f_sg = np.full(p_sum.shape, 0.5)
         f_s = planner.eta * f_sl + (1.0 - planner.eta) * f_sg
+        if kept and not self.with_targets and not self.with_threats:
+            # Nothing to add and every point feasible: f = f_S (f_S > 0, so f_S + 0.0 is f_S).
+            return f_s, f_s, self.no_targets
         f_t = np.zeros(p_sum.shape)
         inside = (z >= 0) & (z <= self.area)
         ok = inside[0] & inside[1]
@@ -389,7 +398,10 @@ class _Batch:
         d = z - self.p0
         dist = np.hypot(d[0], d[1])
         scale = np.where(dist > self.r_max, self.r_max / np.maximum(dist, 1e-9), 1.0)
-        return np.clip(self.p0 + d * scale, 0.0, self.area)
+        kept = self.p0 + d * scale
+        # = np.clip(kept, 0.0, self.area), without its Python-level overhead.
+        np.maximum(kept, 0.0, out=kept)
+        return np.minimum(kept, self.area, out=kept)
 
 
 @dataclass
