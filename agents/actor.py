@@ -25,6 +25,7 @@ import numpy as np
 from agents.apf import ApfSettings, apf_command
 from agents.grid import Grid
 from agents.knowledge import KnownThreat, Knowledge
+from agents.maprecords import MapRecords
 from agents.planners.base import Plan, Planner, PlanView
 from agents.scanlog import ScanLog
 from agents.types import GRAVITY, UavType
@@ -155,6 +156,8 @@ class UavActor:
         self.settings = settings
         self.mailbox = mailbox
         self.umap = UncertaintyMap(grid, tau)
+        # What the map is made of, for planners that compare maps (agents.maprecords).
+        self.map_records = MapRecords(self.umap, settings.dt) if getattr(planner, "uses_map_records", False) else None
         self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
         self._log_scans = settings.sync_every_s > 0  # without anti-entropy nothing reads the log
         self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
@@ -235,7 +238,10 @@ class UavActor:
         radius = self.kind.detect_radius
         d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
         if d is not None:
-            self.umap.stamp(d, t)
+            if self.map_records is not None:
+                self.map_records.stamp(self.uid, t, d)
+            else:
+                self.umap.stamp(d, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
         if self._log_scans and self._plausible(r.x, r.y, radius):
             self.scans.add(self.uid, t, r.x, r.y, radius)
@@ -247,7 +253,7 @@ class UavActor:
         if self.plan is None or t >= self._next_replan or self._reached(r):
             s = self.settings
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
-                            self.grid, s.replan_s, s.surveillance, self.plan)
+                            self.grid, s.replan_s, s.surveillance, self.plan, self.map_records)
         return None
 
     def adopt(self, plan: Plan, t: float) -> None:
@@ -330,6 +336,7 @@ class UavActor:
         peers = k.peers
         me = self.uid
         stamp = self.umap.stamp
+        records = self.map_records
         disk_stamp = self.grid.disk_stamp
         known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
         decode_frame = self._decode
@@ -369,7 +376,10 @@ class UavActor:
                             if d is _MISSING:
                                 d = disk_stamp(x, y, rr)
                             if d is not None:
-                                stamp(d, tr)
+                                if records is None:
+                                    stamp(d, tr)
+                                else:
+                                    records.stamp(origin, tr, d)
                 elif tm is Hello:
                     if m.uav != me:
                         p = peers.get(m.uav) or k.peer(m.uav)

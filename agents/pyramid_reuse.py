@@ -8,8 +8,10 @@ differ only around those few disks, yet computing them is most of a plan's map w
 
 :class:`FirstLevels` computes the first map of a planning call in full and keeps its q and the
 intermediates of its pyramid step (row pass, its transpose, column pass). For each further map
-it compares last-seen times with the first map's, row by row, and recomputes only where an
-input changed:
+it finds where its last-seen times may differ from the first map's: from the two maps'
+:class:`~agents.maprecords.MapRecords` (the disks of the scans one has and the other lacks)
+when the UAVs keep them, else by comparing the maps row by row (a pass over both maps, about
+half the cost of patching). It then recomputes only where an input changed:
 
 * q on the rows that differ (plus the rows the row pass reads around them);
 * the row pass's output rows that read a changed row (each output row reads five input rows);
@@ -27,6 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from agents.grid import Disk
+from agents.maprecords import MapRecords, differences
 from agents.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
 from agents.umap import UncertaintyMap
 
@@ -50,6 +54,21 @@ class _Band:
         self.r0, self.r1, self.c0, self.c1 = r0, r1, c0, c1
 
 
+def _disk_bands(disks: list[Disk], ny: int) -> list[_Band] | None:
+    """Bands covering these disks (each disk's box; boxes less than :data:`_MERGE_GAP` rows
+    apart merged), or None if they span too many rows to be worth patching."""
+    bands: list[_Band] = []
+    for d in sorted(disks, key=lambda d: d.iy0):
+        b = bands[-1] if bands else None
+        if b is not None and d.iy0 <= b.r1 + _MERGE_GAP:
+            b.r1, b.c0, b.c1 = max(b.r1, d.iy1), min(b.c0, d.ix0), max(b.c1, d.ix1)
+        else:
+            bands.append(_Band(d.iy0, d.iy1, d.ix0, d.ix1))
+    if sum(b.r1 - b.r0 for b in bands) > MAX_CHANGED_ROWS * ny:
+        return None
+    return bands
+
+
 class FirstLevels:
     """q and G_1 of a planning call's maps (see the module docstring). Keeps its buffers from
     call to call; :meth:`start` begins a call, :meth:`compute` does one map."""
@@ -66,14 +85,16 @@ class FirstLevels:
         """A new planning call: the next map computed becomes the reference."""
         self._ref: tuple | None = None
 
-    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
+    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int],
+                records: MapRecords | None = None) -> np.ndarray:
         """Write the map's G_1 at ``t`` into ``g1`` and return its q, valid at least on the cells
         ``window = (r0, r1, c0, c1)`` (rows ``r0:r1``, columns ``c0:c1``: the caller's other
-        reads of q; other cells may hold anything)."""
+        reads of q; other cells may hold anything). ``records``: what the map is made of, if
+        known; where this and the first map's tell how they differ, the maps are not compared."""
         ny, nx = umap.grid.shape
         ref = self._ref
         if ref is not None and self.reuse and umap.dense and ref[1] == (ny, nx) and ref[2] == t and ref[3] == umap.tau:
-            q = self._patch(umap, t, g1, window)
+            q = self._patch(umap, t, g1, window, records)
             if q is not None:
                 self.patched += 1
                 return q
@@ -87,7 +108,7 @@ class FirstLevels:
             m, mw = (ny + 1) // 2, (nx + 1) // 2
             # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
             bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
-            self._ref = (umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw))
+            self._ref = (umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw), records)
         return q[0]
 
     def _bands(self, ls: np.ndarray, ref_ls: np.ndarray) -> list[_Band] | None:
@@ -116,10 +137,12 @@ class FirstLevels:
             bands.append(_Band(int(rows[a]), int(rows[b - 1]) + 1, int(c.min()) * unit, (int(c.max()) + 1) * unit))
         return bands
 
-    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray | None:
-        ref_ls, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw) = self._ref
+    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int],
+               records: MapRecords | None) -> np.ndarray | None:
+        ref_ls, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw), ref_records = self._ref
         ls = umap.to_dense_view()
-        bands = self._bands(ls, ref_ls)
+        disks = differences(ref_records, records) if records is not None and ref_records is not None else None
+        bands = self._bands(ls, ref_ls) if disks is None else _disk_bands(disks, ny)
         if bands is None:
             return None
         np.copyto(g1, ref_g1)

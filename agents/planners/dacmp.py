@@ -77,6 +77,9 @@ class DacmpPlanner:
     # Other UAVs' detection radii by type name (how far their next waypoint goes); unknown: ours.
     detect_radius_by_type: dict[str, float] = field(default_factory=dict)
     name: str = "dacmp"
+    # Ask the UAV to keep agents.maprecords.MapRecords: maps planned together are then patched
+    # from one another without comparing them cell by cell (agents.pyramid_reuse).
+    uses_map_records = True
     # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
     _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
     _first_levels: FirstLevels = field(default_factory=FirstLevels, init=False, repr=False, compare=False)
@@ -540,7 +543,7 @@ class _Layers:
                 np.copyto(first[i], q)
             else:
                 q = maps.compute(view.umap, view.t, first[i],
-                                 planner.guide_window(g.shape, regions, g.cell_m, view.x, view.y))
+                                 planner.guide_window(g.shape, regions, g.cell_m, view.x, view.y), view.records)
             # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
             # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
             # formation.
