@@ -27,6 +27,9 @@ tiled maps and maps at another time are computed in full.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TypeVar
+
 import numpy as np
 
 from agents.grid import Disk
@@ -42,6 +45,8 @@ MAX_CHANGED_ROWS = 0.35
 _MERGE_GAP = 8
 # Maps smaller than this (rows or columns) are always computed in full.
 _MIN_SIDE = 16
+
+T = TypeVar("T")
 
 
 class _Band:
@@ -85,19 +90,19 @@ class FirstLevels:
         """A new planning call: the next map computed becomes the reference."""
         self._ref: tuple | None = None
 
-    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int],
-                records: MapRecords | None = None) -> np.ndarray:
-        """Write the map's G_1 at ``t`` into ``g1`` and return its q, valid at least on the cells
-        ``window = (r0, r1, c0, c1)`` (rows ``r0:r1``, columns ``c0:c1``: the caller's other
-        reads of q; other cells may hold anything). ``records``: what the map is made of, if
-        known; where this and the first map's tell how they differ, the maps are not compared."""
+    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, use: Callable[[np.ndarray], T],
+                records: MapRecords | None = None) -> T:
+        """Write the map's G_1 at ``t`` into ``g1`` and return ``use(q)``, ``q`` the map's q
+        (valid only during the call: it may be the first map's, patched for the call).
+        ``records``: what the map is made of, if known; where this and the first map's tell
+        how they differ, the maps are not compared."""
         ny, nx = umap.grid.shape
         ref = self._ref
         if ref is not None and self.reuse and umap.dense and ref[1] == (ny, nx) and ref[2] == t and ref[3] == umap.tau:
-            q = self._patch(umap, t, g1, window, records)
-            if q is not None:
+            bands = self._patch(umap, t, g1, records)
+            if bands is not None:
                 self.patched += 1
-                return q
+                return self._use_patched(bands, use)
         self.full += 1
         eligible = umap.dense and min(ny, nx) >= _MIN_SIDE
         work = self._ref_work if ref is None and eligible else self._other_work
@@ -109,7 +114,22 @@ class FirstLevels:
             # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
             bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
             self._ref = (umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw), records)
-        return q[0]
+        return use(q[0])
+
+    def _use_patched(self, bands: list[_Band], use: Callable[[np.ndarray], T]) -> T:
+        """``use(q)`` of a patched map: the first map's q with this map's changed cells written
+        in for the call (they are few; copying the whole map would cost more)."""
+        ref_q = self._ref[4]
+        saved = []
+        try:
+            for b in bands:
+                rows, cols = slice(b.r0, b.r1), slice(b.c0, b.c1)
+                saved.append((rows, cols, ref_q[rows, cols].copy()))
+                ref_q[rows, cols] = b.q[0, b.r0 - b.qa : b.r1 - b.qa, cols]
+            return use(ref_q)
+        finally:
+            for rows, cols, old in reversed(saved):
+                ref_q[rows, cols] = old
 
     def _bands(self, ls: np.ndarray, ref_ls: np.ndarray) -> list[_Band] | None:
         """Where ``ls`` differs from ``ref_ls`` (bit patterns): bands of rows, each with the
@@ -137,8 +157,9 @@ class FirstLevels:
             bands.append(_Band(int(rows[a]), int(rows[b - 1]) + 1, int(c.min()) * unit, (int(c.max()) + 1) * unit))
         return bands
 
-    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, window: tuple[int, int, int, int],
-               records: MapRecords | None) -> np.ndarray | None:
+    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, records: MapRecords | None) -> list[_Band] | None:
+        """Write the map's G_1 into ``g1`` from the first map's; returns the bands where its q
+        differs (their q computed), or None if it is not worth patching."""
         ref_ls, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw), ref_records = self._ref
         ls = umap.to_dense_view()
         disks = differences(ref_records, records) if records is not None and ref_records is not None else None
@@ -147,7 +168,7 @@ class FirstLevels:
             return None
         np.copyto(g1, ref_g1)
         if not bands:
-            return ref_q
+            return bands
         # Row pass: output rows i read input rows 2i - 2 .. 2i + 2 (clipped to the map). Their q
         # is the first map's except in the band's columns.
         for b in bands:
@@ -167,14 +188,4 @@ class FirstLevels:
             out_t = np.empty((1, j_hi - j_lo + 1, m), np.float32)
             reduce_rows(cols_t[None], out_t, n=nx, row0=ca, lo=j_lo, hi=j_hi)
             np.multiply(out_t[0].T, np.float32(SCALE), out=g1[:, j_lo : j_hi + 1])
-        # q on the caller's window: the first map's, with this map's changed cells.
-        r0, r1, c0, c1 = window
-        touched = [b for b in bands if b.r0 < r1 and b.r1 > r0 and b.c0 < c1 and b.c1 > c0]
-        if not touched:
-            return ref_q
-        q = self._other_work.get("q_window", (ny, nx))
-        q[r0:r1, c0:c1] = ref_q[r0:r1, c0:c1]
-        for b in touched:
-            lo, hi = max(r0, b.r0), min(r1, b.r1)
-            q[lo:hi, c0:c1] = b.q[0, lo - b.qa : hi - b.qa, c0:c1]
-        return q
+        return bands

@@ -65,16 +65,16 @@ def test_patched_maps_get_the_numbers_they_get_alone(h, w, seed, maps):
         umaps.append(UncertaintyMap(grid, TAU, ls))
     levels = FirstLevels()
     g1 = np.empty((len(umaps), (h + 1) // 2, (w + 1) // 2), np.float32)
-    window = (h // 4, h, 0, w // 2 + 1)
     for _ in range(2):  # a second call reuses the buffers
         levels.start()
         for i, u in enumerate(umaps):
-            q = levels.compute(u, t, g1[i], window)
+            q = levels.compute(u, t, g1[i], np.copy)  # q as the map's user sees it
             q_alone, g1_alone = alone(u, t)
             assert same(g1[i], g1_alone)
-            r0, r1, c0, c1 = window
-            assert same(q[r0:r1, c0:c1], q_alone[r0:r1, c0:c1])
-    assert levels.full + levels.patched == 2 * len(umaps)
+            assert same(q, q_alone)
+        # Patching a map's q for its user left the first map's q as it was.
+        assert same(levels.compute(umaps[1], t, np.empty_like(g1[1]), np.copy), alone(umaps[1], t)[0])
+    assert levels.full + levels.patched == 2 * (len(umaps) + 1)
 
 
 def test_maps_are_patched_only_when_they_may_be():
@@ -89,18 +89,18 @@ def test_maps_are_patched_only_when_they_may_be():
     g1 = np.empty((32, 32), np.float32)
     levels.start()
     for ls in (base, near, far):
-        levels.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, (0, 64, 0, 64))
+        levels.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, np.copy)
     assert (levels.full, levels.patched) == (2, 1)
     # Another time, tau or a tiled map: computed in full.
     for u, t in ((UncertaintyMap(grid, TAU, near), 501.0), (UncertaintyMap(grid, 2 * TAU, near), 500.0),
                  (UncertaintyMap(grid, TAU, near, tile=16), 500.0)):
-        levels.compute(u, t, g1, (0, 64, 0, 64))
+        levels.compute(u, t, g1, np.copy)
         assert same(g1, alone(u, t)[1])
     assert (levels.full, levels.patched) == (5, 1)
     off = FirstLevels(reuse=False)
     off.start()
     for ls in (base, near):
-        off.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, (0, 64, 0, 64))
+        off.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, np.copy)
     assert (off.full, off.patched) == (2, 0)
 
 
@@ -120,3 +120,33 @@ def test_part_of_a_row_reduce_is_the_whole_reduce_there(n, ncols, lo, span, seed
     part = np.empty((2, hi - lo + 1, ncols), np.float32)
     reduce_rows(np.ascontiguousarray(a[:, row0:row1]), part, n=n, row0=row0, lo=lo, hi=hi)
     assert same(part, whole[:, lo : hi + 1])
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), late=st.lists(st.tuples(st.integers(1, 3), st.integers(0, 11)), max_size=6))
+def test_maps_patched_from_their_records_get_the_numbers_they_get_alone(seed, late):
+    """As a swarm plans: every map has the others' scans up to the last tick and its own of this
+    one (plus a few scans heard late or not at all), and says so in its MapRecords."""
+    from agents.maprecords import MapRecords
+
+    rng = np.random.default_rng(seed)
+    grid = Grid(12000.0, 10000.0, 100.0)
+    scans = {(o, k): grid.disk_stamp(*map(float, rng.uniform(0, 10000, 2)), float(rng.uniform(150, 600)))
+             for o in range(4) for k in range(12)}
+    skipped = set(late)
+    maps = [MapRecords(UncertaintyMap(grid, TAU), 1.0) for _ in range(4)]
+    for k in range(12):
+        for me, rec in enumerate(maps):
+            for o in range(4):
+                if o != me and k > 0 and (me, k - 1) not in skipped:
+                    rec.stamp(o, float(k - 1), scans[(o, k - 1)])
+            rec.stamp(me, float(k), scans[(me, k)])
+    levels = FirstLevels()
+    levels.start()
+    g1 = np.empty((4, 50, 60), np.float32)
+    for i, rec in enumerate(maps):
+        q = levels.compute(rec.umap, 11.0, g1[i], np.copy, rec)
+        q_alone, g1_alone = alone(rec.umap, 11.0)
+        assert same(g1[i], g1_alone) and same(q, q_alone)
+    if not late:
+        assert levels.patched == 3

@@ -131,7 +131,7 @@ class DacmpPlanner:
         ry, y0, y1 = _neighbour_blocks(rows, ny, y / cell_m)
         rx, x0, x1 = _neighbour_blocks(cols, nx, x / cell_m)
         # Only the UAV's sub-area and its neighbours are read (rows y0..y1-1, columns x0..x1-1
-        # of sub-areas: guide_window). Row blocks summed one by one (row after row, like
+        # of sub-areas). Row blocks summed one by one (row after row, like
         # add.reduceat along axis 0 but about twice as fast: no buffered casting), then the few
         # columns; each sum is the one a sum over the whole map would give.
         c0, c1 = cols[x0], cols[x1]
@@ -155,20 +155,6 @@ class DacmpPlanner:
         best = max(c[0] for c in cands)
         _, _, cx, cy = min((c for c in cands if c[0] >= best - tie_tol), key=lambda c: c[1])
         return cx, cy
-
-    @staticmethod
-    @staticmethod
-    def guide_window(shape: tuple[int, int], regions: tuple[int, int], cell_m: float, x: float,
-                     y: float) -> tuple[int, int, int, int]:
-        """The cells of ``q`` that :meth:`guide_point` reads for a UAV at ``(x, y)``: rows
-        ``r0:r1``, columns ``c0:c1``, as ``(r0, r1, c0, c1)``."""
-        ny, nx = regions
-        if ny < 2 and nx < 2:
-            return 0, 0, 0, 0
-        rows, cols = _sub_areas(shape[0], shape[1], ny, nx)
-        _, y0, y1 = _neighbour_blocks(rows, ny, y / cell_m)
-        _, x0, x1 = _neighbour_blocks(cols, nx, x / cell_m)
-        return rows[y0], rows[y1], cols[x0], cols[x1]
 
     def rivals(self, view: PlanView, targets: list[tuple[int, float, float, float]],
                D: float) -> dict[int, list[tuple[float, float, float]]]:
@@ -537,19 +523,21 @@ class _Layers:
         maps = planner._first_levels  # q and G_1, reusing the first map's work (agents.pyramid_reuse)
         maps.start()
         for i, view in enumerate(views):
-            if self.search[0] == 0:
-                q = scratch.get("q", (g.ny, g.nx))
-                view.umap.uncertainty(view.t, out=q)
-                np.copyto(first[i], q)
-            else:
-                q = maps.compute(view.umap, view.t, first[i],
-                                 planner.guide_window(g.shape, regions, g.cell_m, view.x, view.y), view.records)
             # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
             # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
             # formation.
             tie_key = view.rng.random(9)
-            self.guides.append(planner.guide_point(q, regions, g.cell_m, view.x, view.y, view.theta,
-                                                   tie_key=tie_key))
+
+            def guide(q: np.ndarray, view: PlanView = view, tie_key: np.ndarray = tie_key):
+                return planner.guide_point(q, regions, g.cell_m, view.x, view.y, view.theta, tie_key=tie_key)
+
+            if self.search[0] == 0:
+                q = scratch.get("q", (g.ny, g.nx))
+                view.umap.uncertainty(view.t, out=q)
+                np.copyto(first[i], q)
+                self.guides.append(guide(q))
+            else:
+                self.guides.append(maps.compute(view.umap, view.t, first[i], guide, view.records))
         # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
         # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
         step = max(1, _STACK_CELLS // first[0].size)
