@@ -74,6 +74,36 @@ def _disk_bands(disks: list[Disk], ny: int) -> list[_Band] | None:
     return bands
 
 
+def _patch_level(ref_rows_t: np.ndarray, ref_out: np.ndarray, out: np.ndarray, bands: list[_Band],
+                 rows_of: Callable[[_Band, int, int], np.ndarray], n: int, ncols: int) -> list[_Band]:
+    """One pyramid step of a map that differs from the reference map only inside ``bands`` (of
+    an ``n x ncols`` input): ``out`` = the reference's output ``ref_out``, recomputed where an
+    input changed. ``ref_rows_t``: the reference's row pass, transposed; ``rows_of(band, a, b)``:
+    this map's input rows ``a:b`` (every row the band's row-pass outputs read; the band's
+    changed cells must be right in it). Returns the bands of the output that changed."""
+    m, mw = (n + 1) // 2, (ncols + 1) // 2
+    np.copyto(out, ref_out)
+    # Row pass: output rows i read input rows 2i - 2 .. 2i + 2 (clipped).
+    for b in bands:
+        b.i_lo, b.i_hi = max(0, (b.r0 - 1) // 2), min(m - 1, (b.r1 + 1) // 2)
+        a, z = max(0, 2 * b.i_lo - 2), min(n, 2 * b.i_hi + 3)
+        b.rows = np.empty((1, b.i_hi - b.i_lo + 1, ncols), out.dtype)
+        reduce_rows(rows_of(b, a, z)[None], b.rows, n=n, row0=a, lo=b.i_lo, hi=b.i_hi)
+    # Column pass (on the transpose): output column j reads row-pass columns 2j - 2 .. 2j + 2.
+    changed = []
+    for b in bands:
+        j_lo, j_hi = max(0, (b.c0 - 1) // 2), min(mw - 1, (b.c1 + 1) // 2)
+        ca, cb = max(0, 2 * j_lo - 2), min(ncols, 2 * j_hi + 3)
+        cols_t = ref_rows_t[ca:cb].copy()  # the reference's row pass, transposed, ...
+        for other in bands:  # ... with this map's new rows written in
+            cols_t[:, other.i_lo : other.i_hi + 1] = other.rows[0, :, ca:cb].T
+        out_t = np.empty((1, j_hi - j_lo + 1, m), out.dtype)
+        reduce_rows(cols_t[None], out_t, n=ncols, row0=ca, lo=j_lo, hi=j_hi)
+        np.multiply(out_t[0].T, out.dtype.type(SCALE), out=out[:, j_lo : j_hi + 1])
+        changed.append(_Band(b.i_lo, b.i_hi + 1, j_lo, j_hi + 1))
+    return changed
+
+
 class FirstLevels:
     """q and G_1 of a planning call's maps (see the module docstring). Keeps its buffers from
     call to call; :meth:`start` begins a call, :meth:`compute` does one map."""
@@ -82,6 +112,7 @@ class FirstLevels:
         self.reuse = reuse  # False: every map in full (the same numbers; for tests and benchmarks)
         self._ref_work = Scratch()  # the first map's q and pyramid intermediates
         self._other_work = Scratch()  # maps computed in full after the first
+        self._g2_work = Scratch()  # the first map's next pyramid step (reduce_g1)
         self.patched = 0  # maps computed by patching (for tests and benchmarks)
         self.full = 0
         self.start()
@@ -89,6 +120,10 @@ class FirstLevels:
     def start(self) -> None:
         """A new planning call: the next map computed becomes the reference."""
         self._ref: tuple | None = None
+        self._ref_slot: int | None = None
+        # Per map computed (in order): where its G_1 differs from the reference's (bands of
+        # G_1), or None if it was computed in full.
+        self._slots: list[list[_Band] | None] = []
 
     def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, use: Callable[[np.ndarray], T],
                 records: MapRecords | None = None) -> T:
@@ -104,6 +139,7 @@ class FirstLevels:
                 self.patched += 1
                 return self._use_patched(bands, use)
         self.full += 1
+        self._slots.append(None)
         eligible = umap.dense and min(ny, nx) >= _MIN_SIDE
         work = self._ref_work if ref is None and eligible else self._other_work
         q = work.get("q", (1, ny, nx))
@@ -114,7 +150,30 @@ class FirstLevels:
             # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
             bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
             self._ref = (umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw), records)
+            self._ref_slot = len(self._slots) - 1
         return use(q[0])
+
+    def reduce_g1(self, g1: np.ndarray, g2: np.ndarray, scratch: Scratch) -> bool:
+        """G_2 of every map of the call (after all of them were computed), ``g1`` and ``g2``
+        ``(maps, h, w)`` in :meth:`compute`'s order: ``pyr_down_stack(g1, g2)``, with the
+        patched maps patched from the reference's G_2 (the same numbers). False, doing nothing,
+        when no map was patched."""
+        ref, slots = self._ref_slot, self._slots
+        if ref is None or len(slots) != len(g1) or all(b is None for b in slots):
+            return False
+        work = self._g2_work
+        pyr_down_stack(g1[ref : ref + 1], g2[ref : ref + 1], work)
+        n, ncols = g1.shape[1:]
+        ref_rows_t = work.get("pyr_rows_t", (1, ncols, (n + 1) // 2), g1.dtype)[0]
+        for i, bands in enumerate(slots):
+            if i == ref:
+                continue
+            if bands is None:
+                pyr_down_stack(g1[i : i + 1], g2[i : i + 1], scratch)
+            else:
+                lower = g1[i]
+                _patch_level(ref_rows_t, g2[ref], g2[i], bands, lambda b, a, z: lower[a:z], n, ncols)
+        return True
 
     def _use_patched(self, bands: list[_Band], use: Callable[[np.ndarray], T]) -> T:
         """``use(q)`` of a patched map: the first map's q with this map's changed cells written
@@ -166,26 +225,15 @@ class FirstLevels:
         bands = self._bands(ls, ref_ls) if disks is None else _disk_bands(disks, ny)
         if bands is None:
             return None
-        np.copyto(g1, ref_g1)
         if not bands:
+            np.copyto(g1, ref_g1)
+            self._slots.append([])
             return bands
-        # Row pass: output rows i read input rows 2i - 2 .. 2i + 2 (clipped to the map). Their q
-        # is the first map's except in the band's columns.
+        # The q of the rows each band's row pass reads: the first map's except in the band's
+        # columns (bands are far enough apart that no band's rows reach another's changes).
         for b in bands:
-            b.i_lo, b.i_hi = max(0, (b.r0 - 1) // 2), min(m - 1, (b.r1 + 1) // 2)
-            b.qa, qb = max(0, 2 * b.i_lo - 2), min(ny, 2 * b.i_hi + 3)
+            b.qa, qb = max(0, 2 * max(0, (b.r0 - 1) // 2) - 2), min(ny, 2 * min(m - 1, (b.r1 + 1) // 2) + 3)
             b.q = ref_q[None, b.qa : qb].copy()
             umap.q_into(t, ls[b.qa : qb, b.c0 : b.c1], b.q[0, :, b.c0 : b.c1])
-            b.rows = np.empty((1, b.i_hi - b.i_lo + 1, nx), np.float32)
-            reduce_rows(b.q, b.rows, n=ny, row0=b.qa, lo=b.i_lo, hi=b.i_hi)
-        # Column pass (on the transpose): G_1 column j reads row-pass columns 2j - 2 .. 2j + 2.
-        for b in bands:
-            j_lo, j_hi = max(0, (b.c0 - 1) // 2), min(mw - 1, (b.c1 + 1) // 2)
-            ca, cb = max(0, 2 * j_lo - 2), min(nx, 2 * j_hi + 3)
-            cols_t = ref_bt[ca:cb].copy()  # the first map's row pass, transposed, ...
-            for other in bands:  # ... with this map's new rows written in
-                cols_t[:, other.i_lo : other.i_hi + 1] = other.rows[0, :, ca:cb].T
-            out_t = np.empty((1, j_hi - j_lo + 1, m), np.float32)
-            reduce_rows(cols_t[None], out_t, n=nx, row0=ca, lo=j_lo, hi=j_hi)
-            np.multiply(out_t[0].T, np.float32(SCALE), out=g1[:, j_lo : j_hi + 1])
+        self._slots.append(_patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx))
         return bands

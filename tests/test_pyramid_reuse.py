@@ -72,9 +72,23 @@ def test_patched_maps_get_the_numbers_they_get_alone(h, w, seed, maps):
             q_alone, g1_alone = alone(u, t)
             assert same(g1[i], g1_alone)
             assert same(q, q_alone)
+        assert_second_levels(levels, g1)
         # Patching a map's q for its user left the first map's q as it was.
         assert same(levels.compute(umaps[1], t, np.empty_like(g1[1]), np.copy), alone(umaps[1], t)[0])
     assert levels.full + levels.patched == 2 * (len(umaps) + 1)
+
+
+def assert_second_levels(levels: FirstLevels, g1: np.ndarray) -> None:
+    """reduce_g1 gives every map the G_2 it gets alone (or leaves it to the caller)."""
+    h, w = g1.shape[1:]
+    g2 = np.full((len(g1), (h + 1) // 2, (w + 1) // 2), np.nan, np.float32)
+    if not levels.reduce_g1(g1, g2, Scratch()):
+        assert levels.patched == 0 or all(s is None for s in levels._slots)
+        return
+    for i in range(len(g1)):
+        expected = np.empty((1,) + g2.shape[1:], np.float32)
+        pyr_down_stack(np.ascontiguousarray(g1[i : i + 1]), expected, Scratch())
+        assert same(g2[i], expected[0])
 
 
 def test_maps_are_patched_only_when_they_may_be():
@@ -148,5 +162,6 @@ def test_maps_patched_from_their_records_get_the_numbers_they_get_alone(seed, la
         q = levels.compute(rec.umap, 11.0, g1[i], np.copy, rec)
         q_alone, g1_alone = alone(rec.umap, 11.0)
         assert same(g1[i], g1_alone) and same(q, q_alone)
+    assert_second_levels(levels, g1)
     if not late:
         assert levels.patched == 3

@@ -543,6 +543,8 @@ class _Layers:
         step = max(1, _STACK_CELLS // first[0].size)
         for j in range(1, len(self.search)):
             lower, upper = self._level(j - 1, shapes[j]), self._level(j, shapes[j + 1])
+            if j == 1 and self.search[0] == 1 and maps.reduce_g1(lower, upper, scratch):
+                continue  # G_2 patched like G_1 where the maps agree
             for s0 in range(0, n, step):
                 pyr_down_stack(lower[s0 : s0 + step], upper[s0 : s0 + step], scratch)
 
