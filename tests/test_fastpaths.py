@@ -6,7 +6,8 @@
 * ``comms.codec._nums`` converts and rejects exactly as ``_num`` value by value;
 * ``swarm.world._all_far_apart`` never hides a pair the k-d tree would report;
 * :meth:`swarm.recorder.EventLog.flush` (one pack call per tick) writes the bytes of packing
-  each event on its own.
+  each event on its own;
+* targets draw their noise ahead in blocks, in the order of one draw per step.
 """
 
 from __future__ import annotations
@@ -184,3 +185,17 @@ def test_batched_flush_packs_each_event_as_alone(ticks, pad):
 @pytest.mark.parametrize("n", [0xFFFF, 0x10000])
 def test_batched_flush_of_large_ticks(n):
     _check_flush([[("rx", 1.0, i, 2, 230, True) for i in range(n)], [("pose", 2.0, 0)]])
+
+
+def test_target_noise_drawn_ahead_is_drawn_in_the_same_order():
+    from swarm.world import _DRAW_BLOCK, _Normals
+
+    ahead, direct = _Normals(np.random.default_rng(3)), np.random.default_rng(3)
+    n = 3 * _DRAW_BLOCK // 2 + 5  # over several blocks
+    assert [ahead.pair() for _ in range(n)] == [tuple(direct.standard_normal(2).tolist()) for _ in range(n)]
+    # Targets sharing one generator share its draws ahead (the order of draws of one call each).
+    shared, own = np.random.default_rng(1), np.random.default_rng(2)
+    tg = Targets(TargetMotion())
+    for rng in (shared, own, shared):
+        tg.add(10.0, 10.0, 0.0, 1.0, 1.0, rng)
+    assert tg._normals[0] is tg._normals[2] and tg._normals[1] is not tg._normals[0]
