@@ -381,11 +381,7 @@ class UavActor:
                         if ft >= p.t_intent:
                             p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, ft
                 elif tm is Tracks:
-                    tracks = k.tracks
-                    for item in m.items:
-                        tr = tracks.get(item.target)
-                        if tr is None or item.t >= tr.t:  # else merge_track would keep the newer track
-                            k.merge_track(item)
+                    k.merge_tracks(m.items)
                 elif tm is Threats:
                     for th in m.items:
                         k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)

@@ -7,7 +7,8 @@
 * ``swarm.world._all_far_apart`` never hides a pair the k-d tree would report;
 * :meth:`swarm.recorder.EventLog.flush` (one pack call per tick) writes the bytes of packing
   each event on its own;
-* targets draw their noise ahead in blocks, in the order of one draw per step.
+* targets draw their noise ahead in blocks, in the order of one draw per step;
+* :meth:`agents.knowledge.Knowledge.merge_tracks` is ``merge_track`` of each item.
 """
 
 from __future__ import annotations
@@ -23,9 +24,10 @@ from scipy.spatial import cKDTree
 
 from agents.dynamics import clamp
 from agents.grid import Grid
-from agents.knowledge import KnownThreat
+from agents.knowledge import Knowledge, KnownThreat
 from agents.types import UavType
 from comms.codec import FrameError, _num, _nums
+from comms.messages import TrackItem
 from swarm.recorder import EventLog, read_events
 from swarm.world import ALIVE, TargetMotion, Targets, UavBody, World, _all_far_apart
 
@@ -199,3 +201,17 @@ def test_target_noise_drawn_ahead_is_drawn_in_the_same_order():
     for rng in (shared, own, shared):
         tg.add(10.0, 10.0, 0.0, 1.0, 1.0, rng)
     assert tg._normals[0] is tg._normals[2] and tg._normals[1] is not tg._normals[0]
+
+
+_items = st.lists(st.builds(TrackItem, st.integers(0, 4), st.floats(-1e4, 1e4), st.floats(-1e4, 1e4), st.floats(-50, 50),
+                            st.floats(-50, 50), st.sampled_from([0.0, 1.0, 2.0, 3.0]), st.floats(0, 10)), max_size=12)
+
+
+@given(st.lists(_items, max_size=6))
+def test_merge_tracks_is_merge_track_of_each_item(messages):
+    one_by_one, batched = Knowledge(), Knowledge()
+    for items in messages:
+        for item in items:
+            one_by_one.merge_track(item)
+        batched.merge_tracks(items)
+        assert batched.tracks == one_by_one.tracks
