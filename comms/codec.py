@@ -78,6 +78,8 @@ def pack_tracks(items) -> list:
 
 
 def _pack_message(m: Message | list) -> list:
+    if type(m) is list:  # packed already (pack_hello, ...): what the actors' outboxes send
+        return m
     if type(m) is Hello:
         return pack_hello(m.uav, m.type, m.x, m.y, m.v, m.theta)
     if type(m) is Intent:
@@ -90,8 +92,6 @@ def _pack_message(m: Message | list) -> list:
         return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
     if type(m) is ScanDigest:
         return [K_DIGEST, m.uav, m.t_cut, m.tick0, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
-    if type(m) is list:  # packed already (pack_hello, ...)
-        return m
     raise TypeError(f"not a message: {m!r}")
 
 
