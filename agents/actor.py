@@ -30,7 +30,7 @@ from agents.planners.base import Plan, Planner, PlanView
 from agents.scanlog import ScanLog
 from agents.types import GRAVITY, UavType
 from agents.umap import UncertaintyMap
-from comms.codec import FrameError, decode, encode
+from comms.codec import FrameError, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
@@ -42,7 +42,6 @@ from comms.messages import (
     ScanRecords,
     ThreatItem,
     Threats,
-    TrackItem,
     Tracks,
 )
 
@@ -391,11 +390,7 @@ class UavActor:
                         if ft >= p.t_intent:
                             p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, ft
                 elif tm is Tracks:
-                    tracks = k.tracks
-                    for item in m.items:
-                        tr = tracks.get(item.target)
-                        if tr is None or item.t >= tr.t:  # else merge_track would keep the newer track
-                            k.merge_track(item)
+                    k.merge_tracks(m.items)
                 elif tm is Threats:
                     for th in m.items:
                         k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
@@ -455,13 +450,14 @@ class UavActor:
         s = self.settings
         frames: list[bytes] = []
         if t >= self._next_beacon:
+            # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).
             msgs = [
-                Hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
-                Intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
+                pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
+                pack_intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
             ]
             room = s.frame_max_bytes - _FRAME_SLACK - _SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:
-                msgs.append(ScanRecords(self.uid, tuple(self._pending_scans)))
+                msgs.append(pack_scans(self.uid, self._pending_scans))
                 self._pending_scans = []
             if s.sync_every_s > 0 and t >= self._next_digest and room > _FRAME_SLACK:
                 # The digest rides on the beacon (no extra frame); a long run's digest is split
@@ -475,13 +471,13 @@ class UavActor:
             self._next_beacon = t + s.beacon_every_s - 1e-9
         k = self.knowledge
         if t >= self._next_tracks and (k.tracks or k.threats):
-            items = [TrackItem(tr.target, tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value)
-                     for _, tr in sorted(k.tracks.items())]
+            # Packed straight from the tracks: the bytes of Tracks(TrackItem(...) of each).
+            items = [tr for _, tr in sorted(k.tracks.items())]
             threats = Threats(tuple(ThreatItem(th.threat, th.x, th.y, th.radius, th.d_max)
                                     for _, th in sorted(k.threats.items())))
             first = True
             for i in range(0, max(len(items), 1), _TRACKS_PER_FRAME):
-                msgs = [Tracks(tuple(items[i:i + _TRACKS_PER_FRAME]))]
+                msgs = [pack_tracks(items[i:i + _TRACKS_PER_FRAME])]
                 if first and threats.items:
                     msgs.append(threats)
                 first = False

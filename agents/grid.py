@@ -28,6 +28,8 @@ DISK_CACHE_SIZE = 1024
 # Fewer disks than this are cheaper one by one (numpy call overhead of the batch).
 PREFETCH_MIN = 16
 
+_MISSING = object()  # a memo miss (None is a memoised value: a disk off the grid)
+
 
 class _GridCache:
     __slots__ = ("disks", "centres", "size", "nx", "ny")
@@ -252,10 +254,9 @@ class Grid:
         key = (x, y, radius)
         c = self._cache
         cache = c.disks
-        try:
-            return cache[key]
-        except KeyError:
-            pass
+        d = cache.get(key, _MISSING)  # (not try/except: each UAV's own scan is a miss, every tick)
+        if d is not _MISSING:
+            return d
         b = self._disk_bounds(x, y, radius)
         d = None if b is None else Disk(b[0], b[1] + 1, b[2], b[3] + 1, b[4], (b[5], b[6]))
         if len(cache) >= c.size:

@@ -76,6 +76,17 @@ class Knowledge:
     def merge_track(self, item: TrackItem) -> None:
         self.see_target(item.target, item.x, item.y, item.vx, item.vy, item.t, item.value)
 
+    def merge_tracks(self, items) -> None:
+        """:meth:`merge_track` of each item in order (a heard Tracks message), with
+        :meth:`see_target`'s rule written out: one call per message instead of two per item."""
+        tracks = self.tracks
+        for it in items:
+            tr = tracks.get(it.target)
+            if tr is None:
+                tracks[it.target] = Track(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value)
+            elif it.t >= tr.t:
+                tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = it.x, it.y, it.vx, it.vy, it.t, it.value
+
     def add_threat(self, threat: int, x: float, y: float, radius: float, d_max: float) -> None:
         if threat not in self.threats:
             self.threats[threat] = KnownThreat(threat, x, y, radius, d_max)

@@ -50,15 +50,44 @@ class Frame:
     messages: tuple[Message, ...]
 
 
-def _pack_message(m: Message) -> list:
+# The packed form of each message kind (what encode() writes for it). A sender may hand
+# encode() these lists instead of Message objects: the same bytes, without building an object
+# only to unpack it again (every UAV sends a beacon every tick).
+
+
+def pack_hello(uav: int, type: str, x: float, y: float, v: float, theta: float) -> list:
+    """= ``Hello(uav, type, x, y, v, theta)``, packed."""
+    return [K_HELLO, uav, type, x, y, v, theta]
+
+
+def pack_intent(uav: int, wx: float, wy: float, mode: int, target: int) -> list:
+    """= ``Intent(uav, wx, wy, mode, target)``, packed."""
+    return [K_INTENT, uav, wx, wy, mode, target]
+
+
+def pack_scans(uav: int, records) -> list:
+    """= ``ScanRecords(uav, tuple(records))``, packed (a tuple or a list of the flat records)."""
+    return [K_SCAN, uav, records]  # (msgpack writes a tuple as the array of its items)
+
+
+def pack_tracks(items) -> list:
+    """= ``Tracks(tuple(items))``, packed. ``items``: any objects with
+    :class:`~comms.messages.TrackItem`'s fields give the same bytes, e.g. a UAV's own
+    :class:`~agents.knowledge.Track` records (no TrackItem copy of each to send them)."""
+    return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in items]]
+
+
+def _pack_message(m: Message | list) -> list:
+    if type(m) is list:  # packed already (pack_hello, ...): what the actors' outboxes send
+        return m
     if type(m) is Hello:
-        return [K_HELLO, m.uav, m.type, m.x, m.y, m.v, m.theta]
+        return pack_hello(m.uav, m.type, m.x, m.y, m.v, m.theta)
     if type(m) is Intent:
-        return [K_INTENT, m.uav, m.wx, m.wy, m.mode, m.target]
+        return pack_intent(m.uav, m.wx, m.wy, m.mode, m.target)
     if type(m) is ScanRecords:
-        return [K_SCAN, m.uav, list(m.records)]
+        return pack_scans(m.uav, m.records)
     if type(m) is Tracks:
-        return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in m.items]]
+        return pack_tracks(m.items)
     if type(m) is Threats:
         return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
     if type(m) is ScanDigest:
@@ -71,7 +100,9 @@ def _pack_message(m: Message) -> list:
 _packer = msgpack.Packer(use_bin_type=True)
 
 
-def encode(sender: int, seq: int, t: float, messages: list[Message] | tuple[Message, ...]) -> bytes:
+def encode(sender: int, seq: int, t: float, messages: list[Message | list] | tuple[Message | list, ...]) -> bytes:
+    """The frame of ``messages``: :class:`~comms.messages.Message` objects, or their packed forms
+    (:func:`pack_hello`, ...)."""
     payload = _packer.pack([MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]])
     return payload + zlib.crc32(payload).to_bytes(4, "little")
 

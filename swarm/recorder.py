@@ -19,6 +19,11 @@ import msgpack
 Event = tuple
 
 
+def _array_header_size(n: int) -> int:
+    """Bytes of the msgpack header of an array of ``n`` items (fixarray, array 16, array 32)."""
+    return 1 if n < 16 else 3 if n < 0x10000 else 5
+
+
 class EventLog:
     def __init__(self) -> None:
         self._pending: list[Event] = []
@@ -31,10 +36,23 @@ class EventLog:
     def emit(self, *event) -> None:
         self._pending.append(event)
         if self._subs:
-            kind = event[0]
-            for cb, kinds in self._subs:
-                if kinds is None or kind in kinds:
-                    cb(event)
+            self._notify(event)
+
+    def extend(self, events: list[Event]) -> None:
+        """``emit(*e)`` for each event tuple of ``events``, in order (one call for many)."""
+        if not self._subs:
+            self._pending.extend(events)
+            return
+        append = self._pending.append
+        for event in events:  # each subscriber call sees the log as emit() would leave it
+            append(event)
+            self._notify(event)
+
+    def _notify(self, event: Event) -> None:
+        kind = event[0]
+        for cb, kinds in self._subs:
+            if kinds is None or kind in kinds:
+                cb(event)
 
     @property
     def total(self) -> int:
@@ -43,11 +61,16 @@ class EventLog:
 
     def flush(self) -> None:
         """Pack pending events (called once per tick and at the end)."""
-        if not self._pending:
+        pending = self._pending
+        if not pending:
             return
-        chunk = b"".join(map(self._packer.pack, self._pending))
-        self.count += len(self._pending)
-        self._pending.clear()
+        n = len(pending)
+        # One pack() call for the whole tick: a msgpack array of the events is its header
+        # followed by each event packed on its own, so dropping the header leaves exactly the
+        # bytes of packing them one by one (tests/test_recorder.py checks this).
+        chunk = memoryview(self._packer.pack(pending))[_array_header_size(n):]
+        self.count += n
+        pending.clear()
         self._buf += chunk
         self._sha.update(chunk)
 

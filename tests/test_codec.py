@@ -29,7 +29,12 @@ from comms.codec import (
     FrameError,
     decode,
     encode,
+    pack_hello,
+    pack_intent,
+    pack_scans,
+    pack_tracks,
 )
+from agents.knowledge import Track
 from comms.messages import (
     MODE_SEARCH,
     MODE_SURVEIL,
@@ -228,6 +233,26 @@ def test_integer_numbers_decode_as_float():
 def test_encode_rejects_non_message():
     with pytest.raises(TypeError, match="not a message"):
         encode(1, 1, 0.0, ["hello"])
+
+
+def _packed_form(m):
+    """What a sender may hand encode() instead of the message (see codec.pack_hello, ...)."""
+    if type(m) is Hello:
+        return pack_hello(m.uav, m.type, m.x, m.y, m.v, m.theta)
+    if type(m) is Intent:
+        return pack_intent(m.uav, m.wx, m.wy, m.mode, m.target)
+    if type(m) is ScanRecords:
+        return pack_scans(m.uav, list(m.records))
+    if type(m) is Tracks:
+        # From objects that only share TrackItem's fields (a UAV's own tracks).
+        return pack_tracks([Track(i.target, i.x, i.y, i.vx, i.vy, i.t, i.value) for i in m.items])
+    return m
+
+
+@given(frames)
+def test_packed_forms_encode_as_the_messages(f):
+    as_messages = encode(f.sender, f.seq, f.t, f.messages)
+    assert encode(f.sender, f.seq, f.t, [_packed_form(m) for m in f.messages]) == as_messages
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,13 +4,18 @@
   zeros included;
 * :meth:`swarm.world.World.sense_many` gives each UAV the reading the one-UAV formula gives;
 * ``comms.codec._nums`` converts and rejects exactly as ``_num`` value by value;
-* ``swarm.world._all_far_apart`` never hides a pair the k-d tree would report.
+* ``swarm.world._all_far_apart`` never hides a pair the k-d tree would report;
+* :meth:`swarm.recorder.EventLog.flush` (one pack call per tick) writes the bytes of packing
+  each event on its own;
+* targets draw their noise ahead in blocks, in the order of one draw per step;
+* :meth:`agents.knowledge.Knowledge.merge_tracks` is ``merge_track`` of each item.
 """
 
 from __future__ import annotations
 
 import math
 
+import msgpack
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -19,9 +24,11 @@ from scipy.spatial import cKDTree
 
 from agents.dynamics import clamp
 from agents.grid import Grid
-from agents.knowledge import KnownThreat
+from agents.knowledge import Knowledge, KnownThreat
 from agents.types import UavType
 from comms.codec import FrameError, _num, _nums
+from comms.messages import TrackItem
+from swarm.recorder import EventLog, read_events
 from swarm.world import ALIVE, TargetMotion, Targets, UavBody, World, _all_far_apart
 
 any_float = st.floats(allow_nan=True, allow_infinity=True)
@@ -147,3 +154,64 @@ def test_targets_xy_is_an_n_by_2_array(n):
     assert tg.xy.tolist() == [[10.0 * k, 20.0 * k] for k in range(n)]
     tg.step(1.0, Grid(1000.0, 1000.0, 100.0))
     assert tg.xy.tolist() == [[x, y] for x, y in zip(tg.x, tg.y)]
+
+
+
+
+_event_fields = st.one_of(st.integers(-2**63, 2**64 - 1), st.floats(allow_nan=False), st.text(max_size=40),
+                          st.booleans(), st.none(), st.binary(max_size=40))
+_events = st.lists(st.tuples(st.sampled_from(["pose", "rx", "target"]), st.floats(0, 1e6),
+                             st.lists(_event_fields, max_size=8)), max_size=40)
+
+
+def _check_flush(ticks: list[list[tuple]]) -> None:
+    packer = msgpack.Packer(use_bin_type=True)
+    log = EventLog()
+    expected = bytearray()
+    for events in ticks:
+        for e in events:
+            log.emit(*e)
+            expected += packer.pack(e)
+        log.flush()
+    assert log.to_bytes() == bytes(expected)
+    assert log.total == sum(map(len, ticks)) == len(list(read_events(bytes(expected))))
+
+
+@settings(max_examples=200)
+@given(st.lists(_events, max_size=5), st.sampled_from([0, 14, 15, 16, 17]))
+def test_batched_flush_packs_each_event_as_alone(ticks, pad):
+    # pad: a tick with about the first array header sizes' worth of events
+    _check_flush([[("pad", 0.0, i) for i in range(pad)]] + [[(k, t, *f) for k, t, f in tick] for tick in ticks])
+
+
+@pytest.mark.parametrize("n", [0xFFFF, 0x10000])
+def test_batched_flush_of_large_ticks(n):
+    _check_flush([[("rx", 1.0, i, 2, 230, True) for i in range(n)], [("pose", 2.0, 0)]])
+
+
+def test_target_noise_drawn_ahead_is_drawn_in_the_same_order():
+    from swarm.world import _DRAW_BLOCK, _Normals
+
+    ahead, direct = _Normals(np.random.default_rng(3)), np.random.default_rng(3)
+    n = 3 * _DRAW_BLOCK // 2 + 5  # over several blocks
+    assert [ahead.pair() for _ in range(n)] == [tuple(direct.standard_normal(2).tolist()) for _ in range(n)]
+    # Targets sharing one generator share its draws ahead (the order of draws of one call each).
+    shared, own = np.random.default_rng(1), np.random.default_rng(2)
+    tg = Targets(TargetMotion())
+    for rng in (shared, own, shared):
+        tg.add(10.0, 10.0, 0.0, 1.0, 1.0, rng)
+    assert tg._normals[0] is tg._normals[2] and tg._normals[1] is not tg._normals[0]
+
+
+_items = st.lists(st.builds(TrackItem, st.integers(0, 4), st.floats(-1e4, 1e4), st.floats(-1e4, 1e4), st.floats(-50, 50),
+                            st.floats(-50, 50), st.sampled_from([0.0, 1.0, 2.0, 3.0]), st.floats(0, 10)), max_size=12)
+
+
+@given(st.lists(_items, max_size=6))
+def test_merge_tracks_is_merge_track_of_each_item(messages):
+    one_by_one, batched = Knowledge(), Knowledge()
+    for items in messages:
+        for item in items:
+            one_by_one.merge_track(item)
+        batched.merge_tracks(items)
+        assert batched.tracks == one_by_one.tracks

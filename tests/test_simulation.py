@@ -122,6 +122,15 @@ def test_event_log_file_matches_hash(small_run):
     assert {"start", "pose", "target", "rx", "lost", "crash", "join"} <= kinds
 
 
+def test_subscriber_sees_every_logged_event_in_order(small_run):
+    import msgpack
+
+    _, result, events = small_run
+    logged = list(read_events(result.events))
+    assert logged[0][0] == "start"  # emitted by the constructor, before subscribe()
+    assert [msgpack.unpackb(msgpack.packb(e)) for e in events] == logged[1:]
+
+
 def test_targets_stay_in_area_within_speed_limit(small_run):
     sim, result, _ = small_run
     w, h = result.area
