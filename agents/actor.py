@@ -25,7 +25,7 @@ import numpy as np
 from agents.apf import ApfSettings, apf_command
 from agents.grid import Grid
 from agents.knowledge import KnownThreat, Knowledge
-from agents.maprecords import MapRecords
+from agents.mapgroup import MapGroup
 from agents.planners.base import Plan, Planner, PlanView
 from agents.scanlog import ScanLog
 from agents.types import GRAVITY, UavType
@@ -145,6 +145,7 @@ class UavActor:
         settings: ActorSettings,
         mailbox: Mailbox,
         decoder: DecodeCache | None = None,
+        map_group: MapGroup | None = None,
     ):
         self.uid = uid
         self.name = name
@@ -154,9 +155,9 @@ class UavActor:
         self.rng = rng
         self.settings = settings
         self.mailbox = mailbox
-        self.umap = UncertaintyMap(grid, tau)
-        # What the map is made of, for planners that compare maps (agents.maprecords).
-        self.map_records = MapRecords(self.umap, settings.dt) if getattr(planner, "uses_map_records", False) else None
+        # Its own map; in a MapGroup (agents.mapgroup) it shares storage with the others' maps
+        # (the same cells as a map of its own).
+        self.umap = map_group.new_map() if map_group is not None else UncertaintyMap(grid, tau)
         self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
         self._log_scans = settings.sync_every_s > 0  # without anti-entropy nothing reads the log
         self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
@@ -237,10 +238,7 @@ class UavActor:
         radius = self.kind.detect_radius
         d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
         if d is not None:
-            if self.map_records is not None:
-                self.map_records.stamp(self.uid, t, d)
-            else:
-                self.umap.stamp(d, t)
+            self.umap.stamp(d, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
         if self._log_scans and self._plausible(r.x, r.y, radius):
             self.scans.add(self.uid, t, r.x, r.y, radius)
@@ -252,7 +250,7 @@ class UavActor:
         if self.plan is None or t >= self._next_replan or self._reached(r):
             s = self.settings
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
-                            self.grid, s.replan_s, s.surveillance, self.plan, self.map_records)
+                            self.grid, s.replan_s, s.surveillance, self.plan)
         return None
 
     def adopt(self, plan: Plan, t: float) -> None:
@@ -335,7 +333,6 @@ class UavActor:
         peers = k.peers
         me = self.uid
         stamp = self.umap.stamp
-        records = self.map_records
         disk_stamp = self.grid.disk_stamp
         known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
         decode_frame = self._decode
@@ -375,10 +372,7 @@ class UavActor:
                             if d is _MISSING:
                                 d = disk_stamp(x, y, rr)
                             if d is not None:
-                                if records is None:
-                                    stamp(d, tr)
-                                else:
-                                    records.stamp(origin, tr, d)
+                                stamp(d, tr)
                 elif tm is Hello:
                     if m.uav != me:
                         p = peers.get(m.uav) or k.peer(m.uav)

@@ -49,10 +49,12 @@ class Disk:
     scan. ``pieces(tile_h, tile_w, ntx)`` splits it over tiles of a tiled map (memoised).
     """
 
-    __slots__ = ("iy0", "iy1", "ix0", "ix1", "rows", "cols", "mask", "_near", "_pieces", "_vmemo", "_smemo")
+    __slots__ = ("iy0", "iy1", "ix0", "ix1", "rows", "cols", "mask", "_near", "_pieces", "_vmemo", "_smemo", "key")
 
-    def __init__(self, iy0: int, iy1: int, ix0: int, ix1: int, mask: np.ndarray, near):
+    def __init__(self, iy0: int, iy1: int, ix0: int, ix1: int, mask: np.ndarray, near, key=None):
         self.iy0, self.iy1, self.ix0, self.ix1 = iy0, iy1, ix0, ix1  # half-open bounds
+        # The (x, y, radius) it was built for (disk_stamp, prefetch_disks): names its cells.
+        self.key = key
         # Box row/column whose centre is nearest the disk's centre (least dy**2, dx**2), for
         # splitting over tiles: (row, col), or the (dy**2, dx**2) arrays to find them in.
         self._near = near
@@ -258,7 +260,7 @@ class Grid:
         if d is not _MISSING:
             return d
         b = self._disk_bounds(x, y, radius)
-        d = None if b is None else Disk(b[0], b[1] + 1, b[2], b[3] + 1, b[4], (b[5], b[6]))
+        d = None if b is None else Disk(b[0], b[1] + 1, b[2], b[3] + 1, b[4], (b[5], b[6]), key)
         if len(cache) >= c.size:
             for k in list(islice(cache, max(1, c.size // 4))):  # oldest first (insertion order)
                 del cache[k]
@@ -328,7 +330,7 @@ class Grid:
                     bands.flags.writeable = False
             for k, i in enumerate(members):
                 ix0i, ix1i = int(ix0[i]), int(ix1[i]) + 1
-                d = Disk(int(iy0[i]), int(iy1[i]) + 1, ix0i, ix1i, mask[k], (near_r[k], near_c[k]))
+                d = Disk(int(iy0[i]), int(iy1[i]) + 1, ix0i, ix1i, mask[k], (near_r[k], near_c[k]), todo[i])
                 if values is not None:
                     d._vmemo = (t, values[k])
                     if bands is not None:

@@ -1,28 +1,28 @@
-"""q and the first pyramid level of the maps planned in one tick, reusing the first map's work.
+"""q and the first two pyramid levels of the maps planned in one tick, computed once.
 
 The UAVs that replan in the same tick usually hold nearly the same map: in a swarm that hears
 itself well, every map has every scan up to the previous tick, and each adds its own scan of
-this tick. Their q (``1 - exp(-tau (t - last_seen))``) and their first pyramid level G_1 then
+this tick. Their q (``1 - exp(-tau (t - last_seen))``) and their pyramid levels G_1, G_2 then
 differ only around those few disks, yet computing them is most of a plan's map work (a pass of
 ``exp`` over every cell and a 5 x 5 blur of the whole map).
 
-:class:`FirstLevels` computes the first map of a planning call in full and keeps its q and the
-intermediates of its pyramid step (row pass, its transpose, column pass). For each further map
-it finds where its last-seen times may differ from the first map's: from the two maps'
-:class:`~agents.maprecords.MapRecords` (the disks of the scans one has and the other lacks)
-when the UAVs keep them, else by comparing the maps row by row (a pass over both maps, about
-half the cost of patching). It then recomputes only where an input changed:
+:class:`FirstLevels` computes one *reference* map in full and keeps its q and the intermediates
+of its pyramid steps (row pass, its transpose). The reference is the shared base of the UAVs'
+:class:`~agents.mapgroup.MapGroup` when their maps belong to one: each member differs from it
+only inside the disks of its extra scans, which the group lists. Otherwise the reference is the
+first map of the call, and a further map is compared with it row by row (a pass over both
+maps). For each map it then recomputes only where an input changed:
 
 * q on the rows that differ (plus the rows the row pass reads around them);
 * the row pass's output rows that read a changed row (each output row reads five input rows);
-* the column pass's output rows (G_1's columns) that read a changed column, on the first map's
-  transposed row pass with the new rows written in;
+* the column pass's output rows (the level's columns) that read a changed column, on the
+  reference's transposed row pass with the new rows written in;
 
-and copies everything else from the first map. The numbers are exactly those of computing the
-map alone: q is element-wise, and numpy gives an element the same value in any array or slice
-(tested); each pyramid output row is the same BLAS call on the same five input rows whatever
-rows are computed with it (:func:`agents.pyramid.reduce_rows`). Maps that differ in many rows,
-tiled maps and maps at another time are computed in full.
+and copies everything else from the reference; G_2 likewise from G_1. The numbers are exactly
+those of computing the map alone: q is element-wise, and numpy gives an element the same value
+in any array or slice (tested); each pyramid output row is the same BLAS call on the same five
+input rows whatever rows are computed with it (:func:`agents.pyramid.reduce_rows`). Maps that
+differ in many rows, tiled maps and maps at another time are computed in full.
 """
 
 from __future__ import annotations
@@ -33,7 +33,6 @@ from typing import TypeVar
 import numpy as np
 
 from agents.grid import Disk
-from agents.maprecords import MapRecords, differences
 from agents.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
 from agents.umap import UncertaintyMap
 
@@ -45,6 +44,8 @@ MAX_CHANGED_ROWS = 0.35
 _MERGE_GAP = 8
 # Maps smaller than this (rows or columns) are always computed in full.
 _MIN_SIDE = 16
+# A group member with more extra scans than this is compared with the reference instead.
+MAX_EXTRA = 64
 
 T = TypeVar("T")
 
@@ -105,80 +106,99 @@ def _patch_level(ref_rows_t: np.ndarray, ref_out: np.ndarray, out: np.ndarray, b
 
 
 class FirstLevels:
-    """q and G_1 of a planning call's maps (see the module docstring). Keeps its buffers from
-    call to call; :meth:`start` begins a call, :meth:`compute` does one map."""
+    """q, G_1 and G_2 of a planning call's maps (see the module docstring). Keeps its buffers
+    from call to call; :meth:`start` begins a call, :meth:`compute` does one map's q and G_1,
+    :meth:`reduce_g1` every map's G_2."""
 
     def __init__(self, reuse: bool = True) -> None:
         self.reuse = reuse  # False: every map in full (the same numbers; for tests and benchmarks)
-        self._ref_work = Scratch()  # the first map's q and pyramid intermediates
-        self._other_work = Scratch()  # maps computed in full after the first
-        self._g2_work = Scratch()  # the first map's next pyramid step (reduce_g1)
+        self._ref_work = Scratch()  # the reference's q and pyramid intermediates
+        self._other_work = Scratch()  # maps computed in full after the reference
+        self._g2_work = Scratch()  # the reference's second pyramid step (reduce_g1)
         self.patched = 0  # maps computed by patching (for tests and benchmarks)
         self.full = 0
         self.start()
 
     def start(self) -> None:
-        """A new planning call: the next map computed becomes the reference."""
+        """A new planning call: the reference is chosen afresh."""
         self._ref: tuple | None = None
-        self._ref_slot: int | None = None
         # Per map computed (in order): where its G_1 differs from the reference's (bands of
-        # G_1), or None if it was computed in full.
+        # G_1; [] for the reference itself), or None if it was computed in full.
         self._slots: list[list[_Band] | None] = []
 
-    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, use: Callable[[np.ndarray], T],
-                records: MapRecords | None = None) -> T:
+    def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, use: Callable[[np.ndarray], T]) -> T:
         """Write the map's G_1 at ``t`` into ``g1`` and return ``use(q)``, ``q`` the map's q
-        (valid only during the call: it may be the first map's, patched for the call).
-        ``records``: what the map is made of, if known; where this and the first map's tell
-        how they differ, the maps are not compared."""
+        (valid only during the call: it may be the reference's, patched for the call)."""
         ny, nx = umap.grid.shape
+        extra = umap.extra_disks() if hasattr(umap, "extra_disks") else None  # a MapGroup member's
+        if (self._ref is None and self.reuse and extra is not None and min(ny, nx) >= _MIN_SIDE
+                and len(extra) <= MAX_EXTRA):
+            self._set_reference(umap._group.base, t, None)
         ref = self._ref
-        if ref is not None and self.reuse and umap.dense and ref[1] == (ny, nx) and ref[2] == t and ref[3] == umap.tau:
-            bands = self._patch(umap, t, g1, records)
+        if ref is not None and self.reuse and umap.dense and ref[2] == (ny, nx) and ref[3] == t and ref[4] == umap.tau:
+            in_group = extra is not None and ref[0] is umap._group.base
+            if in_group and len(extra) > MAX_EXTRA:
+                bands = None
+            else:
+                bands = _disk_bands([d for d, _ in extra], ny) if in_group else self._compare(umap.to_dense_view(), ref[1])
             if bands is not None:
                 self.patched += 1
+                self._slots.append(self._patch(umap, t, g1, bands))
                 return self._use_patched(bands, use)
         self.full += 1
+        if ref is None and self.reuse and umap.dense and min(ny, nx) >= _MIN_SIDE:
+            q = self._set_reference(umap, t, g1)
+            self._slots.append([])
+            return use(q)
         self._slots.append(None)
-        eligible = umap.dense and min(ny, nx) >= _MIN_SIDE
-        work = self._ref_work if ref is None and eligible else self._other_work
+        work = self._other_work
         q = work.get("q", (1, ny, nx))
         umap.uncertainty(t, out=q[0])
         pyr_down_stack(q, g1[None], work)
-        if ref is None and eligible:
-            m, mw = (ny + 1) // 2, (nx + 1) // 2
-            # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
-            bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
-            self._ref = (umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw), records)
-            self._ref_slot = len(self._slots) - 1
         return use(q[0])
+
+    def _set_reference(self, umap: UncertaintyMap, t: float, g1: np.ndarray | None) -> np.ndarray:
+        """Compute ``umap``'s q and G_1 in full (into ``g1``, or a buffer of its own) and make it
+        the reference; returns its q."""
+        ny, nx = umap.grid.shape
+        m, mw = (ny + 1) // 2, (nx + 1) // 2
+        work = self._ref_work
+        q = work.get("q", (1, ny, nx))
+        umap.uncertainty(t, out=q[0])
+        if g1 is None:
+            g1 = work.get("g1", (m, mw))
+        pyr_down_stack(q, g1[None], work)
+        # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
+        bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
+        self._ref = (umap, umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw))
+        return q[0]
 
     def reduce_g1(self, g1: np.ndarray, g2: np.ndarray, scratch: Scratch) -> bool:
         """G_2 of every map of the call (after all of them were computed), ``g1`` and ``g2``
         ``(maps, h, w)`` in :meth:`compute`'s order: ``pyr_down_stack(g1, g2)``, with the
         patched maps patched from the reference's G_2 (the same numbers). False, doing nothing,
         when no map was patched."""
-        ref, slots = self._ref_slot, self._slots
-        if ref is None or len(slots) != len(g1) or all(b is None for b in slots):
+        slots = self._slots
+        if self._ref is None or len(slots) != len(g1) or all(not b for b in slots):
             return False
+        ref_g1 = self._ref[7]
+        n, ncols = ref_g1.shape
         work = self._g2_work
-        pyr_down_stack(g1[ref : ref + 1], g2[ref : ref + 1], work)
-        n, ncols = g1.shape[1:]
-        ref_rows_t = work.get("pyr_rows_t", (1, ncols, (n + 1) // 2), g1.dtype)[0]
+        ref_g2 = work.get("g2", (1, (n + 1) // 2, (ncols + 1) // 2))
+        pyr_down_stack(ref_g1[None], ref_g2, work)
+        ref_rows_t = work.get("pyr_rows_t", (1, ncols, (n + 1) // 2), ref_g1.dtype)[0]
         for i, bands in enumerate(slots):
-            if i == ref:
-                continue
             if bands is None:
                 pyr_down_stack(g1[i : i + 1], g2[i : i + 1], scratch)
             else:
                 lower = g1[i]
-                _patch_level(ref_rows_t, g2[ref], g2[i], bands, lambda b, a, z: lower[a:z], n, ncols)
+                _patch_level(ref_rows_t, ref_g2[0], g2[i], bands, lambda b, a, z: lower[a:z], n, ncols)
         return True
 
     def _use_patched(self, bands: list[_Band], use: Callable[[np.ndarray], T]) -> T:
-        """``use(q)`` of a patched map: the first map's q with this map's changed cells written
+        """``use(q)`` of a patched map: the reference's q with this map's changed cells written
         in for the call (they are few; copying the whole map would cost more)."""
-        ref_q = self._ref[4]
+        ref_q = self._ref[5]
         saved = []
         try:
             for b in bands:
@@ -190,7 +210,7 @@ class FirstLevels:
             for rows, cols, old in reversed(saved):
                 ref_q[rows, cols] = old
 
-    def _bands(self, ls: np.ndarray, ref_ls: np.ndarray) -> list[_Band] | None:
+    def _compare(self, ls: np.ndarray, ref_ls: np.ndarray) -> list[_Band] | None:
         """Where ``ls`` differs from ``ref_ls`` (bit patterns): bands of rows, each with the
         columns that differ in it; ``[]`` if nowhere, None if in too many rows."""
         ny, nx = ls.shape
@@ -216,24 +236,14 @@ class FirstLevels:
             bands.append(_Band(int(rows[a]), int(rows[b - 1]) + 1, int(c.min()) * unit, (int(c.max()) + 1) * unit))
         return bands
 
-    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, records: MapRecords | None) -> list[_Band] | None:
-        """Write the map's G_1 into ``g1`` from the first map's; returns the bands where its q
-        differs (their q computed), or None if it is not worth patching."""
-        ref_ls, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw), ref_records = self._ref
-        ls = umap.to_dense_view()
-        disks = differences(ref_records, records) if records is not None and ref_records is not None else None
-        bands = self._bands(ls, ref_ls) if disks is None else _disk_bands(disks, ny)
-        if bands is None:
-            return None
-        if not bands:
-            np.copyto(g1, ref_g1)
-            self._slots.append([])
-            return bands
-        # The q of the rows each band's row pass reads: the first map's except in the band's
+    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, bands: list[_Band]) -> list[_Band]:
+        """Write the map's G_1 into ``g1`` from the reference's, given the bands where its cells
+        may differ (their q is computed into them); returns the bands of G_1 that changed."""
+        _, _, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw) = self._ref
+        # The q of the rows each band's row pass reads: the reference's except in the band's
         # columns (bands are far enough apart that no band's rows reach another's changes).
         for b in bands:
             b.qa, qb = max(0, 2 * max(0, (b.r0 - 1) // 2) - 2), min(ny, 2 * min(m - 1, (b.r1 + 1) // 2) + 3)
             b.q = ref_q[None, b.qa : qb].copy()
-            umap.q_into(t, ls[b.qa : qb, b.c0 : b.c1], b.q[0, :, b.c0 : b.c1])
-        self._slots.append(_patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx))
-        return bands
+            umap.q_into(t, umap.region(slice(b.qa, qb), slice(b.c0, b.c1)), b.q[0, :, b.c0 : b.c1])
+        return _patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx)

@@ -80,8 +80,8 @@ class UncertaintyMap:
         # tile key ty * ntx + tx -> float32 cells (dense: the (ny, nx) grid; tiled: th * tw flat,
         # row-major); an absent tile is all -inf.
         self._tiles: dict[int, np.ndarray] = {}
-        # Writes so far (each scan, stamp, cover or merge counts one): lets a summary of what
-        # the map is made of (agents.maprecords) notice a write it did not see.
+        # Writes so far (each scan, stamp, cover or merge counts one): a map sharing storage
+        # (agents.mapgroup) rebuilds its cells only after one.
         self.version = 0 if last_seen is None else 1
         if dense:
             if last_seen is not None:
@@ -93,6 +93,10 @@ class UncertaintyMap:
 
     # --- storage ----------------------------------------------------------------------------
 
+    def _materialize(self) -> None:
+        """Make ``_tiles`` hold the map's cells before they are read (a map sharing storage,
+        agents.mapgroup.GroupMap, builds them here; an ordinary map holds them already)."""
+
     def _alloc(self, key: int) -> np.ndarray:
         """A new all-``-inf`` tile (tiled maps keep tiles flat: ``th * tw`` cells, row-major)."""
         th, tw = self.tile_shape
@@ -102,11 +106,13 @@ class UncertaintyMap:
 
     @property
     def tiles_allocated(self) -> int:
+        self._materialize()
         return len(self._tiles)
 
     @property
     def nbytes(self) -> int:
         """Bytes of cell storage allocated."""
+        self._materialize()
         return sum(a.nbytes for a in self._tiles.values())
 
     # --- writes -----------------------------------------------------------------------------
@@ -185,6 +191,7 @@ class UncertaintyMap:
         """Per-cell max with another map or a full ``(ny, nx)`` array (in place)."""
         self.version += 1
         if isinstance(other, UncertaintyMap):
+            other._materialize()
             if other.grid.shape != self.grid.shape:
                 raise ValueError(f"cannot merge a {other.grid.shape} map into a {self.grid.shape} map")
             if other.tile_shape == self.tile_shape and other.dense == self.dense:
@@ -219,6 +226,8 @@ class UncertaintyMap:
                 np.maximum(view, piece, out=view)
 
     def copy(self) -> "UncertaintyMap":
+        """An ordinary map with the same cells (a map of its own, whatever this one is)."""
+        self._materialize()
         new = object.__new__(UncertaintyMap)
         new.grid = self.grid
         new.tau = self.tau
@@ -263,6 +272,7 @@ class UncertaintyMap:
     def to_dense(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """A new ``(ny, nx)`` float32 array of last-seen times: the whole grid, or with
         ``window=(ix0, iy0, nx, ny)`` the cells ``[iy0:iy0+ny, ix0:ix0+nx]``."""
+        self._materialize()
         if window is not None:
             ix0, iy0, w, h = self._check_window(window)
             if self.dense:
@@ -284,6 +294,7 @@ class UncertaintyMap:
         """The live ``(ny, nx)`` array of a dense map (read-only view; it changes with the map)."""
         if not self.dense:
             raise ValueError("to_dense_view() needs a dense map (tile='dense'); use to_dense()")
+        self._materialize()
         v = self._tiles[0].view()
         v.flags.writeable = False
         return v
@@ -305,6 +316,7 @@ class UncertaintyMap:
         """q per cell at time ``t`` (float32): the full ``(ny, nx)`` grid, or with
         ``window=(ix0, iy0, nx, ny)`` the ``(ny, nx)`` block of cells ``[iy0:iy0+ny, ix0:ix0+nx]``
         (it must lie inside the grid, else ValueError). Same numbers either way."""
+        self._materialize()
         if window is not None:
             ix0, iy0, w, h = self._check_window(window)
             if self.dense:
@@ -318,7 +330,18 @@ class UncertaintyMap:
             return self._q(t, self._gather(ix0, iy0, w, h, out), out)
         return self._q(t, self._gather(ix0, iy0, w, h), out)
 
+    def region(self, rows: slice, cols: slice) -> np.ndarray:
+        """Last-seen times of cells ``[rows, cols]`` (slices with explicit start and stop,
+        inside the grid): a read-only view of a dense map's cells, else a new array."""
+        self._materialize()
+        if self.dense:
+            v = self._tiles[0][rows, cols]
+            v.flags.writeable = False
+            return v
+        return self._gather(cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start)
+
     def _cells(self, ix, iy) -> np.ndarray:
+        self._materialize()
         if self.dense:
             return self._tiles[0][iy, ix]
         ny, nx = self.grid.shape
@@ -351,6 +374,7 @@ class UncertaintyMap:
         return 1.0 - np.exp(-self.tau * (t - seen.astype(np.float64)))
 
     def seen_fraction(self) -> float:
+        self._materialize()
         ny, nx = self.grid.shape
         seen = sum(int(np.count_nonzero(np.isfinite(tile))) for tile in self._tiles.values())
         return float(seen) / (ny * nx)

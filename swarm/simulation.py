@@ -40,8 +40,10 @@ from agents.apf import ApfSettings
 from agents.batching import PlanBatcher
 from agents.grid import PREFETCH_MIN, Grid
 from agents.knowledge import KnownThreat
+from agents.mapgroup import MapGroup
 from agents.planners import make_planner
 from agents.planners.base import Plan
+from agents.umap import DENSE_MAX_CELLS
 from agents.types import UavType
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -174,6 +176,9 @@ class Simulation:
         threats = [KnownThreat(i, th.x_m, th.y_m, th.radius_m, th.d_max) for i, th in enumerate(sc.threats)]
         self.world = World(self.grid, self.targets, threats)
         self.metrics = Metrics(self.grid, self.tau)
+        # The UAVs' maps share storage where they agree (same cells as maps of their own;
+        # agents.mapgroup): on areas small enough for dense maps.
+        self._map_group = MapGroup(self.grid, self.tau, self.dt) if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS else None
 
         self.names: dict[str, int] = {}  # shared with the injector: names added later resolve
         self.actors: dict[int, UavActor] = {}
@@ -274,6 +279,7 @@ class Simulation:
         self.actors[uid] = UavActor(
             uid, name, kind, self.grid, self.tau, planner, self.rng.generator("uav", name),
             self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity), decoder=self._decoder,
+            map_group=self._map_group,
         )
         self._paths[uid] = []
         self.clock.schedule(max(body.join_s, self.clock.now), lambda: self._join(uid), FAULT)

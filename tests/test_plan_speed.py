@@ -209,7 +209,7 @@ def _views(rng, grid, n, t=900.0):
         seen[rng.random(grid.shape) < 0.02] = t
         views.append(types.SimpleNamespace(
             grid=grid, umap=UncertaintyMap(grid, 1 / 600, seen), t=t, x=float(rng.uniform(0, grid.width_m)),
-            y=float(rng.uniform(0, grid.height_m)), theta=float(rng.uniform(-4, 4)), rng=np.random.default_rng(i), records=None))
+            y=float(rng.uniform(0, grid.height_m)), theta=float(rng.uniform(-4, 4)), rng=np.random.default_rng(i)))
     return views
 
 

@@ -15,7 +15,6 @@ import numpy as np
 
 from agents.grid import Grid
 from agents.knowledge import Knowledge
-from agents.maprecords import MapRecords
 from agents.types import UavType
 from agents.umap import UncertaintyMap
 from comms.messages import MODE_SEARCH, NO_TARGET
@@ -45,9 +44,6 @@ class PlanView:
     replan_s: float
     surveillance: bool  # False: a sighting ends interest in a target (search only)
     plan: Plan | None  # the current plan, if any
-    # Which scans the map is made of, when the UAV keeps track (a planner may use it to see
-    # how its map differs from another's without comparing them; agents.maprecords).
-    records: MapRecords | None = None
 
 
 class Planner(Protocol):

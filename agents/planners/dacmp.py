@@ -77,9 +77,6 @@ class DacmpPlanner:
     # Other UAVs' detection radii by type name (how far their next waypoint goes); unknown: ours.
     detect_radius_by_type: dict[str, float] = field(default_factory=dict)
     name: str = "dacmp"
-    # Ask the UAV to keep agents.maprecords.MapRecords: maps planned together are then patched
-    # from one another without comparing them cell by cell (agents.pyramid_reuse).
-    uses_map_records = True
     # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
     _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
     _first_levels: FirstLevels = field(default_factory=FirstLevels, init=False, repr=False, compare=False)
@@ -537,7 +534,7 @@ class _Layers:
                 np.copyto(first[i], q)
                 self.guides.append(guide(q))
             else:
-                self.guides.append(maps.compute(view.umap, view.t, first[i], guide, view.records))
+                self.guides.append(maps.compute(view.umap, view.t, first[i], guide))
         # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
         # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
         step = max(1, _STACK_CELLS // first[0].size)

@@ -1,0 +1,233 @@
+"""UAV maps stored as one shared map plus the few scans each has beyond it.
+
+Every UAV keeps its own map: the per-cell max of the scan disks it applied (its own scans and
+the ones it heard). In a swarm that hears itself well those maps are nearly the same: each has
+every scan up to the last tick or two, plus its own latest. Storing and stamping each one
+separately stamps every scan once per UAV, and that memory traffic is a large share of a run.
+
+A :class:`MapGroup` stores the scans every member map has once, in a shared *base* map, and
+each member keeps only the scans it has beyond the base (its *extra* scans, with their disks).
+A scan moves into the base when the last member gets it. A member's content is
+``max(base, its extra scans)``, which is exactly the max over the scans it applied: the same
+numbers, cell for cell, as a map of its own (``max`` is commutative, associative and
+idempotent). Only storage is shared; what a UAV knows is unchanged.
+
+A member that falls behind (a scan others have had for :data:`LAG_TICKS` ticks still missing:
+lost frames, a partition, a crash, a UAV not yet joined) leaves the group: it gets an array of
+its own, built from the base and its extra scans, and from then on is an ordinary map. So
+does a member written other than by :meth:`GroupMap.stamp` (``scan``, ``cover``, ``merge``).
+A map made after the base holds a scan starts on its own (it lacks what the base has).
+
+Reading a member's cells builds them from the base and its extra scans: whole maps into a
+buffer the map keeps (rebuilt only after it changed), a few cells (``q_at``) or a region
+(:meth:`UncertaintyMap.region`) directly. :mod:`agents.pyramid_reuse` plans from the base:
+members differ from it only inside their extra scans' disks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agents.grid import Disk, Grid
+from agents.umap import UncertaintyMap
+
+# A scan some members have and others still lack after this many ticks of the group's clock
+# makes those others leave (radio frames arrive within a tick or two when they arrive at all).
+LAG_TICKS = 8
+# The base's scans of this many recent ticks are listed by key (see MapGroup._known); the list
+# is pruned when it grows past _PRUNE_AT.
+KNOWN_TICKS = 64
+_PRUNE_AT = 8192
+
+
+class MapGroup:
+    """A shared base map and its member maps (see the module docstring)."""
+
+    def __init__(self, grid: Grid, tau: float, dt: float):
+        self.base = UncertaintyMap(grid, tau, tile="dense")
+        self.members: list[GroupMap] = []
+        self.dt = dt
+        # Scans some but not all members have: key -> members holding it, and the group clock
+        # when it was first stamped (insertion order is that order).
+        self._holders: dict[tuple, int] = {}
+        self._since: dict[tuple, float] = {}
+        # Scans in the base of the last KNOWN_TICKS ticks (key -> t): a member stamping one
+        # again (a resent scan) must not take it for a new one. Older ones are checked against
+        # the base's cells instead (the set stays small however long the run).
+        self._in_base: dict[tuple, float] = {}
+        self.clock = -np.inf  # the latest scan time stamped into a member
+        self.left = 0  # members that left (for tests and benchmarks)
+
+    def new_map(self) -> UncertaintyMap:
+        """A map for a new UAV: a member while the base is empty, else an ordinary map."""
+        if self._in_base or self._holders:
+            return UncertaintyMap(self.base.grid, self.base.tau)
+        m = GroupMap(self)
+        self.members.append(m)
+        return m
+
+    # --- called by members ------------------------------------------------------------------
+
+    def _add(self, member: "GroupMap", key: tuple, d: Disk, t: float) -> None:
+        if t > self.clock:
+            self.clock = t
+        if key not in member._extra and not self._known(key, d, t):
+            member._extra[key] = (d, t)
+            n = self._holders.get(key, 0) + 1
+            if n >= len(self.members):
+                self._to_base(key)
+            else:
+                if n == 1:
+                    self._since[key] = self.clock
+                self._holders[key] = n
+        self._expire()
+
+    def _known(self, key: tuple, d: Disk, t: float) -> bool:
+        """Whether the scan is in the base already (stamping it again changes nothing)."""
+        if key in self._holders:
+            return False
+        if t >= self.clock - KNOWN_TICKS * self.dt:
+            return key in self._in_base  # every recent scan of the base is listed
+        view = self.base._tiles[0][d.rows, d.cols]
+        return bool((view >= d.values(t)).all())  # (-inf outside the disk: always true there)
+
+    def _to_base(self, key: tuple) -> None:
+        """Every member has this scan: stamp it into the base, drop it from the members."""
+        self._holders.pop(key, None)
+        self._since.pop(key, None)
+        in_base = self._in_base
+        in_base[key] = key[1]
+        if len(in_base) > _PRUNE_AT:
+            oldest = self.clock - KNOWN_TICKS * self.dt
+            self._in_base = {k: t for k, t in in_base.items() if t >= oldest}
+        d, t = None, None
+        for m in self.members:
+            d, t = m._extra.pop(key)
+        self.base.stamp(d, t)
+
+    def _expire(self) -> None:
+        """Members still lacking a scan others have had for LAG_TICKS ticks leave."""
+        since = self._since
+        limit = self.clock - LAG_TICKS * self.dt
+        while since:
+            key, t0 = next(iter(since.items()))
+            if t0 >= limit:
+                return
+            for m in [m for m in self.members if key not in m._extra]:
+                self._leave(m)  # (moves every complete scan to the base, this one included)
+
+    def _leave(self, member: "GroupMap") -> None:
+        """Give ``member`` an array of its own and take it out of the group."""
+        if member._extra is None:
+            return
+        member._own_array()
+        self.members.remove(member)
+        self.left += 1
+        for key in member._extra:
+            n = self._holders.get(key)
+            if n is not None:
+                self._holders[key] = n - 1
+        member._extra = None
+        # With one member fewer, scans the others all have go to the base.
+        for key in [k for k, n in self._holders.items() if n >= len(self.members)]:
+            if self.members:
+                self._to_base(key)
+            else:
+                self._holders.pop(key)
+                self._since.pop(key)
+
+
+class GroupMap(UncertaintyMap):
+    """A member of a :class:`MapGroup`: an :class:`UncertaintyMap` (dense) whose cells are the
+    group's base and its extra scans while it is a member, an array of its own after."""
+
+    __slots__ = ("_group", "_extra", "_built")
+
+    def __init__(self, group: MapGroup):
+        base = group.base
+        self.grid, self.tau = base.grid, base.tau
+        self.tile_shape, self.dense = base.tile_shape, True
+        self._nty = self._ntx = 1
+        self._tiles = {}  # the built cells (a buffer), or the map's own array once it left
+        self.version = 0
+        self._group = group
+        self._extra: dict[tuple, tuple[Disk, float]] | None = {}  # key -> (disk, t); None: left
+        self._built = -1  # version the buffer was built at
+
+    @property
+    def member(self) -> bool:
+        return self._extra is not None
+
+    def extra_disks(self) -> list[tuple[Disk, float]] | None:
+        """``(disk, t)`` of the scans it has beyond the group's base (outside their disks the
+        map equals the base), or None if it is not a member."""
+        return None if self._extra is None else list(self._extra.values())
+
+    # --- writes -----------------------------------------------------------------------------
+
+    def stamp(self, d: Disk, t: float) -> None:
+        if self._extra is None or d.key is None:
+            self._leave()
+            return super().stamp(d, t)
+        self.version += 1
+        self._group._add(self, (d.key, t), d, t)
+
+    def scan_disk(self, d: Disk, t: float) -> int:
+        self._leave()
+        return super().scan_disk(d, t)
+
+    def cover(self, d: Disk, t: float) -> int:
+        self._leave()
+        return super().cover(d, t)
+
+    def merge(self, other) -> None:
+        self._leave()
+        super().merge(other)
+
+    def _leave(self) -> None:
+        if self._extra is not None:
+            self._group._leave(self)
+
+    # --- cells ------------------------------------------------------------------------------
+
+    def _own_array(self) -> None:
+        """Build the cells (base, then the extra scans) into the buffer."""
+        buf = self._tiles.get(0)
+        if buf is None:
+            buf = self._tiles[0] = np.empty(self.grid.shape, np.float32)
+        np.copyto(buf, self._group.base._tiles[0])
+        for d, t in self._extra.values():
+            view = buf[d.rows, d.cols]
+            np.maximum(view, d.values(t), out=view)
+        self._built = self.version
+
+    def _materialize(self) -> None:
+        if self._extra is not None and self._built != self.version:
+            self._own_array()
+
+    def region(self, rows: slice, cols: slice) -> np.ndarray:
+        if self._extra is None or self._built == self.version:
+            return super().region(rows, cols)
+        out = self._group.base._tiles[0][rows, cols].copy()
+        r0, c0 = rows.start, cols.start
+        for d, t in self._extra.values():
+            a, z = max(rows.start, d.iy0), min(rows.stop, d.iy1)
+            b, e = max(cols.start, d.ix0), min(cols.stop, d.ix1)
+            if a < z and b < e:
+                view = out[a - r0 : z - r0, b - c0 : e - c0]
+                np.maximum(view, d.values(t)[a - d.iy0 : z - d.iy0, b - d.ix0 : e - d.ix0], out=view)
+        return out
+
+    def _cells(self, ix, iy) -> np.ndarray:
+        ix, iy = np.broadcast_arrays(np.asarray(ix), np.asarray(iy))
+        if (self._extra is None or self._built == self.version or ix.ndim == 0 or ix.dtype.kind not in "iu"
+                or iy.dtype.kind not in "iu" or (ix.size and (ix.min() < 0 or iy.min() < 0))):
+            self._materialize()  # (whole cells for the unusual cases: index checks as usual)
+            return super()._cells(ix, iy)
+        seen = self._group.base._tiles[0][iy, ix]  # a new array (fancy indexing)
+        for d, t in self._extra.values():
+            r, c = iy - d.iy0, ix - d.ix0
+            inside = (r >= 0) & (r < d.iy1 - d.iy0) & (c >= 0) & (c < d.ix1 - d.ix0)
+            if inside.any():
+                seen[inside] = np.maximum(seen[inside], d.values(t)[r[inside], c[inside]])
+        return seen

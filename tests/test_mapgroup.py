@@ -1,0 +1,136 @@
+"""agents.mapgroup: a map in a MapGroup has exactly the cells of a map of its own, whatever it
+is sent, in whatever order, and whoever falls behind or leaves."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from agents.grid import Grid
+from agents.mapgroup import LAG_TICKS, MapGroup
+from agents.umap import UncertaintyMap
+
+GRID = Grid(3000.0, 2500.0, 100.0)
+TAU = 1 / 600
+
+
+def scan(origin: int, k: int):
+    rng = np.random.default_rng(origin * 7919 + k)
+    x, y = rng.uniform(-200, 3200), rng.uniform(-200, 2700)
+    return GRID.disk_stamp(float(x), float(y), float(rng.uniform(120, 700)))
+
+
+def same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+broadcast = st.tuples(st.just("all"), st.integers(0, 3), st.integers(0, 4), st.integers(0, 30))
+ops = st.lists(st.one_of(
+    # (member, origin, tick): member stamps origin's scan of that tick (some twice, some late)
+    st.tuples(st.just("stamp"), st.integers(0, 3), st.integers(0, 4), st.integers(0, 30)),
+    broadcast, broadcast, broadcast,  # every map hears it (mostly, in a swarm)
+    st.tuples(st.just("read"), st.integers(0, 3), st.sampled_from(["dense", "cells", "region", "q", "copy"]),
+              st.integers(0, 2**16)),
+    st.tuples(st.just("write"), st.integers(0, 3), st.sampled_from(["scan", "cover", "merge"]), st.integers(0, 30)),
+), max_size=120)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(1, 4), steps=ops, in_order=st.booleans())
+def test_group_maps_have_the_cells_of_maps_of_their_own(n, steps, in_order):
+    group = MapGroup(GRID, TAU, 1.0)
+    maps = [group.new_map() for _ in range(n)]
+    twins = [UncertaintyMap(GRID, TAU) for _ in range(n)]
+    if in_order:  # mostly a swarm that hears itself: everyone gets every scan, ticks in order
+        steps = sorted(steps, key=lambda s: s[3] if s[0] in ("stamp", "all") else -1)
+    for step in steps:
+        kind, i = step[0], step[1] % n
+        if kind == "all":
+            _, _, origin, k = step
+            if (d := scan(origin, k)) is not None:
+                for m, twin in zip(maps, twins):
+                    m.stamp(d, float(k))
+                    twin.stamp(d, float(k))
+        elif kind == "stamp":
+            _, _, origin, k = step
+            d = scan(origin, k)
+            if d is None:
+                continue
+            maps[i].stamp(d, float(k))
+            twins[i].stamp(d, float(k))
+        elif kind == "write":
+            _, _, how, k = step
+            d = scan(9, k)
+            if d is None:
+                continue
+            if how == "scan":
+                assert maps[i].scan_disk(d, float(k)) == twins[i].scan_disk(d, float(k))
+            elif how == "cover":
+                assert maps[i].cover(d, float(k)) == twins[i].cover(d, float(k))
+            else:
+                other = (i + 1) % n
+                maps[i].merge(maps[other])
+                twins[i].merge(twins[other])
+        else:
+            _, _, how, seed = step
+            rng = np.random.default_rng(seed)
+            if how == "dense":
+                assert same(maps[i].to_dense(), twins[i].to_dense())
+            elif how == "cells":
+                ix = rng.integers(0, GRID.nx, 50)
+                iy = rng.integers(0, GRID.ny, 50)
+                assert same(maps[i].q_at(ix, iy, 40.0), twins[i].q_at(ix, iy, 40.0))
+            elif how == "region":
+                r0, c0 = int(rng.integers(0, GRID.ny)), int(rng.integers(0, GRID.nx))
+                rows = slice(r0, int(rng.integers(r0 + 1, GRID.ny + 1)))
+                cols = slice(c0, int(rng.integers(c0 + 1, GRID.nx + 1)))
+                assert same(maps[i].region(rows, cols), twins[i].region(rows, cols))
+            elif how == "q":
+                assert same(maps[i].uncertainty(40.0), twins[i].uncertainty(40.0))
+            else:
+                assert same(maps[i].copy().to_dense(), twins[i].to_dense())
+    for m, twin in zip(maps, twins):
+        assert same(m.to_dense(), twin.to_dense())
+    # The base holds only what every member has.
+    for m in group.members:
+        assert (group.base.to_dense() <= m.to_dense()).all()
+
+
+def test_a_swarm_that_hears_itself_shares_all_but_this_ticks_scans():
+    group = MapGroup(GRID, TAU, 1.0)
+    maps = [group.new_map() for _ in range(4)]
+    for k in range(30):
+        for me, m in enumerate(maps):
+            for origin in range(4):
+                if origin != me and k > 0 and (d := scan(origin, k - 1)) is not None:
+                    m.stamp(d, float(k - 1))
+            if (d := scan(me, k)) is not None:
+                m.stamp(d, float(k))
+    assert len(group.members) == 4 and group.left == 0
+    assert all(len(m.extra_disks()) <= 1 for m in maps)
+    assert all(m.nbytes == GRID.nx * GRID.ny * 4 for m in maps)  # reading builds its cells
+
+
+def test_a_member_that_falls_behind_leaves_and_keeps_its_cells():
+    group = MapGroup(GRID, TAU, 1.0)
+    a, b = group.new_map(), group.new_map()
+    late = group.new_map()  # never hears anything (a UAV not yet joined, or a crashed one)
+    for k in range(LAG_TICKS + 3):
+        for m in (a, b):
+            if (d := scan(0, k)) is not None:
+                m.stamp(d, float(k))
+    assert late not in group.members and group.left == 1
+    assert not np.isfinite(late.to_dense()).any()
+    twin = UncertaintyMap(GRID, TAU)
+    for k in range(LAG_TICKS + 3):
+        if (d := scan(0, k)) is not None:
+            twin.stamp(d, float(k))
+    assert same(a.to_dense(), twin.to_dense()) and same(b.to_dense(), twin.to_dense())
+    # A map made once the base holds scans starts on its own.
+    assert not hasattr(group.new_map(), "extra_disks")
+    # A scan stamped again long after (a resend) is recognised as known, not as new.
+    d = scan(0, 1)
+    a.stamp(d, 1.0)
+    assert a.extra_disks() == [] and same(a.to_dense(), twin.to_dense())
