@@ -69,23 +69,30 @@ class MapGroup:
     # --- called by members ------------------------------------------------------------------
 
     def _add(self, member: "GroupMap", key: tuple, d: Disk, t: float) -> None:
+        extra = member._extra
+        if key in extra:
+            return
         if t > self.clock:
             self.clock = t
-        if key not in member._extra and not self._known(key, d, t):
-            member._extra[key] = (d, t)
-            n = self._holders.get(key, 0) + 1
+            advanced = True
+        else:
+            advanced = False
+        n = self._holders.get(key)
+        if n is not None or not self._known(key, d, t):
+            extra[key] = (d, t)
+            n = 1 if n is None else n + 1
             if n >= len(self.members):
                 self._to_base(key)
             else:
                 if n == 1:
                     self._since[key] = self.clock
                 self._holders[key] = n
-        self._expire()
+        if advanced:  # (only the clock moving can make a scan overdue)
+            self._expire()
 
     def _known(self, key: tuple, d: Disk, t: float) -> bool:
-        """Whether the scan is in the base already (stamping it again changes nothing)."""
-        if key in self._holders:
-            return False
+        """Whether a scan no member is waiting for is in the base already (stamping it again
+        changes nothing)."""
         if t >= self.clock - KNOWN_TICKS * self.dt:
             return key in self._in_base  # every recent scan of the base is listed
         view = self.base._tiles[0][d.rows, d.cols]
