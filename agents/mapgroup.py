@@ -55,6 +55,7 @@ class MapGroup:
         # again (a resent scan) must not take it for a new one. Older ones are checked against
         # the base's cells instead (the set stays small however long the run).
         self._in_base: dict[tuple, float] = {}
+        self._prune_at = _PRUNE_AT
         self.clock = -np.inf  # the latest scan time stamped into a member
         self.left = 0  # members that left (for tests and benchmarks)
 
@@ -104,9 +105,10 @@ class MapGroup:
         self._since.pop(key, None)
         in_base = self._in_base
         in_base[key] = key[1]
-        if len(in_base) > _PRUNE_AT:
+        if len(in_base) > self._prune_at:
             oldest = self.clock - KNOWN_TICKS * self.dt
             self._in_base = {k: t for k, t in in_base.items() if t >= oldest}
+            self._prune_at = max(_PRUNE_AT, 2 * len(self._in_base))  # (amortised: a big swarm keeps more)
         d, t = None, None
         for m in self.members:
             d, t = m._extra.pop(key)
