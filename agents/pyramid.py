@@ -129,7 +129,9 @@ def pyr_down_stack(a: np.ndarray, out: np.ndarray, scratch: Scratch | None = Non
     """:func:`pyr_down` of every map of a C-contiguous float stack ``a`` ``(k, h, w)``, written
     into ``out`` ``(k, ceil(h/2), ceil(w/2))`` (same dtype).  Each map gets exactly the numbers
     :func:`pyr_down` gives it alone.  ``scratch`` supplies the intermediates (fresh arrays
-    without it)."""
+    without it); they stay there until its next use: ``"pyr_rows"`` the row pass ``(k, m, w)``,
+    ``"pyr_rows_t"`` its transpose ``(k, w, m)`` (:mod:`agents.pyramid_reuse` patches from it),
+    ``"pyr_cols_t"`` the column pass, transposed."""
     k, h, w = a.shape
     m, mw = (h + 1) // 2, (w + 1) // 2
     work = scratch if scratch is not None else Scratch()
