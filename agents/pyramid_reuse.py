@@ -107,8 +107,8 @@ def _patch_level(ref_rows_t: np.ndarray, ref_out: np.ndarray, out: np.ndarray, b
 
 class FirstLevels:
     """q, G_1 and G_2 of a planning call's maps (see the module docstring). Keeps its buffers
-    from call to call; :meth:`start` begins a call, :meth:`compute` does one map's q and G_1,
-    :meth:`reduce_g1` every map's G_2."""
+    from call to call; :meth:`start` begins a call, :meth:`compute` does one map's q and G_1
+    (a patched G_1 is written by :meth:`finish`), :meth:`reduce_g1` every map's G_2."""
 
     def __init__(self, reuse: bool = True) -> None:
         self.reuse = reuse  # False: every map in full (the same numbers; for tests and benchmarks)
@@ -125,6 +125,7 @@ class FirstLevels:
         # Per map computed (in order): where its G_1 differs from the reference's (bands of
         # G_1; [] for the reference itself), or None if it was computed in full.
         self._slots: list[list[_Band] | None] = []
+        self._pending: list[tuple[int, np.ndarray, list[_Band]]] = []  # G_1 patches to do (finish)
 
     def compute(self, umap: UncertaintyMap, t: float, g1: np.ndarray, use: Callable[[np.ndarray], T]) -> T:
         """Write the map's G_1 at ``t`` into ``g1`` and return ``use(q)``, ``q`` the map's q
@@ -143,7 +144,10 @@ class FirstLevels:
                 bands = _disk_bands([d for d, _ in extra], ny) if in_group else self._compare(umap.to_dense_view(), ref[1])
             if bands is not None:
                 self.patched += 1
-                self._slots.append(self._patch(umap, t, g1, bands))
+                self._band_q(umap, t, bands)
+                # G_1 is patched later (finish()): q, which the user reads now, stays in cache.
+                self._pending.append((len(self._slots), g1, bands))
+                self._slots.append(None)
                 return self._use_patched(bands, use)
         self.full += 1
         if ref is None and self.reuse and umap.dense and min(ny, nx) >= _MIN_SIDE:
@@ -178,6 +182,7 @@ class FirstLevels:
         ``(maps, h, w)`` in :meth:`compute`'s order: ``pyr_down_stack(g1, g2)``, with the
         patched maps patched from the reference's G_2 (the same numbers). False, doing nothing,
         when no map was patched."""
+        self.finish()
         slots = self._slots
         if self._ref is None or len(slots) != len(g1) or all(not b for b in slots):
             return False
@@ -236,14 +241,22 @@ class FirstLevels:
             bands.append(_Band(int(rows[a]), int(rows[b - 1]) + 1, int(c.min()) * unit, (int(c.max()) + 1) * unit))
         return bands
 
-    def _patch(self, umap: UncertaintyMap, t: float, g1: np.ndarray, bands: list[_Band]) -> list[_Band]:
-        """Write the map's G_1 into ``g1`` from the reference's, given the bands where its cells
-        may differ (their q is computed into them); returns the bands of G_1 that changed."""
-        _, _, (ny, nx), _, _, ref_q, ref_bt, ref_g1, (m, mw) = self._ref
-        # The q of the rows each band's row pass reads: the reference's except in the band's
-        # columns (bands are far enough apart that no band's rows reach another's changes).
+    def _band_q(self, umap: UncertaintyMap, t: float, bands: list[_Band]) -> None:
+        """The q of the rows each band's row pass reads, into the band: the reference's except
+        in the band's columns (bands are far enough apart that no band's rows reach another's
+        changes)."""
+        _, _, (ny, nx), _, _, ref_q, _, _, (m, mw) = self._ref
         for b in bands:
             b.qa, qb = max(0, 2 * max(0, (b.r0 - 1) // 2) - 2), min(ny, 2 * min(m - 1, (b.r1 + 1) // 2) + 3)
             b.q = ref_q[None, b.qa : qb].copy()
             umap.q_into(t, umap.region(slice(b.qa, qb), slice(b.c0, b.c1)), b.q[0, :, b.c0 : b.c1])
-        return _patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx)
+
+    def finish(self) -> None:
+        """Write the G_1 of the maps patched so far (compute() leaves it pending): call before
+        reading any map's G_1."""
+        if not self._pending:
+            return
+        _, _, (ny, nx), _, _, _, ref_bt, ref_g1, _ = self._ref
+        for slot, g1, bands in self._pending:
+            self._slots[slot] = _patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx)
+        self._pending = []

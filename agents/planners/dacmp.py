@@ -535,6 +535,7 @@ class _Layers:
                 self.guides.append(guide(q))
             else:
                 self.guides.append(maps.compute(view.umap, view.t, first[i], guide))
+        maps.finish()
         # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
         # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
         step = max(1, _STACK_CELLS // first[0].size)
