@@ -14,7 +14,8 @@ idempotent). Only storage is shared; what a UAV knows is unchanged.
 
 A member that falls behind (a scan others have had for :data:`LAG_TICKS` ticks still missing:
 lost frames, a partition, a crash, a UAV not yet joined) leaves the group: it gets an array of
-its own, built from the base and its extra scans, and from then on is an ordinary map. So
+its own, built from the base and its extra scans, and from then on is an ordinary map. (When
+fewer members have such a scan than lack it, those few leave instead.) So
 does a member written other than by :meth:`GroupMap.stamp` (``scan``, ``cover``, ``merge``).
 A map made after the base holds a scan starts on its own (it lacks what the base has).
 
@@ -115,15 +116,19 @@ class MapGroup:
         self.base.stamp(d, t)
 
     def _expire(self) -> None:
-        """Members still lacking a scan others have had for LAG_TICKS ticks leave."""
+        """A scan some members have had for LAG_TICKS ticks and others still lack: the smaller
+        side leaves (those lacking it on a tie), so the scan is in every remaining member or
+        in none."""
         since = self._since
         limit = self.clock - LAG_TICKS * self.dt
         while since:
             key, t0 = next(iter(since.items()))
             if t0 >= limit:
                 return
-            for m in [m for m in self.members if key not in m._extra]:
-                self._leave(m)  # (moves every complete scan to the base, this one included)
+            lacking = [m for m in self.members if key not in m._extra]
+            having = [m for m in self.members if key in m._extra]
+            for m in (lacking if len(lacking) <= len(having) else having):
+                self._leave(m)  # (settles the scan: to the base, or dropped with its last holder)
 
     def _leave(self, member: "GroupMap") -> None:
         """Give ``member`` an array of its own and take it out of the group."""
@@ -134,8 +139,13 @@ class MapGroup:
         self.left += 1
         for key in member._extra:
             n = self._holders.get(key)
-            if n is not None:
+            if n is None:
+                continue
+            if n > 1:
                 self._holders[key] = n - 1
+            else:  # its last holder left: no member waits for it any more
+                del self._holders[key]
+                self._since.pop(key, None)
         member._extra = None
         # With one member fewer, scans the others all have go to the base.
         for key in [k for k, n in self._holders.items() if n >= len(self.members)]:

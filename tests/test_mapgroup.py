@@ -134,3 +134,20 @@ def test_a_member_that_falls_behind_leaves_and_keeps_its_cells():
     d = scan(0, 1)
     a.stamp(d, 1.0)
     assert a.extra_disks() == [] and same(a.to_dense(), twin.to_dense())
+
+
+def test_a_scan_only_a_few_members_have_makes_those_few_leave():
+    group = MapGroup(GRID, TAU, 1.0)
+    maps = [group.new_map() for _ in range(4)]
+    twins = [UncertaintyMap(GRID, TAU) for _ in range(4)]
+    for k in range(LAG_TICKS + 4):
+        for m, twin in zip(maps, twins):
+            if (d := scan(0, k)) is not None:  # everyone hears origin 0
+                m.stamp(d, float(k))
+                twin.stamp(d, float(k))
+        if k == 1 and (d := scan(1, k)) is not None:  # only maps[3] has this one (others lost it)
+            maps[3].stamp(d, float(k))
+            twins[3].stamp(d, float(k))
+    assert maps[3] not in group.members and len(group.members) == 3
+    for m, twin in zip(maps, twins):
+        assert same(m.to_dense(), twin.to_dense())
