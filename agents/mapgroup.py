@@ -158,7 +158,11 @@ class MapGroup:
 
 class GroupMap(UncertaintyMap):
     """A member of a :class:`MapGroup`: an :class:`UncertaintyMap` (dense) whose cells are the
-    group's base and its extra scans while it is a member, an array of its own after."""
+    group's base and its extra scans while it is a member, an array of its own after.
+
+    Every method gives an ordinary map's numbers. One difference: while it is a member,
+    :meth:`to_dense_view` is a view of cells built for the call, not of live storage (it does
+    not follow later stamps; call it again after them)."""
 
     __slots__ = ("_group", "_extra", "_built")
 
