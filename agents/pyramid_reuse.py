@@ -6,12 +6,10 @@ this tick. Their q (``1 - exp(-tau (t - last_seen))``) and their pyramid levels 
 differ only around those few disks, yet computing them is most of a plan's map work (a pass of
 ``exp`` over every cell and a 5 x 5 blur of the whole map).
 
-:class:`FirstLevels` computes one *reference* map in full and keeps its q and the intermediates
-of its pyramid steps (row pass, its transpose). The reference is the shared base of the UAVs'
-:class:`~agents.mapgroup.MapGroup` when their maps belong to one: each member differs from it
-only inside the disks of its extra scans, which the group lists. Otherwise the reference is the
-first map of the call, and a further map is compared with it row by row (a pass over both
-maps). For each map it then recomputes only where an input changed:
+:class:`FirstLevels` computes one *reference* map in full, the shared base of the UAVs'
+:class:`~agents.mapgroup.MapGroup`, and keeps its q and the intermediates of its pyramid steps
+(row pass, its transpose). Each member map differs from the base only inside the disks of its
+extra scans, which the group lists; for it, FirstLevels recomputes only where an input changed:
 
 * q on the rows that differ (plus the rows the row pass reads around them);
 * the row pass's output rows that read a changed row (each output row reads five input rows);
@@ -21,8 +19,10 @@ maps). For each map it then recomputes only where an input changed:
 and copies everything else from the reference; G_2 likewise from G_1. The numbers are exactly
 those of computing the map alone: q is element-wise, and numpy gives an element the same value
 in any array or slice (tested); each pyramid output row is the same BLAS call on the same five
-input rows whatever rows are computed with it (:func:`agents.pyramid.reduce_rows`). Maps that
-differ in many rows, tiled maps and maps at another time are computed in full.
+input rows whatever rows are computed with it (:func:`agents.pyramid.reduce_rows`). Maps outside
+a group (tiled maps, maps that left theirs) and members whose extra scans span many rows are
+computed in full. (Comparing maps outside a group with the reference cell by cell to patch them
+too cost about what it saved when they were alike, and more when they were not.)
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ class FirstLevels:
         """A new planning call: the reference is chosen afresh."""
         self._ref: tuple | None = None
         # Per map computed (in order): where its G_1 differs from the reference's (bands of
-        # G_1; [] for the reference itself), or None if it was computed in full.
+        # G_1), or None if it was computed in full.
         self._slots: list[list[_Band] | None] = []
         self._pending: list[tuple[int, np.ndarray, list[_Band]]] = []  # G_1 patches to do (finish)
 
@@ -132,16 +132,12 @@ class FirstLevels:
         (valid only during the call: it may be the reference's, patched for the call)."""
         ny, nx = umap.grid.shape
         extra = umap.extra_disks() if hasattr(umap, "extra_disks") else None  # a MapGroup member's
-        if (self._ref is None and self.reuse and extra is not None and min(ny, nx) >= _MIN_SIDE
-                and len(extra) <= MAX_EXTRA):
-            self._set_reference(umap._group.base, t, None)
-        ref = self._ref
-        if ref is not None and self.reuse and umap.dense and ref[2] == (ny, nx) and ref[3] == t and ref[4] == umap.tau:
-            in_group = extra is not None and ref[0] is umap._group.base
-            if in_group and len(extra) > MAX_EXTRA:
-                bands = None
-            else:
-                bands = _disk_bands([d for d, _ in extra], ny) if in_group else self._compare(umap.to_dense_view(), ref[1])
+        if self.reuse and extra is not None and len(extra) <= MAX_EXTRA and min(ny, nx) >= _MIN_SIDE:
+            base = umap._group.base
+            if self._ref is None:
+                self._set_reference(base, t)
+            ref = self._ref
+            bands = _disk_bands([d for d, _ in extra], ny) if ref[0] is base and ref[1] == t else None
             if bands is not None:
                 self.patched += 1
                 self._band_q(umap, t, bands)
@@ -150,10 +146,6 @@ class FirstLevels:
                 self._slots.append(None)
                 return self._use_patched(bands, use)
         self.full += 1
-        if ref is None and self.reuse and umap.dense and min(ny, nx) >= _MIN_SIDE:
-            q = self._set_reference(umap, t, g1)
-            self._slots.append([])
-            return use(q)
         self._slots.append(None)
         work = self._other_work
         q = work.get("q", (1, ny, nx))
@@ -161,21 +153,18 @@ class FirstLevels:
         pyr_down_stack(q, g1[None], work)
         return use(q[0])
 
-    def _set_reference(self, umap: UncertaintyMap, t: float, g1: np.ndarray | None) -> np.ndarray:
-        """Compute ``umap``'s q and G_1 in full (into ``g1``, or a buffer of its own) and make it
-        the reference; returns its q."""
-        ny, nx = umap.grid.shape
+    def _set_reference(self, base: UncertaintyMap, t: float) -> None:
+        """Compute a group's base's q and G_1 at ``t`` in full and make it the reference."""
+        ny, nx = base.grid.shape
         m, mw = (ny + 1) // 2, (nx + 1) // 2
         work = self._ref_work
         q = work.get("q", (1, ny, nx))
-        umap.uncertainty(t, out=q[0])
-        if g1 is None:
-            g1 = work.get("g1", (m, mw))
+        base.uncertainty(t, out=q[0])
+        g1 = work.get("g1", (m, mw))
         pyr_down_stack(q, g1[None], work)
         # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
         bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
-        self._ref = (umap, umap.to_dense_view(), (ny, nx), t, umap.tau, q[0], bt[0], g1, (m, mw))
-        return q[0]
+        self._ref = (base, t, (ny, nx), q[0], bt[0], g1, (m, mw))
 
     def reduce_g1(self, g1: np.ndarray, g2: np.ndarray, scratch: Scratch) -> bool:
         """G_2 of every map of the call (after all of them were computed), ``g1`` and ``g2``
@@ -184,9 +173,9 @@ class FirstLevels:
         when no map was patched."""
         self.finish()
         slots = self._slots
-        if self._ref is None or len(slots) != len(g1) or all(not b for b in slots):
+        if self._ref is None or len(slots) != len(g1) or all(b is None for b in slots):
             return False
-        ref_g1 = self._ref[7]
+        ref_g1 = self._ref[5]
         n, ncols = ref_g1.shape
         work = self._g2_work
         ref_g2 = work.get("g2", (1, (n + 1) // 2, (ncols + 1) // 2))
@@ -203,7 +192,7 @@ class FirstLevels:
     def _use_patched(self, bands: list[_Band], use: Callable[[np.ndarray], T]) -> T:
         """``use(q)`` of a patched map: the reference's q with this map's changed cells written
         in for the call (they are few; copying the whole map would cost more)."""
-        ref_q = self._ref[5]
+        ref_q = self._ref[3]
         saved = []
         try:
             for b in bands:
@@ -215,37 +204,11 @@ class FirstLevels:
             for rows, cols, old in reversed(saved):
                 ref_q[rows, cols] = old
 
-    def _compare(self, ls: np.ndarray, ref_ls: np.ndarray) -> list[_Band] | None:
-        """Where ``ls`` differs from ``ref_ls`` (bit patterns): bands of rows, each with the
-        columns that differ in it; ``[]`` if nowhere, None if in too many rows."""
-        ny, nx = ls.shape
-        # Two cells per word where the row allows: fewer elements, the same rows.
-        unit = 2 if nx % 2 == 0 else 1
-        word = np.uint64 if unit == 2 else np.uint32
-        mine, theirs = ls.view(word), ref_ls.view(word)
-        ne = self._other_work.get("ne", mine.shape, np.bool_)
-        np.not_equal(mine, theirs, out=ne)
-        at = np.flatnonzero(ne)  # differing words, row by row
-        if at.size == 0:
-            return []
-        width = mine.shape[1]
-        rows = at // width
-        if rows[-1] - rows[0] >= MAX_CHANGED_ROWS * ny and np.unique(rows).size > MAX_CHANGED_ROWS * ny:
-            return None
-        cols = at - rows * width
-        # Bands: runs of changed rows with gaps of at most _MERGE_GAP rows.
-        cuts = (np.flatnonzero(np.diff(rows) > _MERGE_GAP) + 1).tolist()
-        bands = []
-        for a, b in zip([0] + cuts, cuts + [at.size]):
-            c = cols[a:b]
-            bands.append(_Band(int(rows[a]), int(rows[b - 1]) + 1, int(c.min()) * unit, (int(c.max()) + 1) * unit))
-        return bands
-
     def _band_q(self, umap: UncertaintyMap, t: float, bands: list[_Band]) -> None:
         """The q of the rows each band's row pass reads, into the band: the reference's except
         in the band's columns (bands are far enough apart that no band's rows reach another's
         changes)."""
-        _, _, (ny, nx), _, _, ref_q, _, _, (m, mw) = self._ref
+        _, _, (ny, nx), ref_q, _, _, (m, mw) = self._ref
         for b in bands:
             b.qa, qb = max(0, 2 * max(0, (b.r0 - 1) // 2) - 2), min(ny, 2 * min(m - 1, (b.r1 + 1) // 2) + 3)
             b.q = ref_q[None, b.qa : qb].copy()
@@ -256,7 +219,7 @@ class FirstLevels:
         reading any map's G_1."""
         if not self._pending:
             return
-        _, _, (ny, nx), _, _, _, ref_bt, ref_g1, _ = self._ref
+        _, _, (ny, nx), _, ref_bt, ref_g1, _ = self._ref
         for slot, g1, bands in self._pending:
             self._slots[slot] = _patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx)
         self._pending = []

@@ -1,5 +1,5 @@
-"""agents.pyramid_reuse: maps patched from the first map of a planning call get exactly the q and
-G_1 they get computed alone, wherever and however much they differ."""
+"""agents.pyramid_reuse: maps of a MapGroup, patched from the group's base, get exactly the q,
+G_1 and G_2 they get computed alone, whatever scans they hold beyond the base."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from agents.grid import Grid
+from agents.mapgroup import MapGroup
 from agents.pyramid import Scratch, pyr_down_stack, reduce_rows
 from agents.pyramid_reuse import FirstLevels
 from agents.umap import UncertaintyMap
@@ -20,14 +21,6 @@ def same(a, b) -> bool:
     return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 
-def last_seen(rng, shape, t) -> np.ndarray:
-    """Last-seen times as a run leaves them: never (-inf), long ago, recently, now."""
-    ls = (t - rng.exponential(300.0, shape)).astype(np.float32)
-    ls[rng.random(shape) < 0.2] = -np.inf
-    ls[rng.random(shape) < 0.05] = np.float32(t)
-    return ls
-
-
 def alone(umap: UncertaintyMap, t: float) -> tuple[np.ndarray, np.ndarray]:
     """q and G_1 of one map computed on its own (the planner's path before reuse)."""
     ny, nx = umap.grid.shape
@@ -37,32 +30,47 @@ def alone(umap: UncertaintyMap, t: float) -> tuple[np.ndarray, np.ndarray]:
     return q[0], g1[0]
 
 
-edits = st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.integers(1, 30), st.integers(1, 30),
-                           st.sampled_from(["now", "never", "older", "one"])), max_size=4)
+def assert_second_levels(levels: FirstLevels, g1: np.ndarray) -> None:
+    """reduce_g1 gives every map the G_2 it gets alone (or leaves it to the caller)."""
+    h, w = g1.shape[1:]
+    g2 = np.full((len(g1), (h + 1) // 2, (w + 1) // 2), np.nan, np.float32)
+    if not levels.reduce_g1(g1, g2, Scratch()):
+        assert levels.patched == 0  # nothing to reuse: the caller reduces them all
+        return
+    for i in range(len(g1)):
+        expected = np.empty((1,) + g2.shape[1:], np.float32)
+        pyr_down_stack(np.ascontiguousarray(g1[i : i + 1]), expected, Scratch())
+        assert same(g2[i], expected[0])
+
+
+# A scan: (fraction of the width, of the height, radius in cells, time back from now).
+scans = st.tuples(st.floats(-0.1, 1.1), st.floats(-0.1, 1.1), st.floats(0.6, 12.0), st.integers(0, 900))
 
 
 @settings(max_examples=80, deadline=None)
-@given(h=st.integers(16, 90), w=st.integers(16, 90), seed=st.integers(0, 2**32 - 1), maps=st.lists(edits, min_size=1, max_size=4))
-def test_patched_maps_get_the_numbers_they_get_alone(h, w, seed, maps):
-    rng = np.random.default_rng(seed)
+@given(h=st.integers(16, 90), w=st.integers(16, 90), common=st.lists(scans, max_size=12),
+       extra=st.lists(st.lists(scans, max_size=4), min_size=1, max_size=5), plain=st.booleans())
+def test_patched_maps_get_the_numbers_they_get_alone(h, w, common, extra, plain):
     t = 1000.0
     grid = Grid(w * 100.0, h * 100.0, 100.0)
-    base = last_seen(rng, (h, w), t)
-    umaps = [UncertaintyMap(grid, TAU, base)]
-    for boxes in maps:  # each further map: the first with a few boxes changed
-        ls = base.copy()
-        for fy, fx, bh, bw, kind in boxes:
-            r0, c0 = int(fy * (h - 1)), int(fx * (w - 1))
-            box = ls[r0 : r0 + bh, c0 : c0 + bw]
-            if kind == "now":
-                box[...] = np.float32(t)
-            elif kind == "never":
-                box[...] = -np.inf
-            elif kind == "older":
-                box -= np.float32(50.0)
-            else:
-                box[0, 0] = np.nextafter(box[0, 0], np.float32(np.inf))  # one bit in one cell
-        umaps.append(UncertaintyMap(grid, TAU, ls))
+    group = MapGroup(grid, TAU, 1.0)
+    maps = [group.new_map() for _ in extra]
+
+    def disk(s):
+        fx, fy, r, back = s
+        return grid.disk_stamp(fx * grid.width_m, fy * grid.height_m, r * 100.0), t - back
+
+    for s in common:  # every member has these: they go to the base
+        d, ts = disk(s)
+        if d is not None:
+            for m in maps:
+                m.stamp(d, ts)
+    for m, mine in zip(maps, extra):  # and each a few of its own
+        for s in mine:
+            d, ts = disk(s)
+            if d is not None:
+                m.stamp(d, ts)
+    umaps = maps + ([UncertaintyMap(grid, TAU, maps[0].to_dense())] if plain else [])  # one outside the group
     levels = FirstLevels()
     g1 = np.empty((len(umaps), (h + 1) // 2, (w + 1) // 2), np.float32)
     for _ in range(2):  # a second call reuses the buffers
@@ -74,49 +82,34 @@ def test_patched_maps_get_the_numbers_they_get_alone(h, w, seed, maps):
         for i, u in enumerate(umaps):
             assert same(g1[i], alone(u, t)[1])
         assert_second_levels(levels, g1)
-        # Patching a map's q for its user left the first map's q as it was.
-        assert same(levels.compute(umaps[1], t, np.empty_like(g1[1]), np.copy), alone(umaps[1], t)[0])
-    assert levels.full + levels.patched == 2 * (len(umaps) + 1)
-
-
-def assert_second_levels(levels: FirstLevels, g1: np.ndarray) -> None:
-    """reduce_g1 gives every map the G_2 it gets alone (or leaves it to the caller)."""
-    h, w = g1.shape[1:]
-    g2 = np.full((len(g1), (h + 1) // 2, (w + 1) // 2), np.nan, np.float32)
-    if not levels.reduce_g1(g1, g2, Scratch()):
-        return  # nothing to reuse: the caller reduces them all
-    for i in range(len(g1)):
-        expected = np.empty((1,) + g2.shape[1:], np.float32)
-        pyr_down_stack(np.ascontiguousarray(g1[i : i + 1]), expected, Scratch())
-        assert same(g2[i], expected[0])
+        # Patching a map's q for its user left the reference's q as it was.
+        assert same(levels.compute(umaps[0], t, np.empty_like(g1[0]), np.copy), alone(umaps[0], t)[0])
+    assert levels.patched + levels.full == 2 * (len(umaps) + 1)
+    assert levels.full >= 2 * int(plain)
 
 
 def test_maps_are_patched_only_when_they_may_be():
     grid = Grid(6400.0, 6400.0, 100.0)
-    rng = np.random.default_rng(3)
-    base = last_seen(rng, (64, 64), 500.0)
-    near = base.copy()
-    near[10:14, 20:30] = 500.0
-    far = base.copy()
-    far[::2] = 500.0  # half the rows differ
+    group = MapGroup(grid, TAU, 1.0)
+    a, b, c = group.new_map(), group.new_map(), group.new_map()
+    for m in (a, b, c):
+        m.stamp(grid.disk_stamp(3000.0, 3000.0, 900.0), 490.0)
+    b.stamp(grid.disk_stamp(1000.0, 1200.0, 400.0), 499.0)
+    for k in range(12):  # c's extra scans span most of its rows
+        c.stamp(grid.disk_stamp(500.0 + 450.0 * k, 300.0 + 500.0 * k, 600.0), 480.0 + k)
+    plain = UncertaintyMap(grid, TAU)
     levels = FirstLevels()
     g1 = np.empty((32, 32), np.float32)
     levels.start()
-    for ls in (base, near, far):
-        levels.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, np.copy)
-    levels.finish()
-    assert (levels.full, levels.patched) == (2, 1)
-    # Another time, tau or a tiled map: computed in full.
-    for u, t in ((UncertaintyMap(grid, TAU, near), 501.0), (UncertaintyMap(grid, 2 * TAU, near), 500.0),
-                 (UncertaintyMap(grid, TAU, near, tile=16), 500.0)):
-        levels.compute(u, t, g1, np.copy)
+    for u in (a, b, c, plain):
+        levels.compute(u, 500.0, g1, np.copy)
         levels.finish()
-        assert same(g1, alone(u, t)[1])
-    assert (levels.full, levels.patched) == (5, 1)
+        assert same(g1, alone(u, 500.0)[1])
+    assert (levels.patched, levels.full) == (2, 2)
     off = FirstLevels(reuse=False)
     off.start()
-    for ls in (base, near):
-        off.compute(UncertaintyMap(grid, TAU, ls), 500.0, g1, np.copy)
+    for u in (a, b):
+        off.compute(u, 500.0, g1, np.copy)
     assert (off.full, off.patched) == (2, 0)
 
 
@@ -143,9 +136,7 @@ def test_part_of_a_row_reduce_is_the_whole_reduce_there(n, ncols, lo, span, seed
 def test_group_maps_patched_from_the_base_get_the_numbers_they_get_alone(seed, late):
     """As a swarm plans: every map has the others' scans up to the last tick and its own of this
     one (plus a few scans heard late or not at all); maps in a MapGroup are patched from the
-    group's base, maps that left it are compared with it."""
-    from agents.mapgroup import MapGroup
-
+    group's base, maps that left it are computed in full."""
     rng = np.random.default_rng(seed)
     grid = Grid(12000.0, 10000.0, 100.0)
     scans = {(o, k): grid.disk_stamp(*map(float, rng.uniform(0, 10000, 2)), float(rng.uniform(150, 600)))
