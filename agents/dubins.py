@@ -166,7 +166,7 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
     # |p - c_L|^2 - 1 = x^2 + (y-1)^2 - 1 = x^2 + y (y - 2)   (exact for y == 0: t == |x|)
     t2 = x * x
     t2 += y * (y - 2.0)
-    inside = t2 < 0.0
+    inside = np.flatnonzero(t2 < 0.0)  # (flat indices: cheaper to gather and scatter than a mask)
 
     # --- CS (LS) for every point; overwritten below for points inside the left circle.
     t = np.maximum(t2, 0.0)
@@ -187,8 +187,8 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
     out += t
 
     # --- CC (RL) for points strictly inside the left turning circle (usually none).
-    if inside.any():
-        xi, yi = xy[:, inside]
+    if inside.size:
+        xi, yi = xy.reshape(2, -1).take(inside, axis=1)
         qy = yi + 1.0  # q = p - c_R, c_R = (0, -1); 1 < |q| < 3 here
         dq = np.hypot(xi, qy)
         cos_gamma = (dq * dq + 3.0) / (4.0 * dq)
@@ -205,7 +205,7 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
         b = np.mod(np.arctan2(qy - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
         # b lies in (pi, 2 pi): a value near 0 is 2 pi lost to rounding (point at the start)
         np.add(b, _TWO_PI, out=b, where=b < 0.5 * math.pi)
-        out[inside] = a + b
+        out.put(inside, a + b)
 
     out *= r  # (a point at the start, d = (0, 0), gets +0.0 from the formula itself)
     return out
