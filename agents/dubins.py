@@ -166,7 +166,7 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
     # |p - c_L|^2 - 1 = x^2 + (y-1)^2 - 1 = x^2 + y (y - 2)   (exact for y == 0: t == |x|)
     t2 = x * x
     t2 += y * (y - 2.0)
-    inside = np.flatnonzero(t2 < 0.0)  # (flat indices: cheaper to gather and scatter than a mask)
+    inside = (t2.ravel() < 0.0).nonzero()[0]  # flat indices: cheaper to gather and scatter than a mask
 
     # --- CS (LS) for every point; overwritten below for points inside the left circle.
     t = np.maximum(t2, 0.0)

@@ -568,6 +568,6 @@ class _Layers:
         idx = self.row_part.take(iy, axis=1, mode="clip")  # (levels, UAVs, points)
         idx += self.col_part.take(ix, axis=1, mode="clip")
         idx += base
-        terms = self.flat.take(idx) * lam  # float64: lambda_l * G_l
+        terms = self.flat.take(idx).astype(np.float64) * lam  # lambda_l * G_l (float64: same-type multiply)
         # A reduction over the first axis adds whole rows, one level after the other.
         return np.add.reduce(terms, axis=0, initial=0.0)
