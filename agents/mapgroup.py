@@ -181,6 +181,11 @@ class GroupMap(UncertaintyMap):
     def member(self) -> bool:
         return self._extra is not None
 
+    @property
+    def base(self) -> UncertaintyMap:
+        """The group's shared base map (read-only for users: the group writes it)."""
+        return self._group.base
+
     def extra_disks(self) -> list[tuple[Disk, float]] | None:
         """``(disk, t)`` of the scans it has beyond the group's base (outside their disks the
         map equals the base), or None if it is not a member."""

@@ -133,7 +133,7 @@ class FirstLevels:
         ny, nx = umap.grid.shape
         extra = umap.extra_disks() if hasattr(umap, "extra_disks") else None  # a MapGroup member's
         if self.reuse and extra is not None and len(extra) <= MAX_EXTRA and min(ny, nx) >= _MIN_SIDE:
-            base = umap._group.base
+            base = umap.base
             if self._ref is None:
                 self._set_reference(base, t)
             ref = self._ref
