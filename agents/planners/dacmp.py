@@ -473,6 +473,16 @@ def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, 
 
 
 @functools.lru_cache(maxsize=16)
+def _cell_parts(ny: int, nx: int, search: tuple[int, ...], shapes: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``_Layers.row_part`` and ``col_part`` of a grid (the same for every call on it; read-only)."""
+    row_part = np.stack([np.minimum(level_index(np.arange(ny), l), shapes[l][0] - 1) * shapes[l][1] for l in search])
+    col_part = np.stack([np.minimum(level_index(np.arange(nx), l), shapes[l][1] - 1) for l in search])
+    row_part.flags.writeable = False
+    col_part.flags.writeable = False
+    return row_part, col_part
+
+
+@functools.lru_cache(maxsize=16)
 def _sub_areas(h: int, w: int, ny: int, nx: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
     """Row and column edges of the guide's ``ny x nx`` sub-areas of an ``h x w`` map."""
     rows = np.linspace(0, h, ny + 1).round().astype(np.intp)
@@ -509,15 +519,12 @@ class _Layers:
         # Per-axis cell offsets on each search level: row part (times the level's width) and
         # column part of the nearest coarse cell of every level-0 row / column (rounded to the
         # nearest centre, clipped to the level: agents.pyramid.level_index).
-        self.row_part = np.stack([np.minimum(level_index(np.arange(g.ny), l), shapes[l][0] - 1) * shapes[l][1]
-                                  for l in self.search])
-        self.col_part = np.stack([np.minimum(level_index(np.arange(g.nx), l), shapes[l][1] - 1)
-                                  for l in self.search])
+        self.row_part, self.col_part = _cell_parts(g.ny, g.nx, tuple(self.search), tuple(shapes))
         # The coarsest layer with >= 4 x 4 cells sets the guide's sub-areas (eq. 20).
         regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
         self.guides: list[tuple[float, float] | None] = []
         first = self._level(0, shapes[self.search[0]])  # G_1 (G_0 if it is the only level)
-        maps = planner._first_levels  # q and G_1, reusing the first map's work (agents.pyramid_reuse)
+        maps = planner._first_levels  # q, G_1, G_2 patched from the UAVs' MapGroup base (agents.pyramid_reuse)
         maps.start()
         for i, view in enumerate(views):
             # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
