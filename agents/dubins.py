@@ -47,9 +47,9 @@ A point with ``y >= 0`` can never be strictly inside the right circle.
 
 The length is discontinuous across the front arcs of the two turning circles (just outside: a
 short arc; just inside: a long CC loop); that is a property of the problem, not of the code.
-Points *exactly* at the start position get length 0 (the formula gives exactly +0.0 there:
-``x = y = t = 0``, ``alpha = atan2(+-0, 1) = +-0``, and ``+-0 + 0 = +0``).  ``r_min <= 0`` means
-no turning constraint: the Euclidean distance.
+Points *exactly* at the start position get length 0 (the formula already gives it; it is also
+guarded explicitly, for radii so small that ``1 / r`` overflows).  ``r_min <= 0`` means no
+turning constraint: the Euclidean distance.
 
 Everything is vectorised with numpy (no Python loop over points). :class:`DubinsPoses` keeps the
 start poses' terms for repeated calls (a planner's particle swarm evaluates the same poses a few
@@ -207,5 +207,9 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
         np.add(b, _TWO_PI, out=b, where=b < 0.5 * math.pi)
         out.put(inside, a + b)
 
-    out *= r  # (a point at the start, d = (0, 0), gets +0.0 from the formula itself)
+    out *= r
+    # A point at the start gets +0.0 from the formula itself, but not with a radius whose
+    # inverse overflows (0 * inf): guarded.
+    zero = d == 0.0
+    out[zero[0] & zero[1]] = 0.0
     return out
