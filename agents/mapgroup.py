@@ -164,7 +164,7 @@ class GroupMap(UncertaintyMap):
     :meth:`to_dense_view` is a view of cells built for the call, not of live storage (it does
     not follow later stamps; call it again after them)."""
 
-    __slots__ = ("_group", "_extra", "_built")
+    __slots__ = ("_group", "_extra", "_writes", "_built")
 
     def __init__(self, group: MapGroup):
         base = group.base
@@ -172,14 +172,10 @@ class GroupMap(UncertaintyMap):
         self.tile_shape, self.dense = base.tile_shape, True
         self._nty = self._ntx = 1
         self._tiles = {}  # the built cells (a buffer), or the map's own array once it left
-        self.version = 0
+        self._writes = 0  # stamps while a member: the built cells are current while it is unchanged
         self._group = group
         self._extra: dict[tuple, tuple[Disk, float]] | None = {}  # key -> (disk, t); None: left
-        self._built = -1  # version the buffer was built at
-
-    @property
-    def member(self) -> bool:
-        return self._extra is not None
+        self._built = -1  # _writes when the buffer was built
 
     @property
     def base(self) -> UncertaintyMap:
@@ -197,7 +193,7 @@ class GroupMap(UncertaintyMap):
         if self._extra is None or d.key is None:
             self._leave()
             return super().stamp(d, t)
-        self.version += 1
+        self._writes += 1
         self._group._add(self, (d.key, t), d, t)
 
     def scan_disk(self, d: Disk, t: float) -> int:
@@ -227,14 +223,14 @@ class GroupMap(UncertaintyMap):
         for d, t in self._extra.values():
             view = buf[d.rows, d.cols]
             np.maximum(view, d.values(t), out=view)
-        self._built = self.version
+        self._built = self._writes
 
     def _materialize(self) -> None:
-        if self._extra is not None and self._built != self.version:
+        if self._extra is not None and self._built != self._writes:
             self._own_array()
 
     def region(self, rows: slice, cols: slice) -> np.ndarray:
-        if self._extra is None or self._built == self.version:
+        if self._extra is None or self._built == self._writes:
             return super().region(rows, cols)
         out = self._group.base._tiles[0][rows, cols].copy()
         r0, c0 = rows.start, cols.start
@@ -248,7 +244,7 @@ class GroupMap(UncertaintyMap):
 
     def _cells(self, ix, iy) -> np.ndarray:
         ix, iy = np.broadcast_arrays(np.asarray(ix), np.asarray(iy))
-        if (self._extra is None or self._built == self.version or ix.ndim == 0 or ix.dtype.kind not in "iu"
+        if (self._extra is None or self._built == self._writes or ix.ndim == 0 or ix.dtype.kind not in "iu"
                 or iy.dtype.kind not in "iu" or (ix.size and (ix.min() < 0 or iy.min() < 0))):
             self._materialize()  # (whole cells for the unusual cases: index checks as usual)
             return super()._cells(ix, iy)

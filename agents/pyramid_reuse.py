@@ -36,7 +36,7 @@ from agents.grid import Disk
 from agents.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
 from agents.umap import UncertaintyMap
 
-# A map is patched when at most this share of its rows differ from the first map's; beyond
+# A map is patched when at most this share of its rows differ from the reference's; beyond
 # that, recomputing the patched rows and columns costs about what the whole map costs.
 MAX_CHANGED_ROWS = 0.35
 # Runs of changed rows closer than this are patched as one band (the row-pass output rows
@@ -44,15 +44,15 @@ MAX_CHANGED_ROWS = 0.35
 _MERGE_GAP = 8
 # Maps smaller than this (rows or columns) are always computed in full.
 _MIN_SIDE = 16
-# A group member with more extra scans than this is compared with the reference instead.
+# A group member with more extra scans than this is computed in full.
 MAX_EXTRA = 64
 
 T = TypeVar("T")
 
 
 class _Band:
-    """Rows ``r0:r1`` of a map that differ from the first map's, within columns ``c0:c1``; its
-    q on rows ``qa:qa + len(q)`` and row-pass output rows ``i_lo..i_hi``."""
+    """Rows ``r0:r1`` of a map that may differ from the reference's, within columns ``c0:c1``;
+    its q on rows ``qa:qa + len(q)`` and row-pass output rows ``i_lo..i_hi``."""
 
     __slots__ = ("r0", "r1", "c0", "c1", "qa", "q", "i_lo", "i_hi", "rows")
 
@@ -75,6 +75,14 @@ def _disk_bands(disks: list[Disk], ny: int) -> list[_Band] | None:
     return bands
 
 
+def _row_reads(b: _Band, n: int) -> tuple[int, int, int, int]:
+    """The row-pass output rows ``i_lo..i_hi`` that read a row of band ``b`` of an ``n``-row
+    input (output row i reads input rows 2i - 2 .. 2i + 2, clipped), and the input rows
+    ``a:z`` they read."""
+    i_lo, i_hi = max(0, (b.r0 - 1) // 2), min((n + 1) // 2 - 1, (b.r1 + 1) // 2)
+    return i_lo, i_hi, max(0, 2 * i_lo - 2), min(n, 2 * i_hi + 3)
+
+
 def _patch_level(ref_rows_t: np.ndarray, ref_out: np.ndarray, out: np.ndarray, bands: list[_Band],
                  rows_of: Callable[[_Band, int, int], np.ndarray], n: int, ncols: int) -> list[_Band]:
     """One pyramid step of a map that differs from the reference map only inside ``bands`` (of
@@ -84,10 +92,9 @@ def _patch_level(ref_rows_t: np.ndarray, ref_out: np.ndarray, out: np.ndarray, b
     changed cells must be right in it). Returns the bands of the output that changed."""
     m, mw = (n + 1) // 2, (ncols + 1) // 2
     np.copyto(out, ref_out)
-    # Row pass: output rows i read input rows 2i - 2 .. 2i + 2 (clipped).
+    # Row pass: only the output rows that read a changed row.
     for b in bands:
-        b.i_lo, b.i_hi = max(0, (b.r0 - 1) // 2), min(m - 1, (b.r1 + 1) // 2)
-        a, z = max(0, 2 * b.i_lo - 2), min(n, 2 * b.i_hi + 3)
+        b.i_lo, b.i_hi, a, z = _row_reads(b, n)
         b.rows = np.empty((1, b.i_hi - b.i_lo + 1, ncols), out.dtype)
         reduce_rows(rows_of(b, a, z)[None], b.rows, n=n, row0=a, lo=b.i_lo, hi=b.i_hi)
     # Column pass (on the transpose): output column j reads row-pass columns 2j - 2 .. 2j + 2.
@@ -113,7 +120,7 @@ class FirstLevels:
     def __init__(self, reuse: bool = True) -> None:
         self.reuse = reuse  # False: every map in full (the same numbers; for tests and benchmarks)
         self._ref_work = Scratch()  # the reference's q and pyramid intermediates
-        self._other_work = Scratch()  # maps computed in full after the reference
+        self._other_work = Scratch()  # maps computed in full
         self._g2_work = Scratch()  # the reference's second pyramid step (reduce_g1)
         self.patched = 0  # maps computed by patching (for tests and benchmarks)
         self.full = 0
@@ -164,7 +171,7 @@ class FirstLevels:
         pyr_down_stack(q, g1[None], work)
         # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
         bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
-        self._ref = (base, t, (ny, nx), q[0], bt[0], g1, (m, mw))
+        self._ref = (base, t, (ny, nx), q[0], bt[0], g1)
 
     def reduce_g1(self, g1: np.ndarray, g2: np.ndarray, scratch: Scratch) -> bool:
         """G_2 of every map of the call (after all of them were computed), ``g1`` and ``g2``
@@ -208,9 +215,9 @@ class FirstLevels:
         """The q of the rows each band's row pass reads, into the band: the reference's except
         in the band's columns (bands are far enough apart that no band's rows reach another's
         changes)."""
-        _, _, (ny, nx), ref_q, _, _, (m, mw) = self._ref
+        _, _, (ny, nx), ref_q, _, _ = self._ref
         for b in bands:
-            b.qa, qb = max(0, 2 * max(0, (b.r0 - 1) // 2) - 2), min(ny, 2 * min(m - 1, (b.r1 + 1) // 2) + 3)
+            _, _, b.qa, qb = _row_reads(b, ny)
             b.q = ref_q[None, b.qa : qb].copy()
             umap.q_into(t, umap.region(slice(b.qa, qb), slice(b.c0, b.c1)), b.q[0, :, b.c0 : b.c1])
 
@@ -219,7 +226,7 @@ class FirstLevels:
         reading any map's G_1."""
         if not self._pending:
             return
-        _, _, (ny, nx), _, ref_bt, ref_g1, _ = self._ref
+        _, _, (ny, nx), _, ref_bt, ref_g1 = self._ref
         for slot, g1, bands in self._pending:
             self._slots[slot] = _patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx)
         self._pending = []

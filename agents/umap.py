@@ -62,7 +62,7 @@ class UncertaintyMap:
     ``(ny, nx)`` array to start from (copied).
     """
 
-    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles", "version")
+    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles")
 
     def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None, *, tile=None):
         self.grid = grid
@@ -80,9 +80,6 @@ class UncertaintyMap:
         # tile key ty * ntx + tx -> float32 cells (dense: the (ny, nx) grid; tiled: th * tw flat,
         # row-major); an absent tile is all -inf.
         self._tiles: dict[int, np.ndarray] = {}
-        # Writes so far (each scan, stamp, cover or merge counts one): a map sharing storage
-        # (agents.mapgroup) rebuilds its cells only after one.
-        self.version = 0 if last_seen is None else 1
         if dense:
             if last_seen is not None:
                 self._tiles[0] = np.array(last_seen, dtype=np.float32)
@@ -126,7 +123,6 @@ class UncertaintyMap:
 
     def scan_disk(self, d: Disk, t: float) -> int:
         """Apply a scan whose disk is ``d`` (from ``grid.disk_stamp``) at ``t``; returns cells changed."""
-        self.version += 1
         t = np.float32(t)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
@@ -149,7 +145,6 @@ class UncertaintyMap:
     def stamp(self, d: Disk, t: float) -> None:
         """:meth:`scan_disk` without the count: one ``maximum`` with the disk's shared
         ``where(mask, t, -inf)`` per tile piece (the fast path for heard scan records)."""
-        self.version += 1
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
             memo = d._vmemo  # Disk.values() memo, inlined (the per-receiver hot path)
@@ -168,7 +163,6 @@ class UncertaintyMap:
 
     def cover(self, d: Disk, t: float) -> int:
         """Like :meth:`stamp`, but returns how many of the disk's cells had never been seen."""
-        self.version += 1
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
             new = int(np.count_nonzero(d.mask & (view == NEVER)))
@@ -189,7 +183,6 @@ class UncertaintyMap:
 
     def merge(self, other: "UncertaintyMap | np.ndarray") -> None:
         """Per-cell max with another map or a full ``(ny, nx)`` array (in place)."""
-        self.version += 1
         if isinstance(other, UncertaintyMap):
             other._materialize()
             if other.grid.shape != self.grid.shape:
@@ -235,7 +228,6 @@ class UncertaintyMap:
         new.dense = self.dense
         new._nty, new._ntx = self._nty, self._ntx
         new._tiles = {k: v.copy() for k, v in self._tiles.items()}
-        new.version = self.version
         return new
 
     # --- reads ------------------------------------------------------------------------------
