@@ -9,7 +9,7 @@ A step: drain the inbox (decode, schema-check, merge; malformed frames are count
 and skipped) -> own scan and sightings -> replan if due -> local planner (APF) -> outbox.
 The replan sits between two halves (:meth:`UavActor.observe`, :meth:`UavActor.act`) so that the
 simulator can serve every UAV due in one tick with one batched planner call
-(:mod:`agents.batching`); a decision is still made from the UAV's own view and random stream.
+(:mod:`agents.planners.batching`); a decision is still made from the UAV's own view and random stream.
 """
 
 from __future__ import annotations
@@ -23,13 +23,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from agents.apf import ApfSettings, apf_command
-from agents.grid import Grid
+from agents.maps.grid import Grid
 from agents.knowledge import KnownThreat, Knowledge
-from agents.mapgroup import MapGroup
+from agents.maps.mapgroup import MapGroup
 from agents.planners.base import Plan, Planner, PlanView
-from agents.scanlog import ScanLog
+from agents.maps.scanlog import ScanLog
 from agents.types import GRAVITY, UavType
-from agents.umap import UncertaintyMap
+from agents.maps.umap import UncertaintyMap
 from comms.codec import FrameError, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -114,7 +114,7 @@ class ActorSettings:
     loiter_radius_factor: float = 0.5
     loiter_turn_factor: float = 1.25
     loiter_gain: float = 1.0
-    sync_every_s: float = 5.0  # anti-entropy digest period (0: off); see agents.scanlog
+    sync_every_s: float = 5.0  # anti-entropy digest period (0: off); see agents.maps.scanlog
     sync_settle_s: float = 2.0  # the digest covers scans up to this long ago (in flight: not missing)
     sync_max_records: int = 4000  # scans resent in answer to one digest
     sync_horizon_s: float = 600.0  # scans older than this are neither kept nor compared
@@ -155,7 +155,7 @@ class UavActor:
         self.rng = rng
         self.settings = settings
         self.mailbox = mailbox
-        # Its own map; in a MapGroup (agents.mapgroup) it shares storage with the others' maps
+        # Its own map; in a MapGroup (agents.maps.mapgroup) it shares storage with the others' maps
         # (the same cells as a map of its own).
         self.umap = map_group.new_map() if map_group is not None else UncertaintyMap(grid, tau)
         self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
@@ -397,7 +397,7 @@ class UavActor:
         return received
 
     def _answer_digests(self, t: float) -> list[tuple[int, bytes]]:
-        """Send each digest's sender the scans it lacks (anti-entropy, agents.scanlog), as
+        """Send each digest's sender the scans it lacks (anti-entropy, agents.maps.scanlog), as
         frames addressed to it alone.
 
         Not every neighbour answers: in a dense swarm a digest is heard by hundreds of UAVs,
@@ -455,7 +455,7 @@ class UavActor:
                 self._pending_scans = []
             if s.sync_every_s > 0 and t >= self._next_digest and room > _FRAME_SLACK:
                 # The digest rides on the beacon (no extra frame); a long run's digest is split
-                # over several beacons (agents.scanlog.ScanLog.digest).
+                # over several beacons (agents.maps.scanlog.ScanLog.digest).
                 t_cut = t - s.sync_settle_s
                 self.scans.forget_before(t)
                 tick0, lo, hi, bitmaps, self._digest_start = self.scans.digest(t_cut, self._digest_start, room)

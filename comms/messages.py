@@ -84,7 +84,7 @@ class Threats:
 
 @dataclass(frozen=True, slots=True)
 class ScanDigest:
-    """Anti-entropy: which scans the sender knows (see :mod:`agents.scanlog`).
+    """Anti-entropy: which scans the sender knows (see :mod:`agents.maps.scanlog`).
 
     ``bitmaps`` holds ``(origin, bits)`` pairs: bit ``j % 8`` of byte ``j // 8`` set when the
     sender knows ``origin``'s scan of tick ``tick0 + j``, for ticks up to ``t_cut``. The digest

@@ -103,7 +103,7 @@ def _cmd_run(args) -> int:
 
 def _parse_grid(assignments: list[str]) -> dict[str, list]:
     from swarm.scenario import parse_assignment
-    from swarm.sweep import split_values
+    from swarm.experiments.sweep import split_values
 
     grid: dict[str, list] = {}
     for text in assignments:
@@ -131,7 +131,7 @@ def _cmd_sweep(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from swarm.scenario import load_scenario
-    from swarm.sweep import plan_runs, run_sweep
+    from swarm.experiments.sweep import plan_runs, run_sweep
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
     bad = [p for p in planners if p not in ("dacmp", "greedy")]
@@ -158,7 +158,7 @@ def _cmd_sweep(args) -> int:
         if client is not None:
             client.close()
     summary = result.summary
-    from swarm.report import write_sweep_report
+    from swarm.viz.report import write_sweep_report
 
     report = write_sweep_report(args.out, summary)
     if not args.quiet:
@@ -218,7 +218,7 @@ def _experiment_runner(args):
 
 
 def _cmd_paper(args) -> int:
-    from swarm.paper import run_paper
+    from swarm.experiments.paper import run_paper
 
     if args.seeds is not None and args.seeds < 1:
         raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
@@ -251,7 +251,7 @@ def _cmd_paper(args) -> int:
 
 
 def _cmd_resilience(args) -> int:
-    from swarm.resilience import parse_values, run_resilience
+    from swarm.experiments.resilience import parse_values, run_resilience
 
     if args.seeds < 1:
         raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
@@ -309,7 +309,7 @@ def _resilience_table(report):
 
 
 def _cmd_bench(args) -> int:
-    from swarm.bench import CASES, main as bench_main
+    from swarm.experiments.bench import CASES, main as bench_main
 
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:
@@ -320,7 +320,7 @@ def _cmd_bench(args) -> int:
 def _cmd_animate(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from swarm.animate import prepare_animation
+    from swarm.viz.animate import prepare_animation
 
     job = prepare_animation(args.rundir, args.out, fps=args.fps, speed=args.speed, trail_s=args.trail)
     err = _console(stderr=True)
@@ -340,7 +340,7 @@ def _cmd_animate(args) -> int:
 
 
 def _cmd_report(args) -> int:
-    from swarm.report import write_report
+    from swarm.viz.report import write_report
 
     path = write_report(args.rundir, args.out, animation=args.animation)
     if not args.quiet:

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.grid import Grid
-from agents.umap import DENSE_MAX_CELLS, NEVER, UncertaintyMap
+from agents.maps.grid import Grid
+from agents.maps.umap import DENSE_MAX_CELLS, NEVER, UncertaintyMap
 from comms.messages import MODE_SURVEIL
 
 

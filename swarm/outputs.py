@@ -41,7 +41,7 @@ def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -
     if scenario_dict is not None:
         files["scenario.json"] = json.dumps(scenario_dict, indent=2).encode()
     if figures:
-        from swarm.plots import trajectories_figure
+        from swarm.viz.plots import trajectories_figure
 
         png = io.BytesIO()
         trajectories_figure(result, png)

@@ -37,13 +37,13 @@ import numpy as np
 
 from agents.actor import ActorOutput, ActorSettings, UavActor
 from agents.apf import ApfSettings
-from agents.batching import PlanBatcher
-from agents.grid import PREFETCH_MIN, Grid
+from agents.planners.batching import PlanBatcher
+from agents.maps.grid import PREFETCH_MIN, Grid
 from agents.knowledge import KnownThreat
-from agents.mapgroup import MapGroup
+from agents.maps.mapgroup import MapGroup
 from agents.planners import make_planner
 from agents.planners.base import Plan
-from agents.umap import DENSE_MAX_CELLS
+from agents.maps.umap import DENSE_MAX_CELLS
 from agents.types import UavType
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -140,7 +140,7 @@ class Simulation:
     ):
         """``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
         planner call (same event log as planning one by one, only faster; see
-        :mod:`agents.batching`). ``False`` makes each actor call its planner itself."""
+        :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself."""
         if not isinstance(scenario, Scenario):
             scenario = load_scenario(scenario)
         overrides = {}
@@ -177,7 +177,7 @@ class Simulation:
         self.world = World(self.grid, self.targets, threats)
         self.metrics = Metrics(self.grid, self.tau)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
-        # agents.mapgroup): on areas small enough for dense maps.
+        # agents.maps.mapgroup): on areas small enough for dense maps.
         self._map_group = MapGroup(self.grid, self.tau, self.dt) if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS else None
 
         self.names: dict[str, int] = {}  # shared with the injector: names added later resolve
@@ -443,7 +443,7 @@ class Simulation:
             self._flush_plans_if_all_waiting()
 
     async def _plan_for(self, actor: UavActor, view) -> Plan:
-        """An actor's plan request (see :mod:`agents.batching`)."""
+        """An actor's plan request (see :mod:`agents.planners.batching`)."""
         fut = self._batcher.request(actor, view)
         self._flush_plans_if_all_waiting()
         return await fut
@@ -744,7 +744,7 @@ class Simulation:
                 "mailbox_dropped_full": a.mailbox.stats.dropped_full,
                 "mailbox_max_depth": a.mailbox.stats.max_depth,
                 "plans": a.counters.plans,
-                "scans_known": a.scans.count,  # own and heard scans in its log (agents.scanlog)
+                "scans_known": a.scans.count,  # own and heard scans in its log (agents.maps.scanlog)
                 "scans_resent": a.counters.scans_resent,  # answers to neighbours' digests
                 "scans_ignored": a.counters.scans_ignored,  # heard scans with absurd values
             }

@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from agents.actor import SensedTarget, SensorReading
 from agents.dynamics import clamp, command_violates, integrate, limit_command, wrap_angle
-from agents.grid import Grid
+from agents.maps.grid import Grid
 from agents.knowledge import KnownThreat
 from agents.types import UavType
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, settings
 
-from faults.strategies import ALL_KINDS
+from swarm.testing.fault_strategies import ALL_KINDS
 
 DATA = Path(__file__).parent / "data"
 

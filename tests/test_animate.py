@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from swarm.animate import (
+from swarm.viz.animate import (
     DEFAULT_FPS,
     DEFAULT_SPEED,
     AnimateError,
@@ -21,8 +21,8 @@ from swarm.animate import (
     prepare_animation,
 )
 from swarm.cli import main
-from swarm.replay import CoverageRaster, RunDirError, fault_events, first_seen_map, load_run
-from swarm.style import many_uavs, type_markers, uav_colours
+from swarm.viz.replay import CoverageRaster, RunDirError, fault_events, first_seen_map, load_run
+from swarm.viz.style import many_uavs, type_markers, uav_colours
 
 DATA = Path(__file__).parent / "data"
 

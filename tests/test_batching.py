@@ -1,4 +1,4 @@
-"""Batched planning (agents.batching, DacmpPlanner.plan_many) gives the one-by-one results.
+"""Batched planning (agents.planners.batching, DacmpPlanner.plan_many) gives the one-by-one results.
 
 The simulator serves every UAV that replans in a tick with one planner call. That is only a
 speed-up if each UAV still decides exactly as it would alone: these tests compare event-log
@@ -15,13 +15,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents.dubins import dubins_length
-from agents.grid import Grid
+from agents.planners.dacmp.dubins import dubins_length
+from agents.maps.grid import Grid
 from agents.knowledge import Knowledge
 from agents.planners.base import PlanView
-from agents.planners.dacmp import DacmpPlanner
+from agents.planners.dacmp.planner import DacmpPlanner
 from agents.types import UavType
-from agents.umap import UncertaintyMap
+from agents.maps.umap import UncertaintyMap
 from swarm import Simulation
 
 

@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from swarm import bench
+from swarm.experiments import bench
 from swarm.scenario import load_scenario
 
 FIELDS = {"case", "scenario", "planner", "uavs", "sim_seconds", "wall_seconds", "realtime_factor", "cpu_seconds",
@@ -62,8 +62,8 @@ def test_bench_only_runs_the_named_case():
 def test_samples_are_filed_under_the_innermost_phase():
     import sys
 
-    from agents.grid import Grid
-    from agents.umap import UncertaintyMap
+    from agents.maps.grid import Grid
+    from agents.maps.umap import UncertaintyMap
 
     class Probe:  # a frame-like chain built from real code objects
         def __init__(self, code, back=None):

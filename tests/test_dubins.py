@@ -1,4 +1,4 @@
-"""Tests for agents.dubins.dubins_length (relaxed Dubins: final heading free).
+"""Tests for agents.planners.dacmp.dubins.dubins_length (relaxed Dubins: final heading free).
 
 The slow reference below is written independently of the implementation: classic Dubins paths
 (all six words LSL, RSR, LSR, RSL, LRL, RLR, built geometrically from the turning circles), every
@@ -21,7 +21,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
-from agents.dubins import dubins_length
+from agents.planners.dacmp.dubins import dubins_length
 
 TWO_PI = 2.0 * math.pi
 

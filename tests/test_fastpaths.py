@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from agents.dynamics import clamp
-from agents.grid import Grid
+from agents.maps.grid import Grid
 from agents.knowledge import Knowledge, KnownThreat
 from agents.types import UavType
 from comms.codec import FrameError, _num, _nums

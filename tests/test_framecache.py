@@ -54,7 +54,7 @@ def test_receivers_sharing_a_cache_count_their_own_rejections():
     import numpy as np
 
     from agents.actor import ActorSettings, UavActor
-    from agents.grid import Grid
+    from agents.maps.grid import Grid
     from agents.planners.greedy import GreedyPlanner
     from agents.types import UavType
     from comms.mailbox import Mailbox

@@ -27,8 +27,9 @@ from comms.codec import Frame, FrameError, decode, encode
 from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
 from swarm import Simulation
 from swarm.errors import ScenarioError
-from swarm.scenario import _key, parse_scenario, scenario_from_toml
-from swarm.strategies import scenario_documents, scenario_toml
+from swarm.scenario import parse_scenario, scenario_from_toml
+from swarm.scenario.positions import key_path as _key
+from swarm.testing.strategies import scenario_documents, scenario_toml
 
 
 def examples(n: int) -> int:

@@ -1,4 +1,4 @@
-"""The invariant checkers (swarm.invariants): each one must pass good runs and catch a planted
+"""The invariant checkers (swarm.testing.invariants): each one must pass good runs and catch a planted
 break (a broken planner, radio or map, or a doctored event log); property tests run the
 any-planner checkers over generated runs; known failures of the current simulator are pinned
 as strict xfails with the command that reproduces them.
@@ -15,12 +15,12 @@ from hypothesis import HealthCheck, given, settings
 from agents.dynamics import integrate, limit_command, wrap_angle
 from agents.planners.base import Plan
 from agents.planners.greedy import GreedyPlanner
-from agents.umap import UncertaintyMap
+from agents.maps.umap import UncertaintyMap
 from comms.codec import encode
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello
 from faults.schedule import Partition, fault_to_dict
 from swarm import Simulation, load_scenario
-from swarm.invariants import (
+from swarm.testing.invariants import (
     DynamicsChecker,
     HandoverChecker,
     InvariantViolation,
@@ -40,7 +40,7 @@ from swarm.invariants import (
     load_run,
 )
 from swarm.scenario import parse_scenario, scenario_from_toml
-from swarm.strategies import reproducible, scenario_toml, scenarios
+from swarm.testing.strategies import reproducible, scenario_toml, scenarios
 
 
 def examples(n: int) -> int:
@@ -654,7 +654,7 @@ def _known(doc: dict):
     return parse_scenario(doc, "<known failure>")
 
 
-# Gaps the anti-entropy protocol (agents.scanlog) closed: they failed before it, with scan
+# Gaps the anti-entropy protocol (agents.maps.scanlog) closed: they failed before it, with scan
 # records neither re-sent nor relayed. Each must now hold, and its checker must really judge it.
 CLOSED_GAPS = {
     # whatever was scanned while a partition was up reaches the other side after the heal

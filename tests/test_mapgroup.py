@@ -1,4 +1,4 @@
-"""agents.mapgroup: a map in a MapGroup has exactly the cells of a map of its own, whatever it
+"""agents.maps.mapgroup: a map in a MapGroup has exactly the cells of a map of its own, whatever it
 is sent, in whatever order, and whoever falls behind or leaves."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents.grid import Grid
-from agents.mapgroup import LAG_TICKS, MapGroup
-from agents.umap import UncertaintyMap
+from agents.maps.grid import Grid
+from agents.maps.mapgroup import LAG_TICKS, MapGroup
+from agents.maps.umap import UncertaintyMap
 
 GRID = Grid(3000.0, 2500.0, 100.0)
 TAU = 1 / 600

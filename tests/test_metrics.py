@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agents.grid import Grid
+from agents.maps.grid import Grid
 from swarm.metrics import Metrics
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from swarm.cli import main
-from swarm.paper import EXPERIMENTS, _stays_above_from, write_table
+from swarm.experiments.paper import EXPERIMENTS, _stays_above_from, write_table
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = ["--duration", "60", "--workers", "2", "--quiet"]

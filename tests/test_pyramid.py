@@ -1,4 +1,4 @@
-"""Tests for agents.pyramid (Gaussian map pyramid, spec eq. 17-18)."""
+"""Tests for agents.planners.dacmp.pyramid (Gaussian map pyramid, spec eq. 17-18)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.ndimage import convolve1d
 
-from agents.pyramid import gaussian_pyramid, level_index, pyr_down, sample_levels
+from agents.planners.dacmp.pyramid import gaussian_pyramid, level_index, pyr_down, sample_levels
 
 KERNEL = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 

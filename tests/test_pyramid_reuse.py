@@ -1,4 +1,4 @@
-"""agents.pyramid_reuse: maps of a MapGroup, patched from the group's base, get exactly the q,
+"""agents.planners.dacmp.pyramid_reuse: maps of a MapGroup, patched from the group's base, get exactly the q,
 G_1 and G_2 they get computed alone, whatever scans they hold beyond the base."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents.grid import Grid
-from agents.mapgroup import MapGroup
-from agents.pyramid import Scratch, pyr_down_stack, reduce_rows
-from agents.pyramid_reuse import FirstLevels
-from agents.umap import UncertaintyMap
+from agents.maps.grid import Grid
+from agents.maps.mapgroup import MapGroup
+from agents.planners.dacmp.pyramid import Scratch, pyr_down_stack, reduce_rows
+from agents.planners.dacmp.pyramid_reuse import FirstLevels
+from agents.maps.umap import UncertaintyMap
 
 TAU = 1 / 600
 

@@ -19,7 +19,7 @@ History:
   it, a watcher keeps its target while its term dominates there and circles it (vector-field
   loiter) instead of overflying it, stale tracks stop attracting, and the collision-avoidance
   turn goes away from the other UAV instead of always right. Intended behaviour changes.
-- anti-entropy (agents.scanlog): beacons carry a scan digest every 5 s and UAVs resend scans a
+- anti-entropy (agents.maps.scanlog): beacons carry a scan digest every 5 s and UAVs resend scans a
   neighbour lacks (unicast, about two answerers, 600 s window), so lost, partitioned and
   pre-join scans reach every map; heard scans with absurd centres or radii are ignored. Frames
   and maps change: intended.

@@ -21,7 +21,7 @@ import pytest
 from PIL import Image
 
 from swarm.cli import main
-from swarm.report import write_report, write_sweep_report
+from swarm.viz.report import write_report, write_sweep_report
 
 DATA = Path(__file__).parent / "data"
 CHROMIUM = "/usr/bin/chromium"

@@ -14,7 +14,7 @@ import pytest
 
 from swarm.cli import main
 from swarm.errors import UsageError
-from swarm.resilience import PLANNERS, burst_fault, crash_candidates, parse_values, run_axis
+from swarm.experiments.resilience import PLANNERS, burst_fault, crash_candidates, parse_values, run_axis
 from swarm.scenario import load_scenario
 
 PNG = b"\x89PNG\r\n\x1a\n"

@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents.scanlog import ORIGIN_MAX, ScanLog
+from agents.maps.scanlog import ORIGIN_MAX, ScanLog
 
 DT = 1.0
 

@@ -1,4 +1,4 @@
-"""The reusable state machine (swarm.stateful.SwarmMachine): as shipped, subclassed with a rule and
+"""The reusable state machine (swarm.testing.stateful.SwarmMachine): as shipped, subclassed with a rule and
 an invariant of our own, and with a planted bug it must catch."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from hypothesis.stateful import invariant, rule, run_state_machine_as_test
 
 from faults.schedule import Burst
-from swarm.invariants import InvariantViolation
+from swarm.testing.invariants import InvariantViolation
 from swarm.scenario import scenario_from_toml
-from swarm.stateful import CHECKERS, SwarmMachine
-from swarm.strategies import scenario_toml, scenarios
+from swarm.testing.stateful import CHECKERS, SwarmMachine
+from swarm.testing.strategies import scenario_toml, scenarios
 
 
 def examples(n: int) -> int:

@@ -1,4 +1,4 @@
-"""The public Hypothesis strategies (faults.strategies, swarm.strategies) and the property test
+"""The public Hypothesis strategies (swarm.testing.fault_strategies, swarm.testing.strategies) and the property test
 they exist for: generated scenarios with generated fault schedules keep every invariant that
 holds for any planner, and replay to the same event log.
 
@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from comms.radio import LinkModel, Radio
 from faults.schedule import Burst, Corrupt, Crash, Delay, Drop, Duplicate, FaultSchedule, Join, Partition
-from faults.strategies import (
+from swarm.testing.fault_strategies import (
     ALL_KINDS,
     fault_schedules,
     faults,
@@ -28,10 +28,10 @@ from faults.strategies import (
     windows,
 )
 from swarm import Simulation
-from swarm.invariants import DynamicsChecker, RadioChecker, ThreatClearanceChecker, check_events
+from swarm.testing.invariants import DynamicsChecker, RadioChecker, ThreatClearanceChecker, check_events
 from swarm.recorder import read_events
 from swarm.scenario import Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
-from swarm.strategies import (
+from swarm.testing.strategies import (
     fault_schedule_of,
     fleets,
     radio_tables,

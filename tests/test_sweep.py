@@ -12,7 +12,7 @@ import pytest
 from swarm.cli import main
 from swarm.errors import ScenarioError
 from swarm.scenario import load_scenario
-from swarm.sweep import describe, plan_runs, run_sweep, split_values, sweep
+from swarm.experiments.sweep import describe, plan_runs, run_sweep, split_values, sweep
 
 DUR = 20.0
 

@@ -1,4 +1,4 @@
-"""Tests for agents.umap.UncertaintyMap (with agents.grid.Grid.disk): the map as a CRDT.
+"""Tests for agents.maps.umap.UncertaintyMap (with agents.maps.grid.Grid.disk): the map as a CRDT.
 
 The state is one float32 per cell (last time seen, -inf for never); merge and scan are per-cell
 ``max``. The brute-force reference for "which cells does a scan touch" loops over every cell of
@@ -16,8 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from agents.grid import Grid
-from agents.umap import NEVER, UncertaintyMap
+from agents.maps.grid import Grid
+from agents.maps.umap import NEVER, UncertaintyMap
 
 NEG_INF = float("-inf")
 
@@ -603,7 +603,7 @@ def test_disk_stamp_is_a_cached_disk():
 def test_prefetched_disks_and_tile_splits_equal_the_one_by_one_ones(data):
     """Grid.prefetch_disks (vectorised) builds exactly the disks disk_stamp builds one by one,
     and a disk's split over tiles holds exactly the tiles with a cell of the disk."""
-    import agents.grid as grid_module
+    import agents.maps.grid as grid_module
 
     c = data.draw(st.sampled_from([100.0, 0.3, 7.0, 1.0]))
     nx, ny = data.draw(st.integers(3, 120)), data.draw(st.integers(3, 120))

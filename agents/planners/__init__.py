@@ -15,7 +15,7 @@ def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, floa
     if name == "greedy":
         return GreedyPlanner(headings=settings.greedy.headings)
     if name == "dacmp":
-        from agents.planners.dacmp import DacmpPlanner
+        from agents.planners.dacmp.planner import DacmpPlanner
 
         return DacmpPlanner.from_settings(settings, levels, speed_max_by_type, detect_radius_by_type)
     raise ValueError(f"unknown planner {name!r}; expected one of {', '.join(PLANNER_NAMES)}")

@@ -5,7 +5,7 @@ Each frame shows, at one simulated time:
 * the ground-truth scan map as a heat map: cells scanned so far by anyone, coloured by how
   fresh the scan is (``exp(-tau * age)``, the map certainty of eq. 8); never-scanned cells
   white. It is rebuilt incrementally from the ``pose`` events and each type's detection radius
-  (:class:`swarm.replay.CoverageRaster`);
+  (:class:`swarm.viz.replay.CoverageRaster`);
 * UAVs (one colour each, one marker per type), their trails, detection circles, wrecks;
 * targets: unknown (hollow), found, watched (by a UAV in surveillance mode);
 * threats (radius filled, influence dotted);
@@ -46,7 +46,7 @@ from matplotlib.patches import Circle, Patch, Rectangle  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from swarm.errors import SwarmError  # noqa: E402
-from swarm.replay import (  # noqa: E402
+from swarm.viz.replay import (  # noqa: E402
     MODE_SURVEIL,
     CoverageRaster,
     Replay,
@@ -55,7 +55,7 @@ from swarm.replay import (  # noqa: E402
     fault_label,
     load_run,
 )
-from swarm.style import km_axes, line_width, many_uavs, natural_key, type_markers, uav_colours  # noqa: E402
+from swarm.viz.style import km_axes, line_width, many_uavs, natural_key, type_markers, uav_colours  # noqa: E402
 
 DEFAULT_FPS = 10
 DEFAULT_SPEED = 60.0  # simulated seconds per second of video: a 2000 s run -> 33 s clip

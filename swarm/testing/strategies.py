@@ -5,7 +5,7 @@ Every scenario is built as a document and validated by the project's own model
 
     from hypothesis import given
     from swarm import Simulation
-    from swarm.strategies import scenarios
+    from swarm.testing.strategies import scenarios
 
     @given(scenarios(max_uavs=3, max_duration_s=40))
     def test_no_dynamics_violation(scenario):
@@ -14,8 +14,8 @@ Every scenario is built as a document and validated by the project's own model
 
 The pieces compose: :func:`areas` (5-15 km squares by default), :func:`fleets` (mixed UAV
 types, optionally a generated third type and late joiners), :func:`target_layouts`,
-:func:`threat_layouts`, :func:`radio_tables` (from :func:`faults.strategies.link_models`) and
-fault schedules (:func:`faults.strategies.fault_schedules`). Runs are short (20-60 s) so each
+:func:`threat_layouts`, :func:`radio_tables` (from :func:`swarm.testing.fault_strategies.link_models`) and
+fault schedules (:func:`swarm.testing.fault_strategies.fault_schedules`). Runs are short (20-60 s) so each
 example is cheap. Shrinking goes towards one UAV, no targets, no threats, the ideal radio, no
 faults, the greedy planner and the shortest run.
 
@@ -42,7 +42,7 @@ from hypothesis.errors import InvalidArgument
 from hypothesis import strategies as st
 
 from faults.schedule import FaultSchedule, Join, fault_from_dict, fault_to_dict
-from faults.strategies import ALL_KINDS, fault_schedules, link_models
+from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, parse_scenario
 
 __all__ = [
@@ -170,7 +170,7 @@ def threat_layouts(draw, area: dict, keep_clear: Sequence[tuple[float, float]] =
 
 @st.composite
 def radio_tables(draw, *, max_range_m: float = 20_000.0, lossy: bool = True, bandwidth: bool = False) -> dict:
-    """A ``[radio]`` table from :func:`faults.strategies.link_models` (plus a mailbox size)."""
+    """A ``[radio]`` table from :func:`swarm.testing.fault_strategies.link_models` (plus a mailbox size)."""
     m = draw(link_models(max_range_m=max_range_m, lossy=lossy, bandwidth=bandwidth))
     table: dict[str, Any] = {"loss_base": m.loss_base, "loss_at_range": m.loss_at_range,
                              "latency_s": m.latency_s, "jitter_s": m.jitter_s}

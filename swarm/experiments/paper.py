@@ -12,7 +12,7 @@ One function per experiment, and :func:`run_paper` for one or all of them (the P
 * ``case3`` — ``paper-case3`` against ``paper-case2`` over the same seeds (Fig. 18): mean coverage
   with 95% bands, the join time marked, and the paired difference.
 
-Multi-seed parts go through :mod:`swarm.sweep` (resumable: finished run folders are skipped;
+Multi-seed parts go through :mod:`swarm.experiments.sweep` (resumable: finished run folders are skipped;
 process pool or any ``concurrent.futures`` executor such as a Dask client's). Single runs run
 in this process and are written with :func:`swarm.outputs.write_run`; a finished one is kept.
 
@@ -55,7 +55,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from comms.messages import MODE_SURVEIL  # noqa: E402
 from swarm.errors import UsageError  # noqa: E402
-from swarm.experiment import (  # noqa: E402
+from swarm.experiments.common import (  # noqa: E402
     executor_for,
     expected_duration,
     md_cell,
@@ -66,7 +66,7 @@ from swarm.experiment import (  # noqa: E402
 )
 from swarm.recorder import read_events  # noqa: E402
 from swarm.scenario import load_scenario  # noqa: E402
-from swarm.sweep import SweepResult, describe, plan_runs, run_sweep  # noqa: E402
+from swarm.experiments.sweep import SweepResult, describe, plan_runs, run_sweep  # noqa: E402
 
 EXPERIMENTS = ("fig11", "case1", "case2", "case3")
 DEFAULT_SEEDS = {"fig11": 30, "case3": 10}
@@ -597,7 +597,7 @@ def case2_measures(log: RunLog) -> dict:
 # --- figures -----------------------------------------------------------------------------------
 
 def _uav_colours(names: Sequence[str]) -> dict[str, Any]:
-    """One colour per UAV, assigned as in :func:`swarm.plots.trajectories_figure` (sorted names)."""
+    """One colour per UAV, assigned as in :func:`swarm.viz.plots.trajectories_figure` (sorted names)."""
     cmap = plt.get_cmap("tab10" if len(names) <= 10 else "tab20")
     return {n: cmap(i % cmap.N) for i, n in enumerate(sorted(names))}
 

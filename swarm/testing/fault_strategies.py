@@ -5,7 +5,7 @@ them. UAV names are an argument (faults may only name UAVs that exist), and ever
 inside the run (``0 <= t < duration_s``, on multiples of ``step_s``, the physics step)::
 
     from hypothesis import given
-    from faults.strategies import fault_schedules, link_models
+    from swarm.testing.fault_strategies import fault_schedules, link_models
 
     @given(fault_schedules(uavs=["B1", "B2", "A1"], duration_s=60.0))
     def test_my_property(schedule):

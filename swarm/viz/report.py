@@ -35,7 +35,7 @@ from matplotlib.patches import Circle, Patch  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from swarm.errors import SwarmError  # noqa: E402
-from swarm.replay import (  # noqa: E402
+from swarm.viz.replay import (  # noqa: E402
     MODE_SURVEIL,
     Replay,
     RunDirError,
@@ -44,7 +44,7 @@ from swarm.replay import (  # noqa: E402
     first_seen_map,
     load_run,
 )
-from swarm.style import (  # noqa: E402
+from swarm.viz.style import (  # noqa: E402
     MODE_COLOURS,
     km_axes,
     line_width,

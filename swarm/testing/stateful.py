@@ -1,22 +1,22 @@
 """A Hypothesis state machine that drives one simulation and checks invariants every step.
 
-:class:`SwarmMachine` draws a small scenario (:func:`swarm.strategies.scenarios`), builds a
+:class:`SwarmMachine` draws a small scenario (:func:`swarm.testing.strategies.scenarios`), builds a
 :class:`~swarm.simulation.Simulation` and drives it synchronously. Its rules advance time, crash
 UAVs, add late joiners, cut and heal partitions, change the loss on every link and add targets
 (all through the public API: ``step``, ``add_fault``, ``add_uav``, ``add_target``). After every
-rule its ``@invariant`` feeds the new events to a :class:`swarm.invariants.Monitor` and fails
-with an :class:`~swarm.invariants.InvariantViolation` naming what broke, when and who; the
+rule its ``@invariant`` feeds the new events to a :class:`swarm.testing.invariants.Monitor` and fails
+with an :class:`~swarm.testing.invariants.InvariantViolation` naming what broke, when and who; the
 failure notes a scenario file and the ``swarm run`` command that replays the run.
 
 Use it as it is::
 
-    from swarm.stateful import SwarmMachine
+    from swarm.testing.stateful import SwarmMachine
     TestSwarm = SwarmMachine.TestCase
 
 or subclass it to add rules, invariants or checkers::
 
     from hypothesis.stateful import invariant, rule
-    from swarm.stateful import SwarmMachine
+    from swarm.testing.stateful import SwarmMachine
 
     class MyMachine(SwarmMachine):
         checkers = SwarmMachine.checkers + ("single_watcher",)
@@ -49,7 +49,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
 from faults.schedule import Crash, Drop, Join, Partition
-from swarm.invariants import (
+from swarm.testing.invariants import (
     Checker,
     DynamicsChecker,
     HandoverChecker,
@@ -66,11 +66,11 @@ from swarm.invariants import (
 )
 from swarm.scenario import Scenario, parse_scenario
 from swarm.simulation import Simulation
-from swarm.strategies import _fault_doc, reproduction, scenarios
+from swarm.testing.strategies import _fault_doc, reproduction, scenarios
 
 __all__ = ["CHECKERS", "SwarmMachine"]
 
-#: Checker factories by name (see :mod:`swarm.invariants` for what each checks).
+#: Checker factories by name (see :mod:`swarm.testing.invariants` for what each checks).
 CHECKERS: dict[str, Callable[[], Checker]] = {
     "separation": SeparationChecker,
     "threat": ThreatClearanceChecker,
@@ -176,7 +176,7 @@ class SwarmMachine(RuleBasedStateMachine):
 
     def _explain(self) -> str:
         sc = self.reproduction_scenario()
-        comment = "Written by swarm.stateful.SwarmMachine: the run that failed.\nSteps:\n" + "\n".join(
+        comment = "Written by swarm.testing.stateful.SwarmMachine: the run that failed.\nSteps:\n" + "\n".join(
             f"  {h}" for h in self.history)
         if self.late_targets:
             comment += "\nTargets added while running (not in this file): " + "; ".join(self.late_targets)

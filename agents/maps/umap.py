@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agents.grid import Disk, Grid
+from agents.maps.grid import Disk, Grid
 
 NEVER = np.float32(-np.inf)
 
@@ -92,7 +92,7 @@ class UncertaintyMap:
 
     def _materialize(self) -> None:
         """Make ``_tiles`` hold the map's cells before they are read (a map sharing storage,
-        agents.mapgroup.GroupMap, builds them here; an ordinary map holds them already)."""
+        agents.maps.mapgroup.GroupMap, builds them here; an ordinary map holds them already)."""
 
     def _alloc(self, key: int) -> np.ndarray:
         """A new all-``-inf`` tile (tiled maps keep tiles flat: ``th * tw`` cells, row-major)."""

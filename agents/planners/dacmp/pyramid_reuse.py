@@ -7,7 +7,7 @@ differ only around those few disks, yet computing them is most of a plan's map w
 ``exp`` over every cell and a 5 x 5 blur of the whole map).
 
 :class:`FirstLevels` computes one *reference* map in full, the shared base of the UAVs'
-:class:`~agents.mapgroup.MapGroup`, and keeps its q and the intermediates of its pyramid steps
+:class:`~agents.maps.mapgroup.MapGroup`, and keeps its q and the intermediates of its pyramid steps
 (row pass, its transpose). Each member map differs from the base only inside the disks of its
 extra scans, which the group lists; for it, FirstLevels recomputes only where an input changed:
 
@@ -19,7 +19,7 @@ extra scans, which the group lists; for it, FirstLevels recomputes only where an
 and copies everything else from the reference; G_2 likewise from G_1. The numbers are exactly
 those of computing the map alone: q is element-wise, and numpy gives an element the same value
 in any array or slice (tested); each pyramid output row is the same BLAS call on the same five
-input rows whatever rows are computed with it (:func:`agents.pyramid.reduce_rows`). Maps outside
+input rows whatever rows are computed with it (:func:`agents.planners.dacmp.pyramid.reduce_rows`). Maps outside
 a group (tiled maps, maps that left theirs) and members whose extra scans span many rows are
 computed in full. (Comparing maps outside a group with the reference cell by cell to patch them
 too cost about what it saved when they were alike, and more when they were not.)
@@ -32,9 +32,9 @@ from typing import TypeVar
 
 import numpy as np
 
-from agents.grid import Disk
-from agents.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
-from agents.umap import UncertaintyMap
+from agents.maps.grid import Disk
+from agents.planners.dacmp.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
+from agents.maps.umap import UncertaintyMap
 
 # A map is patched when at most this share of its rows differ from the reference's; beyond
 # that, recomputing the patched rows and columns costs about what the whole map costs.

@@ -6,13 +6,13 @@ wrong, when, and which UAVs / target. A :class:`Monitor` feeds several checkers 
 log or live from ``sim.subscribe``::
 
     # after the run: `swarm run my.toml --out out/` wrote scenario.json and events.msgpack
-    from swarm.invariants import check_events, load_run
+    from swarm.testing.invariants import check_events, load_run
     scenario, events = load_run("out/")
     for v in check_events(events, scenario):
         print(v)
 
     # live, e.g. in a test or a Hypothesis state machine
-    from swarm.invariants import Monitor, default_checkers
+    from swarm.testing.invariants import Monitor, default_checkers
     monitor = Monitor(default_checkers(live=True)).attach(sim)
     sim.step(10)
     monitor.flush()
@@ -62,7 +62,7 @@ Why these defaults: the planners replan every 10 s (``planner.replan_s``), so a 
 assignment may take a few replans (settle 30 s; takeover and release 60 s; a target may go
 unwatched for one replan, 10 s). Maps: a neighbour's scans arrive with its next beacon (1 s);
 everything else (lost, from beyond one hop, from before a heal or a join) comes back through
-anti-entropy (:mod:`agents.scanlog`): a digest every ``radio.sync_every_s`` (5 s) covering scans
+anti-entropy (:mod:`agents.maps.scanlog`): a digest every ``radio.sync_every_s`` (5 s) covering scans
 up to ``radio.sync_settle_s`` (2 s) old, answered the next tick. A scan can therefore reach a UAV
 two hops away up to about 5 + 2 + 1 s late: ``lag_s = 10``; 20 s of quiet lets that settle.
 

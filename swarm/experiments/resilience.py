@@ -16,7 +16,7 @@ An *axis* is one kind of degradation and the values to try along it:
   scenario that fly from the start and are not already crashed by it, in scenario order (on
   ``paper-fig11``: B1, ..., Bk, the southernmost first).
 
-Each axis is one sweep (:mod:`swarm.sweep`): every planner x value x seed runs once, in a process
+Each axis is one sweep (:mod:`swarm.experiments.sweep`): every planner x value x seed runs once, in a process
 pool or on any ``concurrent.futures`` executor (a Dask client's); a finished run folder is skipped
 next time (resumable), a failing run is recorded in its ``error.json`` and counted, not fatal.
 From the runs each axis writes a figure of coverage, targets found (and the surveillance ratio
@@ -30,8 +30,8 @@ fraction against unlimited range and no crash.
 Layout of ``out_dir`` (default ``results/resilience``)::
 
     table.md, table.csv         every axis that has results, one row per value
-    <axis>/runs/<planner>/<setting>/seed-NNN/   the sweep's run folders (see swarm.sweep)
-    <axis>/summary.json, summary.csv            the sweep's statistics (see swarm.sweep.summarize)
+    <axis>/runs/<planner>/<setting>/seed-NNN/   the sweep's run folders (see swarm.experiments.sweep)
+    <axis>/summary.json, summary.csv            the sweep's statistics (see swarm.experiments.sweep.summarize)
     <axis>/<axis>.png           the figure; loss/loss_kept.png: loss-free coverage kept
     <axis>/table.md, table.csv  this axis's rows
     <axis>/results.json         what the axis measured (figures and tables are made from it)
@@ -57,7 +57,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from swarm.errors import UsageError  # noqa: E402
-from swarm.experiment import (  # noqa: E402
+from swarm.experiments.common import (  # noqa: E402
     executor_for,
     expected_duration,
     md_cell,
@@ -66,9 +66,9 @@ from swarm.experiment import (  # noqa: E402
     seeds_from,
     write_json,
 )
-from swarm.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL  # noqa: E402
+from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL  # noqa: E402
 from swarm.scenario import Scenario, apply_overrides, load_scenario  # noqa: E402
-from swarm.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug  # noqa: E402
+from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug  # noqa: E402
 
 AXES = ("loss", "burst", "range", "crash")
 PLANNERS = FIG11_PLANNERS  # greedy first: the sweep's paired comparisons are "dacmp - greedy"
@@ -100,7 +100,7 @@ QUANTITIES = ("coverage", "targets_found", "surveillance_ratio_mean", "certainty
 KEPT = ("coverage", "targets_found")
 
 ProgressFn = Callable[[str, str, float, float, str], None]
-"""``progress(key, description, done, total, info)``: one bar per ``key`` (as ``swarm.paper``)."""
+"""``progress(key, description, done, total, info)``: one bar per ``key`` (as ``swarm.experiments.paper``)."""
 
 
 @dataclass
@@ -227,7 +227,7 @@ def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, 
               planners: Sequence[str] = PLANNERS, duration_s: float | None = None,
               crash_at_s: float = DEFAULT_CRASH_AT_S, burst_loss: float = DEFAULT_BURST_LOSS) -> list[RunSpec]:
     """The sweep of one axis: every planner x value x seed, in value order. Folders are
-    ``runs/<planner>/<settings>/seed-NNN`` as in :func:`swarm.sweep.plan_runs`."""
+    ``runs/<planner>/<settings>/seed-NNN`` as in :func:`swarm.experiments.sweep.plan_runs`."""
     if axis not in AXES:
         raise UsageError(f"unknown axis {axis!r}; expected one of {', '.join(AXES)}")
     run_s = expected_duration(scenario, duration_s)

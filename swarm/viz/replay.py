@@ -426,7 +426,7 @@ def first_seen_map(replay: Replay) -> np.ndarray:
 def stamp_poses(grid_map: np.ndarray, rp: Replay, i0: int, i1: int, cell: float, op: np.ufunc,
                 groups: list[tuple[float, np.ndarray]], chunk: int = 128) -> None:
     """Apply ``op`` (np.maximum / np.minimum) of each pose's time to the cells it scans, for
-    ticks ``i0 <= i < i1``. Same rule as :meth:`agents.grid.Grid.disk`: cell centres within
+    ticks ``i0 <= i < i1``. Same rule as :meth:`agents.maps.grid.Grid.disk`: cell centres within
     the radius, cells outside the grid ignored."""
     ny, nx = grid_map.shape
     flat_map = grid_map.reshape(-1)

@@ -1,7 +1,7 @@
 """Shared figure conventions (the paper's): km axes, one colour per UAV, one marker per UAV
 type, and legends that collapse to types when there are too many UAVs to list.
 
-Colours follow :mod:`swarm.plots` (``tab10`` up to 10 UAVs, ``tab20`` up to 20, assigned in
+Colours follow :mod:`swarm.viz.plots` (``tab10`` up to 10 UAVs, ``tab20`` up to 20, assigned in
 sorted-name order) so a UAV has the same colour in every figure of a run; beyond 20 UAVs they
 are sampled from a continuous map so neighbours in the legend still differ.
 """

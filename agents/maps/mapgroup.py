@@ -21,7 +21,7 @@ A map made after the base holds a scan starts on its own (it lacks what the base
 
 Reading a member's cells builds them from the base and its extra scans: whole maps into a
 buffer the map keeps (rebuilt only after it changed), a few cells (``q_at``) or a region
-(:meth:`UncertaintyMap.region`) directly. :mod:`agents.pyramid_reuse` plans from the base:
+(:meth:`UncertaintyMap.region`) directly. :mod:`agents.planners.dacmp.pyramid_reuse` plans from the base:
 members differ from it only inside their extra scans' disks.
 """
 
@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from agents.grid import Disk, Grid
-from agents.umap import UncertaintyMap
+from agents.maps.grid import Disk, Grid
+from agents.maps.umap import UncertaintyMap
 
 # A scan some members have and others still lack after this many ticks of the group's clock
 # makes those others leave (radio frames arrive within a tick or two when they arrive at all).

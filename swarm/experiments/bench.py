@@ -35,6 +35,11 @@ from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import agents.actor
+import agents.maps.grid
+import agents.maps.umap
+import agents.planners
+import comms.radio
 from swarm.simulation import Simulation
 
 
@@ -63,11 +68,12 @@ CASES = [
 
 SHARES = ("planning", "map", "radio", "actors", "world")
 
-_ROOT = Path(__file__).resolve().parent.parent
-_MAP_FILES = {str(_ROOT / "agents" / "umap.py"), str(_ROOT / "agents" / "grid.py")}
-_PLANNER_DIR = str(_ROOT / "agents" / "planners")
-_ACTOR_FILE = str(_ROOT / "agents" / "actor.py")
-_RADIO_FILE = str(_ROOT / "comms" / "radio.py")
+# Phases are told apart by the source file of each frame: the modules' own paths, wherever
+# the packages are installed.
+_MAP_FILES = {agents.maps.umap.__file__, agents.maps.grid.__file__}
+_PLANNER_DIR = str(Path(agents.planners.__file__).parent)
+_ACTOR_FILE = agents.actor.__file__
+_RADIO_FILE = comms.radio.__file__
 
 
 def classify(frame) -> str:

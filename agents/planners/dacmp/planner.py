@@ -10,7 +10,7 @@ Each replanning, a UAV runs a particle swarm over candidate waypoints:
 
   - ``f_Sl = sum_{l=1..L} lambda_l P_l(k) / (1 + ((Dub(k) - R_s) / R_s)^2)`` (eq. 19), ``P_l``
     the Gaussian pyramid level ``l`` at the particle's cell, ``Dub`` the shortest Dubins path
-    with free final heading (:mod:`agents.dubins`). As in the paper, ``L`` (``map.levels``, 7)
+    with free final heading (:mod:`agents.planners.dacmp.dubins`). As in the paper, ``L`` (``map.levels``, 7)
     counts the layers *above* the map ``G_0``: the sum starts at ``l = 1``, and the seventh layer
     of a 500 x 500 map is the 4 x 4 one the paper's global guide reads;
   - ``f_Sg = 1 / (1 + exp(theta_k / pi))`` (eq. 20), ``theta_k`` the angle at the UAV between
@@ -38,10 +38,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.dubins import DubinsPoses
+from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.base import Plan, PlanView
-from agents.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
-from agents.pyramid_reuse import FirstLevels
+from agents.planners.dacmp.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
+from agents.planners.dacmp.pyramid_reuse import FirstLevels
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
@@ -518,13 +518,13 @@ class _Layers:
         self.level_size = np.array(sizes)[:, None]
         # Per-axis cell offsets on each search level: row part (times the level's width) and
         # column part of the nearest coarse cell of every level-0 row / column (rounded to the
-        # nearest centre, clipped to the level: agents.pyramid.level_index).
+        # nearest centre, clipped to the level: agents.planners.dacmp.pyramid.level_index).
         self.row_part, self.col_part = _cell_parts(g.ny, g.nx, tuple(self.search), tuple(shapes))
         # The coarsest layer with >= 4 x 4 cells sets the guide's sub-areas (eq. 20).
         regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
         self.guides: list[tuple[float, float] | None] = []
         first = self._level(0, shapes[self.search[0]])  # G_1 (G_0 if it is the only level)
-        maps = planner._first_levels  # q, G_1, G_2 patched from the UAVs' MapGroup base (agents.pyramid_reuse)
+        maps = planner._first_levels  # q, G_1, G_2 patched from the UAVs' MapGroup base (agents.planners.dacmp.pyramid_reuse)
         maps.start()
         for i, view in enumerate(views):
             # Ties go to a neighbour drawn from the UAV's own stream: with the heading as

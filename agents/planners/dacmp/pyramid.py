@@ -72,7 +72,7 @@ def reduce_rows(a: np.ndarray, out: np.ndarray, n: int | None = None, row0: int 
     strided view ``V[s, i, c, k] = a[s, 2i + k, c]`` (no copy: BLAS gemv does the five-term sums,
     the same call for every row whatever ``k``); the one or two border rows use reflected indices.
 
-    Part of a reduce (:mod:`agents.pyramid_reuse`): ``a`` may hold only input rows ``row0 ..
+    Part of a reduce (:mod:`agents.planners.dacmp.pyramid_reuse`): ``a`` may hold only input rows ``row0 ..
     row0 + rows - 1`` of an ``n``-row input (default: all of it, ``n = rows``), and only output
     rows ``lo .. hi`` (default: all) are computed, into ``out[:, : hi - lo + 1]``; ``a`` must hold
     every input row they read (``2i - 2 .. 2i + 2``, clipped to the input). Each output row gets
@@ -130,7 +130,7 @@ def pyr_down_stack(a: np.ndarray, out: np.ndarray, scratch: Scratch | None = Non
     into ``out`` ``(k, ceil(h/2), ceil(w/2))`` (same dtype).  Each map gets exactly the numbers
     :func:`pyr_down` gives it alone.  ``scratch`` supplies the intermediates (fresh arrays
     without it); they stay there until its next use: ``"pyr_rows"`` the row pass ``(k, m, w)``,
-    ``"pyr_rows_t"`` its transpose ``(k, w, m)`` (:mod:`agents.pyramid_reuse` patches from it),
+    ``"pyr_rows_t"`` its transpose ``(k, w, m)`` (:mod:`agents.planners.dacmp.pyramid_reuse` patches from it),
     ``"pyr_cols_t"`` the column pass, transposed."""
     k, h, w = a.shape
     m, mw = (h + 1) // 2, (w + 1) // 2

@@ -1,0 +1,281 @@
+"""Loading scenarios: built-in names and TOML files, ``--set`` overrides, and the translation
+of pydantic's validation errors into one :class:`~swarm.errors.ScenarioError` that names the
+file, the key path, what was found and what was expected.
+
+No other exception escapes the loader: the CLI prints ``str(err)`` and nothing else, so the
+message must stand on its own.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import re
+import tomllib
+import types
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, NamedTuple, Union, get_args, get_origin
+
+from pydantic import BaseModel, ValidationError
+
+from swarm.errors import ScenarioError
+from swarm.scenario.model import _FAULT_CLASSES, FAULT_KINDS, Scenario, _Invalid
+from swarm.scenario.positions import document_position, found_words, key_path, value_at
+
+# --- loading -------------------------------------------------------------------------------
+_BUILTIN_PACKAGE = "swarm.scenario.builtin"
+
+
+def builtin_scenarios() -> list[str]:
+    """Names of the scenarios shipped with the package, sorted."""
+    folder = resources.files(_BUILTIN_PACKAGE)
+    return sorted(p.name[: -len(".toml")] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(ref: str | os.PathLike[str]) -> Scenario:
+    """Load a built-in scenario by name or a TOML file by path."""
+    if not isinstance(ref, (str, os.PathLike)):
+        raise ScenarioError("", "", found_words(ref), _file_expected())
+    source = os.fspath(ref)
+    if not isinstance(source, str):  # a bytes path
+        raise ScenarioError(repr(source), "", found_words(source), _file_expected())
+    path = Path(source)
+    try:
+        is_file = path.is_file()
+    except (OSError, ValueError):  # e.g. a name too long, an embedded NUL
+        is_file = False
+    if is_file:
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ScenarioError(source, "", "a file that is not UTF-8 text", "a TOML document") from None
+        except OSError as exc:
+            raise ScenarioError(source, "", f"a file that cannot be read ({exc.strerror or exc})", _file_expected()) from None
+        return scenario_from_toml(text, source)
+    if isinstance(ref, str) and ref in builtin_scenarios():
+        text = resources.files(_BUILTIN_PACKAGE).joinpath(f"{ref}.toml").read_text(encoding="utf-8")
+        return scenario_from_toml(text, ref)
+    found = "no such file" if not path.exists() else "something that is not a file"
+    raise ScenarioError(source, "", found, _file_expected())
+
+
+def _file_expected() -> str:
+    return f"a path to an existing .toml file or a built-in name ({', '.join(builtin_scenarios())})"
+
+
+def scenario_from_toml(text: str, source: str) -> Scenario:
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(source, "", f"invalid TOML ({exc})", "a TOML document") from None
+    return parse_scenario(doc, source)
+
+
+def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
+    """Validate an already-parsed document. ``name`` defaults to the source's file stem."""
+    if not isinstance(doc, dict):
+        raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
+    data = dict(doc)
+    data.setdefault("name", _default_name(source))
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        # from None: our message says everything; pydantic's would only repeat it less clearly.
+        raise _first_error(exc, doc, source) from None
+
+
+def _default_name(source: str) -> str:
+    if not source or source.startswith("<"):
+        return "scenario"
+    return Path(source).stem or "scenario"
+
+
+# --- overrides -----------------------------------------------------------------------------
+def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any]) -> Scenario:
+    """A new scenario with dotted keys replaced, e.g. ``{"radio.loss_base": 0.3}`` or
+    ``{"uavs[0].x_m": 100}``; the result is validated as a whole."""
+    source = f"{scenario.name} (with overrides)"
+    doc = scenario._document()
+    for dotted, value in overrides.items():
+        _set_path(doc, dotted, value, source)
+    try:
+        return parse_scenario(doc, source)
+    except ScenarioError as err:
+        if err.key in overrides or err.hint:
+            raise
+        # The override was fine on its own but broke another key (e.g. a smaller area leaves a
+        # UAV outside it): say which override did it.
+        changed = ", ".join(f"{k}={v!r}" for k, v in overrides.items())
+        raise ScenarioError(err.source, err.key, err.found, err.expected, f"after overriding {changed}") from None
+
+
+_SEGMENT = re.compile(r"([^.\[\]]+)((?:\[\d+\])*)")
+
+
+def _split_key(dotted: str, source: str) -> list[str | int]:
+    """'uavs[0].x_m' -> ['uavs', 0, 'x_m']."""
+    parts: list[str | int] = []
+    for segment in dotted.split("."):
+        match = _SEGMENT.fullmatch(segment)
+        if match is None:
+            raise ScenarioError(source, dotted, f"the key {dotted!r}", "a dotted key like radio.loss_base or uavs[0].x_m")
+        parts.append(match.group(1))
+        parts.extend(int(i) for i in re.findall(r"\d+", match.group(2)))
+    return parts
+
+
+def _set_path(doc: dict[str, Any], dotted: str, value: Any, source: str) -> None:
+    parts = _split_key(dotted, source)
+    node: Any = doc
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        here = key_path(tuple(parts[: depth + 1]))
+        if isinstance(part, int):
+            if not isinstance(node, list):
+                raise ScenarioError(source, key_path(tuple(parts[:depth])), found_words(node), "an array (it is indexed with [n])")
+            if not part < len(node):
+                raise ScenarioError(source, here, f"index {part}", f"an index from 0 to {len(node) - 1}")
+        elif not isinstance(node, dict):
+            raise ScenarioError(source, key_path(tuple(parts[:depth])), found_words(node), "a table (it has keys below it)")
+        elif part not in node and not last:
+            # An unknown table: create it so that validation reports the unknown key with a hint.
+            node[part] = {}
+        if last:
+            node[part] = value
+        else:
+            if node[part] is None:
+                node[part] = {}
+            node = node[part]
+
+
+def parse_assignment(text: str) -> tuple[str, Any]:
+    """Parse ``key=value`` from the command line; the value is read as a TOML value
+    (``0.3``, ``true``, ``[1, 2]``, ``"x"``) and otherwise taken as a bare string."""
+    key, eq, raw = text.partition("=")
+    key = key.strip()
+    if not eq or not key:
+        raise ScenarioError("--set", key, repr(text), "key=value, e.g. radio.loss_base=0.3")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key, value
+
+
+# --- error translation ---------------------------------------------------------------------
+class _Issue(NamedTuple):
+    path: tuple[Any, ...]  # document path: list indices as ints, no pydantic union tags
+    found: str
+    expected: str
+    hint: str = ""
+
+
+
+
+
+
+
+
+def _unwrap(tp: Any) -> Any:
+    """Strip Annotated[...] and Optional[...] to reach the type that matters."""
+    while True:
+        origin = get_origin(tp)
+        if origin is Annotated:
+            tp = get_args(tp)[0]
+        elif origin in (Union, types.UnionType) and type(None) in get_args(tp):
+            rest = [a for a in get_args(tp) if a is not type(None)]
+            tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]
+        else:
+            return tp
+
+
+class _Where(NamedTuple):
+    path: tuple[Any, ...]
+    field_description: str | None  # of the deepest field the location reached
+    table: type[BaseModel] | None  # the deepest model reached (for unknown keys)
+
+
+def _resolve(loc: tuple[Any, ...]) -> _Where:
+    """Follow a pydantic location through the model classes: the document path (without the
+    fault-kind tag pydantic inserts), and the field and table it points at."""
+    tp: Any = Scenario
+    path: list[Any] = []
+    description: str | None = None
+    table: type[BaseModel] | None = None
+    for part in loc:
+        tp = _unwrap(tp)
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            table = tp
+            field = tp.model_fields.get(part) if isinstance(part, str) else None
+            if field is not None:
+                description = field.description
+                tp = field.annotation
+            else:
+                tp = None
+            path.append(part)
+            continue
+        origin = get_origin(tp)
+        if origin in (list, tuple):
+            tp = get_args(tp)[0]
+        elif origin is dict:
+            tp = get_args(tp)[1]
+        elif origin in (Union, types.UnionType) and isinstance(part, str) and part in _FAULT_CLASSES:
+            tp = _FAULT_CLASSES[part]  # the tag is pydantic's, not a key of the document
+            continue
+        else:
+            tp = None
+        path.append(part)
+    return _Where(tuple(path), description, table)
+
+
+def _issues(err: Any, doc: Any) -> list[_Issue]:
+    """Turn one pydantic error into our words (our own checks may carry several problems)."""
+    kind, loc, ctx, value = err["type"], tuple(err["loc"]), err.get("ctx") or {}, err.get("input")
+    if kind == "value_error" and isinstance(ctx.get("error"), _Invalid):
+        out = []
+        for problem in ctx["error"].problems:
+            where = _resolve(loc + problem.path)
+            found = problem.found or found_words(value_at(doc, where.path, problem.value))
+            out.append(_Issue(where.path, found, problem.expected, problem.hint))
+        return out
+
+    if len(loc) >= 2 and loc[-1] == "[key]" and kind != "extra_forbidden":  # pydantic's marker for a dict key that failed validation
+        where = _resolve(loc[:-1])
+        return [_Issue(where.path, f"the key {loc[-2]!r}", "a name (keys are strings)")]
+    where = _resolve(loc)
+    expected = where.field_description or err["msg"]
+    if kind == "missing" and where.path and isinstance(where.path[-1], int):
+        # a tuple (a [sender, receiver] pair) with too few items: show the whole pair
+        return [_Issue(where.path[:-1], found_words(value_at(doc, where.path[:-1], None)), expected)]
+    if kind == "missing":
+        return [_Issue(where.path, "nothing (the key is missing)", expected)]
+    if kind == "invalid_key":
+        return [_Issue(where.path, f"the key {where.path[-1]!r}", "keys that are strings")]
+    if kind == "extra_forbidden":
+        unknown = where.path[-1]
+        valid = list(where.table.model_fields) if where.table else []
+        prefix = key_path(where.path[:-1])
+        close = difflib.get_close_matches(str(unknown), valid, n=1)
+        hint = f"did you mean {close[0]!r}?" if close else f"valid keys: {', '.join(valid)}"
+        table_words = f"[{prefix}]" if prefix else "the top level"
+        return [_Issue(where.path, f"unknown key {unknown!r}", f"a key that {table_words} accepts", hint)]
+    if kind in ("model_type", "model_attributes_type") and where.path and isinstance(where.path[-1], int):
+        return [_Issue(where.path, found_words(value), "a table")]  # an entry of an array of tables
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        tag = value.get("kind") if isinstance(value, dict) else None
+        found = found_words(tag) if kind == "union_tag_invalid" else "nothing (the key is missing)"
+        return [_Issue((*where.path, "kind"), found, f"one of: {', '.join(FAULT_KINDS)}")]
+    return [_Issue(where.path, found_words(value), expected)]
+
+
+
+
+
+
+def _first_error(exc: ValidationError, doc: dict[str, Any], source: str) -> ScenarioError:
+    issues = [issue for err in exc.errors(include_url=False) for issue in _issues(err, doc)]
+    # Stable: among issues at one position, pydantic's (field) order decides.
+    first = min(enumerate(issues), key=lambda pair: (document_position(doc, pair[1].path), pair[0]))[1]
+    return ScenarioError(source, key_path(first.path), first.found, first.expected, first.hint)
