@@ -17,19 +17,19 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Awaitable, Callable
-from functools import partial
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
 from agents.apf import ApfSettings, apf_command
+from agents.knowledge import Knowledge, KnownThreat
 from agents.maps.grid import Grid
-from agents.knowledge import KnownThreat, Knowledge
 from agents.maps.mapgroup import MapGroup
-from agents.planners.base import Plan, Planner, PlanView
 from agents.maps.scanlog import ScanLog
-from agents.types import GRAVITY, UavType
 from agents.maps.umap import UncertaintyMap
+from agents.planners.base import Plan, Planner, PlanView
+from agents.types import GRAVITY, UavType
 from comms.codec import FrameError, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -195,7 +195,7 @@ class UavActor:
             self._pending = reading
 
     async def run(self, report: Callable[[int, ActorOutput | None, BaseException | None], None],
-                  plan_source: Callable[["UavActor", PlanView], Awaitable[Plan]] | None = None) -> None:
+                  plan_source: Callable[[UavActor, PlanView], Awaitable[Plan]] | None = None) -> None:
         """The actor task: wait for a tick, step, report; until cancelled (crash or end).
 
         With ``plan_source`` the actor hands its :class:`PlanView` to it and awaits the plan, so

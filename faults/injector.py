@@ -29,7 +29,6 @@ from faults.schedule import (
     Partition,
 )
 
-
 _ORDER = {"drop": 0, "burst": 1, "corrupt": 2, "duplicate": 3, "delay": 4}
 
 

@@ -102,8 +102,8 @@ def _cmd_run(args) -> int:
 
 
 def _parse_grid(assignments: list[str]) -> dict[str, list]:
-    from swarm.scenario import parse_assignment
     from swarm.experiments.sweep import split_values
+    from swarm.scenario import parse_assignment
 
     grid: dict[str, list] = {}
     for text in assignments:
@@ -130,8 +130,8 @@ def _dask_executor(args):
 def _cmd_sweep(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from swarm.scenario import load_scenario
     from swarm.experiments.sweep import plan_runs, run_sweep
+    from swarm.scenario import load_scenario
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
     bad = [p for p in planners if p not in ("dacmp", "greedy")]
@@ -309,7 +309,8 @@ def _resilience_table(report):
 
 
 def _cmd_bench(args) -> int:
-    from swarm.experiments.bench import CASES, main as bench_main
+    from swarm.experiments.bench import CASES
+    from swarm.experiments.bench import main as bench_main
 
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:

@@ -31,7 +31,6 @@ from agents.maps.grid import Grid
 from agents.maps.umap import DENSE_MAX_CELLS, NEVER, UncertaintyMap
 from comms.messages import MODE_SURVEIL
 
-
 _BLOCK = 64  # cells per side of the blocks whose q certainty() recomputes on large areas
 
 

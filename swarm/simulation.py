@@ -37,13 +37,13 @@ import numpy as np
 
 from agents.actor import ActorOutput, ActorSettings, UavActor
 from agents.apf import ApfSettings
-from agents.planners.batching import PlanBatcher
-from agents.maps.grid import PREFETCH_MIN, Grid
 from agents.knowledge import KnownThreat
+from agents.maps.grid import PREFETCH_MIN, Grid
 from agents.maps.mapgroup import MapGroup
+from agents.maps.umap import DENSE_MAX_CELLS
 from agents.planners import make_planner
 from agents.planners.base import Plan
-from agents.maps.umap import DENSE_MAX_CELLS
+from agents.planners.batching import PlanBatcher
 from agents.types import UavType
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -253,7 +253,7 @@ class Simulation:
     # --- construction helpers ---------------------------------------------------------------
 
     @classmethod
-    def from_file(cls, ref: str | Path, **kw) -> "Simulation":
+    def from_file(cls, ref: str | Path, **kw) -> Simulation:
         return cls(load_scenario(ref), **kw)
 
     def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
@@ -718,7 +718,7 @@ class Simulation:
         except Exception:  # interpreter shutdown, or a host loop running in this thread
             pass
 
-    def __enter__(self) -> "Simulation":
+    def __enter__(self) -> Simulation:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -17,8 +17,8 @@ from scipy.spatial import cKDTree
 
 from agents.actor import SensedTarget, SensorReading
 from agents.dynamics import clamp, command_violates, integrate, limit_command, wrap_angle
-from agents.maps.grid import Grid
 from agents.knowledge import KnownThreat
+from agents.maps.grid import Grid
 from agents.types import UavType
 
 PENDING, ALIVE, CRASHED = "pending", "alive", "crashed"

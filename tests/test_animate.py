@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from swarm.cli import main
 from swarm.viz.animate import (
     DEFAULT_FPS,
     DEFAULT_SPEED,
@@ -20,7 +21,6 @@ from swarm.viz.animate import (
     frame_times,
     prepare_animation,
 )
-from swarm.cli import main
 from swarm.viz.replay import CoverageRaster, RunDirError, fault_events, first_seen_map, load_run
 from swarm.viz.style import many_uavs, type_markers, uav_colours
 

@@ -15,13 +15,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents.planners.dacmp.dubins import dubins_length
-from agents.maps.grid import Grid
 from agents.knowledge import Knowledge
+from agents.maps.grid import Grid
+from agents.maps.umap import UncertaintyMap
 from agents.planners.base import PlanView
+from agents.planners.dacmp.dubins import dubins_length
 from agents.planners.dacmp.planner import DacmpPlanner
 from agents.types import UavType
-from agents.maps.umap import UncertaintyMap
 from swarm import Simulation
 
 

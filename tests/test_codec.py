@@ -16,6 +16,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from agents.knowledge import Track
 from comms.codec import (
     DEFAULT_MAX_BYTES,
     K_HELLO,
@@ -34,7 +35,6 @@ from comms.codec import (
     pack_scans,
     pack_tracks,
 )
-from agents.knowledge import Track
 from comms.messages import (
     MODE_SEARCH,
     MODE_SURVEIL,

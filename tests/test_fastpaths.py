@@ -23,8 +23,8 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from agents.dynamics import clamp
-from agents.maps.grid import Grid
 from agents.knowledge import Knowledge, KnownThreat
+from agents.maps.grid import Grid
 from agents.types import UavType
 from comms.codec import FrameError, _num, _nums
 from comms.messages import TrackItem

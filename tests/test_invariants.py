@@ -13,13 +13,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from agents.dynamics import integrate, limit_command, wrap_angle
+from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan
 from agents.planners.greedy import GreedyPlanner
-from agents.maps.umap import UncertaintyMap
 from comms.codec import encode
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello
 from faults.schedule import Partition, fault_to_dict
 from swarm import Simulation, load_scenario
+from swarm.scenario import parse_scenario, scenario_from_toml
 from swarm.testing.invariants import (
     DynamicsChecker,
     HandoverChecker,
@@ -39,7 +40,6 @@ from swarm.testing.invariants import (
     handover_checkers,
     load_run,
 )
-from swarm.scenario import parse_scenario, scenario_from_toml
 from swarm.testing.strategies import reproducible, scenario_toml, scenarios
 
 

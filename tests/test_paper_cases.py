@@ -75,7 +75,7 @@ CASE_SEEDS = (0, 1, 2, 3, 4)  # the statistical checks; 0 is the scenarios' defa
 _FROM_S = 600.0  # Case 3: coverage at or above Case 2's from here on (mean over CASE_SEEDS)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _case_run(scenario: str, seed: int | None = None) -> dict:
     """What the Case 2/3 tests read from one run (the event log itself is not kept)."""
     with Simulation(scenario, seed=seed) as sim:

@@ -16,12 +16,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.lib.stride_tricks import as_strided
 
-from agents.planners.dacmp.dubins import DubinsPoses, dubins_length
 from agents.maps.grid import Grid
+from agents.maps.umap import UncertaintyMap
 from agents.planners.dacmp import planner as dacmp
+from agents.planners.dacmp.dubins import DubinsPoses, dubins_length
 from agents.planners.dacmp.planner import DacmpPlanner, _Layers
 from agents.planners.dacmp.pyramid import Scratch, gaussian_pyramid, level_index, level_shapes, pyr_down, pyr_down_stack
-from agents.maps.umap import UncertaintyMap
 
 
 def same(a, b) -> bool:

@@ -9,9 +9,9 @@ from hypothesis import strategies as st
 
 from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
+from agents.maps.umap import UncertaintyMap
 from agents.planners.dacmp.pyramid import Scratch, pyr_down_stack, reduce_rows
 from agents.planners.dacmp.pyramid_reuse import FirstLevels
-from agents.maps.umap import UncertaintyMap
 
 TAU = 1 / 600
 

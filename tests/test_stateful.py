@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from hypothesis.stateful import invariant, rule, run_state_machine_as_test
 
 from faults.schedule import Burst
-from swarm.testing.invariants import InvariantViolation
 from swarm.scenario import scenario_from_toml
+from swarm.testing.invariants import InvariantViolation
 from swarm.testing.stateful import CHECKERS, SwarmMachine
 from swarm.testing.strategies import scenario_toml, scenarios
 

@@ -18,6 +18,9 @@ from hypothesis import strategies as st
 
 from comms.radio import LinkModel, Radio
 from faults.schedule import Burst, Corrupt, Crash, Delay, Drop, Duplicate, FaultSchedule, Join, Partition
+from swarm import Simulation
+from swarm.recorder import read_events
+from swarm.scenario import Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
 from swarm.testing.fault_strategies import (
     ALL_KINDS,
     fault_schedules,
@@ -27,21 +30,18 @@ from swarm.testing.fault_strategies import (
     probabilities,
     windows,
 )
-from swarm import Simulation
 from swarm.testing.invariants import DynamicsChecker, RadioChecker, ThreatClearanceChecker, check_events
-from swarm.recorder import read_events
-from swarm.scenario import Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
 from swarm.testing.strategies import (
     fault_schedule_of,
     fleets,
     radio_tables,
-    target_layouts,
-    threat_layouts,
-    uav_type_specs,
     reproducible,
     reproduction,
     scenario_toml,
     scenarios,
+    target_layouts,
+    threat_layouts,
+    uav_type_specs,
 )
 
 NAMES = ["B1", "B2", "A1", "A2"]

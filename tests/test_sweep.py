@@ -11,8 +11,8 @@ import pytest
 
 from swarm.cli import main
 from swarm.errors import ScenarioError
-from swarm.scenario import load_scenario
 from swarm.experiments.sweep import describe, plan_runs, run_sweep, split_values, sweep
+from swarm.scenario import load_scenario
 
 DUR = 20.0
 

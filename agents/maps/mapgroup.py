@@ -70,7 +70,7 @@ class MapGroup:
 
     # --- called by members ------------------------------------------------------------------
 
-    def _add(self, member: "GroupMap", key: tuple, d: Disk, t: float) -> None:
+    def _add(self, member: GroupMap, key: tuple, d: Disk, t: float) -> None:
         extra = member._extra
         if key in extra:
             return
@@ -130,7 +130,7 @@ class MapGroup:
             for m in (lacking if len(lacking) <= len(having) else having):
                 self._leave(m)  # (settles the scan: to the base, or dropped with its last holder)
 
-    def _leave(self, member: "GroupMap") -> None:
+    def _leave(self, member: GroupMap) -> None:
         """Give ``member`` an array of its own and take it out of the group."""
         if member._extra is None:
             return

@@ -181,7 +181,7 @@ class UncertaintyMap:
             np.maximum(view, values[box], out=view)
         return new
 
-    def merge(self, other: "UncertaintyMap | np.ndarray") -> None:
+    def merge(self, other: UncertaintyMap | np.ndarray) -> None:
         """Per-cell max with another map or a full ``(ny, nx)`` array (in place)."""
         if isinstance(other, UncertaintyMap):
             other._materialize()
@@ -218,7 +218,7 @@ class UncertaintyMap:
                 view = mine.reshape(th, tw)[: r1 - r0, : c1 - c0]
                 np.maximum(view, piece, out=view)
 
-    def copy(self) -> "UncertaintyMap":
+    def copy(self) -> UncertaintyMap:
         """An ordinary map with the same cells (a map of its own, whatever this one is)."""
         self._materialize()
         new = object.__new__(UncertaintyMap)

@@ -13,10 +13,10 @@ from typing import Protocol
 
 import numpy as np
 
-from agents.maps.grid import Grid
 from agents.knowledge import Knowledge
-from agents.types import UavType
+from agents.maps.grid import Grid
 from agents.maps.umap import UncertaintyMap
+from agents.types import UavType
 from comms.messages import MODE_SEARCH, NO_TARGET
 
 

@@ -35,7 +35,7 @@ class PlanBatcher:
     def pending(self) -> int:
         return len(self._requests)
 
-    def request(self, actor: "UavActor", view: PlanView) -> asyncio.Future:
+    def request(self, actor: UavActor, view: PlanView) -> asyncio.Future:
         """Queue a plan request; the future resolves at the next :meth:`flush`."""
         fut = asyncio.get_running_loop().create_future()
         self._requests.append((actor.uid, actor.planner, view, fut))

@@ -49,13 +49,13 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Patch
 
-from comms.messages import MODE_SURVEIL  # noqa: E402
-from swarm.errors import UsageError  # noqa: E402
-from swarm.experiments.common import (  # noqa: E402
+from comms.messages import MODE_SURVEIL
+from swarm.errors import UsageError
+from swarm.experiments.common import (
     executor_for,
     expected_duration,
     md_cell,
@@ -64,9 +64,9 @@ from swarm.experiments.common import (  # noqa: E402
     seeds_from,
     write_json,
 )
-from swarm.recorder import read_events  # noqa: E402
-from swarm.scenario import load_scenario  # noqa: E402
-from swarm.experiments.sweep import SweepResult, describe, plan_runs, run_sweep  # noqa: E402
+from swarm.experiments.sweep import SweepResult, describe, plan_runs, run_sweep
+from swarm.recorder import read_events
+from swarm.scenario import load_scenario
 
 EXPERIMENTS = ("fig11", "case1", "case2", "case3")
 DEFAULT_SEEDS = {"fig11": 30, "case3": 10}
@@ -432,7 +432,7 @@ class RunLog:
     threats: list[dict]
 
     @classmethod
-    def load(cls, folder: Path) -> "RunLog":
+    def load(cls, folder: Path) -> RunLog:
         folder = Path(folder)
         metrics = json.loads((folder / "metrics.json").read_text())
         scenario = json.loads((folder / "scenario.json").read_text())

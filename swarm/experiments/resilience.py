@@ -53,11 +53,11 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from swarm.errors import UsageError  # noqa: E402
-from swarm.experiments.common import (  # noqa: E402
+from swarm.errors import UsageError
+from swarm.experiments.common import (
     executor_for,
     expected_duration,
     md_cell,
@@ -66,9 +66,9 @@ from swarm.experiments.common import (  # noqa: E402
     seeds_from,
     write_json,
 )
-from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL  # noqa: E402
-from swarm.scenario import Scenario, apply_overrides, load_scenario  # noqa: E402
-from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug  # noqa: E402
+from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL
+from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug
+from swarm.scenario import Scenario, apply_overrides, load_scenario
 
 AXES = ("loss", "burst", "range", "crash")
 PLANNERS = FIG11_PLANNERS  # greedy first: the sweep's paired comparisons are "dacmp - greedy"

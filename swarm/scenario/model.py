@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from typing import Annotated, Any, Literal, NamedTuple, Union
+from typing import Annotated, Any, Literal, NamedTuple
 
 from pydantic import (
     AllowInfNan,
@@ -471,7 +471,7 @@ _FAULT_CLASSES: dict[str, type[_Model]] = {
 FAULT_KINDS: tuple[str, ...] = tuple(_FAULT_CLASSES)
 
 Fault = Annotated[
-    Union[DropFault, BurstFault, PartitionFault, DelayFault, DuplicateFault, CorruptFault, CrashFault, JoinFault],
+    DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault | JoinFault,
     Field(discriminator="kind"),
 ]
 

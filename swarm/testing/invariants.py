@@ -868,7 +868,7 @@ class Monitor:
         self.t_end = 0.0
         self.events = 0
 
-    def attach(self, sim: Any) -> "Monitor":
+    def attach(self, sim: Any) -> Monitor:
         """Check ``sim`` live from now on (subscribes to its events)."""
         self.scenario = sim.scenario
         self.ctx = RunContext(sim.scenario, sim=sim, faults=self._faults)

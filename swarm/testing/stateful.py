@@ -49,6 +49,8 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
 from faults.schedule import Crash, Drop, Join, Partition
+from swarm.scenario import Scenario, parse_scenario
+from swarm.simulation import Simulation
 from swarm.testing.invariants import (
     Checker,
     DynamicsChecker,
@@ -64,8 +66,6 @@ from swarm.testing.invariants import (
     SingleWatcherChecker,
     ThreatClearanceChecker,
 )
-from swarm.scenario import Scenario, parse_scenario
-from swarm.simulation import Simulation
 from swarm.testing.strategies import _fault_doc, reproduction, scenarios
 
 __all__ = ["CHECKERS", "SwarmMachine"]

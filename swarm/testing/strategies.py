@@ -38,12 +38,12 @@ from pathlib import Path
 from typing import Any
 
 from hypothesis import note
-from hypothesis.errors import InvalidArgument
 from hypothesis import strategies as st
+from hypothesis.errors import InvalidArgument
 
 from faults.schedule import FaultSchedule, Join, fault_from_dict, fault_to_dict
-from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, parse_scenario
+from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
 
 __all__ = [
     "areas",

@@ -34,19 +34,19 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-from matplotlib import colormaps  # noqa: E402
-from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter  # noqa: E402
-from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
-from matplotlib.collections import EllipseCollection, LineCollection  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Circle, Patch, Rectangle  # noqa: E402
-from PIL import Image  # noqa: E402
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import EllipseCollection, LineCollection
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch, Rectangle
+from PIL import Image
 
-from swarm.errors import SwarmError  # noqa: E402
-from swarm.viz.replay import (  # noqa: E402
+from swarm.errors import SwarmError
+from swarm.viz.replay import (
     MODE_SURVEIL,
     CoverageRaster,
     Replay,
@@ -55,7 +55,7 @@ from swarm.viz.replay import (  # noqa: E402
     fault_label,
     load_run,
 )
-from swarm.viz.style import km_axes, line_width, many_uavs, natural_key, type_markers, uav_colours  # noqa: E402
+from swarm.viz.style import km_axes, line_width, many_uavs, natural_key, type_markers, uav_colours
 
 DEFAULT_FPS = 10
 DEFAULT_SPEED = 60.0  # simulated seconds per second of video: a 2000 s run -> 33 s clip
@@ -91,7 +91,7 @@ class _BlitGifWriter(PillowWriter):
     :meth:`_Scene.frame_rgba`) and palettises it at once (1 byte per pixel in memory instead of
     3, so a few hundred frames stay small; a GIF is palettised anyway)."""
 
-    def __init__(self, scene: "_Scene", fps: float):
+    def __init__(self, scene: _Scene, fps: float):
         super().__init__(fps=fps)
         self.scene = scene
 
@@ -105,7 +105,7 @@ class _BlitGifWriter(PillowWriter):
 class _BlitMp4Writer(FFMpegWriter):
     """FFMpegWriter fed raw RGBA frames from the scene's blitted canvas."""
 
-    def __init__(self, scene: "_Scene", fps: float, **kwargs):
+    def __init__(self, scene: _Scene, fps: float, **kwargs):
         super().__init__(fps=fps, **kwargs)
         self.scene = scene
 
@@ -455,7 +455,7 @@ class AnimationJob:
     def n_frames(self) -> int:
         return len(self.times)
 
-    def make_animation(self) -> tuple[FuncAnimation, "_Scene"]:
+    def make_animation(self) -> tuple[FuncAnimation, _Scene]:
         """The ``FuncAnimation`` (``blit=True``) and its scene, e.g. to show in a GUI or notebook."""
         scene = _Scene(self.replay, self.times, self.fps, self.speed, self.trail_s, self.dpi)
         anim = FuncAnimation(scene.fig, scene.update, frames=self.n_frames, init_func=scene.init, blit=True,

@@ -19,23 +19,23 @@ import html
 import io
 import math
 import os
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-from matplotlib import colormaps  # noqa: E402
-from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Circle, Patch  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch
+from matplotlib.ticker import MaxNLocator
 
-from swarm.errors import SwarmError  # noqa: E402
-from swarm.viz.replay import (  # noqa: E402
+from swarm.errors import SwarmError
+from swarm.viz.replay import (
     MODE_SURVEIL,
     Replay,
     RunDirError,
@@ -44,7 +44,7 @@ from swarm.viz.replay import (  # noqa: E402
     first_seen_map,
     load_run,
 )
-from swarm.viz.style import (  # noqa: E402
+from swarm.viz.style import (
     MODE_COLOURS,
     km_axes,
     line_width,
@@ -509,7 +509,7 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
     title = f"{hd.get('scenario', 'run')} · {hd.get('planner', '?')} · seed {hd.get('seed', '?')}"
     parts = [f"<h1>{_e(title)}</h1>",
              f'<div class="sub">run folder <code>{_e(run_dir.resolve())}</code> · report written '
-             f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC</div>",
+             f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>",
              '<nav><a href="#figures">figures</a><a href="#animation">animation</a><a href="#faults">faults</a>'
              '<a href="#scenario">scenario</a><a href="#metrics">metrics</a><a href="#uavs">UAVs</a></nav>']
     cards = [("coverage", f"{m.get('coverage', float('nan')):.3f}"),
@@ -694,7 +694,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict) -> str:
     parts = [f"<h1>{_e(title)}</h1>",
              f'<div class="sub">sweep folder <code>{_e(sweep_dir.resolve())}</code> · {len(groups)} groups · '
              f"{sum(int(r) for r in (_num(g.get('runs')) for g in groups) if math.isfinite(r))} runs · report written "
-             f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC</div>",
+             f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>",
              '<nav><a href="#summary">summary</a><a href="#comparison">comparison</a></nav>']
     extra = [(k, ", ".join(_fmt(x) for x in v) if isinstance(v, list) else _fmt(v)) for k, v in summary.items()
              if k != "groups" and (isinstance(v, (str, int, float, bool)) or v is None

@@ -13,8 +13,8 @@ import re
 import matplotlib
 
 matplotlib.use("Agg")
-from matplotlib import colormaps  # noqa: E402
-from matplotlib.ticker import FuncFormatter  # noqa: E402
+from matplotlib import colormaps
+from matplotlib.ticker import FuncFormatter
 
 LEGEND_MAX_UAVS = 12
 TYPE_MARKERS = ("^", "o", "s", "D", "v", "P", "X", "h", "<", ">")

@@ -38,8 +38,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.base import Plan, PlanView
+from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.dacmp.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
 from agents.planners.dacmp.pyramid_reuse import FirstLevels
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
@@ -84,7 +84,7 @@ class DacmpPlanner:
     @classmethod
     def from_settings(cls, planner_settings, levels: int = 7,
                       speed_max_by_type: dict[str, float] | None = None,
-                      detect_radius_by_type: dict[str, float] | None = None) -> "DacmpPlanner":
+                      detect_radius_by_type: dict[str, float] | None = None) -> DacmpPlanner:
         d = planner_settings.dacmp
         return cls(
             particles=d.particles, iterations=d.iterations, w_start=d.w_start, w_end=d.w_end,
@@ -238,7 +238,7 @@ class DacmpPlanner:
                 plans[i] = plan
         return plans
 
-    def _keep(self, u: "_UavSearch", g, layers: "_Layers") -> Plan | None:
+    def _keep(self, u: _UavSearch, g, layers: _Layers) -> Plan | None:
         """The surveillance-mode rule of :meth:`plan_many` for one UAV (None: plan afresh)."""
         mine = u.view.plan
         if mine is None or mine.mode != MODE_SURVEIL:
@@ -254,7 +254,7 @@ class DacmpPlanner:
                 return None
         return None
 
-    def _pso(self, uavs: list["_UavSearch"], g, layers: "_Layers") -> list[Plan]:
+    def _pso(self, uavs: list[_UavSearch], g, layers: _Layers) -> list[Plan]:
         """Particle swarms of several UAVs in lockstep (their draws made by :meth:`_UavSearch.draw`)."""
         U, M, n_it = len(uavs), self.particles, self.iterations
         batch = _Batch(self, uavs, g, layers, M)
@@ -308,7 +308,7 @@ class _Batch:
     same-shape operands than when it has to broadcast a column, and the numbers are the same.
     """
 
-    def __init__(self, planner: DacmpPlanner, uavs: list["_UavSearch"], grid, layers: "_Layers", points: int):
+    def __init__(self, planner: DacmpPlanner, uavs: list[_UavSearch], grid, layers: _Layers, points: int):
         self.planner, self.uavs, self.grid, self.layers = planner, uavs, grid, layers
         shape = (len(uavs), points)
 
@@ -411,7 +411,7 @@ class _UavSearch:
 
     @classmethod
     def build(cls, planner: DacmpPlanner, view: PlanView, slot: int,
-              guide: tuple[float, float] | None) -> "_UavSearch":
+              guide: tuple[float, float] | None) -> _UavSearch:
         """Everything but the map work (done for the whole batch by :class:`_Layers`)."""
         k = view.kind
         R = k.detect_radius

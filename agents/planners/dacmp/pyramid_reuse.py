@@ -33,8 +33,8 @@ from typing import TypeVar
 import numpy as np
 
 from agents.maps.grid import Disk
-from agents.planners.dacmp.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
 from agents.maps.umap import UncertaintyMap
+from agents.planners.dacmp.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
 
 # A map is patched when at most this share of its rows differ from the reference's; beyond
 # that, recomputing the patched rows and columns costs about what the whole map costs.
