@@ -1,0 +1,36 @@
+"""What crosses the radio: message types, the msgpack codec (CRC, schema check), the radio
+graph with its link model, bounded mailboxes, and the root error :class:`SwarmError`.
+
+The bottom of the import graph: ``comms`` imports nothing else of ours.
+"""
+
+from comms.codec import Frame, FrameError, decode, encode
+from comms.errors import SwarmError
+from comms.framecache import DecodeCache
+from comms.mailbox import Mailbox, MailboxStats
+from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
+from comms.radio import Delivery, LinkFilter, LinkModel, Radio, RadioCounters
+
+__all__ = [
+    "DecodeCache",
+    "Delivery",
+    "Frame",
+    "FrameError",
+    "Hello",
+    "Intent",
+    "LinkFilter",
+    "LinkModel",
+    "Mailbox",
+    "MailboxStats",
+    "Radio",
+    "RadioCounters",
+    "ScanDigest",
+    "ScanRecords",
+    "SwarmError",
+    "ThreatItem",
+    "Threats",
+    "TrackItem",
+    "Tracks",
+    "decode",
+    "encode",
+]

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import msgpack
 
+from comms.errors import SwarmError
 from comms.messages import (
     Hello,
     Intent,
@@ -38,7 +39,7 @@ DEFAULT_MAX_BYTES = 65536
 K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST = 1, 2, 3, 4, 5, 6
 
 
-class FrameError(ValueError):
+class FrameError(SwarmError, ValueError):
     """A received frame is malformed, truncated, oversized or fails the schema."""
 
 

@@ -8,11 +8,13 @@ Embedding::
     print(sim.snapshot().coverage)
 """
 
-from swarm.errors import ScenarioError, SimulationError, SwarmError, UsageError
+from swarm.errors import APIMisuseError, ScenarioError, SimulationError, SwarmError, UsageError
+from swarm.results import RunResult
 from swarm.scenario import Scenario, builtin_scenarios, load_scenario
-from swarm.simulation import RunResult, Simulation, Snapshot
+from swarm.simulation import Simulation, Snapshot
 
 __all__ = [
+    "APIMisuseError",
     "RunResult",
     "Scenario",
     "ScenarioError",

@@ -1,15 +1,24 @@
-"""One root exception for everything the simulator raises on purpose.
+"""One root exception for everything the simulator raises on purpose, and its kinds.
 
-User mistakes (a bad scenario, a wrong call) subclass both :class:`SwarmError` and the
-matching built-in (``ValueError``/``TypeError``) so ``except ValueError`` keeps working.
-Internal failures (an actor crashed with a bug) are :class:`SimulationError`.
+* user mistakes subclass both :class:`SwarmError` and the matching built-in so that
+  ``except ValueError`` keeps working: :class:`ScenarioError` (a bad scenario document),
+  :class:`UsageError` (a public call got an argument it cannot use);
+* :class:`APIMisuseError`: the API was called in a state where it cannot work (a closed
+  simulation, another event loop, ``step()`` past the end); the fix is in the caller's code;
+* :class:`SimulationError`: the run itself failed (an actor or its planner raised); the
+  original exception is its ``__cause__``;
+* elsewhere: :class:`comms.codec.FrameError` (a frame a receiver rejects),
+  :class:`agents.planners.PlannerError`, and the run-folder errors of :mod:`swarm.viz`.
+
+:class:`SwarmError` itself is defined in :mod:`comms.errors`, the bottom of the import
+graph, so the lower packages can subclass it without a cycle.
 """
 
 from __future__ import annotations
 
+from comms.errors import SwarmError
 
-class SwarmError(Exception):
-    """Root of every exception the simulator raises deliberately."""
+__all__ = ["APIMisuseError", "ScenarioError", "SimulationError", "SwarmError", "UsageError"]
 
 
 class ScenarioError(SwarmError, ValueError):
@@ -34,7 +43,12 @@ class ScenarioError(SwarmError, ValueError):
 
 
 class SimulationError(SwarmError, RuntimeError):
-    """The simulation cannot go on (an actor raised, or the API was used in a wrong state)."""
+    """The simulation cannot go on: an actor (or its planner) raised. Internal, not a misuse."""
+
+
+class APIMisuseError(SwarmError, RuntimeError):
+    """A public method was called in a state where it cannot work (closed simulation, another
+    event loop, a synchronous call inside a running loop, stepping past the end)."""
 
 
 class UsageError(SwarmError, ValueError):

@@ -30,33 +30,32 @@ import math
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from agents.actor import ActorOutput, ActorSettings, UavActor
-from agents.apf import ApfSettings
-from agents.knowledge import KnownThreat
+from agents.actor import ActorOutput, SensorReading, UavActor
 from agents.maps.grid import PREFETCH_MIN, Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.umap import DENSE_MAX_CELLS
 from agents.planners import make_planner
 from agents.planners.base import Plan
 from agents.planners.batching import PlanBatcher
-from agents.types import UavType
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
-from comms.radio import Delivery, LinkModel, Radio
+from comms.radio import Delivery
 from faults.injector import FaultInjector
 from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict
+from swarm import build
 from swarm.clock import DELIVERY, FAULT, TICK, Clock
 from swarm.errors import SimulationError, UsageError
 from swarm.metrics import Metrics
 from swarm.recorder import EventLog
+from swarm.results import RunResult, radio_totals, run_metrics, run_result
 from swarm.rng import RngTree
 from swarm.scenario import Scenario, UavSpec, load_scenario
-from swarm.world import ALIVE, CRASHED, PENDING, TargetMotion, Targets, UavBody, World
+from swarm.world import ALIVE, CRASHED, PENDING, Targets, UavBody, World
 
 MODE_NAMES = {0: "search", 1: "surveil"}
 
@@ -99,35 +98,6 @@ class Snapshot:
     links: tuple[tuple[int, int], ...]
 
 
-@dataclass
-class RunResult:
-    """Everything a finished (or stopped) run produced; :mod:`swarm.outputs` writes it."""
-
-    metrics: dict
-    timeseries: list[dict]
-    events: bytes
-    paths: dict[str, np.ndarray]  # UAV name -> (n, 3) rows of (t, x, y)
-    target_paths: dict[int, np.ndarray]
-    union_last_seen: np.ndarray
-    threats: list[KnownThreat]
-    area: tuple[float, float]
-    uav_types: dict[str, str] = field(default_factory=dict)
-
-
-def uav_type_from_spec(name: str, spec) -> UavType:
-    return UavType(
-        name=name,
-        speed_min=spec.speed_min,
-        speed_max=spec.speed_max,
-        accel_max=spec.accel_max,
-        bank_max_rad=math.radians(spec.bank_max_deg),
-        detect_radius=spec.detect_radius_m,
-        w_t=spec.w_t,
-        w_r=spec.w_r,
-        influence_radius=spec.influence_radius_m,
-    )
-
-
 class Simulation:
     def __init__(
         self,
@@ -154,68 +124,78 @@ class Simulation:
             from swarm.scenario import apply_overrides
 
             scenario = apply_overrides(scenario, overrides)
-        sc = scenario
-        self.scenario = sc
-        self.seed = sc.seed
-        self.dt = sc.dt_s
-        self.duration_s = sc.duration_s
+        self.scenario = scenario
+        self.seed = scenario.seed
+        self.dt = scenario.dt_s
+        self.duration_s = scenario.duration_s
         self.rng = RngTree(self.seed)
+        self.clock = Clock()
+        self.log = EventLog()
+        self._build_world(scenario)
+        self._build_radio(scenario)
+        self._build_actors(scenario, batch_planning)
+        self._populate(scenario)
+        self.clock.schedule(0.0, self._tick, TICK)
+        self.log.emit("start", 0.0, {
+            "scenario": scenario.name, "seed": self.seed, "planner": scenario.planner.name, "dt": self.dt,
+            "uavs": [[b.uid, b.name, b.kind.name] for b in self.world.uavs.values()],
+            "targets": len(self.targets), "threats": len(self.world.threats),
+            "faults": self.injector.schedule.to_list(),
+        })
+
+    # --- building (once, from the scenario) -------------------------------------------------
+
+    def _build_world(self, sc: Scenario) -> None:
+        """Ground truth (area grid, targets, threats), the metrics that observe it, UAV types."""
         self.grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
         self.tau = sc.effective_tau
-        self.clock = Clock()
-        self._tick_index = 0
-        self._in_flight = 0
-        self.log = EventLog()
-        self.types = {name: uav_type_from_spec(name, spec) for name, spec in sc.uav_types.items()}
+        self.types = build.uav_types(sc)
         self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
         self.detect_radius_by_type = {n: t.detect_radius for n, t in self.types.items()}
-
-        tm = sc.targets
-        self.targets = Targets(TargetMotion(tm.speed_max, tm.accel_max, tm.accel_sigma, tm.turn_sigma, tm.turn_rate_max,
-                                                  tm.turn_reversion_s))
-        threats = [KnownThreat(i, th.x_m, th.y_m, th.radius_m, th.d_max) for i, th in enumerate(sc.threats)]
-        self.world = World(self.grid, self.targets, threats)
+        self.targets = Targets(build.target_motion(sc))
+        self.world = World(self.grid, self.targets, build.threats(sc))
         self.metrics = Metrics(self.grid, self.tau)
-        # The UAVs' maps share storage where they agree (same cells as maps of their own;
-        # agents.maps.mapgroup): on areas small enough for dense maps.
-        self._map_group = MapGroup(self.grid, self.tau, self.dt) if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS else None
-
         self.names: dict[str, int] = {}  # shared with the injector: names added later resolve
-        self.actors: dict[int, UavActor] = {}
-        self._tasks: dict[int, asyncio.Task] = {}
-        self._plans: dict[int, Plan] = {}
+        self._tick_index = 0
         # Flat (t, x, y, t, x, y, ...) per UAV and per target: an array is made from a flat
-        # list of floats several times faster than from a list of tuples (result()).
+        # list of floats several times faster than from a list of tuples (results).
         self._paths: dict[int, list[float]] = {}
         self._target_paths: dict[int, list[float]] = {}
+        self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
 
+    def _build_radio(self, sc: Scenario) -> None:
+        """The fault injector and the radio whose frame copies it filters."""
         self.injector = FaultInjector(FaultSchedule([]), self.names)
-        r = sc.radio
-        self.radio = Radio(
-            LinkModel(r.range_m, r.loss_base, r.loss_at_range, r.latency_s, r.jitter_s, r.bandwidth_bytes_per_s),
+        self.radio = build.radio(
+            sc,
             link_rng=lambda s, d: self.rng.generator("link", self.world.uavs[s].name, self.world.uavs[d].name),
             link_filter=self.injector,
         )
-        ap = sc.planner.apf
-        self._decoder = DecodeCache(r.frame_max_bytes)  # each broadcast frame decoded once
-        self._actor_settings = ActorSettings(
-            dt=self.dt,
-            replan_s=sc.planner.replan_s,
-            beacon_every_s=r.beacon_every_s,
-            tracks_every_s=r.tracks_every_s,
-            sync_every_s=r.sync_every_s,
-            sync_settle_s=r.sync_settle_s,
-            sync_max_records=r.sync_max_records,
-            sync_horizon_s=r.sync_horizon_s,
-            frame_max_bytes=r.frame_max_bytes,
-            surveillance=sc.planner.surveillance,
-            loiter_radius_factor=sc.planner.loiter_radius_factor,
-            loiter_turn_factor=sc.planner.loiter_turn_factor,
-            loiter_gain=sc.planner.loiter_gain,
-            apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m,
-                            cpa_horizon_s=ap.lookahead_s),
-        )
+        self._decoder = DecodeCache(sc.radio.frame_max_bytes)  # each broadcast frame decoded once
+        self._in_flight = 0
 
+    def _build_actors(self, sc: Scenario, batch_planning: bool) -> None:
+        """Shared actor settings, map storage and plan batching; the actors come with their UAVs."""
+        self._actor_settings = build.actor_settings(sc)
+        # The UAVs' maps share storage where they agree (same cells as maps of their own;
+        # agents.maps.mapgroup): on areas small enough for dense maps.
+        self._map_group = MapGroup(self.grid, self.tau, self.dt) if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS else None
+        self.actors: dict[int, UavActor] = {}
+        self._tasks: dict[int, asyncio.Task] = {}
+        self._plans: dict[int, Plan] = {}
+        self._batcher = PlanBatcher() if batch_planning else None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._own_loop = False
+        self._barrier: asyncio.Future | None = None
+        self._waiting = 0
+        self._outputs: dict[int, ActorOutput] = {}
+        self._failed: BaseException | None = None
+        self._closed = False
+        self._wall = 0.0
+
+    def _populate(self, sc: Scenario) -> None:
+        """The scenario's targets (placed, then random), UAVs and faults, in that order."""
+        tm = sc.targets
         for p in tm.placed:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
         for _ in range(tm.count):
@@ -231,24 +211,6 @@ class Simulation:
             if isinstance(fault, Join):
                 continue  # folded into the UAV's join_s by the scenario loader
             self.add_fault(fault)
-
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._own_loop = False
-        self._barrier: asyncio.Future | None = None
-        self._waiting = 0
-        self._outputs: dict[int, ActorOutput] = {}
-        self._batcher = PlanBatcher() if batch_planning else None
-        self._failed: BaseException | None = None
-        self._closed = False
-        self._wall = 0.0
-        self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
-        self.clock.schedule(0.0, self._tick, TICK)
-        self.log.emit("start", 0.0, {
-            "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
-            "uavs": [[b.uid, b.name, b.kind.name] for b in self.world.uavs.values()],
-            "targets": len(self.targets), "threats": len(threats),
-            "faults": self.injector.schedule.to_list(),
-        })
 
     # --- construction helpers ---------------------------------------------------------------
 
@@ -456,18 +418,36 @@ class Simulation:
             b.flush()
 
     async def _tick(self) -> None:
-        t = self._tick_index * self.dt
-        dt = self.dt
-        world = self.world
+        """One tick at ``t``: the data flow of ARCHITECTURE.md, one phase per method.
+
+        Faults, joins and frames due at ``t`` ran before this (clock priorities)."""
+        t = self.now
+        alive = self._start_tick(t)
+        xy, readings = self._sense(t, alive)
+        outputs = await self._wake_actors(alive, readings)
+        self._observe(t, alive, outputs, readings, xy)
+        self._transmit(t, alive, xy, outputs)
+        self._integrate(alive, outputs)
+        self._end_tick()
+
+    def _start_tick(self, t: float) -> list[int]:
+        """Select the faults active at ``t``; start the task of every UAV that just began to fly."""
         self.injector.begin_tick(t)
-        alive = world.alive_ids()
+        alive = self.world.alive_ids()
         loop = asyncio.get_running_loop()
+        plan_source = self._plan_for if self._batcher is not None else None
         for uid in alive:
             if uid not in self._tasks:
-                plan_source = self._plan_for if self._batcher is not None else None
-                self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report, plan_source), name=f"uav-{world.uavs[uid].name}")
-        # Positions at t: UAVs move only in the physics step at the end of the tick, so these
-        # also serve the safety check and the radio topology below.
+                self._tasks[uid] = loop.create_task(self.actors[uid].run(self._report, plan_source),
+                                                    name=f"uav-{self.world.uavs[uid].name}")
+        return alive
+
+    def _sense(self, t: float, alive: list[int]) -> tuple[np.ndarray, dict[int, SensorReading]]:
+        """Positions at ``t`` and what each live UAV senses there.
+
+        UAVs move only in :meth:`_integrate`, so these positions also serve the safety check and
+        the radio topology of this tick."""
+        world = self.world
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
         # Every live UAV scans its disk this tick (its own map, then the ground truth and every
@@ -477,9 +457,13 @@ class Simulation:
             umap = self.actors[alive[0]].umap
             self.grid.prefetch_disks([b.x for b in bodies], [b.y for b in bodies], [b.kind.detect_radius for b in bodies],
                                      t, None if umap.dense else umap.tile_shape)
+        return xy, readings
+
+    async def _wake_actors(self, alive: list[int], readings: dict[int, SensorReading]) -> dict[int, ActorOutput]:
+        """Hand every live actor its reading and wait until all of them have answered."""
         self._outputs = {}
         if alive:
-            self._barrier = loop.create_future()
+            self._barrier = asyncio.get_running_loop().create_future()
             self._waiting = len(alive)
             for uid in alive:
                 self.actors[uid].wake(readings[uid])
@@ -487,10 +471,13 @@ class Simulation:
                 await self._barrier
             finally:
                 self._barrier = None
-        outputs = self._outputs
-        log = self.log
+        return self._outputs
 
-        # Ground truth: scans, sightings, modes (positions at t, as the agents saw them).
+    def _observe(self, t: float, alive: list[int], outputs: dict[int, ActorOutput],
+                 readings: dict[int, SensorReading], xy: np.ndarray) -> None:
+        """Ground truth at ``t`` (positions as the agents saw them): modes, scans, sightings,
+        poses, frames read, target positions, then safety violations; all into the log."""
+        world = self.world
         plans: dict[int, tuple[int, int]] = {}
         sensed: dict[int, list[int]] = {}
         uavs = world.uavs
@@ -515,19 +502,23 @@ class Simulation:
             add(("pose", t, uid, b.x, b.y, b.v, b.theta, plan.mode, plan.target))
             paths[uid].extend((t, b.x, b.y))
             events += [("rx", t, sender, uid, nbytes, ok) for sender, nbytes, ok in out.received]
-        types = {u: world.uavs[u].kind.name for u in alive}
-        events += self.metrics.observe(t, dt, plans, sensed, types, self.speed_max_by_type)
+        types = {u: uavs[u].kind.name for u in alive}
+        events += self.metrics.observe(t, self.dt, plans, sensed, types, self.speed_max_by_type)
         tg = self.targets
         target_paths = self._target_paths
         for i, (x, y) in enumerate(zip(tg.x, tg.y)):
             add(("target", t, i, x, y))
             target_paths[i].extend((t, x, y))
+        log = self.log
         log.extend(events)
+        for kind, a, b2 in world.check_safety(alive, xy, self.scenario.safety.min_separation_m):
+            log.emit("violation", t, kind, a, b2)
 
-        # Radio: topology from positions at t (xy), then every frame in UAV-id order.
-        for kind, a, b in world.check_safety(alive, xy, self.scenario.safety.min_separation_m):
-            log.emit("violation", t, kind, a, b)
-        self.radio.update_topology(alive, xy, dt)
+    def _transmit(self, t: float, alive: list[int], xy: np.ndarray, outputs: dict[int, ActorOutput]) -> None:
+        """Radio: topology from positions at ``t``, every frame in UAV-id order through the
+        links (and the fault injector), arrivals scheduled on the clock in batches by time."""
+        log = self.log
+        self.radio.update_topology(alive, xy, self.dt)
         deliveries: list[Delivery] = []
 
         def lost(src: int, dst: int, nbytes: int, cause: str) -> None:
@@ -552,17 +543,21 @@ class Simulation:
             self._in_flight += len(batch)
             self.clock.schedule(at, lambda batch=batch: self._deliver(batch), DELIVERY)
 
-        # Physics.
+    def _integrate(self, alive: list[int], outputs: dict[int, ActorOutput]) -> None:
+        """Physics: every live UAV flies its command for ``dt``, then the targets move."""
+        dt = self.dt
         for uid in alive:
             out = outputs[uid]
-            world.apply(uid, out.a, out.omega, dt)
-        tg.step(dt, self.grid)
+            self.world.apply(uid, out.a, out.omega, dt)
+        self.targets.step(dt, self.grid)
 
+    def _end_tick(self) -> None:
+        """Count the tick, sample the time series when due, flush the log, schedule the next."""
         self._tick_index += 1
         if self._tick_index % self._sample_every == 0 or self._tick_index == self.n_ticks:
             self.metrics.rows.append(self._sample())
-        log.flush()
-        self.clock.schedule(self._tick_index * dt, self._tick, TICK)
+        self.log.flush()
+        self.clock.schedule(self._tick_index * self.dt, self._tick, TICK)
 
     def _mode_name(self, uid: int) -> str:
         """search / surveil for a flying UAV, else down / pending."""
@@ -574,25 +569,9 @@ class Simulation:
         plan = self._plans.get(uid)
         return MODE_NAMES[plan.mode] if plan else "search"
 
-    def _radio_totals(self) -> dict:
-        c = self.radio.counters
-        delivered = sum(a.counters.delivered for a in self.actors.values())
-        rejected = sum(a.counters.rejected for a in self.actors.values())
-        queued = sum(len(a.mailbox) for a in self.actors.values())
-        return {
-            "sent": c.sent,
-            "delivered": delivered,
-            "dropped": c.dropped_total,
-            "rejected": rejected,
-            "bytes_sent": c.bytes_sent,
-            "duplicated": c.duplicated,
-            "dropped_by_cause": dict(sorted(c.dropped.items())),
-            "in_flight": self._in_flight + queued,  # scheduled on the clock or unread in a mailbox
-        }
-
     def _sample(self) -> dict:
         t = self.now
-        radio = self._radio_totals()
+        radio = radio_totals(self)
         row = {
             "t": t,
             "coverage": self.metrics.coverage(),
@@ -613,9 +592,9 @@ class Simulation:
 
     def _check_usable(self) -> None:
         if self._closed:
-            raise SimulationError("this Simulation is closed")
+            raise APIMisuseError("this Simulation is closed")
         if self._failed is not None:
-            raise SimulationError(f"this Simulation failed earlier: {self._failed}")
+            raise APIMisuseError(f"this Simulation failed earlier: {self._failed}")
 
     async def _advance(self, t_end: float, progress: Callable[[float, float], None] | None = None) -> None:
         clock = self.clock
@@ -641,7 +620,7 @@ class Simulation:
         if self._loop is None:
             self._loop = loop
         elif self._loop is not loop:
-            raise SimulationError("this Simulation is bound to another event loop (it was driven with "
+            raise APIMisuseError("this Simulation is bound to another event loop (it was driven with "
                                   "step()/run() or from another loop); drive it from one loop only")
         start = time.perf_counter()
         try:
@@ -656,13 +635,13 @@ class Simulation:
         except RuntimeError:
             pass
         else:
-            raise SimulationError("step()/run() are synchronous and cannot run inside a running event loop; "
+            raise APIMisuseError("step()/run() are synchronous and cannot run inside a running event loop; "
                                   "use `await sim.run_until(t)` there")
         if self._loop is None:
             self._loop = asyncio.new_event_loop()
             self._own_loop = True
         elif not self._own_loop:
-            raise SimulationError("this Simulation is driven by a host event loop; use `await sim.run_until(t)`")
+            raise APIMisuseError("this Simulation is driven by a host event loop; use `await sim.run_until(t)`")
         start = time.perf_counter()
         # Python's cyclic garbage collector re-traverses the run's caches (decoded frames, disks,
         # scan logs: tens of thousands of small objects) every few hundred allocations and finds
@@ -724,69 +703,12 @@ class Simulation:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    # --- results ----------------------------------------------------------------------------
+    # --- results ---------------------------------------------------------------------------
 
     def metrics_dict(self) -> dict:
-        sc = self.scenario
-        t = self.now
-        m = self.metrics
-        radio = self._radio_totals()
-        per_uav = {}
-        for uid, b in sorted(self.world.uavs.items()):
-            a = self.actors[uid]
-            per_uav[b.name] = {
-                "type": b.kind.name,
-                "state": b.state,
-                "mode_seconds": m.mode_s.get(uid, {"search": 0.0, "surveil": 0.0}),
-                "frames_sent": a.counters.frames_sent,
-                "frames_delivered": a.counters.delivered,
-                "frames_rejected": a.counters.rejected,
-                "mailbox_dropped_full": a.mailbox.stats.dropped_full,
-                "mailbox_max_depth": a.mailbox.stats.max_depth,
-                "plans": a.counters.plans,
-                "scans_known": a.scans.count,  # own and heard scans in its log (agents.maps.scanlog)
-                "scans_resent": a.counters.scans_resent,  # answers to neighbours' digests
-                "scans_ignored": a.counters.scans_ignored,  # heard scans with absurd values
-            }
-        surv = m.surveillance_ratio(t)
-        return {
-            "scenario": sc.name,
-            "planner": sc.planner.name,
-            "seed": self.seed,
-            "sim_seconds": t,
-            "wall_seconds": round(self._wall, 3),
-            "coverage": m.coverage(),
-            "certainty": m.certainty(t),
-            "targets_found": len(m.found_t),
-            "targets_total": len(self.targets),
-            "surveillance_ratio_mean": float(np.mean(list(surv.values()))) if surv else 0.0,
-            "surveillance_ratio": {str(k): v for k, v in surv.items()},
-            "handovers": len(m.handovers),
-            "handovers_fast_to_slow": m.fast_to_slow_handovers(self.speed_max_by_type),
-            "handover_list": [
-                {"t": h.t, "target": h.target, "from": self.world.uavs[h.from_uav].name,
-                 "to": self.world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
-                 "latency_s": h.latency_s} for h in m.handovers
-            ],
-            "radio": radio,
-            "violations": dict(self.world.violations),
-            "faults_applied": dict(sorted(self.injector.fired.items())),
-            "per_uav": per_uav,
-            "events": self.log.total,
-            "event_log_sha256": self.log.sha256(),
-        }
+        """The run's metrics so far (what ``metrics.json`` holds; see :mod:`swarm.results`)."""
+        return run_metrics(self)
 
     def result(self) -> RunResult:
-        events = self.log.to_bytes()
-        metrics = self.metrics_dict()
-        return RunResult(
-            metrics=metrics,
-            timeseries=list(self.metrics.rows),
-            events=events,
-            paths={self.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in self._paths.items()},
-            target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in self._target_paths.items()},
-            union_last_seen=self.metrics.union.to_dense(),
-            threats=list(self.world.threats),
-            area=(self.grid.width_m, self.grid.height_m),
-            uav_types={b.name: b.kind.name for b in self.world.uavs.values()},
-        )
+        """Everything the run produced so far, for :func:`swarm.outputs.write_run`."""
+        return run_result(self)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from agents.planners.base import Plan, Planner, PlanView
+from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.planners.greedy import GreedyPlanner
 
 PLANNER_NAMES = ("greedy", "dacmp")
@@ -21,4 +21,4 @@ def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, floa
     raise ValueError(f"unknown planner {name!r}; expected one of {', '.join(PLANNER_NAMES)}")
 
 
-__all__ = ["Plan", "Planner", "PlanView", "GreedyPlanner", "make_planner", "PLANNER_NAMES"]
+__all__ = ["PLANNER_NAMES", "GreedyPlanner", "Plan", "PlanView", "Planner", "PlannerError", "make_planner"]

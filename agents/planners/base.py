@@ -17,7 +17,14 @@ from agents.knowledge import Knowledge
 from agents.maps.grid import Grid
 from agents.maps.umap import UncertaintyMap
 from agents.types import UavType
+from comms.errors import SwarmError
 from comms.messages import MODE_SEARCH, NO_TARGET
+
+__all__ = ["Plan", "PlanView", "Planner", "PlannerError"]
+
+
+class PlannerError(SwarmError, RuntimeError):
+    """A planner could not plan: it raised, or returned something that is not a :class:`Plan`."""
 
 
 @dataclass(frozen=True, slots=True)

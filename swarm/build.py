@@ -1,0 +1,83 @@
+"""Builders: the pieces of a simulation made from its scenario.
+
+Each function turns one part of a :class:`~swarm.scenario.Scenario` into the objects the kernel
+runs (UAV types, target motion, threats, the radio, the actors' settings). They hold no state
+and decide nothing at run time; :class:`swarm.simulation.Simulation` composes them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from agents.actor import ActorSettings
+from agents.apf import ApfSettings
+from agents.knowledge import KnownThreat
+from agents.types import UavType
+from comms.radio import LinkFilter, LinkModel, Radio
+from swarm.scenario import Scenario, UavTypeSpec
+from swarm.world import TargetMotion
+
+__all__ = ["actor_settings", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
+
+
+def uav_type_from_spec(name: str, spec: UavTypeSpec) -> UavType:
+    """A scenario's ``[uav_types.NAME]`` table as the agents' :class:`UavType`."""
+    return UavType(
+        name=name,
+        speed_min=spec.speed_min,
+        speed_max=spec.speed_max,
+        accel_max=spec.accel_max,
+        bank_max_rad=math.radians(spec.bank_max_deg),
+        detect_radius=spec.detect_radius_m,
+        w_t=spec.w_t,
+        w_r=spec.w_r,
+        influence_radius=spec.influence_radius_m,
+    )
+
+
+def uav_types(sc: Scenario) -> dict[str, UavType]:
+    return {name: uav_type_from_spec(name, spec) for name, spec in sc.uav_types.items()}
+
+
+def target_motion(sc: Scenario) -> TargetMotion:
+    tm = sc.targets
+    return TargetMotion(tm.speed_max, tm.accel_max, tm.accel_sigma, tm.turn_sigma, tm.turn_rate_max, tm.turn_reversion_s)
+
+
+def threats(sc: Scenario) -> list[KnownThreat]:
+    return [KnownThreat(i, th.x_m, th.y_m, th.radius_m, th.d_max) for i, th in enumerate(sc.threats)]
+
+
+def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], link_filter: LinkFilter) -> Radio:
+    """The radio graph with the scenario's link model; ``link_rng(src, dst)`` gives a directed
+    link's own random stream, ``link_filter`` (the fault injector) sees every frame copy."""
+    r = sc.radio
+    model = LinkModel(r.range_m, r.loss_base, r.loss_at_range, r.latency_s, r.jitter_s, r.bandwidth_bytes_per_s)
+    return Radio(model, link_rng=link_rng, link_filter=link_filter)
+
+
+def actor_settings(sc: Scenario) -> ActorSettings:
+    """What every UAV actor of the run is configured with (timers, anti-entropy, loitering, APF)."""
+    r = sc.radio
+    p = sc.planner
+    ap = p.apf
+    return ActorSettings(
+        dt=sc.dt_s,
+        replan_s=p.replan_s,
+        beacon_every_s=r.beacon_every_s,
+        tracks_every_s=r.tracks_every_s,
+        sync_every_s=r.sync_every_s,
+        sync_settle_s=r.sync_settle_s,
+        sync_max_records=r.sync_max_records,
+        sync_horizon_s=r.sync_horizon_s,
+        frame_max_bytes=r.frame_max_bytes,
+        surveillance=p.surveillance,
+        loiter_radius_factor=p.loiter_radius_factor,
+        loiter_turn_factor=p.loiter_turn_factor,
+        loiter_gain=p.loiter_gain,
+        apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m,
+                        cpa_horizon_s=ap.lookahead_s),
+    )

@@ -1,0 +1,119 @@
+"""A run's results assembled from a simulation: the metrics (``metrics.json``), the per-tick
+paths, the union scan map and the event log bytes, as one :class:`RunResult`.
+
+Kept apart from the kernel: nothing here changes the run, it only reads it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from agents.knowledge import KnownThreat
+
+if TYPE_CHECKING:
+    from swarm.simulation import Simulation
+
+__all__ = ["RunResult", "radio_totals", "run_metrics", "run_result"]
+
+
+@dataclass
+class RunResult:
+    """Everything a finished (or stopped) run produced; :mod:`swarm.outputs` writes it."""
+
+    metrics: dict
+    timeseries: list[dict]
+    events: bytes
+    paths: dict[str, np.ndarray]  # UAV name -> (n, 3) rows of (t, x, y)
+    target_paths: dict[int, np.ndarray]
+    union_last_seen: np.ndarray
+    threats: list[KnownThreat]
+    area: tuple[float, float]
+    uav_types: dict[str, str] = field(default_factory=dict)
+
+
+def radio_totals(sim: Simulation) -> dict:
+    c = sim.radio.counters
+    delivered = sum(a.counters.delivered for a in sim.actors.values())
+    rejected = sum(a.counters.rejected for a in sim.actors.values())
+    queued = sum(len(a.mailbox) for a in sim.actors.values())
+    return {
+        "sent": c.sent,
+        "delivered": delivered,
+        "dropped": c.dropped_total,
+        "rejected": rejected,
+        "bytes_sent": c.bytes_sent,
+        "duplicated": c.duplicated,
+        "dropped_by_cause": dict(sorted(c.dropped.items())),
+        "in_flight": sim._in_flight + queued,  # scheduled on the clock or unread in a mailbox
+    }
+
+
+def run_metrics(sim: Simulation) -> dict:
+    """``metrics.json``: the ground-truth measures, radio and fault counters, per-UAV counters."""
+    sc = sim.scenario
+    t = sim.now
+    m = sim.metrics
+    radio = radio_totals(sim)
+    per_uav = {}
+    for uid, b in sorted(sim.world.uavs.items()):
+        a = sim.actors[uid]
+        per_uav[b.name] = {
+            "type": b.kind.name,
+            "state": b.state,
+            "mode_seconds": m.mode_s.get(uid, {"search": 0.0, "surveil": 0.0}),
+            "frames_sent": a.counters.frames_sent,
+            "frames_delivered": a.counters.delivered,
+            "frames_rejected": a.counters.rejected,
+            "mailbox_dropped_full": a.mailbox.stats.dropped_full,
+            "mailbox_max_depth": a.mailbox.stats.max_depth,
+            "plans": a.counters.plans,
+            "scans_known": a.scans.count,  # own and heard scans in its log (agents.maps.scanlog)
+            "scans_resent": a.counters.scans_resent,  # answers to neighbours' digests
+            "scans_ignored": a.counters.scans_ignored,  # heard scans with absurd values
+        }
+    surv = m.surveillance_ratio(t)
+    return {
+        "scenario": sc.name,
+        "planner": sc.planner.name,
+        "seed": sim.seed,
+        "sim_seconds": t,
+        "wall_seconds": round(sim._wall, 3),
+        "coverage": m.coverage(),
+        "certainty": m.certainty(t),
+        "targets_found": len(m.found_t),
+        "targets_total": len(sim.targets),
+        "surveillance_ratio_mean": float(np.mean(list(surv.values()))) if surv else 0.0,
+        "surveillance_ratio": {str(k): v for k, v in surv.items()},
+        "handovers": len(m.handovers),
+        "handovers_fast_to_slow": m.fast_to_slow_handovers(sim.speed_max_by_type),
+        "handover_list": [
+            {"t": h.t, "target": h.target, "from": sim.world.uavs[h.from_uav].name,
+             "to": sim.world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
+             "latency_s": h.latency_s} for h in m.handovers
+        ],
+        "radio": radio,
+        "violations": dict(sim.world.violations),
+        "faults_applied": dict(sorted(sim.injector.fired.items())),
+        "per_uav": per_uav,
+        "events": sim.log.total,
+        "event_log_sha256": sim.log.sha256(),
+    }
+
+
+def run_result(sim: Simulation) -> RunResult:
+    events = sim.log.to_bytes()
+    metrics = run_metrics(sim)
+    return RunResult(
+        metrics=metrics,
+        timeseries=list(sim.metrics.rows),
+        events=events,
+        paths={sim.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in sim._paths.items()},
+        target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in sim._target_paths.items()},
+        union_last_seen=sim.metrics.union.to_dense(),
+        threats=list(sim.world.threats),
+        area=(sim.grid.width_m, sim.grid.height_m),
+        uav_types={b.name: b.kind.name for b in sim.world.uavs.values()},
+    )
