@@ -8,10 +8,19 @@ Embedding::
     print(sim.snapshot().coverage)
 """
 
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _package_version
+
 from swarm.errors import APIMisuseError, ScenarioError, SimulationError, SwarmError, UsageError
 from swarm.results import RunResult
 from swarm.scenario import Scenario, builtin_scenarios, load_scenario
 from swarm.simulation import Simulation, Snapshot
+
+try:
+    # One version source: pyproject.toml's, as installed.
+    __version__ = _package_version("uav-swarm-sim")
+except PackageNotFoundError:  # imported from a source tree that was never installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "APIMisuseError",

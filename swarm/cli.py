@@ -16,22 +16,97 @@ from swarm.errors import SwarmError, UsageError
 EXIT_USAGE = 2
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one grammar for every subcommand: no abbreviations (``--seed`` is never
+    taken for ``--seeds``), and a "did you mean" for a mistyped option."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):  # type: ignore[override]
+        # One line, like every other mistake the command reports (argparse would add its usage).
+        self.exit(EXIT_USAGE, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
+
+    def unknown_options(self, extras: list[str]) -> None:
+        """Exit with one usage error for arguments this (sub)command does not take, naming the
+        closest option it does take."""
+        import difflib
+
+        message = f"unrecognized arguments: {' '.join(extras)}"
+        options = [o for a in self._actions for o in a.option_strings]
+        first = next((e for e in extras if e.startswith("-")), None)
+        if first is not None:
+            close = difflib.get_close_matches(first.split("=")[0], options, n=1)
+            if close:
+                message += f" (did you mean {close[0]}?)"
+        self.error(message)
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``--seeds``: ``N`` (seeds 0..N-1), ``A-B`` (A to B, both included) or ``a,b,c``."""
+    text = text.strip()
+    try:
+        if "," in text:
+            seeds = [int(part) for part in text.split(",") if part.strip()]
+        elif "-" in text.lstrip("-"):
+            first, _, last = text.partition("-")
+            seeds = list(range(int(first), int(last) + 1))
+        else:
+            seeds = list(range(int(text)))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"found {text!r}; expected N (seeds 0..N-1), A-B or a,b,c") from None
+    if not seeds or any(seed < 0 for seed in seeds):
+        raise argparse.ArgumentTypeError(f"found {text!r}; expected at least one seed, none negative")
+    return seeds
+
+
+def _version() -> str:
+    from swarm import __version__
+
+    return __version__
+
+
+def _print_json(data) -> None:
+    import json
+
+    print(json.dumps(data, indent=2, allow_nan=False, default=str))
+
+
 def _console(stderr: bool = False):
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False)
+    # Piped into a file or another program, rich would cut tables to 80 columns: give it room.
+    stream = sys.stderr if stderr else sys.stdout
+    width = None if stream.isatty() else 200
+    return Console(stderr=stderr, highlight=False, width=width)
 
 
 def _cmd_validate(args) -> int:
+    from swarm.errors import ScenarioError
     from swarm.scenario import load_scenario
 
+    reports = []
     for ref in args.scenario:
-        sc = load_scenario(ref)
+        try:
+            sc = load_scenario(ref)
+        except ScenarioError as err:
+            reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
+            continue
         types = sorted({u.type for u in sc.uavs})
-        print(f"ok: {ref}: scenario '{sc.name}', {len(sc.uavs)} UAVs ({', '.join(types)}), "
-              f"{len(sc.targets.placed) + sc.targets.count} targets, {len(sc.threats)} threats, "
-              f"{len(sc.faults)} faults, {sc.duration_s:g} s")
-    return 0
+        reports.append({"scenario": ref, "ok": True, "name": sc.name, "uavs": len(sc.uavs), "types": types,
+                        "targets": len(sc.targets.placed) + sc.targets.count, "threats": len(sc.threats),
+                        "faults": len(sc.faults), "duration_s": sc.duration_s})
+    if args.json:
+        _print_json(reports)
+    for r in reports:
+        if r["ok"] and not args.json:
+            print(f"ok: {r['scenario']}: scenario '{r['name']}', {r['uavs']} UAVs ({', '.join(r['types'])}), "
+                  f"{r['targets']} targets, {r['threats']} threats, {r['faults']} faults, {r['duration_s']:g} s")
+        elif not r["ok"]:
+            for problem in r["problems"]:
+                print(f"error: {problem}", file=sys.stderr)
+    return EXIT_USAGE if any(not r["ok"] for r in reports) else 0
 
 
 def _cmd_list(args) -> int:
@@ -96,7 +171,9 @@ def _cmd_run(args) -> int:
     out_dir = Path(args.out) if args.out else None
     if out_dir is not None:
         write_run(result, out_dir, sim.scenario.to_dict(), figures=not args.no_figures)
-    if not args.quiet:
+    if args.json:
+        _print_json(result.metrics)
+    elif not args.quiet:
         _console().print(_summary_table(result.metrics, out_dir))
     return 0
 
@@ -137,10 +214,8 @@ def _cmd_sweep(args) -> int:
     bad = [p for p in planners if p not in ("dacmp", "greedy")]
     if bad or not planners:
         raise UsageError(f"--planner {args.planner!r}: expected a comma-separated list of dacmp, greedy")
-    if args.seeds < 1:
-        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
     sc = load_scenario(args.scenario)
-    runs = plan_runs(sc, seeds=range(args.first_seed, args.first_seed + args.seeds), planners=planners,
+    runs = plan_runs(sc, seeds=args.seeds, planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
     executor, client = _dask_executor(args)
     err = _console(stderr=True)
@@ -161,7 +236,9 @@ def _cmd_sweep(args) -> int:
     from swarm.viz.report import write_sweep_report
 
     report = write_sweep_report(args.out, summary)
-    if not args.quiet:
+    if args.json:
+        _print_json(summary)
+    elif not args.quiet:
         _console().print(_sweep_table(summary))
     print(f"report: {report}", file=sys.stderr)
     print(f"{result.total} runs: {result.skipped} already finished, {result.ran} ran, "
@@ -220,8 +297,6 @@ def _experiment_runner(args):
 def _cmd_paper(args) -> int:
     from swarm.experiments.paper import run_paper
 
-    if args.seeds is not None and args.seeds < 1:
-        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
     with _experiment_runner(args) as (executor, on_progress):
         report = run_paper(args.experiment, args.out, seeds=args.seeds, duration_s=args.duration,
                            executor=executor, workers=args.workers, progress=on_progress)
@@ -253,8 +328,6 @@ def _cmd_paper(args) -> int:
 def _cmd_resilience(args) -> int:
     from swarm.experiments.resilience import parse_values, run_resilience
 
-    if args.seeds < 1:
-        raise UsageError(f"--seeds {args.seeds}: expected a whole number >= 1")
     if args.duration is not None and not args.duration > 0:
         raise UsageError(f"--duration {args.duration:g}: expected a positive number of seconds")
     if args.workers is not None and args.workers < 1:
@@ -315,7 +388,7 @@ def _cmd_bench(args) -> int:
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:
         raise SwarmError(f"unknown bench case(s) {unknown}; known: {', '.join(k.name for k in CASES)}")
-    return bench_main(quick=args.quick, only=args.case or None)
+    return bench_main(quick=args.quick, only=args.case or None, as_array=args.json)
 
 
 def _cmd_animate(args) -> int:
@@ -358,8 +431,10 @@ def _add_executor_args(parser: argparse.ArgumentParser, scheduler_help: str) -> 
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
+    p = _Parser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
+    p.set_defaults(subparsers=sub.choices)
 
     r = sub.add_parser("run", help="run one scenario and write its outputs")
     r.add_argument("scenario", help="built-in name (see `swarm list`) or path to a .toml file")
@@ -371,21 +446,24 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default=None, help="output folder (metrics.json, timeseries.csv, events.msgpack, trajectories.png)")
     r.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
+    r.add_argument("--json", action="store_true", help="print the metrics as JSON on stdout instead of the table")
     r.set_defaults(func=_cmd_run)
 
     v = sub.add_parser("validate", help="check scenario files without running them")
-    v.add_argument("scenario", nargs="+")
+    v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
+    v.add_argument("--json", action="store_true", help="print one JSON record per scenario on stdout")
     v.set_defaults(func=_cmd_validate)
 
     b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
     b.add_argument("--quick", action="store_true", help="only the quick cases")
     b.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
+    b.add_argument("--json", action="store_true", help="print one JSON array at the end instead of a line per case")
     b.set_defaults(func=_cmd_bench)
 
     sw = sub.add_parser("sweep", help="run planners x settings x seeds and summarise (process pool or Dask)")
     sw.add_argument("scenario", help="built-in name or path to a .toml file")
-    sw.add_argument("--seeds", type=int, default=30, help="number of seeds (default 30)")
-    sw.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
+    sw.add_argument("--seeds", type=parse_seeds, default=parse_seeds("30"), metavar="N|A-B|a,b,c",
+                    help="seeds: N (0..N-1), A-B or a,b,c (default 30: seeds 0-29)")
     sw.add_argument("--planner", default="dacmp,greedy", help="comma-separated planners (default dacmp,greedy)")
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                     help="sweep a scenario setting over values, e.g. --set radio.loss_base=0,0.3 (repeatable)")
@@ -394,14 +472,16 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--figures", action="store_true", help="write trajectories.png for every run")
     sw.add_argument("--out", required=True, help="sweep folder (runs/, summary.json, summary.csv)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    sw.add_argument("--json", action="store_true", help="print summary.json's content on stdout instead of the table")
     sw.set_defaults(func=_cmd_sweep)
 
     pa = sub.add_parser("paper", help="reproduce the paper's experiments (section 4): figures and a table")
     pa.add_argument("experiment", choices=["fig11", "case1", "case2", "case3", "all"],
                     help="fig11 (DACMP vs greedy over seeds), case1 (handover), case2 (threats, task loads), "
                          "case3 (late joiner vs case2 over seeds), or all of them")
-    pa.add_argument("--seeds", type=int, default=None,
-                    help="seeds 0..N-1 (default: 30 for fig11, 10 for case3; case2: a single run unless given; "
+    pa.add_argument("--seeds", type=parse_seeds, default=None, metavar="N|A-B|a,b,c",
+                    help="seeds: N (0..N-1), A-B or a,b,c (default: 30 for fig11, 10 for case3; "
+                         "case2: a single run unless given; "
                          "all: case2 gets case3's count)")
     pa.add_argument("--duration", type=float, default=None,
                     help="simulated seconds per run (default: each scenario's; shorter for quick trials)")
@@ -415,7 +495,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="loss (i.i.d. loss 0..1), burst (Gilbert-Elliott bursts at 30%% mean loss), range "
                          "(2..20 km, unlimited), crash (0..5 UAVs crash), or all of them")
     rs.add_argument("--scenario", default="paper-fig11", help="built-in name or .toml file (default paper-fig11)")
-    rs.add_argument("--seeds", type=int, default=10, help="seeds 0..N-1 per planner and value (default 10)")
+    rs.add_argument("--seeds", type=parse_seeds, default=parse_seeds("10"), metavar="N|A-B|a,b,c",
+                    help="seeds per planner and value: N (0..N-1), A-B or a,b,c (default 10: seeds 0-9)")
     rs.add_argument("--values", default=None, metavar="V1,V2,...",
                     help="values of one axis instead of its defaults: loss rates, burst lengths in frames, "
                          "ranges in km (inf = unlimited), numbers of crashed UAVs")
@@ -454,7 +535,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args, extras = parser.parse_known_args(argv)
+        if extras:
+            args.subparsers[args.command].unknown_options(extras)
+    except SystemExit as exc:  # argparse has printed the usage and its error line (or --help)
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     try:
         return args.func(args)
     except SwarmError as exc:

@@ -40,6 +40,9 @@ class ScenarioError(SwarmError, ValueError):
         if hint:
             message += f" ({hint})"
         super().__init__(message)
+        # Every problem found in the same document, in document order (this one first); the
+        # loader fills it in when validation finds several (``swarm validate`` lists them all).
+        self.all: list[ScenarioError] = [self]
 
 
 class SimulationError(SwarmError, RuntimeError):

@@ -34,8 +34,10 @@ def test_damaged_scenario_gives_one_line_exit_2_no_traceback(tmp_path):
     assert r.returncode == 2
     assert "Traceback" not in r.stderr
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1
+    # every problem of the file, one error: line each, the first one a reader meets first
+    assert len(lines) == 2 and all(line.startswith("error: ") for line in lines)
     assert str(bad) in lines[0] and "area.width_m" in lines[0] and "'wide'" in lines[0]
+    assert "uavs" in lines[1]
 
 
 def test_unknown_key_suggests_the_closest(tmp_path):

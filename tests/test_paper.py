@@ -151,7 +151,7 @@ def test_stays_above_from():
 
 def test_bad_seeds_is_a_usage_error(tmp_path, capsys):
     assert main(["paper", "fig11", "--seeds", "0", "--out", str(tmp_path), "--quiet"]) == 2
-    assert "--seeds 0" in capsys.readouterr().err
+    assert "--seeds: found '0'" in capsys.readouterr().err
 
 
 def test_unreachable_scheduler_is_one_error_line(tmp_path, capsys):

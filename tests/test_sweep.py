@@ -162,7 +162,7 @@ def test_cli_sweep_and_resume(small_scenario_path, tmp_path, capsys):
     (["--planner", "astar"], "--planner 'astar'"),
     (["--set", "radio.loss_base"], "expected KEY=VALUE"),
     (["--set", "radio.loss_bse=0.1"], "radio.loss_bse"),
-    (["--seeds", "0"], "--seeds 0"),
+    (["--seeds", "0"], "--seeds: found '0'"),
 ])
 def test_cli_sweep_bad_input_is_one_error_line(small_scenario_path, tmp_path, capsys, bad, expected):
     assert main(["sweep", str(small_scenario_path), "--out", str(tmp_path), "--quiet", *bad]) == 2

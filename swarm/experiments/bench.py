@@ -157,9 +157,12 @@ def run_case(case: Case) -> dict:
     }
 
 
-def main(quick: bool = False, only: list[str] | None = None, out=sys.stdout, duration_s: float | None = None) -> int:
+def main(quick: bool = False, only: list[str] | None = None, out=sys.stdout, duration_s: float | None = None,
+         as_array: bool = False) -> int:
     """Run the cases (``quick``: the CI subset; ``only``: these names) and print one JSON line
-    each. ``duration_s`` overrides every case's simulated duration (tests; the line says it)."""
+    each as it finishes, or (``as_array``) one JSON array at the end. ``duration_s`` overrides
+    every case's simulated duration (tests; the line says it)."""
+    rows = []
     for case in CASES:
         if quick and not case.quick:
             continue
@@ -167,5 +170,10 @@ def main(quick: bool = False, only: list[str] | None = None, out=sys.stdout, dur
             continue
         if duration_s is not None:
             case = replace(case, duration_s=duration_s)
-        print(json.dumps(run_case(case)), file=out, flush=True)
+        row = run_case(case)
+        rows.append(row)
+        if not as_array:
+            print(json.dumps(row), file=out, flush=True)
+    if as_array:
+        print(json.dumps(rows, indent=2), file=out, flush=True)
     return 0

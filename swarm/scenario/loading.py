@@ -275,7 +275,11 @@ def _issues(err: Any, doc: Any) -> list[_Issue]:
 
 
 def _first_error(exc: ValidationError, doc: dict[str, Any], source: str) -> ScenarioError:
+    """The problem a reader meets first in the document; every problem found is in its ``.all``."""
     issues = [issue for err in exc.errors(include_url=False) for issue in _issues(err, doc)]
     # Stable: among issues at one position, pydantic's (field) order decides.
-    first = min(enumerate(issues), key=lambda pair: (document_position(doc, pair[1].path), pair[0]))[1]
-    return ScenarioError(source, key_path(first.path), first.found, first.expected, first.hint)
+    ordered = [issue for _i, issue in sorted(enumerate(issues), key=lambda pair: (document_position(doc, pair[1].path), pair[0]))]
+    errors = [ScenarioError(source, key_path(i.path), i.found, i.expected, i.hint) for i in ordered]
+    first = errors[0]
+    first.all = errors
+    return first
