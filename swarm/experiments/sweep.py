@@ -11,6 +11,8 @@ Layout of ``out_dir``::
     runs/<planner>/<setting>/seed-<n>/   one run's outputs (see swarm.outputs); metrics.json last
     runs/.../error.json                  a run that raised: the error and its traceback
     summary.json, summary.csv            statistics per planner and setting (see summarize)
+    runs.csv                             one row per run: planner, seed, each swept setting, every
+                                         numeric metric flattened, status, error (see load_runs)
     report.html                          the summary as a page with figures (``swarm sweep``)
     sweep.json                           what each run folder holds (scenario, seed, duration)
 
@@ -20,6 +22,10 @@ recorded and does not stop the others; it is tried again on the next invocation.
 folder is only reused for the very run that made it: ``sweep.json`` keeps a fingerprint of each
 run (scenario document, planner, seed, duration), and asking the same folder for a different run
 (another ``--duration``, an edited scenario) is refused with an error naming the folder.
+
+Swept values may be anything ``--set`` takes: numbers, ``inf``, strings, booleans, arrays and
+tables. Every JSON file a sweep writes is strict JSON: a non-finite number is written as the
+string ``"inf"``, ``"-inf"`` or ``"nan"`` (the TOML spelling, which ``--set`` reads back).
 """
 
 from __future__ import annotations
@@ -49,6 +55,29 @@ from swarm.scenario import Scenario, apply_overrides, load_scenario, parse_scena
 # nested counters (flattened with a dot).
 _NESTED = ("radio", "violations")
 _SKIP = {"seed", "sim_seconds", "wall_seconds", "events", "targets_total"}
+
+
+def strict_json(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by ``"inf"``, ``"-inf"`` or ``"nan"``
+    (and tuples by lists), so ``json.dumps(..., allow_nan=False)`` accepts it."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, dict):
+        return {str(k): strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict_json(v) for v in value]
+    if isinstance(value, np.generic):
+        return strict_json(value.item())
+    return value
+
+
+def _dumps(value: Any, **kw: Any) -> str:
+    return json.dumps(strict_json(value), allow_nan=False, **kw)
+
+
+def _settings_key(settings: Sequence[tuple[str, Any]]) -> str:
+    """A hashable, exact key for a combination of swept values (lists and tables included)."""
+    return _dumps(list(settings), sort_keys=True)
 
 
 @dataclass(frozen=True)
@@ -81,10 +110,18 @@ class SweepResult:
 
 
 def slug(settings: Sequence[tuple[str, Any]]) -> str:
+    """A folder name for a combination of swept values: readable (``radio.range_m=inf``), safe
+    on every file system, and unique (long or unusual values get a short hash of the exact
+    combination appended)."""
     if not settings:
         return "default"
-    text = ",".join(f"{k}={json.dumps(v, separators=(',', ':'))}" for k, v in settings)
-    return re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+    text = ",".join(f"{k}={_dumps(v, separators=(',', ':'))}" for k, v in settings)
+    text = text.replace('"', "")
+    safe = re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+    if safe != text or len(safe) > 80:
+        digest = hashlib.sha256(_settings_key(settings).encode()).hexdigest()[:8]
+        safe = f"{safe[:80]}-{digest}"
+    return safe
 
 
 def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[str],
@@ -126,6 +163,8 @@ def execute(spec: RunSpec) -> dict:
         sc = parse_scenario(spec.scenario, source=f"sweep run {spec.folder}")
         with Simulation(sc, seed=spec.seed, duration_s=spec.duration_s) as sim:
             result = sim.run()
+            # A run's metrics.json records the swept settings it ran with.
+            result.metrics["settings"] = strict_json(dict(spec.settings))
             return {"files": run_files(result, sim.scenario.to_dict(), figures=spec.figures)}
     except Exception as exc:  # recorded in error.json, reported, retried next time
         return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
@@ -137,7 +176,7 @@ def is_finished(out_dir: Path, spec: RunSpec) -> bool:
 
 def fingerprint(spec: RunSpec) -> str:
     """What makes a run what it is (not how it is executed)."""
-    doc = json.dumps([spec.scenario, spec.planner, spec.seed, spec.duration_s], sort_keys=True, default=str)
+    doc = _dumps([spec.scenario, spec.planner, spec.seed, spec.duration_s], sort_keys=True, default=str)
     return hashlib.sha256(doc.encode()).hexdigest()
 
 
@@ -204,7 +243,7 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
                 write_files(folder, outcome["files"])
                 status = "ok"
             else:
-                write_files(folder, {"error.json": json.dumps(
+                write_files(folder, {"error.json": _dumps(
                     {"run": spec.label, "folder": spec.folder, **outcome}, indent=2).encode()})
                 result.failed.append({"run": spec.label, "folder": spec.folder, "error": outcome["error"]})
                 status = "error"
@@ -267,7 +306,7 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
     per_seed: dict[tuple, dict[int, dict[str, float]]] = {}
     errors = []
     for spec in runs:
-        key = (spec.planner, spec.settings)
+        key = (spec.planner, _settings_key(spec.settings))
         g = groups.setdefault(key, {"planner": spec.planner, "settings": dict(spec.settings),
                                     "runs": 0, "failed": 0, "metrics": {}})
         mpath = out / spec.folder / "metrics.json"
@@ -283,11 +322,11 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
         g["metrics"] = {m: describe([v[m] for v in seeds.values() if m in v]) for m in names}
     comparisons = []
     planners = list(dict.fromkeys(s.planner for s in runs))
-    settings_list = list(dict.fromkeys(s.settings for s in runs))
-    for settings in settings_list:
-        base = per_seed.get((planners[0], settings), {})
+    settings_list = list({_settings_key(s.settings): s.settings for s in runs}.items())
+    for skey, settings in settings_list:
+        base = per_seed.get((planners[0], skey), {})
         for other in planners[1:]:
-            theirs = per_seed.get((other, settings), {})
+            theirs = per_seed.get((other, skey), {})
             common = sorted(set(base) & set(theirs))
             if not common:
                 continue
@@ -314,15 +353,83 @@ def _csv(summary: dict) -> str:
     w.writerow(["planner", *keys, "metric", "runs", "mean", "sd", "ci95_low", "ci95_high"])
     for g in summary["groups"]:
         for m, d in g["metrics"].items():
-            w.writerow([g["planner"], *(json.dumps(g["settings"].get(k)) for k in keys), m, d["n"],
+            w.writerow([g["planner"], *(_dumps(g["settings"].get(k)) for k in keys), m, d["n"],
                         repr(d["mean"]), repr(d["sd"]), repr(d["ci95"][0]), repr(d["ci95"][1])])
     return buf.getvalue()
+
+
+def _cell(value: Any) -> str:
+    """A CSV cell: numbers as Python writes them (inf included), other values as strict JSON."""
+    if isinstance(value, bool) or value is None or isinstance(value, (list, dict, tuple)):
+        return _dumps(value)
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def run_rows(out_dir: str | Path, runs: Sequence[RunSpec]) -> list[dict[str, Any]]:
+    """One record per run: planner, seed, each swept setting (its own column, named by its
+    key), every numeric metric flattened (``radio.sent``), ``status`` (ok / error / not run)
+    and ``error``."""
+    out = Path(out_dir)
+    rows = []
+    for spec in runs:
+        row: dict[str, Any] = {"planner": spec.planner, "seed": spec.seed, "folder": spec.folder}
+        row.update(dict(spec.settings))
+        mpath, epath = out / spec.folder / "metrics.json", out / spec.folder / "error.json"
+        if mpath.is_file():
+            metrics = json.loads(mpath.read_text())
+            row.update({"status": "ok", "error": ""})
+            row.update({k: metrics[k] for k in ("sim_seconds", "wall_seconds") if k in metrics})
+            row.update(_flatten(metrics))
+        elif epath.is_file():
+            row.update({"status": "error", "error": json.loads(epath.read_text()).get("error", "?")})
+        else:
+            row.update({"status": "not run", "error": ""})
+        rows.append(row)
+    return rows
+
+
+def _runs_csv(rows: list[dict[str, Any]]) -> str:
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(columns)
+    for row in rows:
+        w.writerow([_cell(row[c]) if c in row else "" for c in columns])
+    return buf.getvalue()
+
+
+def load_runs(out_dir: str | Path) -> Any:
+    """A sweep folder's ``runs.csv``, one row per run: a pandas DataFrame when pandas is
+    installed, otherwise a list of dicts (numbers parsed, ``inf`` included)."""
+    path = Path(out_dir) / "runs.csv"
+    if not path.is_file():
+        raise UsageError(f"{path}: no such file (is {out_dir} a sweep folder written by this version?)")
+    try:
+        import pandas as pd
+    except ImportError:
+        with path.open(newline="") as fh:
+            return [{k: _parse_cell(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+    return pd.read_csv(path)
+
+
+def _parse_cell(text: str) -> Any:
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
 
 
 def write_summary(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
     summary = summarize(out_dir, runs)
     write_files(out_dir, {"summary.csv": _csv(summary).encode(),
-                          "summary.json": json.dumps(summary, indent=2).encode()})
+                          "runs.csv": _runs_csv(run_rows(out_dir, runs)).encode(),
+                          "summary.json": _dumps(summary, indent=2).encode()})
     return summary
 
 

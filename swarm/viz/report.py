@@ -18,13 +18,9 @@ import base64
 import html
 import io
 import math
-import os
 from datetime import UTC, datetime
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -34,9 +30,10 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
 from matplotlib.ticker import MaxNLocator
 
+from comms.messages import MODE_SURVEIL
 from swarm.errors import SwarmError
+from swarm.outputs import atomic_write
 from swarm.viz.replay import (
-    MODE_SURVEIL,
     Replay,
     RunDirError,
     fault_events,
@@ -86,6 +83,8 @@ def _fmt(value) -> str:
     if isinstance(value, float):
         if math.isnan(value):
             return "–"
+        if math.isinf(value):
+            return "∞" if value > 0 else "−∞"
         if value == int(value) and abs(value) < 1e12:
             return f"{value:.0f}"
         return f"{value:.4g}"
@@ -609,9 +608,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, animation: 
 
 
 def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    atomic_write(path, text.encode("utf-8"))
 
 
 # --- sweep report -----------------------------------------------------------------------------
