@@ -49,6 +49,14 @@ from comms.messages import (
 _TRACKS_PER_FRAME = 400
 # Neighbours expected to answer one digest (see UavActor._answer_digests).
 _ANSWERERS = 2
+# What a receiver accepts of heard numbers (UavActor._drain_inbox): ids below 2**31, speeds
+# and velocities within 10 km/s, headings within 1000 rad, track values within 1e12, digest
+# cuts no earlier than 1e9 s before the start. Far beyond anything honest, far below overflow.
+_MAX_ID = 2**31
+_MAX_SPEED = 1.0e4
+_MAX_ANGLE = 1.0e3
+_MAX_VALUE = 1.0e12
+_MAX_TIME = 1.0e9
 
 
 def _answer_hash(me: int, sender: int, t_cut: float) -> int:
@@ -128,8 +136,8 @@ class ActorCounters:
     frames_sent: int = 0
     plans: int = 0
     scans_resent: int = 0  # scans sent in answer to neighbours' digests
-    scans_recovered: int = 0  # heard scans that were new to this UAV, from any frame
     scans_ignored: int = 0  # heard scan records outside any sane range (time, place, radius)
+    messages_ignored: int = 0  # other heard messages no honest UAV sends (see _drain_inbox)
 
 
 class UavActor:
@@ -340,7 +348,12 @@ class UavActor:
         counters = self.counters
         log_add = self.scans.add if self._log_scans else None
         max_r, width, height = self._max_scan_r, self.grid.width_m, self.grid.height_m
-        delivered = recovered = ignored = 0
+        # A frame that decodes can still carry numbers no honest UAV sends (a time of 1e308 s,
+        # a threat with no influence ring): the receiver ignores and counts such messages.
+        # Places may lie up to max_r outside the area, times not after now, ids and speeds in
+        # ranges that no arithmetic below can overflow.
+        lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
+        delivered = ignored = strange = 0
         for _arrival, sender, data in frames:
             # Another receiver may have decoded these very bytes already (shared cache).
             frame = lookup(data) if lookup is not None and type(data) is bytes else None
@@ -354,6 +367,9 @@ class UavActor:
             delivered += 1
             append((sender, len(data), True))
             ft = frame.t
+            if not 0.0 <= ft <= t:  # a frame stamped in the future (or before the run)
+                strange += len(frame.messages)
+                continue
             for m in frame.messages:
                 tm = type(m)
                 if tm is ScanRecords:
@@ -365,7 +381,6 @@ class UavActor:
                                 and -max_r <= y <= height + max_r):  # = not self._plausible(...)
                             ignored += 1
                         elif log_add is None or log_add(origin, tr, x, y, rr):  # new to us (else already applied)
-                            recovered += 1
                             # = umap.scan(x, y, r, t_rec); the disk is shared by every map
                             # applying this record (grid memo).
                             d = known_disk((x, y, rr), _MISSING)
@@ -374,26 +389,45 @@ class UavActor:
                             if d is not None:
                                 stamp(d, tr)
                 elif tm is Hello:
-                    if m.uav != me:
+                    if not (0 <= m.uav < _MAX_ID and lo_x <= m.x <= hi_x and lo_y <= m.y <= hi_y
+                            and 0.0 <= m.v <= _MAX_SPEED and -_MAX_ANGLE <= m.theta <= _MAX_ANGLE):
+                        strange += 1
+                    elif m.uav != me:
                         p = peers.get(m.uav) or k.peer(m.uav)
                         if ft >= p.t_pose:
                             p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
                 elif tm is Intent:
-                    if m.uav != me:
+                    if not (0 <= m.uav < _MAX_ID and lo_x <= m.wx <= hi_x and lo_y <= m.wy <= hi_y
+                            and -1 <= m.target < _MAX_ID):
+                        strange += 1
+                    elif m.uav != me:
                         p = peers.get(m.uav) or k.peer(m.uav)
                         if ft >= p.t_intent:
                             p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, ft
                 elif tm is Tracks:
-                    k.merge_tracks(m.items)
+                    items = m.items
+                    sane = [it for it in items
+                            if 0 <= it.target < _MAX_ID and lo_x <= it.x <= hi_x and lo_y <= it.y <= hi_y
+                            and -_MAX_SPEED <= it.vx <= _MAX_SPEED and -_MAX_SPEED <= it.vy <= _MAX_SPEED
+                            and 0.0 <= it.t <= t and -_MAX_VALUE <= it.value <= _MAX_VALUE]
+                    if len(sane) != len(items):
+                        strange += len(items) - len(sane)
+                    k.merge_tracks(sane)
                 elif tm is Threats:
                     for th in m.items:
-                        k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+                        if (0 <= th.threat < _MAX_ID and lo_x <= th.x <= hi_x and lo_y <= th.y <= hi_y
+                                and 0.0 < th.radius < th.d_max <= 2 * max_r):
+                            k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+                        else:
+                            strange += 1
                 elif tm is ScanDigest:
-                    if m.uav != me:
+                    if not (0 <= m.uav < _MAX_ID and -_MAX_TIME <= m.t_cut <= t):
+                        strange += 1
+                    elif m.uav != me:
                         self._digests.append(m)
         counters.delivered += delivered
-        counters.scans_recovered += recovered
         counters.scans_ignored += ignored
+        counters.messages_ignored += strange
         return received
 
     def _answer_digests(self, t: float) -> list[tuple[int, bytes]]:

@@ -79,5 +79,5 @@ def actor_settings(sc: Scenario) -> ActorSettings:
         loiter_turn_factor=p.loiter_turn_factor,
         loiter_gain=p.loiter_gain,
         apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m,
-                        cpa_horizon_s=ap.lookahead_s),
+                        lookahead_s=ap.lookahead_s),
     )
