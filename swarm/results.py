@@ -73,6 +73,7 @@ def run_metrics(sim: Simulation) -> dict:
             "scans_known": a.scans.count,  # own and heard scans in its log (agents.maps.scanlog)
             "scans_resent": a.counters.scans_resent,  # answers to neighbours' digests
             "scans_ignored": a.counters.scans_ignored,  # heard scans with absurd values
+            "messages_ignored": a.counters.messages_ignored,  # other heard messages with absurd values
         }
     surv = m.surveillance_ratio(t)
     return {
