@@ -93,8 +93,39 @@ class EventLog:
         return self._sha.hexdigest()
 
 
-def read_events(data: bytes) -> Iterator[list]:
-    """Iterate the events of an ``events.msgpack`` file's bytes."""
+# Where events hold UAV ids (positions in the event array, kind first): read_events(names=True)
+# turns them into names with the start header's id -> name table. A violation's second party
+# is a UAV only for separation (for threat it is the threat's id).
+UAV_FIELDS: dict[str, tuple[int, ...]] = {
+    "pose": (2,), "mode": (2,), "found": (3,), "release": (3,), "handover": (3, 4), "rx": (2, 3),
+    "lost": (2, 3), "join": (2,), "crash": (2,),
+}
+
+
+def uav_names(header: dict) -> dict[int, str]:
+    """The id -> name table of a run's ``start`` event (``header = events[0][2]``)."""
+    return {int(uid): str(name) for uid, name, *_type in header.get("uavs", [])}
+
+
+def read_events(data: bytes, *, names: bool = False) -> Iterator[list]:
+    """Iterate the events of an ``events.msgpack`` file's bytes (or ``RunResult.events``).
+
+    ``names=True``: UAV ids are replaced by UAV names (see :data:`UAV_FIELDS`), using the
+    ``start`` header and the ``join`` events of UAVs added while the run went on."""
     unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
     unpacker.feed(data)
-    yield from unpacker
+    if not names:
+        yield from unpacker
+        return
+    table: dict[int, str] = {}
+    for event in unpacker:
+        kind = event[0]
+        if kind == "start":
+            table.update(uav_names(event[2]))
+        elif kind == "join":
+            table[event[2]] = event[3]
+        for i in UAV_FIELDS.get(kind, ()):
+            event[i] = table.get(event[i], event[i])
+        if kind == "violation" and event[2] == "separation":
+            event[3], event[4] = table.get(event[3], event[3]), table.get(event[4], event[4])
+        yield event
