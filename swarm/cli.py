@@ -118,6 +118,18 @@ def _cmd_list(args) -> int:
     return 0
 
 
+def _progress(*, quiet: bool, transient: bool = False, count: bool = False):
+    """The one progress display of every long command, on stderr: description, bar, an
+    optional done/total count, a ``note`` field the command updates, elapsed and remaining."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    columns = [TextColumn("[bold]{task.description}"), BarColumn()]
+    if count:
+        columns.append(MofNCompleteColumn())
+    columns += [TextColumn("{task.fields[note]}"), TimeElapsedColumn(), TimeRemainingColumn()]
+    return Progress(*columns, console=_console(stderr=True), transient=transient, disable=quiet)
+
+
 def _summary_table(metrics: dict, out_dir: Path | None):
     from rich.table import Table
 
@@ -146,8 +158,6 @@ def _summary_table(metrics: dict, out_dir: Path | None):
 
 
 def _cmd_run(args) -> int:
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from swarm.outputs import write_run
     from swarm.scenario import apply_overrides, load_scenario, parse_assignment
     from swarm.simulation import Simulation
@@ -156,16 +166,12 @@ def _cmd_run(args) -> int:
     if args.set:
         sc = apply_overrides(sc, dict(parse_assignment(s) for s in args.set))
     sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration)
-    err = _console(stderr=True)
-    with sim, Progress(
-        TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[sim]}"),
-        TimeElapsedColumn(), TimeRemainingColumn(), console=err, transient=True, disable=args.quiet,
-    ) as progress:
+    with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
-                                 sim="t=0 s")
+                                 note="t=0 s")
 
         def on_progress(now: float, end: float) -> None:
-            progress.update(task, completed=round(now / sim.dt), sim=f"t={now:.0f}/{end:.0f} s")
+            progress.update(task, completed=round(now / sim.dt), note=f"t={now:.0f}/{end:.0f} s")
 
         result = sim.run(progress=on_progress)
     out_dir = Path(args.out) if args.out else None
@@ -205,8 +211,6 @@ def _dask_executor(args):
 
 
 def _cmd_sweep(args) -> int:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from swarm.experiments.sweep import plan_runs, run_sweep
     from swarm.scenario import load_scenario
 
@@ -218,15 +222,12 @@ def _cmd_sweep(args) -> int:
     runs = plan_runs(sc, seeds=args.seeds, planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
     executor, client = _dask_executor(args)
-    err = _console(stderr=True)
     try:
-        with Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[last]}"),
-                      TimeElapsedColumn(), TimeRemainingColumn(), console=err, transient=False,
-                      disable=args.quiet) as progress:
-            task = progress.add_task("sweep", total=len(runs), last="")
+        with _progress(quiet=args.quiet or args.json, count=True) as progress:
+            task = progress.add_task("sweep", total=len(runs), note="")
 
             def on_progress(done: int, total: int, spec, status: str) -> None:
-                progress.update(task, completed=done, last=f"{status}: {spec.label}")
+                progress.update(task, completed=done, note=f"{status}: {spec.label}")
 
             result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress)
     finally:
@@ -273,20 +274,15 @@ def _experiment_runner(args):
     """``(executor, on_progress)`` for the multi-sweep commands (paper, resilience): the Dask
     executor of ``--scheduler`` (closed on exit) or None, and a progress callback
     ``(key, description, done, total, info)`` drawing one rich bar per key."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     executor, client = _dask_executor(args)
     try:
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
-                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TimeRemainingColumn(),
-                      console=_console(stderr=True), transient=False, disable=args.quiet) as progress:
+        with _progress(quiet=args.quiet, count=True) as progress:
             tasks: dict[str, int] = {}
 
             def on_progress(key: str, desc: str, done: float, total: float, info: str) -> None:
-                count = f"{done:.0f}/{total:.0f}"
                 if key not in tasks:
-                    tasks[key] = progress.add_task(desc, total=total, count=count, info=info)
-                progress.update(tasks[key], completed=done, total=total, count=count, info=info)
+                    tasks[key] = progress.add_task(desc, total=total, note=info)
+                progress.update(tasks[key], completed=done, total=total, note=info)
 
             yield executor, on_progress
     finally:
@@ -392,17 +388,11 @@ def _cmd_bench(args) -> int:
 
 
 def _cmd_animate(args) -> int:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from swarm.viz.animate import prepare_animation
 
     job = prepare_animation(args.rundir, args.out, fps=args.fps, speed=args.speed, trail_s=args.trail)
-    err = _console(stderr=True)
-    with Progress(
-        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
-        TimeElapsedColumn(), TimeRemainingColumn(), console=err, transient=True, disable=args.quiet,
-    ) as progress:
-        task = progress.add_task(f"rendering {job.out_path.name}", total=job.n_frames)
+    with _progress(quiet=args.quiet, transient=True, count=True) as progress:
+        task = progress.add_task(f"rendering {job.out_path.name}", total=job.n_frames, note="frames")
 
         def on_frame(done: int, total: int) -> None:
             progress.update(task, completed=done)
@@ -494,6 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
     rs.add_argument("axis", choices=["loss", "burst", "range", "crash", "all"],
                     help="loss (i.i.d. loss 0..1), burst (Gilbert-Elliott bursts at 30%% mean loss), range "
                          "(2..20 km, unlimited), crash (0..5 UAVs crash), or all of them")
+    # An option, not a positional: it has a default (a required scenario is positional).
     rs.add_argument("--scenario", default="paper-fig11", help="built-in name or .toml file (default paper-fig11)")
     rs.add_argument("--seeds", type=parse_seeds, default=parse_seeds("10"), metavar="N|A-B|a,b,c",
                     help="seeds per planner and value: N (0..N-1), A-B or a,b,c (default 10: seeds 0-9)")
