@@ -5,7 +5,7 @@ sensor readings and its inbox."""
 
 from agents.actor import ActorOutput, ActorSettings, SensorReading, UavActor
 from agents.apf import ApfSettings
-from agents.knowledge import KnownThreat, Knowledge, Peer, Track
+from agents.knowledge import Knowledge, KnownThreat, Peer, Track
 from agents.types import UavType
 from comms.errors import SwarmError
 

@@ -16,21 +16,23 @@ from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
+from typing import cast
 
 import numpy as np
 
 from agents.apf import ApfSettings, apf_command
-from agents.knowledge import Knowledge, KnownThreat
+from agents.knowledge import Knowledge, KnownThreat, Track
+from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlanView
 from agents.types import GRAVITY, UavType
-from comms.codec import FrameError, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
+from comms.codec import FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
@@ -38,6 +40,7 @@ from comms.messages import (
     NO_TARGET,
     Hello,
     Intent,
+    Message,
     ScanDigest,
     ScanRecords,
     ThreatItem,
@@ -67,8 +70,6 @@ def _answer_hash(me: int, sender: int, t_cut: float) -> int:
     h = (h * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
     return h ^ (h >> 29)
 
-
-_MISSING = object()  # a memo miss (None is a memoised value: a disk off the grid)
 
 # Bytes of a packed scan (four msgpack floats) and room left in a frame for its header.
 _SCAN_BYTES = 36
@@ -191,7 +192,7 @@ class UavActor:
         self._seq = 0
         # Task plumbing (see run()).
         self._pending: SensorReading | None = None
-        self._waiter: asyncio.Future | None = None
+        self._waiter: asyncio.Future[SensorReading] | None = None
 
     # --- the asyncio side -------------------------------------------------------------------
 
@@ -272,7 +273,7 @@ class UavActor:
         s = self.settings
         t = r.t
         k = self.knowledge
-        plan = self.plan
+        plan = cast(Plan, self.plan)  # (set: observe() asks for a plan while there is none)
         speed = self.kind.speed_max
         goal_x, goal_y = plan.wx, plan.wy
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
@@ -286,7 +287,7 @@ class UavActor:
         replies = self._answer_digests(t) if self._digests else []
         return ActorOutput(a, omega, frames, plan, received, replies)
 
-    def _loiter(self, r: SensorReading, track) -> tuple[float, float, float]:
+    def _loiter(self, r: SensorReading, track: Track) -> tuple[float, float, float]:
         """Goal and speed for a watcher: circle the target inside the detection radius.
 
         A vector field (Nelson et al., 2007) around the target's predicted position: far out it
@@ -371,8 +372,8 @@ class UavActor:
                 strange += len(frame.messages)
                 continue
             for m in frame.messages:
-                tm = type(m)
-                if tm is ScanRecords:
+                # (type(m) in each test, not once in a variable: mypy narrows m only on the call)
+                if type(m) is ScanRecords:
                     origin = m.uav
                     it = iter(m.records)
                     for tr, x, y, rr in zip(it, it, it, it):
@@ -388,7 +389,7 @@ class UavActor:
                                 d = disk_stamp(x, y, rr)
                             if d is not None:
                                 stamp(d, tr)
-                elif tm is Hello:
+                elif type(m) is Hello:
                     if not (0 <= m.uav < _MAX_ID and lo_x <= m.x <= hi_x and lo_y <= m.y <= hi_y
                             and 0.0 <= m.v <= _MAX_SPEED and -_MAX_ANGLE <= m.theta <= _MAX_ANGLE):
                         strange += 1
@@ -396,7 +397,7 @@ class UavActor:
                         p = peers.get(m.uav) or k.peer(m.uav)
                         if ft >= p.t_pose:
                             p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
-                elif tm is Intent:
+                elif type(m) is Intent:
                     if not (0 <= m.uav < _MAX_ID and lo_x <= m.wx <= hi_x and lo_y <= m.wy <= hi_y
                             and -1 <= m.target < _MAX_ID):
                         strange += 1
@@ -404,7 +405,7 @@ class UavActor:
                         p = peers.get(m.uav) or k.peer(m.uav)
                         if ft >= p.t_intent:
                             p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, ft
-                elif tm is Tracks:
+                elif type(m) is Tracks:
                     items = m.items
                     sane = [it for it in items
                             if 0 <= it.target < _MAX_ID and lo_x <= it.x <= hi_x and lo_y <= it.y <= hi_y
@@ -413,14 +414,14 @@ class UavActor:
                     if len(sane) != len(items):
                         strange += len(items) - len(sane)
                     k.merge_tracks(sane)
-                elif tm is Threats:
+                elif type(m) is Threats:
                     for th in m.items:
                         if (0 <= th.threat < _MAX_ID and lo_x <= th.x <= hi_x and lo_y <= th.y <= hi_y
                                 and 0.0 < th.radius < th.d_max <= 2 * max_r):
                             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
                         else:
                             strange += 1
-                elif tm is ScanDigest:
+                elif type(m) is ScanDigest:
                     if not (0 <= m.uav < _MAX_ID and -_MAX_TIME <= m.t_cut <= t):
                         strange += 1
                     elif m.uav != me:
@@ -449,7 +450,7 @@ class UavActor:
         for dg in self._digests:
             if n > _ANSWERERS and _answer_hash(self.uid, dg.uav, dg.t_cut) % n >= _ANSWERERS:
                 continue
-            msgs: list = []
+            msgs: list[Message | Packed] = []
             room = per_frame  # scans the current frame can still take
             for origin, flat in self.scans.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget):
                 budget -= len(flat) // 4
@@ -468,7 +469,7 @@ class UavActor:
         self._digests = []
         return replies
 
-    def _frame(self, t: float, messages: list) -> bytes:
+    def _frame(self, t: float, messages: Sequence[Message | Packed]) -> bytes:
         self._seq += 1
         self.counters.frames_sent += 1
         return encode(self.uid, self._seq, t, messages)
@@ -479,7 +480,7 @@ class UavActor:
         frames: list[bytes] = []
         if t >= self._next_beacon:
             # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).
-            msgs = [
+            msgs: list[Message | Packed] = [
                 pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
                 pack_intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
             ]

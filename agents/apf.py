@@ -14,7 +14,7 @@ radius (plus margin) of a threat edge and heading towards it: full turn away, mi
 The same holds between UAVs: at 180 m/s closing speed the eq. 31-32 field acts for only a few
 seconds. So each UAV also predicts the closest point of approach with every UAV it hears
 (constant velocities) and, if they would pass closer than twice the minimum separation within
-``cpa_horizon_s``, turns at full rate away from where the other will be: right when it will be
+``lookahead_s``, turns at full rate away from where the other will be: right when it will be
 on its left, left when on its right. When the predicted miss is under the minimum separation
 its side, computed from poses heard a second ago, is noise (two B UAVs read a 20 m miss the
 same way round, turned into each other and flew 10 s closer than 200 m), so both take the
@@ -30,23 +30,37 @@ The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_com
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from agents.dynamics import limit_command, wrap_angle
 from agents.knowledge import KnownThreat
 from agents.types import UavType
 
+_POSITIVE = {"gt": 0}
+
 
 @dataclass(frozen=True, slots=True)
 class ApfSettings:
-    k_att: float = 1.0
-    k_rep: float = 4.0e6  # m^2: threat repulsion equals attraction ~1.9 km from the edge of a 3 km d_max ring
-    uav_b: float = 400.0
-    uav_c: float = 200.0
-    uav_dmax_m: float = 1000.0
-    min_separation_m: float = 200.0
+    """Local planner (eq. 28-32). b, c make the UAV-UAV force negligible beyond about 1 km.
+
+    The one definition of these settings: a scenario's ``[planner.apf]`` table is built from
+    this class (fields, defaults and the bounds in each field's metadata) by
+    :mod:`swarm.scenario.model`, except ``min_separation_m`` (the scenario's
+    ``safety.min_separation_m``, which the invariant checkers read too) and
+    ``threat_margin_m`` (not a scenario setting).
+    """
+
+    k_att: float = field(default=1.0, metadata=_POSITIVE)
+    # m^2: threat repulsion equals attraction ~1.9 km from the edge of a 3 km d_max ring
+    k_rep: float = field(default=4.0e6, metadata=_POSITIVE)
+    uav_b: float = field(default=400.0, metadata=_POSITIVE)
+    uav_c: float = field(default=200.0, metadata=_POSITIVE)
+    uav_dmax_m: float = field(default=1000.0, metadata=_POSITIVE)
+    min_separation_m: float = field(default=200.0, metadata=_POSITIVE)
+    # The guard's margin beyond a turn radius from a threat's edge.
     threat_margin_m: float = 300.0
-    cpa_horizon_s: float = 15.0  # scenario: planner.apf.lookahead_s
+    # Collision avoidance looks this far ahead for a closest approach under 2 * min separation.
+    lookahead_s: float = field(default=15.0, metadata={"gt": 0, "note": "seconds"})
 
 
 def apf_command(
@@ -103,7 +117,7 @@ def apf_command(
         w2 = wx_ * wx_ + wy_ * wy_
         if w2 > 1e-9:
             t_cpa = (ex * wx_ + ey * wy_) / w2  # = -(p . w)/|w|^2 with p = other - me = -e
-            if 0.0 < t_cpa < s.cpa_horizon_s:
+            if 0.0 < t_cpa < s.lookahead_s:
                 mx, my = -ex + wx_ * t_cpa, -ey + wy_ * t_cpa
                 miss2 = mx * mx + my * my
                 if miss2 < (2.0 * s.min_separation_m) ** 2 and t_cpa < t_first:

@@ -7,6 +7,7 @@ tracks and peers and "never forget" for threats, so duplicated or reordered fram
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from comms.messages import NO_TARGET, TrackItem
@@ -76,7 +77,7 @@ class Knowledge:
     def merge_track(self, item: TrackItem) -> None:
         self.see_target(item.target, item.x, item.y, item.vx, item.vy, item.t, item.value)
 
-    def merge_tracks(self, items) -> None:
+    def merge_tracks(self, items: Iterable[TrackItem]) -> None:
         """:meth:`merge_track` of each item in order (a heard Tracks message), with
         :meth:`see_target`'s rule written out: one call per message instead of two per item."""
         tracks = self.tracks

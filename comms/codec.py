@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import msgpack
 
@@ -54,31 +56,51 @@ class Frame:
 # The packed form of each message kind (what encode() writes for it). A sender may hand
 # encode() these lists instead of Message objects: the same bytes, without building an object
 # only to unpack it again (every UAV sends a beacon every tick).
+Packed = list[object]
 
 
-def pack_hello(uav: int, type: str, x: float, y: float, v: float, theta: float) -> list:
+class TrackLike(Protocol):
+    """What :func:`pack_tracks` reads of an item: :class:`~comms.messages.TrackItem`'s fields."""
+
+    @property
+    def target(self) -> int: ...
+    @property
+    def x(self) -> float: ...
+    @property
+    def y(self) -> float: ...
+    @property
+    def vx(self) -> float: ...
+    @property
+    def vy(self) -> float: ...
+    @property
+    def t(self) -> float: ...
+    @property
+    def value(self) -> float: ...
+
+
+def pack_hello(uav: int, type: str, x: float, y: float, v: float, theta: float) -> Packed:
     """= ``Hello(uav, type, x, y, v, theta)``, packed."""
     return [K_HELLO, uav, type, x, y, v, theta]
 
 
-def pack_intent(uav: int, wx: float, wy: float, mode: int, target: int) -> list:
+def pack_intent(uav: int, wx: float, wy: float, mode: int, target: int) -> Packed:
     """= ``Intent(uav, wx, wy, mode, target)``, packed."""
     return [K_INTENT, uav, wx, wy, mode, target]
 
 
-def pack_scans(uav: int, records) -> list:
+def pack_scans(uav: int, records: Sequence[float]) -> Packed:
     """= ``ScanRecords(uav, tuple(records))``, packed (a tuple or a list of the flat records)."""
     return [K_SCAN, uav, records]  # (msgpack writes a tuple as the array of its items)
 
 
-def pack_tracks(items) -> list:
+def pack_tracks(items: Iterable[TrackLike]) -> Packed:
     """= ``Tracks(tuple(items))``, packed. ``items``: any objects with
     :class:`~comms.messages.TrackItem`'s fields give the same bytes, e.g. a UAV's own
     :class:`~agents.knowledge.Track` records (no TrackItem copy of each to send them)."""
     return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in items]]
 
 
-def _pack_message(m: Message | list) -> list:
+def _pack_message(m: Message | Packed) -> Packed:
     if type(m) is list:  # packed already (pack_hello, ...): what the actors' outboxes send
         return m
     if type(m) is Hello:
@@ -101,23 +123,25 @@ def _pack_message(m: Message | list) -> list:
 _packer = msgpack.Packer(use_bin_type=True)
 
 
-def encode(sender: int, seq: int, t: float, messages: list[Message | list] | tuple[Message | list, ...]) -> bytes:
+def encode(sender: int, seq: int, t: float, messages: Sequence[Message | Packed]) -> bytes:
     """The frame of ``messages``: :class:`~comms.messages.Message` objects, or their packed forms
     (:func:`pack_hello`, ...)."""
-    payload = _packer.pack([MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]])
+    payload: bytes = _packer.pack([MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]])
     return payload + zlib.crc32(payload).to_bytes(4, "little")
 
 
 # --- decoding -----------------------------------------------------------------------------
+# What msgpack gives is untyped: each check below narrows an ``object`` to the type it admits
+# (an array's items stay ``Any`` until checked).
 
 
-def _int(v) -> int:
+def _int(v: object) -> int:
     if type(v) is not int:
         raise FrameError(f"expected an integer, got {type(v).__name__}")
     return v
 
 
-def _num(v) -> float:
+def _num(v: object) -> float:
     # msgpack gives int or float; bool is an int subclass and must not pass.
     if type(v) is float:
         if not math.isfinite(v):
@@ -131,7 +155,7 @@ def _num(v) -> float:
 _FLOAT = {float}
 
 
-def _nums(values: list) -> tuple[float, ...]:
+def _nums(values: list[Any]) -> tuple[float, ...]:
     """``_num`` of each value, as a tuple. A list of finite floats (what :func:`encode` writes)
     passes both checks in C, with no Python call per value (scan records can be thousands)."""
     if set(map(type, values)) <= _FLOAT and all(map(math.isfinite, values)):
@@ -139,7 +163,7 @@ def _nums(values: list) -> tuple[float, ...]:
     return tuple([_num(v) for v in values])
 
 
-def _list(v, n: int | None = None) -> list:
+def _list(v: object, n: int | None = None) -> list[Any]:
     if type(v) is not list:
         raise FrameError(f"expected an array, got {type(v).__name__}")
     if n is not None and len(v) != n:
@@ -147,7 +171,7 @@ def _list(v, n: int | None = None) -> list:
     return v
 
 
-def _message(raw) -> Message:
+def _message(raw: object) -> Message:
     # The checks of _list/_int written out for the three kinds every beacon carries (a frame is
     # decoded once per broadcast, but there are many: this is the codec's hot path).
     if type(raw) is not list:
@@ -181,24 +205,24 @@ def _message(raw) -> Message:
         return ScanRecords(_int(raw[1]), _nums(recs))
     if kind == K_TRACKS:
         _list(raw, 2)
-        items = []
+        tracks: list[TrackItem] = []
         for it in _list(raw[1]):
             it = _list(it, 7)
-            items.append(TrackItem(_int(it[0]), *_nums(it[1:])))
-        return Tracks(tuple(items))
+            tracks.append(TrackItem(_int(it[0]), *_nums(it[1:])))
+        return Tracks(tuple(tracks))
     if kind == K_THREATS:
         _list(raw, 2)
-        items = []
+        threats: list[ThreatItem] = []
         for it in _list(raw[1]):
             it = _list(it, 5)
             item = ThreatItem(_int(it[0]), *_nums(it[1:]))
             if item.radius <= 0 or item.d_max < item.radius:
                 raise FrameError("threat: bad radius")
-            items.append(item)
-        return Threats(tuple(items))
+            threats.append(item)
+        return Threats(tuple(threats))
     if kind == K_DIGEST:
         _list(raw, 7)
-        bitmaps = []
+        bitmaps: list[tuple[int, bytes]] = []
         for it in _list(raw[6]):
             it = _list(it, 2)
             if type(it[1]) is not bytes:

@@ -8,8 +8,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+# A UAV's task (Intent.mode, Plan.mode, the ``mode`` of pose events) and its name in outputs
+# (timeseries.csv, metrics.json, figures).
 MODE_SEARCH = 0
 MODE_SURVEIL = 1
+MODE_NAMES: dict[int, str] = {MODE_SEARCH: "search", MODE_SURVEIL: "surveil"}
 NO_TARGET = -1
 
 

@@ -48,6 +48,11 @@ class LinkModel:
         return self.loss_base + (self.loss_at_range - self.loss_base) * f * f
 
 
+# networkx's adjacency dict-of-dicts (node -> neighbour -> edge data), read directly in the hot
+# paths below: Graph._adj, which the stubs leave out (it is private; Graph.adj is a view of it).
+_Adjacency = dict[int, dict[int, dict[str, float]]]
+
+
 class Delivery(NamedTuple):
     arrival_t: float
     sender: int
@@ -62,7 +67,8 @@ class LinkFilter(Protocol):
     copy is lost) and, when lost, a short cause name for the counters.
     """
 
-    def filter(self, t: float, src: int, dst: int, data: bytes, rng: np.random.Generator) -> tuple[list[tuple[float, bytes]], str | None]: ...
+    def filter(self, t: float, src: int, dst: int, data: bytes,
+               rng: np.random.Generator) -> tuple[list[tuple[float, bytes]], str | None]: ...
 
 
 @dataclass(slots=True)
@@ -91,7 +97,7 @@ class Radio:
         self._link_rng_factory = link_rng
         self._link_rngs: dict[tuple[int, int], np.random.Generator] = {}
         self.filter = link_filter
-        self.graph = nx.Graph()
+        self.graph: nx.Graph[int] = nx.Graph()
         self.counters = RadioCounters()
         self._tokens: dict[int, float] = {}
         self._neighbours: dict[int, list[int]] = {}
@@ -115,7 +121,7 @@ class Radio:
         scratch (same nodes, edges and attributes).
         """
         g = self.graph
-        adj = g._adj  # networkx's adjacency dict-of-dicts: the edge data dicts themselves
+        adj: _Adjacency = g._adj  # type: ignore[attr-defined]  # the edge data dicts themselves (see _Adjacency)
         same_ids = ids == self._ids
         if not same_ids:  # (else the nodes are those of the last update: nobody came or went)
             alive = set(ids)
@@ -134,11 +140,11 @@ class Radio:
             ii, jj = self._all_pairs[1]
             dxy = xy[ii] - xy[jj]
             d = np.hypot(dxy[:, 0], dxy[:, 1])
-            loss = model.loss_base
+            loss_base = model.loss_base
             for (u, v), dd in zip(self._all_pair_ids, d.tolist()):
-                e = adj[u][v]
-                e["distance"] = dd
-                e["loss"] = loss
+                edge = adj[u][v]
+                edge["distance"] = dd
+                edge["loss"] = loss_base
             self._refill_tokens(ids, dt)
             return
         empty = np.empty(0, np.int64)
@@ -176,7 +182,7 @@ class Radio:
                 if u in adj and v in adj[u]:  # edges of dead nodes went with them
                     g.remove_edge(u, v)
         self._edge_codes = codes
-        add = []
+        add: list[tuple[int, int, dict[str, float]]] = []
         for u, v, dd, ll in zip(a.tolist(), b.tolist(), d.tolist(), loss.tolist()):
             e = adj[u].get(v)
             if e is None:
@@ -197,9 +203,9 @@ class Radio:
             ends = np.cumsum(np.bincount(src, minlength=n)).tolist()
             start = 0
             nb = {}
-            for u, e in zip(ids, ends):
-                nb[u] = dst_l[start:e]
-                start = e
+            for u, end in zip(ids, ends):
+                nb[u] = dst_l[start:end]
+                start = end
             self._neighbours = nb
         else:
             self._neighbours = {u: [] for u in ids}
@@ -224,8 +230,8 @@ class Radio:
 
     # --- transmission -----------------------------------------------------------------------
 
-    def broadcast(self, t: float, src: int, data: bytes, out: list[Delivery], on_lost=None,
-                  to: int | None = None) -> None:
+    def broadcast(self, t: float, src: int, data: bytes, out: list[Delivery],
+                  on_lost: Callable[[int, int, int, str], object] | None = None, to: int | None = None) -> None:
         """Offer one frame to every neighbour of ``src``; surviving copies are appended to ``out``.
 
         ``on_lost(src, dst, nbytes, cause)`` is called for every lost copy (for the event log).
@@ -234,7 +240,7 @@ class Radio:
         """
         nbrs = self._neighbours.get(src)
         if to is not None and nbrs:
-            nbrs = [to] if to in self.graph._adj[src] else None
+            nbrs = [to] if to in self.graph._adj[src] else None  # type: ignore[attr-defined]  # see _Adjacency
         if not nbrs:
             return
         c = self.counters
@@ -259,7 +265,7 @@ class Radio:
             new = tuple.__new__  # = Delivery(...), without the namedtuple's Python-level __new__
             out.extend([new(Delivery, (arrival, src, dst, data)) for dst in nbrs])
             return
-        adj = self.graph._adj[src]
+        adj: dict[int, dict[str, float]] = self.graph._adj[src]  # type: ignore[attr-defined]  # see _Adjacency
         if flt is None:
             # No fault acts: only the link's own loss and jitter draw (in that order).
             base = model.latency_s + 0.0

@@ -18,13 +18,11 @@ import numpy as np
 from faults.schedule import (
     Burst,
     Corrupt,
-    Crash,
     Delay,
     Drop,
     Duplicate,
     Fault,
     FaultSchedule,
-    Join,
     LinkFault,
     Partition,
 )
@@ -71,13 +69,9 @@ class FaultInjector:
             self._link.append((f, _Scope(f, self._ids)))
 
     def add(self, f: Fault) -> None:
-        """Add a fault while the run goes on (timed node faults: see :meth:`node_events`)."""
+        """Add a fault while the run goes on (the simulator times node faults itself)."""
         self.schedule.add(f)
         self._register(f)
-
-    def node_events(self, faults: list[Fault] | None = None) -> list[Crash | Join]:
-        faults = self.schedule.faults if faults is None else faults
-        return [f for f in faults if isinstance(f, (Crash, Join))]
 
     def note_fired(self, kind: str, n: int = 1) -> None:
         self.fired[kind] = self.fired.get(kind, 0) + n
@@ -94,10 +88,7 @@ class FaultInjector:
 
     def blocked(self, src: int, dst: int) -> bool:
         for p, group_of in self._active_partitions:
-            gs, gd = group_of.get(src), group_of.get(dst)
-            if gs is None or gd is None or gs == gd:
-                continue
-            if not p.one_way or gs < gd:
+            if p.separates(group_of.get(src), group_of.get(dst)):
                 return True
         return False
 

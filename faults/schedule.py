@@ -11,62 +11,81 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 
+# This module is the one definition of the fault kinds: their fields, defaults (a field without
+# one is required, here and in a scenario's [[faults]] table) and the bounds a value must keep.
+# Field metadata carries the bounds (``ge``, ``gt``, ``le``, ``lt``), a ``note`` on the unit or
+# meaning, and for a field that is not a number the ``expected`` words of an error message.
+# swarm.scenario.model builds its [[faults]] tables from these classes, so the bounds are checked
+# when a scenario loads; faults made in Python are taken as given (a test may want an extreme).
+_START = {"ge": 0}
+_END = {"gt": 0, "note": "> start_s; absent = until the end"}  # math.inf: absent from a scenario
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, kw_only=True)
 class LinkFault:
-    start_s: float = 0.0
-    end_s: float = math.inf
-    uavs: tuple[str, ...] = ()
-    links: tuple[tuple[str, str], ...] = ()
+    """A fault on frame copies while ``start_s <= t < end_s``, on every link or on those from or
+    to ``uavs`` (empty: all) and on the directed ``links`` (empty: all)."""
+
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    uavs: tuple[str, ...] = field(default=(), metadata={"expected": "an array of UAV names (empty = all)"})
+    links: tuple[tuple[str, str], ...] = field(
+        default=(), metadata={"expected": "an array of [sender, receiver] UAV name pairs (empty = all)"}
+    )
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
 
 
-@dataclass(frozen=True)
+_PROBABILITY = {"ge": 0, "le": 1}
+
+
+@dataclass(frozen=True, kw_only=True)
 class Drop(LinkFault):
     """i.i.d. loss of each frame copy with probability ``rate``."""
 
-    rate: float = 1.0
+    rate: float = field(metadata=_PROBABILITY)
     kind = "drop"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Burst(LinkFault):
     """Gilbert-Elliott burst loss: a two-state chain per directed link, stepped per copy."""
 
-    p_enter_bad: float = 0.1
-    p_exit_bad: float = 0.3
-    loss_good: float = 0.0
-    loss_bad: float = 1.0
+    p_enter_bad: float = field(metadata=_PROBABILITY)
+    p_exit_bad: float = field(metadata={"gt": 0, "le": 1})
+    loss_good: float = field(default=0.0, metadata=_PROBABILITY)
+    loss_bad: float = field(default=1.0, metadata=_PROBABILITY)
     kind = "burst"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Delay(LinkFault):
     """Extra latency plus uniform jitter in ``[0, jitter_s)``."""
 
-    extra_s: float = 1.0
-    jitter_s: float = 0.0
+    extra_s: float = field(metadata={"ge": 0})
+    jitter_s: float = field(default=0.0, metadata={"ge": 0})
     kind = "delay"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Duplicate(LinkFault):
-    rate: float = 0.5
+    """One more copy of a frame with probability ``rate``."""
+
+    rate: float = field(metadata=_PROBABILITY)
     kind = "duplicate"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Corrupt(LinkFault):
     """Flip ``bytes`` random bytes of a copy with probability ``rate``."""
 
-    rate: float = 0.5
-    bytes: int = 1
+    rate: float = field(metadata=_PROBABILITY)
+    bytes: int = field(default=1, metadata={"ge": 1, "note": "bytes flipped per corrupted frame"})
     kind = "corrupt"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Partition:
     """Cut the links between groups from ``start_s`` until ``end_s`` (the heal time).
 
@@ -74,37 +93,51 @@ class Partition:
     UAVs in no group are unaffected.
     """
 
-    groups: tuple[tuple[str, ...], ...] = ()
-    start_s: float = 0.0
-    end_s: float = math.inf
+    groups: tuple[tuple[str, ...], ...] = field(
+        metadata={"expected": "an array of at least 2 non-empty arrays of UAV names"}
+    )
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
     one_way: bool = False
     kind = "partition"
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
 
+    def separates(self, group_of_src: int | None, group_of_dst: int | None) -> bool:
+        """Whether this partition, while active, blocks a frame from a UAV of group
+        ``group_of_src`` to one of group ``group_of_dst`` (indices into ``groups``; None: the
+        UAV is in no group)."""
+        if group_of_src is None or group_of_dst is None or group_of_src == group_of_dst:
+            return False
+        return not self.one_way or group_of_src < group_of_dst
 
-@dataclass(frozen=True)
+
+_UAV = {"expected": "a UAV name defined in [[uavs]]"}
+
+
+@dataclass(frozen=True, kw_only=True)
 class Crash:
     """Fail-stop: the UAV stops sensing, sending, receiving and moving at ``at_s``."""
 
-    uav: str = ""
-    at_s: float = 0.0
+    uav: str = field(metadata=_UAV)
+    at_s: float = field(metadata={"ge": 0})
     kind = "crash"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Join:
     """The UAV enters the world at ``at_s`` (a late joiner)."""
 
-    uav: str = ""
-    at_s: float = 0.0
+    uav: str = field(metadata=_UAV)
+    at_s: float = field(metadata={"ge": 0})
     kind = "join"
 
 
 Fault = Drop | Burst | Delay | Duplicate | Corrupt | Partition | Crash | Join
+# In the order error messages list them ("kind = one of: drop, burst, partition, ...").
 FAULT_KINDS: dict[str, type] = {
-    cls.kind: cls for cls in (Drop, Burst, Delay, Duplicate, Corrupt, Partition, Crash, Join)
+    cls.kind: cls for cls in (Drop, Burst, Partition, Delay, Duplicate, Corrupt, Crash, Join)
 }
 
 

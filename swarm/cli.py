@@ -10,6 +10,7 @@ import argparse
 import sys
 from contextlib import contextmanager
 from pathlib import Path
+from typing import NoReturn
 
 from swarm.errors import SwarmError, UsageError
 
@@ -24,7 +25,7 @@ class _Parser(argparse.ArgumentParser):
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         # One line, like every other mistake the command reports (argparse would add its usage).
         self.exit(EXIT_USAGE, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
 

@@ -101,6 +101,7 @@ class Metrics:
     def _touched_runs(self) -> list[tuple[slice, slice]]:
         """``(rows, cols)`` of each run of touched blocks along each block row (large areas)."""
         touched = self._touched
+        assert touched is not None  # large areas only (the callers check)
         # Runs start where a block is touched and its left neighbour is not, end where the next
         # one is not.
         padded = np.zeros((touched.shape[0], touched.shape[1] + 2), dtype=np.int8)
@@ -124,7 +125,7 @@ class Metrics:
         return 1.0 - float(np.mean(q, dtype=np.float64))
 
     def observe(self, t: float, dt: float, plans: dict[int, tuple[int, int]], sensed: dict[int, list[int]],
-                types: dict[int, str], speed_max: dict[int, float]) -> list[tuple]:
+                types: dict[int, str], speed_max: dict[str, float]) -> list[tuple]:
         """Account one tick. ``plans``: uid -> (mode, target); ``sensed``: uid -> target ids
         inside its detection radius. Returns events to log (found, handover, release)."""
         events: list[tuple] = []

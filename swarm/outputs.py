@@ -6,6 +6,11 @@
 * ``events.msgpack``   — the event log; its SHA-256 is ``metrics.json``'s ``event_log_sha256``;
 * ``trajectories.png`` — UAV and target paths, threats and the final coverage map;
 * ``scenario.json``    — the exact scenario that ran (with seed and overrides applied).
+
+Every file is written with :func:`atomic_write` (or :func:`atomic_path` for writers that want a
+file name), which the experiment commands, reports and animations use too. :func:`read_run_dir`
+reads a run folder back (scenario and event log); :func:`swarm.viz.replay.load_run` and
+:func:`swarm.testing.invariants.load_run_log` build on it.
 """
 
 from __future__ import annotations
@@ -14,14 +19,48 @@ import csv
 import io
 import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
+from swarm.errors import SwarmError
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    # Write then rename, so an interrupted run never leaves a half-written file behind.
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+__all__ = [
+    "RunDirError",
+    "RunFolder",
+    "atomic_path",
+    "atomic_write",
+    "check_run_dir",
+    "read_json",
+    "read_run_dir",
+    "run_files",
+    "write_files",
+    "write_run",
+]
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to; when the block ends without an exception
+    it replaces ``path`` (one rename), otherwise it is removed. So an interrupted write never
+    leaves a half-written file under the final name. The temporary name keeps the suffix
+    (``animation.part.gif``) for writers that choose the format from it."""
+    final = Path(path)
+    tmp = final.with_name(final.stem + ".part" + final.suffix)
+    try:
+        yield tmp
+        os.replace(tmp, final)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def atomic_write(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_path`); returns the path."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
 
 
 def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -> dict[str, bytes]:
@@ -30,6 +69,8 @@ def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -
     Built in memory so a sweep worker on another machine can ship a finished run back to the
     machine that writes the folder (no shared file system needed)."""
     files: dict[str, bytes] = {"events.msgpack": result.events}
+    if scenario_dict is None:
+        scenario_dict = getattr(result, "scenario", None) or None  # what ran: swarm report needs it
     rows = result.timeseries
     if rows:
         columns = list(dict.fromkeys(k for row in rows for k in row))
@@ -56,9 +97,61 @@ def write_files(out_dir: str | Path, files: dict[str, bytes]) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for name, data in files.items():
-        _atomic_write(out / name, data)
+        atomic_write(out / name, data)
     return out
 
 
 def write_run(result, out_dir: str | Path, scenario_dict: dict | None = None, figures: bool = True) -> Path:
     return write_files(out_dir, run_files(result, scenario_dict, figures))
+
+
+# --- reading a run folder back -------------------------------------------------------------------
+
+
+class RunDirError(SwarmError, ValueError):
+    """A run folder is missing a file (or has one that cannot be read)."""
+
+
+def check_run_dir(run_dir: str | os.PathLike[str]) -> Path:
+    """Raise :class:`RunDirError` naming the first missing file of a run folder."""
+    d = Path(run_dir)
+    if not d.is_dir():
+        raise RunDirError(f"{d}: no such run folder")
+    events = d / "events.msgpack"
+    if not events.is_file():
+        raise RunDirError(f"{events}: missing; {d} is not a run folder (write one with `swarm run SCENARIO --out DIR`)")
+    scen = d / "scenario.json"
+    if not scen.is_file():
+        raise RunDirError(f"{scen}: missing; it gives the area, UAV types, threats and radio range")
+    return d
+
+
+def read_json(path: Path) -> dict:
+    """A JSON file of a run folder; :class:`RunDirError` if it cannot be read."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise RunDirError(f"{path}: cannot be read as JSON ({exc})") from None
+
+
+@dataclass(frozen=True)
+class RunFolder:
+    """The two files every run folder has, as written: ``scenario.json`` (a dict, not yet
+    validated) and ``events.msgpack`` (bytes, see :func:`swarm.recorder.read_events`)."""
+
+    path: Path
+    scenario: dict
+    events: bytes
+
+
+def read_run_dir(run_dir: str | os.PathLike[str]) -> RunFolder:
+    """Read the scenario and the event log of a folder written by ``swarm run --out DIR``;
+    :class:`RunDirError` if either is missing or unreadable."""
+    d = check_run_dir(run_dir)
+    scenario = read_json(d / "scenario.json")
+    events = d / "events.msgpack"
+    try:
+        data = events.read_bytes()
+    except OSError as exc:
+        raise RunDirError(f"{events}: cannot be read ({exc})") from None
+    return RunFolder(d, scenario, data)

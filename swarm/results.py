@@ -32,6 +32,8 @@ class RunResult:
     threats: list[KnownThreat]
     area: tuple[float, float]
     uav_types: dict[str, str] = field(default_factory=dict)
+    # The scenario that ran (seed and overrides applied), as ``scenario.json`` holds it.
+    scenario: dict = field(default_factory=dict)
 
 
 def radio_totals(sim: Simulation) -> dict:
@@ -117,4 +119,5 @@ def run_result(sim: Simulation) -> RunResult:
         threats=list(sim.world.threats),
         area=(sim.grid.width_m, sim.grid.height_m),
         uav_types={b.name: b.kind.name for b in sim.world.uavs.values()},
+        scenario=sim.scenario.to_dict(),
     )

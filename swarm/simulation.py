@@ -31,6 +31,7 @@ import time
 from collections import defaultdict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -40,24 +41,23 @@ from agents.maps.grid import PREFETCH_MIN, Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.umap import DENSE_MAX_CELLS
 from agents.planners import make_planner
-from agents.planners.base import Plan
+from agents.planners.base import Plan, PlanView
 from agents.planners.batching import PlanBatcher
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
+from comms.messages import MODE_NAMES
 from comms.radio import Delivery
 from faults.injector import FaultInjector
 from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict
 from swarm import build
 from swarm.clock import DELIVERY, FAULT, TICK, Clock
-from swarm.errors import SimulationError, UsageError
+from swarm.errors import APIMisuseError, SimulationError, UsageError
 from swarm.metrics import Metrics
 from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
 from swarm.rng import RngTree
 from swarm.scenario import Scenario, UavSpec, load_scenario
 from swarm.world import ALIVE, CRASHED, PENDING, Targets, UavBody, World
-
-MODE_NAMES = {0: "search", 1: "surveil"}
 
 # Allocations between two young-generation collections during step()/run() (Python default: 700).
 _GC_THRESHOLD = 70_000
@@ -113,7 +113,7 @@ class Simulation:
         :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself."""
         if not isinstance(scenario, Scenario):
             scenario = load_scenario(scenario)
-        overrides = {}
+        overrides: dict[str, object] = {}
         if planner is not None:
             overrides["planner.name"] = planner
         if duration_s is not None:
@@ -227,6 +227,7 @@ class Simulation:
         kind = self.types[spec.type]
         uid = len(self.world.uavs)
         name = spec.name
+        assert name is not None  # filled in by the scenario's validation, or by add_uav
         speed = spec.speed if spec.speed is not None else kind.speed_max
         body = UavBody(uid, name, kind, spec.x_m, spec.y_m, speed, math.radians(spec.heading_deg),
                        PENDING, spec.join_s or 0.0)
@@ -397,6 +398,7 @@ class Simulation:
             err.__cause__ = exc
             barrier.set_exception(err)
             return
+        assert out is not None  # (an actor reports an output or an exception)
         self._outputs[uid] = out
         self._waiting -= 1
         if self._waiting == 0:
@@ -404,9 +406,11 @@ class Simulation:
         else:
             self._flush_plans_if_all_waiting()
 
-    async def _plan_for(self, actor: UavActor, view) -> Plan:
+    async def _plan_for(self, actor: UavActor, view: PlanView) -> Plan:
         """An actor's plan request (see :mod:`agents.planners.batching`)."""
-        fut = self._batcher.request(actor, view)
+        batcher = self._batcher
+        assert batcher is not None  # (the actors are given _plan_for only with a batcher)
+        fut = batcher.request(actor, view)
         self._flush_plans_if_all_waiting()
         return await fut
 
@@ -541,7 +545,7 @@ class Simulation:
         for at in sorted(by_time):
             batch = by_time[at]
             self._in_flight += len(batch)
-            self.clock.schedule(at, lambda batch=batch: self._deliver(batch), DELIVERY)
+            self.clock.schedule(at, partial(self._deliver, batch), DELIVERY)
 
     def _integrate(self, alive: list[int], outputs: dict[int, ActorOutput]) -> None:
         """Physics: every live UAV flies its command for ``dt``, then the targets move."""
@@ -661,6 +665,11 @@ class Simulation:
         """Advance ``n`` ticks synchronously."""
         if n < 1:
             raise UsageError(f"step(n) needs n >= 1, got {n}")
+        if self._tick_index + n > self.n_ticks:
+            raise APIMisuseError(
+                f"step({n}) at tick {self._tick_index} would go past the end of the run ({self.n_ticks} ticks, "
+                f"{self.duration_s:g} s); step at most {self.n_ticks - self._tick_index} more, or build the "
+                f"Simulation with a longer duration_s")
         self._run_sync((self._tick_index + n) * self.dt)
 
     def run(self, progress: Callable[[float, float], None] | None = None) -> RunResult:

@@ -73,6 +73,7 @@ def test_coverage_raster_is_monotone_in_time(run_dir):
     assert float(seen[-1].max()) == 299.0
 
 
+@pytest.mark.slow  # renders and encodes 26 frames; single frames are checked below
 def test_gif_has_the_expected_frames(run_dir, tmp_path):
     out = tmp_path / "anim.gif"
     fps, speed = 5, 60

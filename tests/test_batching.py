@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -32,6 +33,7 @@ def _run(scenario, batch: bool, **kw):
         return result.metrics["event_log_sha256"], (batcher.batches, batcher.plans) if batcher else None
 
 
+@pytest.mark.slow  # four whole runs; the faults test below is the quick loop's
 @pytest.mark.parametrize("scenario, duration", [
     ("paper-fig11", 300.0),  # six UAVs replanning on the same ticks, search only
     ("paper-case2", 400.0),  # two UAV types, targets (surveillance, competing repulsion), threats
@@ -85,7 +87,7 @@ def situations(draw):
     return [_uav_situation(draw, grid, t, uav) for uav in range(draw(st.integers(2, 5)))]
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(situations())
 def test_plan_many_is_plan_for_each(views):
     planner = DacmpPlanner(particles=12, iterations=6, levels=5)
@@ -100,7 +102,7 @@ def _with_rng_copy(v: PlanView) -> PlanView:
     return w
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(st.lists(st.tuples(st.floats(-5e3, 5e3), st.floats(-5e3, 5e3), st.floats(-4.0, 4.0), st.floats(0.0, 900.0)),
                 min_size=1, max_size=4),
        st.lists(st.tuples(st.floats(-8e3, 8e3), st.floats(-8e3, 8e3)), min_size=1, max_size=8))

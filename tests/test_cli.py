@@ -40,6 +40,7 @@ def test_damaged_scenario_gives_one_line_exit_2_no_traceback(tmp_path):
     assert "uavs" in lines[1]
 
 
+@pytest.mark.slow  # `python -m swarm` subprocesses; the damaged-scenario one above is the quick loop's
 def test_unknown_key_suggests_the_closest(tmp_path):
     bad = tmp_path / "typo.toml"
     bad.write_text('[[uavs]]\ntype = "B"\nx_m = 0.0\ny_m = 0.0\nheding_deg = 90.0\n')
@@ -48,6 +49,7 @@ def test_unknown_key_suggests_the_closest(tmp_path):
     assert "uavs[0].heding_deg" in r.stderr and "heading_deg" in r.stderr
 
 
+@pytest.mark.slow  # `python -m swarm` subprocesses; the damaged-scenario one above is the quick loop's
 def test_broken_toml_and_missing_file(tmp_path):
     broken = tmp_path / "broken.toml"
     broken.write_text("[area\nwidth_m = 1\n")
@@ -57,6 +59,7 @@ def test_broken_toml_and_missing_file(tmp_path):
     assert r.returncode == 2 and "paper-fig11" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow  # `python -m swarm` subprocesses; the damaged-scenario one above is the quick loop's
 def test_bad_override_names_the_key(small_scenario_path):
     r = _swarm("run", str(small_scenario_path), "--set", "radio.loss_base=1.5", "--quiet")
     assert r.returncode == 2 and "radio.loss_base" in r.stderr and "Traceback" not in r.stderr

@@ -13,6 +13,7 @@ import zlib
 
 import msgpack
 import pytest
+from budget import examples
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -122,7 +123,8 @@ finite = st.floats(allow_nan=False, allow_infinity=False)
 positive = st.floats(min_value=0.0, exclude_min=True, allow_nan=False, allow_infinity=False)
 
 hellos = st.builds(Hello, ints, st.text(max_size=64), finite, finite, finite, finite)
-intents = st.builds(Intent, ints, finite, finite, st.sampled_from([MODE_SEARCH, MODE_SURVEIL]), st.one_of(st.just(NO_TARGET), ints))
+intents = st.builds(Intent, ints, finite, finite, st.sampled_from([MODE_SEARCH, MODE_SURVEIL]),
+                    st.one_of(st.just(NO_TARGET), ints))
 scans = st.builds(
     ScanRecords,
     ints,
@@ -195,7 +197,7 @@ def test_round_trip_any_frame(f):
 @pytest.mark.parametrize("strategy", [hellos, intents, scans, tracks, threats, digests],
                          ids=["hello", "intent", "scan", "tracks", "threats", "digest"])
 def test_round_trip_each_message_type(strategy):
-    @settings(deadline=None, max_examples=60)
+    @settings(deadline=None, max_examples=examples(60))
     @given(ints, ints, finite, st.lists(strategy, min_size=1, max_size=4))
     def check(sender, seq, t, msgs):
         got = decode(encode(sender, seq, t, msgs))
@@ -260,7 +262,7 @@ def test_packed_forms_encode_as_the_messages(f):
 # ---------------------------------------------------------------------------------------------
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(st.binary(max_size=300))
 def test_arbitrary_bytes_give_frame_or_frame_error(data):
     f = decode_or_frame_error(data)
@@ -268,7 +270,7 @@ def test_arbitrary_bytes_give_frame_or_frame_error(data):
         assert_well_typed(f)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(st.binary(max_size=300))
 def test_arbitrary_sealed_bytes_give_frame_or_frame_error(data):
     # with a valid CRC the msgpack parser and schema checks see the garbage
@@ -277,7 +279,7 @@ def test_arbitrary_sealed_bytes_give_frame_or_frame_error(data):
         assert_well_typed(f)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(msgpack_values)
 def test_arbitrary_msgpack_objects_give_frame_or_frame_error(obj):
     f = decode_or_frame_error(packed(obj))
@@ -285,7 +287,7 @@ def test_arbitrary_msgpack_objects_give_frame_or_frame_error(obj):
         assert_well_typed(f)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(frames.filter(lambda f: f.messages), st.data())
 def test_structure_aware_field_replacement(f, data):
     """Replace one field somewhere inside a valid frame with an arbitrary msgpack value."""
@@ -360,7 +362,7 @@ def test_single_byte_flip_is_always_detected(f, data):
         decode(bytes(buf))
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(frames, st.data())
 def test_random_byte_flips_never_raise_anything_but_frame_error(f, data):
     raw = enc(f)

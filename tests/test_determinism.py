@@ -25,7 +25,7 @@ def _hash_in_subprocess(seed: int, hashseed: str, planner: str = "greedy") -> st
     return out.stdout.strip()
 
 
-@pytest.mark.parametrize("planner", ["greedy", "dacmp"])
+@pytest.mark.parametrize("planner", ["greedy", pytest.param("dacmp", marks=pytest.mark.slow)])  # subprocesses
 def test_same_seed_same_hash_across_processes_and_hash_seeds(planner):
     a = _hash_in_subprocess(1, "0", planner)
     b = _hash_in_subprocess(1, "4242", planner)
@@ -33,6 +33,7 @@ def test_same_seed_same_hash_across_processes_and_hash_seeds(planner):
     assert a == b
 
 
+@pytest.mark.slow  # two subprocesses
 def test_different_seed_different_hash():
     assert _hash_in_subprocess(1, "0") != _hash_in_subprocess(2, "0")
 

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
@@ -279,7 +280,7 @@ heading = st.floats(min_value=-4.0, max_value=4.0, allow_nan=False)
 radius = st.floats(min_value=0.2, max_value=3.0, allow_nan=False)
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(px=coord, py=coord, h0=heading, r=radius)
 def test_hypothesis_matches_reference(px, py, h0, r):
     assume(not _near_circle(0.0, 0.0, h0, px, py, r, 1e-3))
@@ -291,7 +292,7 @@ def test_hypothesis_matches_reference(px, py, h0, r):
 # ---------------------------------------------------------------------------------------------
 # Invariances and bounds
 # ---------------------------------------------------------------------------------------------
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(x0=coord, y0=coord, h0=heading, px=coord, py=coord, r=radius)
 def test_bounds(x0, y0, h0, px, py, r):
     """|p| <= L <= |p| + (2 pi + 1) r.
@@ -306,7 +307,7 @@ def test_bounds(x0, y0, h0, px, py, r):
     assert got <= d + (TWO_PI + 1.0) * r + 1e-9
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(x0=coord, y0=coord, h0=heading, px=coord, py=coord, r=radius)
 def test_mirror_symmetry(x0, y0, h0, px, py, r):
     assume(not _near_circle(x0, y0, h0, px, py, r, 1e-6))
@@ -315,7 +316,7 @@ def test_mirror_symmetry(x0, y0, h0, px, py, r):
     assert a == pytest.approx(b, rel=1e-9, abs=1e-9)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(
     x0=coord, y0=coord, h0=heading, px=coord, py=coord, r=radius,
     rot=st.floats(min_value=-math.pi, max_value=math.pi), tx=coord, ty=coord,
@@ -334,7 +335,7 @@ def test_rotation_translation_invariance(x0, y0, h0, px, py, r, rot, tx, ty):
     assert a == pytest.approx(b, rel=1e-9, abs=1e-9)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(px=coord, py=coord, h0=heading, r=radius, k=st.floats(min_value=0.1, max_value=10.0))
 def test_scale_invariance(px, py, h0, r, k):
     """L(k p, k r) = k L(p, r): the problem has no other length scale."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -95,7 +96,7 @@ def test_turn_rate_and_r_min_reference_values():
 # ---------------------------------------------------------------------------------------------
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(cases(inside=True))
 def test_limited_command_never_violates_when_speed_in_range(case):
     k, v, a, omega, dt = case
@@ -111,7 +112,7 @@ def test_limited_command_never_violates_when_speed_in_range(case):
     assert w2 == 0.0 or math.copysign(1.0, w2) == math.copysign(1.0, omega)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(cases(inside=True))
 def test_turn_radius_holds_throughout_the_step(case):
     k, v, a, omega, dt = case
@@ -125,7 +126,7 @@ def test_turn_radius_holds_throughout_the_step(case):
         assert u_max / abs(w2) >= k.r_min(u_max) * (1 - REL)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(cases(inside=False))
 def test_speed_slightly_outside_the_range_is_pulled_back(case):
     k, v, a, omega, dt = case
@@ -149,7 +150,7 @@ def test_speed_slightly_outside_the_range_is_pulled_back(case):
     assert abs(w2) <= k.turn_rate_max(max(v, v_next)) * (1 + REL)
 
 
-@settings(deadline=None, max_examples=200)
+@settings(deadline=None, max_examples=examples(200))
 @given(cases(inside=True))
 def test_limit_command_is_idempotent_and_keeps_valid_commands(case):
     k, v, a, omega, dt = case
@@ -223,7 +224,7 @@ def test_non_finite_commands_are_sanitised_and_flagged(bad):
 # ---------------------------------------------------------------------------------------------
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(cases(inside=True), st.floats(-1e4, 1e4), st.floats(-1e4, 1e4), st.floats(-math.pi, math.pi))
 def test_speed_after_integrate_stays_in_range(case, x, y, theta):
     k, v, a, omega, dt = case
@@ -238,7 +239,7 @@ def test_speed_after_integrate_stays_in_range(case, x, y, theta):
     assert math.isclose(math.cos(d), 1.0, abs_tol=1e-9)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(
     st.floats(-1e5, 1e5),
     st.floats(-1e5, 1e5),
@@ -300,8 +301,9 @@ def test_integrate_full_circle_returns_near_the_start():
 # ---------------------------------------------------------------------------------------------
 
 
-@settings(deadline=None, max_examples=500)
-@given(st.one_of(st.floats(-1e6, 1e6), st.floats(-10.0, 10.0), st.sampled_from([0.0, math.pi, -math.pi, 2 * math.pi, -2 * math.pi, 3 * math.pi])))
+@settings(deadline=None, max_examples=examples(500))
+@given(st.one_of(st.floats(-1e6, 1e6), st.floats(-10.0, 10.0),
+                 st.sampled_from([0.0, math.pi, -math.pi, 2 * math.pi, -2 * math.pi, 3 * math.pi])))
 def test_wrap_angle_range_and_equivalence(a):
     w = wrap_angle(a)
     assert -math.pi <= w <= math.pi
@@ -333,7 +335,7 @@ def test_wrap_angle_is_half_open(k):
         assert math.isclose(math.cos(w), math.cos(a), abs_tol=1e-12)
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(st.floats(-1e6, 1e6))
 def test_wrap_angle_never_returns_pi(a):
     assert -math.pi <= wrap_angle(a) < math.pi

@@ -18,6 +18,7 @@ import math
 import msgpack
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
@@ -40,7 +41,7 @@ def _same(a: float, b: float) -> bool:
     return (math.isnan(a) and math.isnan(b)) or (a == b and math.copysign(1.0, a) == math.copysign(1.0, b))
 
 
-@settings(max_examples=500)
+@settings(max_examples=examples(500))
 @given(st.one_of(any_float, edge_floats), st.one_of(any_float, edge_floats), st.one_of(any_float, edge_floats))
 def test_clamp_is_min_of_max(v, lo, hi):
     assert _same(clamp(v, lo, hi), min(max(v, lo), hi))
@@ -71,7 +72,7 @@ def _reading_by_formula(world: World, uid: int, t: float):
 coords = st.floats(0.0, 10_000.0)
 
 
-@settings(deadline=None, max_examples=100)
+@settings(deadline=None, max_examples=examples(100))
 @given(
     st.lists(st.tuples(coords, coords, st.booleans()), min_size=0, max_size=8),
     st.lists(st.tuples(coords, coords, st.floats(-math.pi, math.pi), st.floats(0.0, 20.0)), max_size=10),
@@ -112,7 +113,7 @@ def _num_each(values: list):
         return ("FrameError", str(exc))
 
 
-@settings(max_examples=500)
+@settings(max_examples=examples(500))
 @given(st.one_of(st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=12), st.lists(field_values, max_size=8)))
 def test_nums_equals_num_of_each_value(values):
     try:
@@ -128,7 +129,7 @@ def test_nums_equals_num_of_each_value(values):
 # --- separation screen ----------------------------------------------------------------------
 
 
-@settings(deadline=None, max_examples=300)
+@settings(deadline=None, max_examples=examples(300))
 @given(st.lists(st.tuples(st.floats(0.0, 3000.0), st.floats(0.0, 3000.0)), min_size=2, max_size=20),
        st.floats(1.0, 800.0))
 def test_separation_screen_never_hides_a_pair(points, r):
@@ -177,7 +178,7 @@ def _check_flush(ticks: list[list[tuple]]) -> None:
     assert log.total == sum(map(len, ticks)) == len(list(read_events(bytes(expected))))
 
 
-@settings(max_examples=200)
+@settings(max_examples=examples(200))
 @given(st.lists(_events, max_size=5), st.sampled_from([0, 14, 15, 16, 17]))
 def test_batched_flush_packs_each_event_as_alone(ticks, pad):
     # pad: a tick with about the first array header sizes' worth of events

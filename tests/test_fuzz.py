@@ -20,6 +20,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -30,12 +31,6 @@ from swarm.errors import ScenarioError
 from swarm.scenario import parse_scenario, scenario_from_toml
 from swarm.scenario.positions import key_path as _key
 from swarm.testing.strategies import scenario_documents, scenario_toml
-
-
-def examples(n: int) -> int:
-    """``n`` under the ci profile, scaled with the active profile (deep: 10x)."""
-    return max(1, n * settings.default.max_examples // 100)
-
 
 # --- frame fuzzing ---------------------------------------------------------------------------------
 

@@ -10,6 +10,7 @@ import dataclasses
 import math
 
 import pytest
+from budget import examples
 from hypothesis import HealthCheck, given, settings
 
 from agents.dynamics import integrate, limit_command, wrap_angle
@@ -38,15 +39,9 @@ from swarm.testing.invariants import (
     check_events,
     default_checkers,
     handover_checkers,
-    load_run,
+    load_run_log,
 )
 from swarm.testing.strategies import reproducible, scenario_toml, scenarios
-
-
-def examples(n: int) -> int:
-    """``n`` under the ci profile, scaled with the active profile (deep: 10x)."""
-    return max(1, n * settings.default.max_examples // 100)
-
 
 # --- synthetic logs ----------------------------------------------------------------------------
 
@@ -596,7 +591,7 @@ def test_checks_a_run_folder_written_by_swarm_run(tmp_path, small_scenario_path)
 
     out = tmp_path / "run"
     assert main(["run", str(small_scenario_path), "--duration", "90", "--quiet", "--no-figures", "--out", str(out)]) == 0
-    scenario, events = load_run(out)
+    scenario, events = load_run_log(out)
     assert scenario.duration_s == 90.0 and events[0][0] == "start"
     assert check_events(events, scenario, [ThreatClearanceChecker(), DynamicsChecker(), RadioChecker()]) == []
     doctored = [list(e) for e in events]

@@ -4,6 +4,7 @@ is sent, in whatever order, and whoever falls behind or leaves."""
 from __future__ import annotations
 
 import numpy as np
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -37,7 +38,7 @@ ops = st.lists(st.one_of(
 ), max_size=120)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(n=st.integers(1, 4), steps=ops, in_order=st.booleans())
 def test_group_maps_have_the_cells_of_maps_of_their_own(n, steps, in_order):
     group = MapGroup(GRID, TAU, 1.0)

@@ -1,7 +1,9 @@
 """`swarm paper`: each experiment writes its figures and results, the table puts the paper's
 quoted numbers next to ours (or "not run"), and finished runs are skipped when run again.
 
-Tiny versions only (2 seeds, 60 s of simulated time) to check the plumbing, not the numbers."""
+Tiny versions only (2 seeds, 60 s of simulated time) to check the plumbing, not the numbers.
+The experiments that fill one results folder (``paper_out``) run in file order, each on the
+ones before it, and are all marked ``slow``; the table and argument checks are quick."""
 
 from __future__ import annotations
 
@@ -46,6 +48,7 @@ def test_empty_folder_table_is_all_not_run(tmp_path):
     assert csv_path.read_text().splitlines()[0].startswith("experiment,quantity,paper_quoted,ours_measured,n,mean")
 
 
+@pytest.mark.slow  # fills paper_out: each test needs the ones before it
 def test_fig11_writes_figures_and_table_then_skips_finished_runs(paper_out, capsys):
     out = paper_out
     assert main(["paper", "fig11", "--seeds", "2", "--out", str(out), *TINY]) == 0
@@ -75,12 +78,14 @@ def test_fig11_writes_figures_and_table_then_skips_finished_runs(paper_out, caps
     assert {p: p.stat().st_mtime_ns for p in metrics} == before
 
 
+@pytest.mark.slow  # fills paper_out: each test needs the ones before it
 def test_other_duration_on_finished_runs_is_one_error_line(paper_out, capsys):
     assert main(["paper", "fig11", "--seeds", "2", "--out", str(paper_out), "--duration", "30", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "60.0 s" in err[0] and "--out" in err[0]
 
 
+@pytest.mark.slow  # fills paper_out: each test needs the ones before it
 def test_case1_single_run_with_full_outputs(paper_out, capsys):
     out = paper_out
     assert main(["paper", "case1", "--out", str(out), *TINY]) == 0
@@ -97,6 +102,7 @@ def test_case1_single_run_with_full_outputs(paper_out, capsys):
     assert "already finished" not in capsys.readouterr().err
 
 
+@pytest.mark.slow  # fills paper_out: each test needs the ones before it
 def test_case2_with_seeds_then_case3_shares_the_case2_runs(paper_out, capsys):
     out = paper_out
     assert main(["paper", "case2", "--seeds", "2", "--out", str(out), *TINY]) == 0
@@ -121,6 +127,7 @@ def test_case2_with_seeds_then_case3_shares_the_case2_runs(paper_out, capsys):
     assert any("paired seeds" in r[3] for r in rows)
 
 
+@pytest.mark.slow  # fills paper_out: each test needs the ones before it
 def test_all_reuses_everything_and_leaves_nothing_not_run(paper_out, capsys):
     out = paper_out
     assert main(["paper", "all", "--seeds", "2", "--out", str(out), *TINY]) == 0
@@ -154,8 +161,9 @@ def test_bad_seeds_is_a_usage_error(tmp_path, capsys):
     assert "--seeds: found '0'" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # the same CLI path as test_sweep.py's, which is in the quick loop
 def test_unreachable_scheduler_is_one_error_line(tmp_path, capsys):
     assert main(["paper", "fig11", "--seeds", "1", "--out", str(tmp_path), "--quiet",
-                 "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "2"]) == 2
+                 "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "cannot reach a Dask scheduler" in err and "Traceback" not in err

@@ -3,6 +3,9 @@
 Case 1: the fast-to-slow handover. Case 2: every target found and watched by one UAV at the end,
 slow UAVs taking targets over from fast ones, no threat or separation violation. Case 3: the
 joining UAV raises coverage.
+
+Case 1 (one 600 s run of 3 UAVs, under a second) is in the quick loop; Case 2 and 3 (600 s runs
+of 10-11 UAVs, over several seeds) are marked ``slow``.
 """
 
 from __future__ import annotations
@@ -129,12 +132,14 @@ def case2():
     return _case_run("paper-case2", load_scenario("paper-case2").seed)  # the scenario's own seed
 
 
+@pytest.mark.slow  # the case2 fixture: a 600 s run of 10 UAVs
 def test_case2_every_target_is_found(case2):
     m = case2["metrics"]
     assert m["targets_total"] == 6
     assert m["targets_found"] == 6
 
 
+@pytest.mark.slow  # the case2 fixture: a 600 s run of 10 UAVs
 def test_case2_each_target_ends_watched_by_exactly_one_uav_that_sees_it(case2):
     watchers = _watchers_at_end(case2)
     assert len(watchers) == 6
@@ -145,6 +150,7 @@ def test_case2_each_target_ends_watched_by_exactly_one_uav_that_sees_it(case2):
     assert any(case2["speed"][ws[0][0]] == max(case2["speed"].values()) for ws in watchers.values())
 
 
+@pytest.mark.slow  # the case2 fixture: a 600 s run of 10 UAVs
 def test_case2_slow_uavs_take_at_least_four_targets_over_from_fast_ones(case2):
     handovers = _fast_to_slow(case2)
     assert case2["metrics"]["handovers_fast_to_slow"] == len(handovers)
@@ -159,6 +165,7 @@ def test_case2_slow_uavs_take_at_least_four_targets_over_from_fast_ones(case2):
         assert _lets_go(case2, h), h
 
 
+@pytest.mark.slow  # the case2 fixture: a 600 s run of 10 UAVs
 def test_case2_no_threat_or_separation_violations(case2):
     assert case2["metrics"]["violations"] == {"separation": 0, "threat": 0, "dynamics": 0}
 

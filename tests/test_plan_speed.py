@@ -12,6 +12,7 @@ import types
 
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.lib.stride_tricks import as_strided
@@ -153,7 +154,7 @@ def wide_range(rng, shape, dtype) -> np.ndarray:
 
 # --- pyramid ----------------------------------------------------------------------------------
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(h=st.integers(1, 70), w=st.integers(1, 70), seed=st.integers(0, 2**32 - 1),
        dtype=st.sampled_from([np.float32, np.float64]), kind=st.sampled_from(["q", "wide"]))
 def test_pyramid_is_the_reference_bit_for_bit(h, w, seed, dtype, kind):
@@ -167,7 +168,7 @@ def test_pyramid_is_the_reference_bit_for_bit(h, w, seed, dtype, kind):
         assert same(g, ref)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(h=st.integers(1, 40), w=st.integers(1, 40), k=st.integers(1, 5), seed=st.integers(0, 2**32 - 1))
 def test_stacked_maps_each_get_their_own_numbers(h, w, k, seed):
     rng = np.random.default_rng(seed)
@@ -213,7 +214,7 @@ def _views(rng, grid, n, t=900.0):
     return views
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(nx=st.integers(1, 90), ny=st.integers(1, 90), n=st.integers(1, 4), levels=st.integers(0, 8),
        weights=st.booleans(), seed=st.integers(0, 2**32 - 1), one_at_a_time=st.booleans())
 def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weights, seed, one_at_a_time):
@@ -244,7 +245,7 @@ def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weig
         assert layers.guides[i] == ref_guide_point(q, regions, grid.cell_m, v.x, v.y, v.theta, tie_key=tie_key)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(h=st.integers(1, 60), w=st.integers(1, 60), ny=st.integers(1, 6), nx=st.integers(1, 6),
        seed=st.integers(0, 2**32 - 1), tie_tol=st.sampled_from([0.02, 0.0]), keyed=st.booleans(),
        dtype=st.sampled_from([np.float32, np.float64]))
@@ -263,7 +264,7 @@ def test_guide_point_is_the_reference(h, w, ny, nx, seed, tie_tol, keyed, dtype)
 coord = st.floats(-5e4, 5e4, allow_nan=False)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(poses=st.lists(st.tuples(coord, coord, st.floats(-7.0, 7.0), st.floats(-10.0, 3e3)), min_size=1, max_size=6),
        seed=st.integers(0, 2**32 - 1), m=st.integers(1, 40))
 def test_dubins_is_the_reference(poses, seed, m):

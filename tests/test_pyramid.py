@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.ndimage import convolve1d
@@ -47,7 +48,7 @@ def test_pyr_down_matches_scipy_float32(shape):
     np.testing.assert_allclose(got, reference_down(a), rtol=1e-6, atol=1e-7)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(h=st.integers(1, 40), w=st.integers(1, 40), seed=st.integers(0, 2**31))
 def test_pyr_down_matches_scipy_any_shape(h, w, seed):
     a = np.random.default_rng(seed).normal(size=(h, w))

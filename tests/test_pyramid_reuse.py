@@ -4,6 +4,7 @@ G_1 and G_2 they get computed alone, whatever scans they hold beyond the base.""
 from __future__ import annotations
 
 import numpy as np
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -47,7 +48,7 @@ def assert_second_levels(levels: FirstLevels, g1: np.ndarray) -> None:
 scans = st.tuples(st.floats(-0.1, 1.1), st.floats(-0.1, 1.1), st.floats(0.6, 12.0), st.integers(0, 900))
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=examples(80), deadline=None)
 @given(h=st.integers(16, 90), w=st.integers(16, 90), common=st.lists(scans, max_size=12),
        extra=st.lists(st.lists(scans, max_size=4), min_size=1, max_size=5), plain=st.booleans())
 def test_patched_maps_get_the_numbers_they_get_alone(h, w, common, extra, plain):
@@ -113,7 +114,7 @@ def test_maps_are_patched_only_when_they_may_be():
     assert (off.full, off.patched) == (2, 0)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(n=st.integers(1, 40), ncols=st.integers(1, 9), lo=st.integers(0, 20), span=st.integers(0, 20),
        seed=st.integers(0, 2**32 - 1))
 def test_part_of_a_row_reduce_is_the_whole_reduce_there(n, ncols, lo, span, seed):
@@ -131,7 +132,7 @@ def test_part_of_a_row_reduce_is_the_whole_reduce_there(n, ncols, lo, span, seed
     assert same(part, whole[:, lo : hi + 1])
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), late=st.lists(st.tuples(st.integers(0, 3), st.integers(0, 11)), max_size=6))
 def test_group_maps_patched_from_the_base_get_the_numbers_they_get_alone(seed, late):
     """As a swarm plans: every map has the others' scans up to the last tick and its own of this

@@ -13,6 +13,7 @@ from collections import Counter
 import networkx as nx
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -218,7 +219,7 @@ moving_swarm = st.lists(  # per tick: {id: (x, y)} of the live nodes (ids come a
 )
 
 
-@settings(deadline=None, max_examples=150)
+@settings(deadline=None, max_examples=examples(150))
 @given(moving_swarm, st.sampled_from([None, 250.0, 400.0, 1000.0]), st.sampled_from([(0.0, 0.0), (0.1, 0.6)]))
 def test_incremental_topology_equals_rebuilt_graph(ticks, range_m, loss):
     model = LinkModel(range_m=range_m, loss_base=loss[0], loss_at_range=loss[1])
@@ -664,6 +665,6 @@ def test_radio_to_mailbox_end_to_end():
         out += all_broadcast(radio, float(k), [0, 1, 2], frame(0, k, float(k)))
     for d in sorted(out, key=lambda d: (d.arrival_t, d.sender, d.receiver)):
         boxes[d.receiver].put(d.arrival_t, d.sender, d.data)
-    for u, mb in boxes.items():
+    for mb in boxes.values():
         assert mb.stats.accepted == 4 and mb.stats.dropped_full == 2
         assert all(decode(data).seq in (0, 1) for _, _, data in mb.drain())

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 
+from budget import examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -54,7 +55,7 @@ _DOC = {"name": "receivers", "duration_s": 60.0, "area": {"width_m": 5000.0, "he
         "radio": {"sync_every_s": 1.0, "sync_settle_s": 0.0}}
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(messages, min_size=1, max_size=3), ints, floats, st.sampled_from(["dacmp", "greedy"]))
 def test_extreme_values_in_any_message_kind_do_not_crash_a_live_receiver(msgs, sender, t, planner):
     sc = parse_scenario({**_DOC, "planner": {"name": planner}})

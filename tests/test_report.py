@@ -115,6 +115,7 @@ def test_run_report_content(reported_run):
     assert causes and all(cause in html for cause in causes)  # every cause of lost frames is listed
 
 
+@pytest.mark.slow  # renders the report again, and a `python -m swarm` subprocess
 def test_report_without_animation_and_errors(reported_run, tmp_path, capsys):
     out = tmp_path / "plain.html"
     path = write_report(reported_run, out, animation=None)
@@ -182,6 +183,7 @@ def _distinct_colours(png: Path, top: int = 200) -> tuple[int, float]:
     return distinct, saturated
 
 
+@pytest.mark.slow  # three Chromium runs
 def test_report_renders_in_headless_chromium(reported_run, chromium, tmp_path):
     """What this proves: Chromium, offline (file://, no network needed since nothing is external),
     decodes every embedded figure at its full pixel size, and the screenshot of the top of the page
@@ -202,7 +204,7 @@ def test_report_renders_in_headless_chromium(reported_run, chromium, tmp_path):
     assert found, f"chromium did not load the page: {r.stderr[-500:]}"
     sizes = found.group(1).split()
     expected = []
-    for kind, b64 in re.findall(r'src="data:image/(png|gif);base64,([^"]+)"', html):
+    for _kind, b64 in re.findall(r'src="data:image/(png|gif);base64,([^"]+)"', html):
         with Image.open(io.BytesIO(base64.b64decode(b64))) as im:
             expected.append(f"{im.size[0]}x{im.size[1]}")
     assert sizes == expected and len(sizes) >= 7

@@ -105,6 +105,7 @@ def test_other_runs_in_the_same_folder_are_refused(out, capsys, extra, expected)
     assert err.startswith("error: ") and expected in err and "Traceback" not in err
 
 
+@pytest.mark.slow  # 12 runs; the loss axis above is the quick loop's
 def test_burst_range_and_crash_axes(out, capsys):
     for args in (["burst", "--values", "3,100"], ["range", "--values", "2,inf"],
                  ["crash", "--values", "0,2", "--crash-at", "20"]):
@@ -186,8 +187,9 @@ def test_unknown_axis_is_an_argparse_error(capsys):
     assert err.startswith("error: ") and "invalid choice: 'wind'" in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow  # the same CLI path as test_sweep.py's, which is in the quick loop
 def test_unreachable_scheduler_is_one_error_line(tmp_path, capsys):
     assert main(["resilience", "loss", "--seeds", "1", "--out", str(tmp_path), "--quiet",
-                 "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "2"]) == 2
+                 "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "cannot reach a Dask scheduler" in err and "Traceback" not in err

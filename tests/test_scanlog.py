@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -45,7 +46,7 @@ ticks = st.sets(st.integers(0, 60), max_size=40)
 logs = st.dictionaries(st.integers(0, 5), ticks, max_size=5)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(mine=logs, theirs=logs, t_cut=st.integers(-3, 70), max_bytes=st.sampled_from([None, 12, 30]),
        horizon=st.sampled_from([float("inf"), 5.0, 30.0]))
 def test_answering_every_digest_leaves_the_peer_knowing_everything_in_the_window(mine, theirs, t_cut, max_bytes,

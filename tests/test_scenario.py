@@ -7,6 +7,7 @@ import math
 import tomllib
 
 import pytest
+from budget import examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -418,7 +419,7 @@ def parse_or_scenario_error(doc) -> None:
         assert isinstance(result, Scenario)
 
 
-@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(300), suppress_health_check=[HealthCheck.too_slow])
 @given(st.dictionaries(key_names | st.text(max_size=8), json_like, max_size=6) | structured)
 def test_arbitrary_documents_only_raise_scenario_error(doc):
     parse_or_scenario_error(doc)
@@ -471,7 +472,7 @@ def test_rich_document_is_valid():
     assert parse_scenario(RICH).uavs[1].join_s == 5.0
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(st.sampled_from(RICH_PATHS), scalars | st.just([]) | st.just({}), st.booleans())
 def test_mutated_valid_document_only_raises_scenario_error(path, value, delete):
     doc = copy.deepcopy(RICH)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
+from budget import examples
 from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import invariant, rule, run_state_machine_as_test
@@ -15,11 +16,6 @@ from swarm.scenario import scenario_from_toml
 from swarm.testing.invariants import InvariantViolation
 from swarm.testing.stateful import CHECKERS, SwarmMachine
 from swarm.testing.strategies import scenario_toml, scenarios
-
-
-def examples(n: int) -> int:
-    """``n`` under the ci profile, scaled with the active profile (deep: 10x)."""
-    return max(1, n * settings.default.max_examples // 100)
 
 
 class RecordingMachine(SwarmMachine):
@@ -97,6 +93,7 @@ def test_machine_catches_a_planted_radio_bug_and_says_how_to_replay_it():
     assert any(n.startswith("replay: swarm run ") and "--seed" in n for n in err.__notes__)
 
 
+@pytest.mark.slow  # every draw below is a find(), shrunk to its simplest: seconds
 def test_machine_run_can_be_written_as_a_scenario():
     machine = SwarmMachine()
     # Drive it by hand, as Hypothesis would: a start, some time, each kind of change.

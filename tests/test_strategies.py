@@ -13,7 +13,8 @@ import math
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, find, given, settings
+from budget import examples
+from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
 
 from comms.radio import LinkModel, Radio
@@ -49,11 +50,6 @@ KIND_CLASSES = {"drop": Drop, "burst": Burst, "delay": Delay, "duplicate": Dupli
                 "partition": Partition, "crash": Crash, "join": Join}
 
 
-def examples(n: int) -> int:
-    """``n`` under the ci profile, scaled with the active profile (deep: 10x)."""
-    return max(1, n * settings.default.max_examples // 100)
-
-
 # --- fault schedules -------------------------------------------------------------------------------
 
 
@@ -85,12 +81,16 @@ def test_fault_schedules_name_known_uavs_and_stay_inside_the_run(fault_stats, du
             assert 0.05 <= f.rate <= 1.0
 
 
+GENERATE_ONLY = settings(phases=[Phase.generate])  # any example will do: no shrinking (seconds saved)
+
+
 def test_every_kind_has_a_strategy():
     for kind in ALL_KINDS:
-        f = find(faults(NAMES, 60.0, kinds=[kind]), lambda f: True)
+        f = find(faults(NAMES, 60.0, kinds=[kind]), lambda f: True, settings=GENERATE_ONLY)
         assert f.kind == kind
 
 
+@pytest.mark.slow  # shrinking takes seconds
 def test_schedules_shrink_to_simple_cases():
     assert find(fault_schedules(NAMES, 60.0), lambda s: True).faults == []
     one = find(fault_schedules(NAMES, 60.0), lambda s: len(s.faults) >= 1).faults
@@ -105,7 +105,8 @@ def test_schedules_shrink_to_simple_cases():
 def test_partitions_need_two_names_and_schedules_respect_joinable():
     with pytest.raises(ValueError):
         find(partitions(["B1"], 10.0), lambda p: True)
-    s = find(fault_schedules(NAMES, 30.0, kinds=["join"], joinable=["A2"], min_faults=1), lambda s: True)
+    s = find(fault_schedules(NAMES, 30.0, kinds=["join"], joinable=["A2"], min_faults=1), lambda s: True,
+             settings=GENERATE_ONLY)
     assert [f.uav for f in s.faults] == ["A2"]
     with pytest.raises(ValueError):
         faults(NAMES, 30.0, kinds=["meteor"])
@@ -127,6 +128,7 @@ def test_link_models_are_usable_by_the_radio(model):
     assert all(d.arrival_t >= 0.0 for d in out)
 
 
+@pytest.mark.slow  # shrinking takes seconds
 def test_link_models_shrink_to_the_ideal_radio():
     assert find(link_models(), lambda m: True) == LinkModel()
 
@@ -146,6 +148,7 @@ def test_scenarios_are_valid_small_and_round_trip_through_toml(scenario):
     assert scenario_from_toml(text, "generated.toml") == scenario
 
 
+@pytest.mark.slow  # shrinking takes seconds
 def test_fleets_mix_types_including_a_generated_third_one():
     area = {"width_m": 10_000.0, "height_m": 10_000.0, "cell_m": 100.0}
     spec = find(uav_type_specs(), lambda s: True)
@@ -163,6 +166,7 @@ def test_generated_uav_types_are_valid(spec):
     UavTypeSpec(**spec)
 
 
+@pytest.mark.slow  # shrinking takes seconds
 def test_pieces_shrink_to_simple_cases():
     area = {"width_m": 5_000.0, "height_m": 5_000.0, "cell_m": 100.0}
     assert len(find(fleets(area), lambda f: True)) == 1

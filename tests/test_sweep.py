@@ -126,6 +126,7 @@ def test_interrupted_sweep_keeps_finished_runs_and_resumes(small, tmp_path):
     assert res.summary["runs_finished"] == 4
 
 
+@pytest.mark.slow  # starts a Dask cluster and a process pool
 def test_sweep_through_a_dask_local_cluster_gives_the_process_pool_results(small, tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
@@ -138,6 +139,7 @@ def test_sweep_through_a_dask_local_cluster_gives_the_process_pool_results(small
     assert _hashes(tmp_path / "dask") == _hashes(tmp_path / "local")
 
 
+@pytest.mark.slow  # a process pool, twice; the in-process sweeps above are the quick loop's
 def test_cli_sweep_and_resume(small_scenario_path, tmp_path, capsys):
     args = ["sweep", str(small_scenario_path), "--seeds", "2", "--planner", "greedy", "--duration", str(DUR),
             "--set", "radio.loss_base=0,0.5", "--workers", "2", "--out", str(tmp_path), "--quiet"]
@@ -172,5 +174,5 @@ def test_cli_sweep_bad_input_is_one_error_line(small_scenario_path, tmp_path, ca
 
 def test_cli_sweep_unreachable_scheduler(small_scenario_path, tmp_path, capsys):
     assert main(["sweep", str(small_scenario_path), "--out", str(tmp_path), "--quiet", "--seeds", "1",
-                 "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "2"]) == 2
+                 "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"]) == 2
     assert "cannot reach a Dask scheduler" in capsys.readouterr().err

@@ -7,6 +7,7 @@ import csv
 import json
 import math
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -22,6 +23,7 @@ def _strict(path):
     return json.loads(path.read_text(), parse_constant=refuse)
 
 
+@pytest.mark.slow  # `swarm sweep` with its process pool, twice
 def test_sweep_over_inf_and_tables_writes_strict_json_and_runs_csv(small_scenario_path, tmp_path, capsys):
     out = tmp_path / "sw"
     args = ["sweep", str(small_scenario_path), "--seeds", "2", "--planner", "greedy", "--duration", "10",

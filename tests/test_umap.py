@@ -12,6 +12,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -197,7 +198,7 @@ def circles(draw, g: Grid):
     return x, y, r
 
 
-@settings(deadline=None, max_examples=200)
+@settings(deadline=None, max_examples=examples(200))
 @given(st.data())
 def test_scan_touches_exactly_the_cells_whose_centres_are_in_the_circle(data):
     g = data.draw(grids())
@@ -455,7 +456,7 @@ def windows(draw, g: Grid):
     return ix0, iy0, draw(st.integers(1, nx - ix0)), draw(st.integers(1, ny - iy0))
 
 
-@settings(deadline=None, max_examples=150)
+@settings(deadline=None, max_examples=examples(150))
 @given(st.data())
 def test_tiled_map_equals_dense_reference(data):
     g = data.draw(grids(max_cells=23))
@@ -503,7 +504,7 @@ def test_tiled_map_equals_dense_reference(data):
     assert np.array_equal(m.to_dense(window=w), ref.a[iy0 : iy0 + ny, ix0 : ix0 + nx])
 
 
-@settings(deadline=None, max_examples=100)
+@settings(deadline=None, max_examples=examples(100))
 @given(st.data())
 def test_window_read_equals_slice_of_full_map(data):
     g = data.draw(grids(max_cells=40))
@@ -598,7 +599,7 @@ def test_disk_stamp_is_a_cached_disk():
     assert np.array_equal(m1.to_dense(), m2.to_dense())
 
 
-@settings(deadline=None, max_examples=100)
+@settings(deadline=None, max_examples=examples(100))
 @given(st.data())
 def test_prefetched_disks_and_tile_splits_equal_the_one_by_one_ones(data):
     """Grid.prefetch_disks (vectorised) builds exactly the disks disk_stamp builds one by one,

@@ -16,8 +16,11 @@ hits, misses and prefetched disks give the same cells, so it can never change a 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from enum import Enum
 from itertools import islice
+from typing import Final, Protocol, TypeVar, cast
 
 import numpy as np
 
@@ -28,7 +31,28 @@ DISK_CACHE_SIZE = 1024
 # Fewer disks than this are cheaper one by one (numpy call overhead of the batch).
 PREFETCH_MIN = 16
 
-_MISSING = object()  # a memo miss (None is a memoised value: a disk off the grid)
+DiskKey = tuple[float, float, float]  # (x, y, radius) of a scan: what a Disk is memoised by
+# Disk.stamps(): (tile_key, start, stop, values); Disk.pieces(): (tile_key, rows_in_tile,
+# cols_in_tile, mask_piece, box_slices).
+Stamp = tuple[int, int, int, np.ndarray]
+Piece = tuple[int, slice, slice, np.ndarray, tuple[slice, slice]]
+# Disk._smemo before the first stamps(): its t (NaN) equals no t, so it never hits.
+_NO_STAMPS: Final[tuple[tuple[int, int], float, list[Stamp]]] = ((0, 0), math.nan, [])
+
+
+class Missing(Enum):
+    MISSING = 0
+
+
+MISSING: Final = Missing.MISSING  # a memo miss (None is a memoised value: a disk off the grid)
+
+_T = TypeVar("_T")
+
+
+class DiskLookup(Protocol):
+    """:meth:`Grid.disk_lookup`: ``lookup(key, default)`` is the memoised disk or ``default``."""
+
+    def __call__(self, key: DiskKey, default: _T, /) -> Disk | None | _T: ...
 
 
 class _GridCache:
@@ -37,7 +61,7 @@ class _GridCache:
     def __init__(self) -> None:
         self.nx: int | None = None
         self.ny: int | None = None
-        self.disks: dict[tuple[float, float, float], Disk | None] = {}
+        self.disks: dict[DiskKey, Disk | None] = {}
         self.centres: tuple[np.ndarray, np.ndarray] | None = None
         self.size = DISK_CACHE_SIZE
 
@@ -51,22 +75,23 @@ class Disk:
 
     __slots__ = ("iy0", "iy1", "ix0", "ix1", "rows", "cols", "mask", "_near", "_pieces", "_vmemo", "_smemo", "key")
 
-    def __init__(self, iy0: int, iy1: int, ix0: int, ix1: int, mask: np.ndarray, near, key=None):
+    def __init__(self, iy0: int, iy1: int, ix0: int, ix1: int, mask: np.ndarray,
+                 near: tuple[int, int] | tuple[np.ndarray, np.ndarray], key: DiskKey | None = None):
         self.iy0, self.iy1, self.ix0, self.ix1 = iy0, iy1, ix0, ix1  # half-open bounds
         # The (x, y, radius) it was built for (disk_stamp, prefetch_disks): names its cells.
         self.key = key
         # Box row/column whose centre is nearest the disk's centre (least dy**2, dx**2), for
         # splitting over tiles: (row, col), or the (dy**2, dx**2) arrays to find them in.
-        self._near = near
+        self._near: tuple[int, int] | tuple[np.ndarray, np.ndarray] = near
         self.rows = slice(iy0, iy1)
         self.cols = slice(ix0, ix1)
         mask.flags.writeable = False
         self.mask = mask
-        self._pieces: dict[tuple[int, int], list] = {}
+        self._pieces: dict[tuple[int, int], list[Piece]] = {}
         # Memos, each one tuple replaced whole (never seen half-updated): (t, values(t)) and
         # (tile shape, t, stamps). t as given: a float compares fast, float32(t) is derived.
-        self._vmemo: tuple = (None, None)
-        self._smemo: tuple = (None, None, None)
+        self._vmemo: tuple[float, np.ndarray] | tuple[None, None] = (None, None)
+        self._smemo: tuple[tuple[int, int], float, list[Stamp]] = _NO_STAMPS
 
     def _nearest(self) -> tuple[int, int]:
         near = self._near
@@ -90,7 +115,7 @@ class Disk:
         self._vmemo = (t, v)
         return v
 
-    def stamps(self, th: int, tw: int, ntx: int, t: float, bands: np.ndarray | None = None) -> list[tuple[int, int, int, np.ndarray]]:
+    def stamps(self, th: int, tw: int, ntx: int, t: float, bands: np.ndarray | None = None) -> list[Stamp]:
         """The scan at ``t`` for a map of flat ``th * tw`` tiles: ``[(tile_key, start, stop,
         values), ...]`` with ``maximum(tile[start:stop], values)`` the scan's effect on the tile.
         Each piece spans whole tile rows (contiguous memory, one fast 1-D ``maximum``); cells of
@@ -115,7 +140,7 @@ class Disk:
         # A tile holds a cell of the disk iff its cell nearest the disk's centre does (see pieces()).
         near_r, near_c = self._nearest()
         item = self.mask.item
-        st = []
+        st: list[Stamp] = []
         for ty in range(iy0 // th, (iy1 - 1) // th + 1):
             r0, r1 = max(iy0, ty * th) - iy0, min(iy1, (ty + 1) * th) - iy0
             nr = min(max(near_r, r0), r1 - 1)
@@ -128,7 +153,7 @@ class Disk:
         self._smemo = ((th, tw), t, st)
         return st
 
-    def pieces(self, th: int, tw: int, ntx: int) -> list[tuple[int, slice, slice, np.ndarray, tuple[slice, slice]]]:
+    def pieces(self, th: int, tw: int, ntx: int) -> list[Piece]:
         """``[(tile_key, rows_in_tile, cols_in_tile, mask_piece, box_slices), ...]`` for tiles of
         ``th x tw`` cells, ``tile_key = ty * ntx + tx``, ``box_slices`` the piece within the
         disk's box; tiles the disk touches without covering any cell centre are left out (so
@@ -190,12 +215,6 @@ class Grid:
     def shape(self) -> tuple[int, int]:
         return (self.ny, self.nx)
 
-    def cell_of(self, x: float, y: float) -> tuple[int, int]:
-        """(ix, iy) of the cell containing a point, clipped to the grid."""
-        ix = min(max(int(x // self.cell_m), 0), self.nx - 1)
-        iy = min(max(int(y // self.cell_m), 0), self.ny - 1)
-        return ix, iy
-
     def cells_of(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ix = np.clip((np.asarray(x) // self.cell_m).astype(np.int64), 0, self.nx - 1)
         iy = np.clip((np.asarray(y) // self.cell_m).astype(np.int64), 0, self.ny - 1)
@@ -204,7 +223,8 @@ class Grid:
     def contains(self, x: float, y: float) -> bool:
         return 0.0 <= x <= self.width_m and 0.0 <= y <= self.height_m
 
-    def _disk_bounds(self, x: float, y: float, radius: float):
+    def _disk_bounds(self, x: float, y: float, radius: float
+                     ) -> tuple[int, int, int, int, np.ndarray, np.ndarray, np.ndarray] | None:
         """``(iy0, iy1, ix0, ix1, mask, dy**2, dx**2)`` (inclusive bounds) or ``None``."""
         c = self.cell_m
         # Centres are at (i + 0.5) * c; first/last index whose centre may lie inside.
@@ -256,8 +276,8 @@ class Grid:
         key = (x, y, radius)
         c = self._cache
         cache = c.disks
-        d = cache.get(key, _MISSING)  # (not try/except: each UAV's own scan is a miss, every tick)
-        if d is not _MISSING:
+        d = cache.get(key, MISSING)  # (not try/except: each UAV's own scan is a miss, every tick)
+        if d is not MISSING:
             return d
         b = self._disk_bounds(x, y, radius)
         d = None if b is None else Disk(b[0], b[1] + 1, b[2], b[3] + 1, b[4], (b[5], b[6]), key)
@@ -267,13 +287,14 @@ class Grid:
         cache[key] = d
         return d
 
-    def disk_lookup(self):
+    def disk_lookup(self) -> DiskLookup:
         """The memo of :meth:`disk_stamp` as a ``get``: ``lookup((x, y, radius), default)`` is the
         memoised disk (``None``: off the grid) or ``default``; for hot loops, which fall back on
         :meth:`disk_stamp` when it gives ``default``."""
         return self._cache.disks.get
 
-    def prefetch_disks(self, xs, ys, radii, t: float | None = None, tiles: tuple[int, int] | None = None) -> None:
+    def prefetch_disks(self, xs: Iterable[float], ys: Iterable[float], radii: Iterable[float], t: float | None = None,
+                       tiles: tuple[int, int] | None = None) -> None:
         """Build the disks of many scans at once (vectorised) into :meth:`disk_stamp`'s memo.
 
         Exactly what :meth:`disk_stamp` would build for each ``(x, y, radius)``: the same
@@ -332,14 +353,14 @@ class Grid:
                 ix0i, ix1i = int(ix0[i]), int(ix1[i]) + 1
                 d = Disk(int(iy0[i]), int(iy1[i]) + 1, ix0i, ix1i, mask[k], (near_r[k], near_c[k]), todo[i])
                 if values is not None:
-                    d._vmemo = (t, values[k])
+                    d._vmemo = (cast(float, t), values[k])  # (t is not None: values were made for it)
                     if bands is not None:
-                        th, tw = tiles
-                        d.stamps(th, tw, ntx, t, bands[k, : (ix1i - 1) // tw - ix0i // tw + 1])
+                        th, tw = cast("tuple[int, int]", tiles)  # (not None: bands were made for them)
+                        d.stamps(th, tw, ntx, cast(float, t), bands[k, : (ix1i - 1) // tw - ix0i // tw + 1])
                 disks[todo[i]] = d
         if len(disks) > cache.size:
-            for k in list(islice(disks, len(disks) - cache.size)):  # oldest first
-                del disks[k]
+            for old in list(islice(disks, len(disks) - cache.size)):  # oldest first
+                del disks[old]
 
     def set_disk_cache_size(self, n: int) -> None:
         """How many disks :meth:`disk_stamp` remembers (a simulation sizes it to its swarm)."""

@@ -27,9 +27,11 @@ members differ from it only inside their extra scans' disks.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
 import numpy as np
 
-from agents.maps.grid import Disk, Grid
+from agents.maps.grid import Disk, DiskKey, Grid
 from agents.maps.umap import UncertaintyMap
 
 # A scan some members have and others still lack after this many ticks of the group's clock
@@ -40,22 +42,25 @@ LAG_TICKS = 8
 KNOWN_TICKS = 64
 _PRUNE_AT = 8192
 
+ScanKey = tuple[DiskKey, float]  # a stamped scan: its disk's (x, y, radius) and its t
+Extra = dict[ScanKey, tuple[Disk, float]]  # a member's scans beyond the base: key -> (disk, t)
+
 
 class MapGroup:
     """A shared base map and its member maps (see the module docstring)."""
 
     def __init__(self, grid: Grid, tau: float, dt: float):
         self.base = UncertaintyMap(grid, tau, tile="dense")
-        self.members: list[GroupMap] = []
+        self.members: list[_Member] = []
         self.dt = dt
         # Scans some but not all members have: key -> members holding it, and the group clock
         # when it was first stamped (insertion order is that order).
-        self._holders: dict[tuple, int] = {}
-        self._since: dict[tuple, float] = {}
+        self._holders: dict[ScanKey, int] = {}
+        self._since: dict[ScanKey, float] = {}
         # Scans in the base of the last KNOWN_TICKS ticks (key -> t): a member stamping one
         # again (a resent scan) must not take it for a new one. Older ones are checked against
         # the base's cells instead (the set stays small however long the run).
-        self._in_base: dict[tuple, float] = {}
+        self._in_base: dict[ScanKey, float] = {}
         self._prune_at = _PRUNE_AT
         self.clock = -np.inf  # the latest scan time stamped into a member
         self.left = 0  # members that left (for tests and benchmarks)
@@ -65,13 +70,13 @@ class MapGroup:
         if self._in_base or self._holders:
             return UncertaintyMap(self.base.grid, self.base.tau)
         m = GroupMap(self)
-        self.members.append(m)
+        self.members.append(cast("_Member", m))
         return m
 
     # --- called by members ------------------------------------------------------------------
 
-    def _add(self, member: GroupMap, key: tuple, d: Disk, t: float) -> None:
-        extra = member._extra
+    def _add(self, extra: Extra, key: ScanKey, d: Disk, t: float) -> None:
+        """A member whose extra scans are ``extra`` stamped the scan ``key``."""
         if key in extra:
             return
         if t > self.clock:
@@ -92,7 +97,7 @@ class MapGroup:
         if advanced:  # (only the clock moving can make a scan overdue)
             self._expire()
 
-    def _known(self, key: tuple, d: Disk, t: float) -> bool:
+    def _known(self, key: ScanKey, d: Disk, t: float) -> bool:
         """Whether a scan no member is waiting for is in the base already (stamping it again
         changes nothing)."""
         if t >= self.clock - KNOWN_TICKS * self.dt:
@@ -100,7 +105,7 @@ class MapGroup:
         view = self.base._tiles[0][d.rows, d.cols]
         return bool((view >= d.values(t)).all())  # (-inf outside the disk: always true there)
 
-    def _to_base(self, key: tuple) -> None:
+    def _to_base(self, key: ScanKey) -> None:
         """Every member has this scan: stamp it into the base, drop it from the members."""
         self._holders.pop(key, None)
         self._since.pop(key, None)
@@ -110,8 +115,7 @@ class MapGroup:
             oldest = self.clock - KNOWN_TICKS * self.dt
             self._in_base = {k: t for k, t in in_base.items() if t >= oldest}
             self._prune_at = max(_PRUNE_AT, 2 * len(self._in_base))  # (amortised: a big swarm keeps more)
-        d, t = None, None
-        for m in self.members:
+        for m in self.members:  # (never empty here: every member has the scan)
             d, t = m._extra.pop(key)
         self.base.stamp(d, t)
 
@@ -135,7 +139,7 @@ class MapGroup:
         if member._extra is None:
             return
         member._own_array()
-        self.members.remove(member)
+        self.members.remove(cast("_Member", member))
         self.left += 1
         for key in member._extra:
             n = self._holders.get(key)
@@ -174,7 +178,7 @@ class GroupMap(UncertaintyMap):
         self._tiles = {}  # the built cells (a buffer), or the map's own array once it left
         self._writes = 0  # stamps while a member: the built cells are current while it is unchanged
         self._group = group
-        self._extra: dict[tuple, tuple[Disk, float]] | None = {}  # key -> (disk, t); None: left
+        self._extra: Extra | None = {}  # key -> (disk, t); None: left
         self._built = -1  # _writes when the buffer was built
 
     @property
@@ -194,7 +198,7 @@ class GroupMap(UncertaintyMap):
             self._leave()
             return super().stamp(d, t)
         self._writes += 1
-        self._group._add(self, (d.key, t), d, t)
+        self._group._add(self._extra, (d.key, t), d, t)
 
     def scan_disk(self, d: Disk, t: float) -> int:
         self._leave()
@@ -204,7 +208,7 @@ class GroupMap(UncertaintyMap):
         self._leave()
         return super().cover(d, t)
 
-    def merge(self, other) -> None:
+    def merge(self, other: UncertaintyMap | np.ndarray) -> None:
         self._leave()
         super().merge(other)
 
@@ -220,7 +224,7 @@ class GroupMap(UncertaintyMap):
         if buf is None:
             buf = self._tiles[0] = np.empty(self.grid.shape, np.float32)
         np.copyto(buf, self._group.base._tiles[0])
-        for d, t in self._extra.values():
+        for d, t in cast("Extra", self._extra).values():  # (a member's: not None)
             view = buf[d.rows, d.cols]
             np.maximum(view, d.values(t), out=view)
         self._built = self._writes
@@ -255,3 +259,12 @@ class GroupMap(UncertaintyMap):
             if inside.any():
                 seen[inside] = np.maximum(seen[inside], d.values(t)[r[inside], c[inside]])
         return seen
+
+
+if TYPE_CHECKING:
+
+    class _Member(GroupMap):
+        """A :class:`GroupMap` in :attr:`MapGroup.members`: one that has not left, so its extra
+        scans are a dict (``_extra`` becomes None only once it is out of the list)."""
+
+        _extra: Extra

@@ -22,9 +22,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from typing import cast
 
 ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
 FORGET_SLACK_TICKS = 64
+
+Bitmaps = tuple[tuple[int, bytes], ...]  # a digest's (origin, bits) pairs (ScanDigest.bitmaps)
 
 
 class ScanLog:
@@ -40,7 +43,7 @@ class ScanLog:
         self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}
         self.count = 0  # scans held
         self._version = 0  # bumped by every change: invalidates _cut_cache
-        self._cut_cache: tuple[int, int, int, dict[int, bytes], tuple] | None = None
+        self._cut_cache: tuple[int, int, int, dict[int, bytes], Bitmaps] | None = None
 
     def add(self, origin: int, t: float, x: float, y: float, r: float) -> bool:
         """Record a scan. False if this origin's scan of that tick was known already (or
@@ -83,7 +86,7 @@ class ScanLog:
         seconds back), or it would claim to lack scans it dropped and be sent them every time."""
         if math.isinf(self.horizon_ticks):
             return
-        k_min = (round(t / self.dt) - self.horizon_ticks - FORGET_SLACK_TICKS) & ~7
+        k_min = (round(t / self.dt) - cast(int, self.horizon_ticks) - FORGET_SLACK_TICKS) & ~7  # (finite: an int)
         if k_min <= self._floor:
             return
         self._floor = k_min
@@ -102,10 +105,10 @@ class ScanLog:
     def window(self, t_cut: float) -> tuple[int, int]:
         """``(tick0, k_cut)``: the ticks a digest cut at ``t_cut`` covers (tick0 a multiple of 8)."""
         k_cut = math.floor(t_cut / self.dt)
-        lo = 0 if math.isinf(self.horizon_ticks) else max(0, k_cut - self.horizon_ticks)
+        lo = 0 if math.isinf(self.horizon_ticks) else max(0, k_cut - cast(int, self.horizon_ticks))
         return lo & ~7, k_cut
 
-    def _cut(self, tick0: int, k_cut: int) -> tuple[dict[int, bytes], tuple]:
+    def _cut(self, tick0: int, k_cut: int) -> tuple[dict[int, bytes], Bitmaps]:
         """Per origin, the bitmap bytes of ticks ``tick0..k_cut`` (bit ``k - tick0``; trailing
         zero bytes dropped, origins with none left out): what a digest with that window
         carries, as a dict and as the digest's tuple. Memoised until the log changes, so the
@@ -113,10 +116,10 @@ class ScanLog:
         c = self._cut_cache
         if c is not None and c[0] == tick0 and c[1] == k_cut and c[2] == self._version:
             return c[3], c[4]
-        out = {}
+        out: dict[int, bytes] = {}
         for origin in sorted(self._bits):
             base = self._base[origin]
-            bits = self._bits[origin]
+            bits: bytes | bytearray = self._bits[origin]
             if base > tick0:  # the log starts later: pad (tick0 and base are multiples of 8)
                 bits = bytes((base - tick0) >> 3) + bits
             else:
@@ -125,15 +128,15 @@ class ScanLog:
             b = bytearray(bits[:n])
             if len(b) == n:
                 b[-1] &= (1 << (((k_cut - tick0) & 7) + 1)) - 1  # ticks up to k_cut only
-            b = bytes(b.rstrip(b"\0"))
-            if b:
-                out[origin] = b
+            packed = bytes(b.rstrip(b"\0"))
+            if packed:
+                out[origin] = packed
         items = tuple(out.items())
         self._cut_cache = (tick0, k_cut, self._version, out, items)
         return out, items
 
     def digest(self, t_cut: float, start: int = 0, max_bytes: int | None = None
-               ) -> tuple[int, int, int, tuple[tuple[int, bytes], ...], int]:
+               ) -> tuple[int, int, int, Bitmaps, int]:
         """``(tick0, lo, hi, bitmaps, next_start)``: per origin (ascending) in ``[lo, hi]``, the
         bitmap of known scans at ticks ``tick0..t_cut`` (little-endian: bit ``j % 8`` of byte
         ``j // 8`` is tick ``tick0 + j``).
@@ -150,7 +153,7 @@ class ScanLog:
         if max_bytes is None or sum(len(b) + 8 for _, b in items) <= max_bytes:
             return tick0, 0, ORIGIN_MAX, items, 0
         start = start if 0 <= start < len(items) else 0
-        out = []
+        out: list[tuple[int, bytes]] = []
         used = 0
         i = start
         while i < len(items):
@@ -164,7 +167,7 @@ class ScanLog:
         hi = ORIGIN_MAX if i == len(items) else items[i][0] - 1
         return tick0, lo, hi, tuple(out), (i if i < len(items) else 0)
 
-    def missing(self, tick0: int, lo: int, hi: int, bitmaps, t_cut: float, limit: int
+    def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int
                 ) -> Iterator[tuple[int, list[float]]]:
         """The scans this log holds at ticks ``tick0..t_cut`` of origins in ``[lo, hi]`` that
         the digest ``bitmaps`` (relative to ``tick0``) lacks, as ``(origin, [t, x, y, r, ...])``

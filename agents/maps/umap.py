@@ -33,7 +33,11 @@ DEFAULT_TILE = 64
 DENSE_MAX_CELLS = 1 << 20
 
 
-def _tile_shape(grid: Grid, tile) -> tuple[tuple[int, int], bool]:
+# The ``tile`` argument of UncertaintyMap: None, "dense", a size, or (rows, cols).
+TileSpec = None | str | int | np.integer | tuple[int, int]
+
+
+def _tile_shape(grid: Grid, tile: TileSpec) -> tuple[tuple[int, int], bool]:
     """``((tile_h, tile_w), dense)`` for a ``tile`` argument (see :class:`UncertaintyMap`)."""
     ny, nx = grid.shape
     if tile is None:
@@ -64,7 +68,7 @@ class UncertaintyMap:
 
     __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles")
 
-    def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None, *, tile=None):
+    def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None, *, tile: TileSpec = None):
         self.grid = grid
         self.tau = float(tau)
         ny, nx = grid.shape
@@ -123,11 +127,11 @@ class UncertaintyMap:
 
     def scan_disk(self, d: Disk, t: float) -> int:
         """Apply a scan whose disk is ``d`` (from ``grid.disk_stamp``) at ``t``; returns cells changed."""
-        t = np.float32(t)
+        t32 = np.float32(t)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
-            newer = d.mask & (view < t)
-            view[newer] = t
+            newer = d.mask & (view < t32)
+            view[newer] = t32
             return int(np.count_nonzero(newer))
         th, tw = self.tile_shape
         tiles = self._tiles
@@ -137,8 +141,8 @@ class UncertaintyMap:
             if tile is None:
                 tile = self._alloc(key)
             view = tile.reshape(th, tw)[rows, cols]
-            newer = mask & (view < t)
-            view[newer] = t
+            newer = mask & (view < t32)
+            view[newer] = t32
             changed += int(np.count_nonzero(newer))
         return changed
 
@@ -152,8 +156,8 @@ class UncertaintyMap:
             return
         tiles = self._tiles
         shape = self.tile_shape
-        memo = d._smemo  # Disk.stamps() memo, inlined (the per-receiver hot path)
-        pieces = memo[2] if memo[1] == t and memo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
+        smemo = d._smemo  # Disk.stamps() memo, inlined (the per-receiver hot path)
+        pieces = smemo[2] if smemo[1] == t and smemo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
         for key, start, stop, values in pieces:
             tile = tiles.get(key)
             if tile is None:

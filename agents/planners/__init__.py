@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.planners.greedy import GreedyPlanner
+
+if TYPE_CHECKING:
+    from swarm.scenario.model import PlannerSettings
 
 PLANNER_NAMES = ("greedy", "dacmp")
 
 
-def make_planner(settings, *, levels: int = 7, speed_max_by_type: dict[str, float] | None = None,
+def make_planner(settings: PlannerSettings, *, levels: int = 7, speed_max_by_type: dict[str, float] | None = None,
                  detect_radius_by_type: dict[str, float] | None = None) -> Planner:
     """Build the planner named by a scenario's ``[planner]`` table (one instance per UAV)."""
     name = settings.name

@@ -54,6 +54,7 @@ class PlanView:
 
 
 class Planner(Protocol):
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def plan(self, view: PlanView) -> Plan: ...

@@ -19,7 +19,7 @@ from __future__ import annotations
 import asyncio
 from typing import TYPE_CHECKING
 
-from agents.planners.base import Planner, PlanView
+from agents.planners.base import Plan, Planner, PlanView
 
 if TYPE_CHECKING:
     from agents.actor import UavActor
@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 class PlanBatcher:
     def __init__(self) -> None:
-        self._requests: list[tuple[int, Planner, PlanView, asyncio.Future]] = []
+        self._requests: list[tuple[int, Planner, PlanView, asyncio.Future[Plan]]] = []
         self.batches = 0  # planner calls made (one per group per flush)
         self.plans = 0
 
@@ -35,9 +35,9 @@ class PlanBatcher:
     def pending(self) -> int:
         return len(self._requests)
 
-    def request(self, actor: UavActor, view: PlanView) -> asyncio.Future:
+    def request(self, actor: UavActor, view: PlanView) -> asyncio.Future[Plan]:
         """Queue a plan request; the future resolves at the next :meth:`flush`."""
-        fut = asyncio.get_running_loop().create_future()
+        fut: asyncio.Future[Plan] = asyncio.get_running_loop().create_future()
         self._requests.append((actor.uid, actor.planner, view, fut))
         return fut
 
@@ -45,7 +45,7 @@ class PlanBatcher:
         """Plan every queued request, grouped by equal planners, and resolve the futures."""
         requests = sorted(self._requests, key=lambda r: r[0])
         self._requests = []
-        groups: list[tuple[Planner, list[tuple[PlanView, asyncio.Future]]]] = []
+        groups: list[tuple[Planner, list[tuple[PlanView, asyncio.Future[Plan]]]]] = []
         for _uid, planner, view, fut in requests:
             for p, members in groups:
                 if type(p) is type(planner) and p == planner:

@@ -10,10 +10,12 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from swarm.errors import UsageError
+from swarm.outputs import atomic_write
 
 
 class executor_for:
@@ -47,11 +49,18 @@ def seeds_from(seeds: int | Sequence[int]) -> list[int]:
     return [int(s) for s in seeds]
 
 
-def save_figure(fig, path: Path) -> Path:
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **kwargs) -> tuple[Figure, Any]:
+    """Like ``pyplot.subplots`` but a figure of its own (an Agg canvas, nothing registered with
+    pyplot), so the host program's backend and figures are left alone."""
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
+
+
+def save_figure(fig: Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -60,10 +69,13 @@ def no_data(ax, text="no finished runs") -> None:
 
 
 def write_json(path: Path, data: dict) -> None:
+    write_text(path, json.dumps(data, indent=2, default=_json_default))
+
+
+def write_text(path: Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) atomically, making the folder if needed."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_json_default))
-    os.replace(tmp, path)
+    return atomic_write(path, text.encode("utf-8"))
 
 
 def _json_default(o):

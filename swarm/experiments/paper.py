@@ -38,7 +38,6 @@ import csv
 import io
 import json
 import math
-import os
 import shutil
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
@@ -46,11 +45,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from comms.messages import MODE_SURVEIL
@@ -62,11 +58,15 @@ from swarm.experiments.common import (
     no_data,
     save_figure,
     seeds_from,
+    subplots,
     write_json,
+    write_text,
 )
 from swarm.experiments.sweep import SweepResult, describe, plan_runs, run_sweep
+from swarm.outputs import read_json, read_run_dir
 from swarm.recorder import read_events
 from swarm.scenario import load_scenario
+from swarm.viz.style import uav_colours
 
 EXPERIMENTS = ("fig11", "case1", "case2", "case3")
 DEFAULT_SEEDS = {"fig11": 30, "case3": 10}
@@ -433,9 +433,9 @@ class RunLog:
 
     @classmethod
     def load(cls, folder: Path) -> RunLog:
-        folder = Path(folder)
-        metrics = json.loads((folder / "metrics.json").read_text())
-        scenario = json.loads((folder / "scenario.json").read_text())
+        run = read_run_dir(folder)
+        metrics = read_json(run.path / "metrics.json")
+        scenario = run.scenario
         names: dict[int, str] = {}
         types: dict[int, str] = {}
         poses: dict[int, list] = {}
@@ -445,7 +445,7 @@ class RunLog:
         joins: dict[int, float] = {}
         crashes: dict[int, float] = {}
         dt = float(scenario.get("dt_s", 1.0))
-        for e in read_events((folder / "events.msgpack").read_bytes()):
+        for e in read_events(run.events):
             k = e[0]
             if k == "pose":
                 poses.setdefault(e[2], []).append((e[1], e[3], e[4], e[7], e[8]))
@@ -596,12 +596,6 @@ def case2_measures(log: RunLog) -> dict:
 
 # --- figures -----------------------------------------------------------------------------------
 
-def _uav_colours(names: Sequence[str]) -> dict[str, Any]:
-    """One colour per UAV, assigned as in :func:`swarm.viz.plots.trajectories_figure` (sorted names)."""
-    cmap = plt.get_cmap("tab10" if len(names) <= 10 else "tab20")
-    return {n: cmap(i % cmap.N) for i, n in enumerate(sorted(names))}
-
-
 def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None = None) -> None:
     """Mean line, 95% band of the mean and min-max spread over runs; ``bounds``: the range the
     quantity can take (the band of a few runs is clipped to it)."""
@@ -618,7 +612,7 @@ def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None 
 
 def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
     """Coverage and targets found over time per planner (paper Fig. 10a-b / 11a-b)."""
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    fig, axes = subplots(1, 2, figsize=(12, 4.8))
     quoted = PAPER["fig11"]
     for ax, col, ylabel, letter in ((axes[0], "coverage", "coverage rate", "a"),
                                     (axes[1], "targets_found", "number of targets found", "b")):
@@ -652,7 +646,7 @@ def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
 def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
     """Final coverage and targets found per planner, ours (mean, 95% interval) next to the
     paper's quoted means."""
-    fig, axes = plt.subplots(1, 2, figsize=(9, 4.5))
+    fig, axes = subplots(1, 2, figsize=(9, 4.5))
     quoted = PAPER["fig11"]
     x = np.arange(len(FIG11_PLANNERS))
     for ax, key, ylabel in ((axes[0], "coverage", "coverage rate at end"),
@@ -690,9 +684,9 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
 def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
     """Distance of every UAV to a target over time (paper Fig. 12d), handovers and mode
     changes marked, thick where the UAV is in surveillance of that target."""
-    fig, ax = plt.subplots(figsize=(11, 5))
+    fig, ax = subplots(figsize=(11, 5))
     names = [log.names[u] for u in log.poses]
-    colours = _uav_colours(names)
+    colours = uav_colours(names)
     if target not in log.targets:
         no_data(ax, f"no target {target + 1} in this run")
         return save_figure(fig, path)
@@ -730,9 +724,9 @@ def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
             ax.annotate(f"handover {log.names.get(a, a)} → {log.names.get(b, b)}", (t, 1),
                         xycoords=("data", "axes fraction"), rotation=90, va="top", ha="right", fontsize=7)
     handles, labels = ax.get_legend_handles_labels()
-    handles += [plt.Line2D([], [], color="grey", lw=4, alpha=0.45),
-                plt.Line2D([], [], marker="^", color="grey", mec="black", ls="none"),
-                plt.Line2D([], [], marker="v", color="grey", mec="black", ls="none")]
+    handles += [Line2D([], [], color="grey", lw=4, alpha=0.45),
+                Line2D([], [], marker="^", color="grey", mec="black", ls="none"),
+                Line2D([], [], marker="v", color="grey", mec="black", ls="none")]
     labels += [f"in surveillance of target {target + 1}", "switch to surveillance (of target T#)",
                "switch to search"]
     ax.legend(handles, labels, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
@@ -753,9 +747,9 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
     """Per UAV: a timeline coloured by mode (target number on surveillance stretches, handovers
     marked) and the seconds spent in each mode (paper Fig. 14)."""
     uids = sorted(log.names, key=lambda u: (log.is_slow(u), log.names[u]))
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 0.45 * len(uids) + 2.0), sharey=True,
+    fig, (ax, bx) = subplots(1, 2, figsize=(13, 0.45 * len(uids) + 2.0), sharey=True,
                                  gridspec_kw={"width_ratios": [4, 1]})
-    colours = _uav_colours([log.names[u] for u in uids])
+    colours = uav_colours([log.names[u] for u in uids])
     ypos = {u: len(uids) - 1 - i for i, u in enumerate(uids)}
     totals = {u: {k: 0.0 for k in MODE_COLOUR} for u in uids}
     for u in uids:
@@ -784,8 +778,8 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
         handles.append(Patch(color=MODE_COLOUR["pending"], label="not joined yet"))
     if any(totals[u]["down"] for u in uids):
         handles.append(Patch(color=MODE_COLOUR["down"], label="down"))
-    handles += [plt.Line2D([], [], marker="v", color="black", ls="none", ms=4, label="found a target"),
-                plt.Line2D([], [], marker=r"$\uparrow$", color="black", ls="none", label="handover (arrow old → new)")]
+    handles += [Line2D([], [], marker="v", color="black", ls="none", ms=4, label="found a target"),
+                Line2D([], [], marker=r"$\uparrow$", color="black", ls="none", label="handover (arrow old → new)")]
     ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=len(handles),
               frameon=False)
     left = np.zeros(len(uids))
@@ -803,7 +797,7 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
 
 def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path:
     """Coverage over time of the Case 2 run (paper Fig. 15), and over seeds if there are any."""
-    fig, ax = plt.subplots(figsize=(8, 4.8))
+    fig, ax = subplots(figsize=(8, 4.8))
     ts = read_timeseries(run_dir)
     m = json.loads((run_dir / "metrics.json").read_text())
     if len(seed_runs) > 1:
@@ -824,7 +818,7 @@ def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float
                    joiner: str | None = None) -> Path:
     """Mean coverage over seeds with and without the joining UAV (paper Fig. 18), join time
     marked; below, the paired difference with its 95% interval."""
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(8.5, 7.5), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    fig, (ax, bx) = subplots(2, 1, figsize=(8.5, 7.5), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     if without and with_:
         t2, v2 = _stack(without, "coverage")
         t3, v3 = _stack(with_, "coverage")
@@ -1084,7 +1078,5 @@ def write_table(out_dir: str | Path) -> tuple[Path, Path, list[dict]]:
     w.writerows(rows)
     md_path, csv_path = out / "table.md", out / "table.csv"
     for p, text in ((md_path, md), (csv_path, buf.getvalue())):
-        tmp = p.with_name(p.name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, p)
+        write_text(p, text)
     return md_path, csv_path, rows

@@ -50,10 +50,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from swarm.errors import UsageError
@@ -64,7 +60,9 @@ from swarm.experiments.common import (
     no_data,
     save_figure,
     seeds_from,
+    subplots,
     write_json,
+    write_text,
 )
 from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL
 from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug
@@ -519,7 +517,7 @@ def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Pat
     """Coverage, targets found (surveillance ratio when the scenario has surveillance) and the
     frame copies delivered against the axis value, DACMP and greedy side by side."""
     panels = _panels(results)
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4))
+    fig, axes = subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4))
     x = np.arange(len(results["points"]), dtype=float)
     labels = [pt["label"] for pt in results["points"]]
     for ax, (q, ylabel, bounds) in zip(axes, panels):
@@ -546,7 +544,7 @@ def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Pat
 def kept_figure(results: dict, path: Path) -> Path:
     """Fraction of the loss-free coverage each planner keeps (paired by seed) against the loss
     rate, and at 30% loss as bars, with the 90% target."""
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [3, 2]})
+    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [3, 2]})
     pts = results["points"]
     x = np.arange(len(pts), dtype=float)
     if results["has_baseline"] and _errorbars(ax, results, "kept_coverage", x):
@@ -675,14 +673,6 @@ def _csv_rows(results: dict) -> list[dict]:
 CSV_COLUMNS = ["axis", "setting", "value", "planner", "quantity", "n", "mean", "sd", "ci95_low", "ci95_high"]
 
 
-def _write_text(path: Path, text: str) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-    return path
-
-
 def _csv_text(rows: list[dict]) -> str:
     buf = io.StringIO(newline="")
     w = csv.DictWriter(buf, fieldnames=CSV_COLUMNS)
@@ -692,8 +682,8 @@ def _csv_text(rows: list[dict]) -> str:
 
 
 def write_axis_table(results: dict, axis_dir: Path) -> tuple[Path, Path]:
-    md = _write_text(axis_dir / "table.md", "\n".join(_axis_md(results, "#")) + "\n")
-    return md, _write_text(axis_dir / "table.csv", _csv_text(_csv_rows(results)))
+    md = write_text(axis_dir / "table.md", "\n".join(_axis_md(results, "#")) + "\n")
+    return md, write_text(axis_dir / "table.csv", _csv_text(_csv_rows(results)))
 
 
 def write_table(out_dir: str | Path) -> tuple[Path, Path]:
@@ -714,4 +704,4 @@ def write_table(out_dir: str | Path) -> tuple[Path, Path]:
             rows += _csv_rows(res)
         except (KeyError, TypeError, ValueError, IndexError):
             lines += [f"## {axis}", "", f"unreadable {axis}/results.json: rerun `swarm resilience {axis}`", ""]
-    return (_write_text(out / "table.md", "\n".join(lines)), _write_text(out / "table.csv", _csv_text(rows)))
+    return (write_text(out / "table.md", "\n".join(lines)), write_text(out / "table.csv", _csv_text(rows)))

@@ -9,13 +9,23 @@ nothing else, so the message must stand on its own.
 Defaults are the paper's where it gives a number (Table 1, section 4.1) and otherwise the
 settled defaults of ``DACMP-SPEC.md``; every one of them can be overridden from the file or with
 :func:`apply_overrides` (``--set key=value``).
+
+The fault kinds (``[[faults]]``), ``[planner.apf]`` and ``[planner.dacmp]`` are not defined here:
+their tables are generated from the simulator's own dataclasses (:mod:`faults.schedule`,
+:class:`agents.apf.ApfSettings`, :class:`agents.planners.dacmp.settings.DacmpSettings`), with
+their fields, defaults and bounds (see :func:`_table_of`). This module adds what needs more than
+one field: fault windows, partition groups, the level weights' sum, and the cross-table checks.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
+import functools
 import math
-from typing import Annotated, Any, Literal, NamedTuple
+import types
+import typing
+from typing import Annotated, Any, Literal, NamedTuple, Union, get_args, get_origin
 
 from pydantic import (
     AllowInfNan,
@@ -23,10 +33,14 @@ from pydantic import (
     ConfigDict,
     Field,
     Strict,
+    create_model,
     field_validator,
     model_validator,
 )
 
+from agents import apf as _apf
+from agents.planners.dacmp import settings as _dacmp
+from faults import schedule as _faults
 from swarm.errors import UsageError
 from swarm.scenario.positions import found_words, key_path
 
@@ -140,6 +154,84 @@ def _raise_if(problems: list[_Problem]) -> None:
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+# --- tables generated from the simulator's dataclasses ---------------------------------------
+# Metadata a dataclass field may carry: bounds (gt, ge, lt, le), a note for the error words, the
+# bounds of each item of an array (each), and the whole 'expected' text of a field that is not a
+# number. Anything else is a typo in the dataclass and fails at import.
+_METADATA_KEYS = frozenset({"gt", "ge", "lt", "le", "note", "each", "expected"})
+
+
+def _strict_type(tp: Any, each: dict | None = None) -> Any:
+    """The strict scenario type of a dataclass annotation; tuples are TOML arrays."""
+    simple = {float: Num, int: Int, bool: Bool, str: Str}
+    if tp in simple:
+        return simple[tp]
+    origin, args = get_origin(tp), get_args(tp)
+    if origin in (Union, types.UnionType) and type(None) in args:
+        (inner,) = [a for a in args if a is not type(None)]
+        return _strict_type(inner, each) | None
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        item = _strict_type(args[0])
+        return list[Annotated[item, Field(**each)] if each else item]
+    if origin is tuple:
+        return tuple[tuple(_strict_type(a) for a in args)]
+    raise TypeError(f"no scenario type for the dataclass annotation {tp!r}")
+
+
+def _table_field(f: dataclasses.Field, tp: Any) -> tuple[Any, Any]:
+    """``(type, FieldInfo)`` of the scenario field for dataclass field ``f`` (annotation ``tp``).
+
+    No default: required. ``math.inf``: absent from the scenario (``None``, "leave it out"), as a
+    fault's ``end_s``. Numbers get their ``description`` (the 'expected' words of an error) from
+    :func:`_num` / :func:`_int`, booleans "true or false", other fields from ``expected``."""
+    meta = dict(f.metadata)
+    unknown = set(meta) - _METADATA_KEYS
+    if unknown:
+        raise TypeError(f"{f.name}: unknown field metadata {sorted(unknown)}; known: {sorted(_METADATA_KEYS)}")
+    if f.default is not dataclasses.MISSING:
+        default = f.default
+    elif f.default_factory is not dataclasses.MISSING:
+        default = f.default_factory()
+    else:
+        default = ...
+    if isinstance(default, float) and default == math.inf:
+        tp, default = tp | None, None
+    bounds = {k: meta[k] for k in ("gt", "ge", "lt", "le") if k in meta}
+    note = meta.get("note", "")
+    annotation = _strict_type(tp, meta.get("each"))
+    optional = get_origin(tp) in (Union, types.UnionType)
+    value_type = next(a for a in get_args(tp) if a is not type(None)) if optional else tp
+    if value_type is float:
+        return annotation, _num(default, **bounds, note=note, optional=default is None)
+    if value_type is int:
+        if set(bounds) - {"ge", "le"}:
+            raise TypeError(f"{f.name}: a whole number takes only ge / le bounds")
+        return annotation, _int(default, **bounds, note=note)
+    if value_type is bool:
+        return annotation, Field(default, description="true or false")
+    if "expected" not in meta:
+        raise TypeError(f"{f.name}: a field that is not a number needs metadata 'expected' (the words of an error)")
+    if isinstance(default, tuple):  # an array: a fresh list each time
+        return annotation, Field(default_factory=functools.partial(list, default), description=meta["expected"])
+    return annotation, Field(default, description=meta["expected"])
+
+
+def _table_of(source: type, name: str, *, base: type[_Model] = _Model, exclude: tuple[str, ...] = (),
+              order: list[str] | None = None, extra: dict[str, Any] | None = None) -> type[_Model]:
+    """A frozen, strict pydantic model named ``name`` with the fields of dataclass ``source``
+    (less ``exclude``), in ``order`` (default: the dataclass's), plus ``extra`` definitions
+    (``name: (type, default)``, placed by ``order``). ``base`` adds validators."""
+    hints = typing.get_type_hints(source)
+    defs: dict[str, Any] = {f.name: _table_field(f, hints[f.name])
+                            for f in dataclasses.fields(source) if f.name not in exclude}
+    defs.update(extra or {})
+    order = order if order is not None else list(defs)
+    if sorted(order) != sorted(defs):
+        raise TypeError(f"{name}: the order {order} does not list exactly the fields {sorted(defs)}")
+    return create_model(name, __base__=base, __module__=__name__, __doc__=source.__doc__,
+                        **{k: defs[k] for k in order})
 
 
 # --- the world -----------------------------------------------------------------------------
@@ -367,12 +459,8 @@ class RadioSettings(_Model):
 
 
 # --- faults --------------------------------------------------------------------------------
-_NAMES = "an array of UAV names"
-
-
 class _WindowedFault(_Model):
-    start_s: Num = _num(0.0, ge=0)
-    end_s: Num | None = _num(None, gt=0, note="> start_s; absent = until the end", optional=True)
+    """Checks of a fault with a window (the fields come from :mod:`faults.schedule`)."""
 
     @model_validator(mode="after")
     def _window(self) -> _WindowedFault:
@@ -382,37 +470,14 @@ class _WindowedFault(_Model):
 
 
 class _LinkFault(_WindowedFault):
-    # Frames from or to these UAVs; empty = all.
-    uavs: list[Str] = Field(default_factory=list, description=f"{_NAMES} (empty = all)")
-    # Directed sender -> receiver pairs; empty = all.
-    links: list[tuple[Str, Str]] = Field(
-        default_factory=list, description="an array of [sender, receiver] UAV name pairs (empty = all)"
-    )
+    """A fault on frame copies (:class:`faults.schedule.LinkFault`)."""
 
 
-class DropFault(_LinkFault):
-    kind: Literal["drop"] = "drop"
-    rate: Num = _num(..., ge=0, le=1)
-
-
-class BurstFault(_LinkFault):
-    """Gilbert-Elliott two-state loss."""
-
-    kind: Literal["burst"] = "burst"
-    p_enter_bad: Num = _num(..., ge=0, le=1)
-    p_exit_bad: Num = _num(..., gt=0, le=1)
-    loss_good: Num = _num(0.0, ge=0, le=1)
-    loss_bad: Num = _num(1.0, ge=0, le=1)
-
-
-class PartitionFault(_WindowedFault):
-    kind: Literal["partition"] = "partition"
-    groups: list[list[Str]] = Field(..., description="an array of at least 2 non-empty arrays of UAV names")
-    # True: only frames from an earlier-listed group to a later-listed group are blocked.
-    one_way: Bool = Field(False, description="true or false")
+class _PartitionChecks(_WindowedFault):
+    """Checks of a partition's groups: at least two, none empty, a UAV in at most one."""
 
     @model_validator(mode="after")
-    def _groups(self) -> PartitionFault:
+    def _groups(self) -> _PartitionChecks:
         problems = []
         if len(self.groups) < 2:
             problems.append(_Problem(("groups",), self.groups, "at least 2 groups of UAV names"))
@@ -429,51 +494,35 @@ class PartitionFault(_WindowedFault):
         return self
 
 
-class DelayFault(_LinkFault):
-    kind: Literal["delay"] = "delay"
-    extra_s: Num = _num(..., ge=0)
-    jitter_s: Num = _num(0.0, ge=0)
+# Keys in the order a [[faults]] table shows them (scenario.json, the 'valid keys' of an error):
+# the window and scope first, then kind, then the kind's own keys (a node fault's at_s first).
+_COMMON_FAULT_KEYS = ("start_s", "end_s", "uavs", "links")
 
 
-class DuplicateFault(_LinkFault):
-    kind: Literal["duplicate"] = "duplicate"
-    rate: Num = _num(..., ge=0, le=1)
+def _fault_table(cls: type) -> type[_Model]:
+    """The ``[[faults]]`` table of the fault kind ``cls`` (a :mod:`faults.schedule` class)."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    common = [n for n in _COMMON_FAULT_KEYS if n in names]
+    own = sorted((n for n in names if n not in common), key=lambda n: n != "at_s")
+    base = (_PartitionChecks if cls is _faults.Partition else _LinkFault if issubclass(cls, _faults.LinkFault)
+            else _Model)
+    return _table_of(cls, f"{cls.__name__}Fault", base=base, order=[*common, "kind", *own],
+                     extra={"kind": (Literal[cls.kind], cls.kind)})
 
 
-class CorruptFault(_LinkFault):
-    kind: Literal["corrupt"] = "corrupt"
-    rate: Num = _num(..., ge=0, le=1)
-    bytes: Int = _int(1, ge=1, note="bytes flipped per corrupted frame")
-
-
-class CrashFault(_Model):
-    kind: Literal["crash"] = "crash"
-    at_s: Num = _num(..., ge=0)
-    uav: Str = Field(..., description="a UAV name defined in [[uavs]]")
-
-
-class JoinFault(_Model):
-    kind: Literal["join"] = "join"
-    at_s: Num = _num(..., ge=0)
-    uav: Str = Field(..., description="a UAV name defined in [[uavs]]")
-
-
-_FAULT_CLASSES: dict[str, type[_Model]] = {
-    "drop": DropFault,
-    "burst": BurstFault,
-    "partition": PartitionFault,
-    "delay": DelayFault,
-    "duplicate": DuplicateFault,
-    "corrupt": CorruptFault,
-    "crash": CrashFault,
-    "join": JoinFault,
-}
+# One table per kind of faults.schedule, in its order (the order error messages list them).
+_FAULT_CLASSES: dict[str, type[_Model]] = {kind: _fault_table(cls) for kind, cls in _faults.FAULT_KINDS.items()}
 FAULT_KINDS: tuple[str, ...] = tuple(_FAULT_CLASSES)
+DropFault = _FAULT_CLASSES["drop"]
+BurstFault = _FAULT_CLASSES["burst"]
+PartitionFault = _FAULT_CLASSES["partition"]
+DelayFault = _FAULT_CLASSES["delay"]
+DuplicateFault = _FAULT_CLASSES["duplicate"]
+CorruptFault = _FAULT_CLASSES["corrupt"]
+CrashFault = _FAULT_CLASSES["crash"]
+JoinFault = _FAULT_CLASSES["join"]
 
-Fault = Annotated[
-    DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault | JoinFault,
-    Field(discriminator="kind"),
-]
+Fault = Annotated[Union[tuple(_FAULT_CLASSES.values())], Field(discriminator="kind")]  # noqa: UP007
 
 
 # --- planner, safety, metrics --------------------------------------------------------------
@@ -481,58 +530,21 @@ class GreedySettings(_Model):
     headings: Int = _int(15, ge=3, note="candidate headings per decision")
 
 
-class DacmpSettings(_Model):
-    """PSO and fitness settings (section 3; defaults from DACMP-SPEC.md)."""
-
-    particles: Int = _int(40, ge=1)
-    iterations: Int = _int(25, ge=1)
-    w_start: Num = _num(0.9, ge=0)
-    w_end: Num = _num(0.4, ge=0)
-    c1_start: Num = _num(2.5, ge=0)
-    c1_end: Num = _num(0.5, ge=0)
-    c2_start: Num = _num(0.5, ge=0)
-    c2_end: Num = _num(2.5, ge=0)
-    ring_mean_factor: Num = _num(1.5, gt=0, note="times the detection radius")
-    ring_sd_factor: Num = _num(0.5, ge=0, note="times the detection radius")
-    # Our choice (the paper does not bound them): particles stay within this distance of the UAV,
-    # so the waypoint it announces is its next one, not a target 10 km away.
-    ring_max_factor: Num = _num(2.5, gt=0, note="times the detection radius")
-    heading_sd_rad: Num = _num(math.pi / 2, ge=0)
-    eta: Num = _num(0.5, ge=0, le=1)
-    # The target terms (eq. 22-23) measure distance and speed in this unit (km, km/s): with
-    # Table 1's weights that is what makes them outweigh the search term (at most 1) inside D.
-    field_unit_m: Num = _num(1000.0, gt=0, note="metres per distance unit of eq. 22-23")
-    # Particles closer than this to a known threat's edge are infeasible (on top of the circle).
-    threat_margin_m: Num = _num(300.0, ge=0)
-    # Our choice: a track nobody has refreshed for this long no longer attracts (eq. 22 needs the
-    # target's state g_m(t)); a watcher that lost its target returns to search. Left out: the
-    # map's memory time 1 / tau (200 s with the defaults), the time a target needs to cross a
-    # sensor footprint.
-    track_max_age_s: Num | None = _num(None, gt=0, note="seconds", optional=True)
-    # lambda_1..lambda_L of eq. 19; None = equal weights summing to 1; the length is checked
-    # against map.levels by Scenario.
-    level_weights: list[Annotated[float, Strict(), Field(ge=0)]] | None = Field(
-        None, description="an array of numbers >= 0, one per map level, with a positive sum, or leave it out"
-    )
+class _DacmpChecks(_Model):
+    """Checks of [planner.dacmp] beyond each field's bounds."""
 
     @model_validator(mode="after")
-    def _positive_sum(self) -> DacmpSettings:
+    def _positive_sum(self) -> _DacmpChecks:
+        # The length is checked against map.levels by Scenario.
         if self.level_weights is not None and not sum(self.level_weights) > 0:
             _raise_if([_Problem(("level_weights",), self.level_weights, "weights with a positive sum")])
         return self
 
 
-class ApfSettings(_Model):
-    """Local planner (eq. 28-32). b, c make the UAV-UAV force negligible beyond about 1 km."""
-
-    k_att: Num = _num(1.0, gt=0)
-    k_rep: Num = _num(4.0e6, gt=0)
-    uav_b: Num = _num(400.0, gt=0)
-    uav_c: Num = _num(200.0, gt=0)
-    uav_dmax_m: Num = _num(1000.0, gt=0)
-    # Collision avoidance looks this far ahead for a closest approach under 2 * min separation
-    # (agents/apf.py).
-    lookahead_s: Num = _num(15.0, gt=0, note="seconds")
+DacmpSettings = _table_of(_dacmp.DacmpSettings, "DacmpSettings", base=_DacmpChecks)
+# Not in [planner.apf]: min_separation_m is [safety]'s (the simulation passes it; the invariant
+# checkers read it too), and threat_margin_m is not a scenario setting (its default holds).
+ApfSettings = _table_of(_apf.ApfSettings, "ApfSettings", exclude=("min_separation_m", "threat_margin_m"))
 
 
 class PlannerSettings(_Model):

@@ -6,8 +6,8 @@ wrong, when, and which UAVs / target. A :class:`Monitor` feeds several checkers 
 log or live from ``sim.subscribe``::
 
     # after the run: `swarm run my.toml --out out/` wrote scenario.json and events.msgpack
-    from swarm.testing.invariants import check_events, load_run
-    scenario, events = load_run("out/")
+    from swarm.testing.invariants import check_events, load_run_log
+    scenario, events = load_run_log("out/")
     for v in check_events(events, scenario):
         print(v)
 
@@ -73,7 +73,6 @@ radio).
 
 from __future__ import annotations
 
-import json
 import math
 from collections import deque
 from collections.abc import Iterable, Sequence
@@ -85,8 +84,10 @@ import numpy as np
 
 from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
+from comms.messages import MODE_SURVEIL
 from faults.schedule import Delay, Fault, LinkFault, Partition, fault_from_dict
 from swarm.errors import SwarmError, UsageError
+from swarm.outputs import read_run_dir
 from swarm.recorder import read_events
 from swarm.scenario import Scenario, parse_scenario
 
@@ -109,11 +110,10 @@ __all__ = [
     "check_events",
     "default_checkers",
     "handover_checkers",
-    "load_run",
+    "load_run_log",
     "safety_checkers",
 ]
 
-MODE_SURVEIL = 1
 _EPS = 1e-6
 
 
@@ -232,12 +232,7 @@ class RunContext:
     def blocked(self, src: int, dst: int, t: float) -> bool:
         """True when an active partition blocks frames from ``src`` to ``dst`` at ``t``."""
         for p, group_of in self._partitions():
-            if not p.active(t):
-                continue
-            gs, gd = group_of.get(src), group_of.get(dst)
-            if gs is None or gd is None or gs == gd:
-                continue
-            if not p.one_way or gs < gd:
+            if p.active(t) and p.separates(group_of.get(src), group_of.get(dst)):
                 return True
         return False
 
@@ -968,10 +963,9 @@ def check_events(events: Iterable[Sequence], scenario: Scenario, checkers: Itera
     return monitor.finish()
 
 
-def load_run(out_dir: str | Path) -> tuple[Scenario, list[list]]:
-    """The scenario (``scenario.json``) and events (``events.msgpack``) of a ``swarm run --out``
-    folder."""
-    out = Path(out_dir)
-    doc = json.loads((out / "scenario.json").read_text(encoding="utf-8"))
-    scenario = parse_scenario(doc, str(out / "scenario.json"))
-    return scenario, list(read_events((out / "events.msgpack").read_bytes()))
+def load_run_log(out_dir: str | Path) -> tuple[Scenario, list[list]]:
+    """The validated scenario (``scenario.json``) and the events (``events.msgpack``) of a
+    ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`)."""
+    run = read_run_dir(out_dir)
+    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"))
+    return scenario, list(read_events(run.events))

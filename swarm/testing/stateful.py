@@ -158,6 +158,7 @@ class SwarmMachine(RuleBasedStateMachine):
         return [b.name for _, b in sorted(self.sim.world.uavs.items()) if b.state != "crashed"]
 
     def _clear(self, x: float, y: float) -> bool:
+        assert self.scenario is not None and self.sim is not None  # (started: rules run after start)
         far_from_threats = all(math.hypot(x - th.x_m, y - th.y_m) >= th.radius_m + self.threat_clearance_m
                                for th in self.scenario.threats)
         far_from_uavs = all(math.hypot(x - b.x, y - b.y) >= self.uav_clearance_m
@@ -168,6 +169,7 @@ class SwarmMachine(RuleBasedStateMachine):
         """The run so far as a scenario: the start scenario plus every fault and joiner added
         (targets added while running cannot be written in a scenario; they are listed in the
         file's comment). Its duration is the time reached."""
+        assert self.scenario is not None and self.sim is not None  # (started: a failure comes after start)
         doc = self.scenario.model_dump(mode="python")
         doc["uavs"] = list(doc["uavs"]) + self.joiners
         doc["faults"] = [_fault_doc(f) for f in self.sim.injector.schedule.faults if not isinstance(f, Join)]
@@ -201,6 +203,7 @@ class SwarmMachine(RuleBasedStateMachine):
     @rule(ticks=st.integers(1, 10))
     def advance(self, ticks: int) -> None:
         sim = self.sim
+        assert sim is not None and self.monitor is not None  # (started: see the precondition)
         ticks = max(1, min(ticks, self.max_steps_per_advance, int(round((self.max_time_s - sim.now) / sim.dt)) or 1))
         t0, t1 = sim.now, sim.now + ticks * sim.dt
         for groups, one_way in self.cuts:
@@ -221,6 +224,7 @@ class SwarmMachine(RuleBasedStateMachine):
     @rule(data=st.data())
     def crash(self, data: Any) -> None:
         name = data.draw(st.sampled_from(self.alive()), label="crash")
+        assert self.sim is not None  # (a UAV is alive: started)
         self.sim.add_fault(Crash(uav=name, at_s=self.now))
         self.history.append(f"t={self.now:g}: crash {name}")
 
@@ -228,6 +232,7 @@ class SwarmMachine(RuleBasedStateMachine):
     @rule(data=st.data())
     def join(self, data: Any) -> None:
         sc = self.scenario
+        assert sc is not None and self.sim is not None  # (started: see the precondition)
         kind = data.draw(st.sampled_from(sorted(sc.uav_types)), label="type")
         x = data.draw(st.integers(0, int(sc.area.width_m) // 100), label="x_hm") * 100.0
         y = data.draw(st.integers(0, int(sc.area.height_m) // 100), label="y_hm") * 100.0
@@ -268,6 +273,7 @@ class SwarmMachine(RuleBasedStateMachine):
     @rule(data=st.data())
     def add_target(self, data: Any) -> None:
         sc = self.scenario
+        assert sc is not None and self.sim is not None  # (started: see the precondition)
         x = data.draw(st.integers(0, int(sc.area.width_m) // 100), label="x_hm") * 100.0
         y = data.draw(st.integers(0, int(sc.area.height_m) // 100), label="y_hm") * 100.0
         heading = data.draw(st.integers(0, 23), label="heading_15deg") * 15.0

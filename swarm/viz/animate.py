@@ -26,14 +26,10 @@ with ``blit=True``). Library code never prints: progress goes to an optional cal
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
@@ -45,9 +41,10 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 from PIL import Image
 
+from comms.messages import MODE_SURVEIL
 from swarm.errors import SwarmError
+from swarm.outputs import atomic_path
 from swarm.viz.replay import (
-    MODE_SURVEIL,
     CoverageRaster,
     Replay,
     check_run_dir,
@@ -476,19 +473,14 @@ class AnimationJob:
                                     metadata={"title": f"{self.replay.header.get('scenario', '')} replay"})
         else:
             writer = _BlitGifWriter(scene, self.fps)
-        tmp = out_path.with_name(out_path.stem + ".part" + out_path.suffix)
         total = self.n_frames
 
         def on_frame(done: int, _total) -> None:
             if progress is not None:
                 progress(done + 1, total)
 
-        try:
+        with atomic_path(out_path) as tmp:
             anim.save(str(tmp), writer=writer, dpi=self.dpi, progress_callback=on_frame)
-            os.replace(tmp, out_path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
         return out_path
 
 
@@ -515,14 +507,3 @@ def prepare_animation(run_dir: str | Path, out: str | Path | None = None, *, fps
         raise AnimateError(f"{run_dir}: the event log has no UAV poses to animate")
     return AnimationJob(out_path, rp, frame_times(rp.duration, speed, fps), float(fps), float(speed),
                         float(trail_s), float(dpi))
-
-
-def animate_run(run_dir: str | Path, out: str | Path | None = None, *, fps: float = DEFAULT_FPS,
-                speed: float = DEFAULT_SPEED, trail_s: float = DEFAULT_TRAIL_S, dpi: float = DEFAULT_DPI,
-                progress: Callable[[int, int], None] | None = None) -> Path:
-    """Render the animation of the run in ``run_dir`` to ``out`` (``.mp4`` or ``.gif``).
-
-    ``out`` defaults to :func:`default_animation_path`. ``progress(done, total)`` is called
-    after each frame. Returns the path written.
-    """
-    return prepare_animation(run_dir, out, fps=fps, speed=speed, trail_s=trail_s, dpi=dpi).render(progress)

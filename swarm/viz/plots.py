@@ -1,36 +1,38 @@
 """Figures of a run, in the paper's conventions (km axes, one colour per UAV, legends).
 
-Uses matplotlib's Agg backend (no display needed). Colours come from a qualitative map cycled
-over UAVs; with many UAVs the legend lists types instead of every UAV so it stays legible.
+Drawn on a :class:`matplotlib.figure.Figure` with its own Agg canvas (no display needed, and the
+host program's pyplot backend is left alone). Colours come from
+:func:`swarm.viz.style.uav_colours`; with many UAVs the legend lists types instead of every UAV
+so it stays legible.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-_LEGEND_MAX_UAVS = 12
+from swarm.viz.style import many_uavs, uav_colours
 
 
 def trajectories_figure(result, path: Path, title: str | None = None) -> None:
     """UAV paths, target paths, threats and the final coverage map (like the paper's Fig. 9)."""
     w, h = result.area
-    fig, ax = plt.subplots(figsize=(7.5, 7.0), dpi=110)
+    fig = Figure(figsize=(7.5, 7.0), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     covered = np.isfinite(result.union_last_seen)
     ax.imshow(np.where(covered, 1.0, 0.0), origin="lower", extent=(0, w / 1000, 0, h / 1000),
               cmap="Greys", vmin=0, vmax=4, alpha=0.9, interpolation="nearest")
-    cmap = plt.get_cmap("tab10" if len(result.paths) <= 10 else "tab20")
-    many = len(result.paths) > _LEGEND_MAX_UAVS
-    for i, (name, p) in enumerate(sorted(result.paths.items())):
+    colours = uav_colours(list(result.paths))
+    many = many_uavs(len(result.paths))
+    for name, p in sorted(result.paths.items()):
         if len(p) == 0:
             continue
-        colour = cmap(i % cmap.N)
+        colour = colours[name]
         ax.plot(p[:, 1] / 1000, p[:, 2] / 1000, "-", lw=0.9 if not many else 0.5, color=colour,
                 label=None if many else f"{name} ({result.uav_types.get(name, '?')})")
         ax.plot(p[-1, 1] / 1000, p[-1, 2] / 1000, "o", ms=4, color=colour)
@@ -57,4 +59,3 @@ def trajectories_figure(result, path: Path, title: str | None = None) -> None:
     ax.legend(loc="upper right", fontsize=7, framealpha=0.8, ncol=2 if not many else 1)
     fig.tight_layout()
     fig.savefig(path)
-    plt.close(fig)

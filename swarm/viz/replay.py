@@ -15,7 +15,6 @@ coverage equals ``metrics.json``'s.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,14 +22,22 @@ from pathlib import Path
 import msgpack
 import numpy as np
 
-from swarm.errors import SwarmError
+from comms.messages import MODE_NAMES, MODE_SEARCH, MODE_SURVEIL
+from swarm.outputs import RunDirError, check_run_dir, read_json, read_run_dir
 
-MODE_SEARCH = 0
-MODE_SURVEIL = 1
-
-
-class RunDirError(SwarmError, ValueError):
-    """A run folder is missing a file (or has one that cannot be read)."""
+__all__ = [
+    "CoverageRaster",
+    "Replay",
+    "RunDirError",
+    "Threat",
+    "check_run_dir",
+    "fault_events",
+    "fault_label",
+    "first_seen_map",
+    "load_run",
+    "replay_from_bytes",
+    "stamp_poses",
+]
 
 
 @dataclass(frozen=True)
@@ -127,15 +134,6 @@ class Replay:
         """Index of the last tick at or before ``t`` (clipped to the run)."""
         return int(min(max(math.floor(t / self.dt + 1e-9), 0), self.n_ticks - 1))
 
-    def state_at(self, i: int) -> np.ndarray:
-        """(uavs,) state at tick ``i``: 0 pending, 1 flying, 2 crashed."""
-        out = np.where(np.isfinite(self.x[i]), 1, 0).astype(np.int8)
-        t = i * self.dt
-        for tc, uid in self.crashes:
-            if tc <= t + 1e-9:
-                out[uid] = 2
-        return out
-
     def last_position(self, uid: int, i: int) -> tuple[float, float] | None:
         """Where UAV ``uid`` last was at or before tick ``i`` (a wreck's position)."""
         col = self.x[: i + 1, uid]
@@ -151,18 +149,11 @@ class Replay:
         for u, name in enumerate(self.names):
             m = self.mode[:, u]
             out[name] = {
-                "search": float(np.count_nonzero(m == MODE_SEARCH)) * self.dt,
-                "surveil": float(np.count_nonzero(m == MODE_SURVEIL)) * self.dt,
+                MODE_NAMES[MODE_SEARCH]: float(np.count_nonzero(m == MODE_SEARCH)) * self.dt,
+                MODE_NAMES[MODE_SURVEIL]: float(np.count_nonzero(m == MODE_SURVEIL)) * self.dt,
                 "not flying": float(np.count_nonzero(m < 0)) * self.dt,
             }
         return out
-
-
-def _read_json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise RunDirError(f"{path}: cannot be read as JSON ({exc})") from None
 
 
 def _read_timeseries(path: Path) -> dict[str, list]:
@@ -178,33 +169,17 @@ def _read_timeseries(path: Path) -> dict[str, list]:
     return cols
 
 
-def check_run_dir(run_dir: str | Path) -> Path:
-    """Raise :class:`RunDirError` naming the first missing file of a run folder."""
-    d = Path(run_dir)
-    if not d.is_dir():
-        raise RunDirError(f"{d}: no such run folder")
-    events = d / "events.msgpack"
-    if not events.is_file():
-        raise RunDirError(f"{events}: missing; {d} is not a run folder (write one with `swarm run SCENARIO --out DIR`)")
-    scen = d / "scenario.json"
-    if not scen.is_file():
-        raise RunDirError(f"{scen}: missing; it gives the area, UAV types, threats and radio range")
-    return d
-
-
 def load_run(run_dir: str | Path) -> Replay:
     """Read a run folder written by ``swarm run --out DIR`` (see the module docstring)."""
-    d = check_run_dir(run_dir)
-    events = d / "events.msgpack"
-    scen = d / "scenario.json"
-    scenario = _read_json(scen)
-    metrics = _read_json(d / "metrics.json") if (d / "metrics.json").is_file() else None
+    run = read_run_dir(run_dir)
+    d = run.path
+    metrics = read_json(d / "metrics.json") if (d / "metrics.json").is_file() else None
     ts = d / "timeseries.csv"
     timeseries = _read_timeseries(ts) if ts.is_file() else None
     try:
-        rp = replay_from_bytes(events.read_bytes(), scenario)
+        rp = replay_from_bytes(run.events, run.scenario)
     except (ValueError, msgpack.UnpackException, KeyError, IndexError, TypeError) as exc:
-        raise RunDirError(f"{events}: not a readable event log ({type(exc).__name__}: {exc})") from None
+        raise RunDirError(f"{d / 'events.msgpack'}: not a readable event log ({type(exc).__name__}: {exc})") from None
     rp.metrics = metrics
     rp.timeseries = timeseries
     if metrics and metrics.get("sim_seconds"):

@@ -603,12 +603,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, animation: 
     if not out_path.parent.is_dir():
         raise ReportError(f"{out_path.parent}: no such folder")
     text = build_run_report(rp, d, anim)
-    _write_text(out_path, text)
+    atomic_write(out_path, text.encode("utf-8"))
     return out_path
-
-
-def _write_text(path: Path, text: str) -> None:
-    atomic_write(path, text.encode("utf-8"))
 
 
 # --- sweep report -----------------------------------------------------------------------------
@@ -737,5 +733,5 @@ def write_sweep_report(sweep_dir: str | Path, summary: dict, out_path: str | Pat
     out = Path(out_path) if out_path is not None else d / "report.html"
     if not out.parent.is_dir():
         raise ReportError(f"{out.parent}: no such folder")
-    _write_text(out, build_sweep_report(d, summary))
+    atomic_write(out, build_sweep_report(d, summary).encode("utf-8"))
     return out

@@ -1,18 +1,15 @@
 """Shared figure conventions (the paper's): km axes, one colour per UAV, one marker per UAV
 type, and legends that collapse to types when there are too many UAVs to list.
 
-Colours follow :mod:`swarm.viz.plots` (``tab10`` up to 10 UAVs, ``tab20`` up to 20, assigned in
-sorted-name order) so a UAV has the same colour in every figure of a run; beyond 20 UAVs they
-are sampled from a continuous map so neighbours in the legend still differ.
+Every figure takes its UAV colours from :func:`uav_colours` (``tab10`` up to 10 UAVs, ``tab20``
+up to 20, assigned in sorted-name order) so a UAV has the same colour in every figure of a run;
+beyond 20 UAVs they are sampled from a continuous map so neighbours in the legend still differ.
 """
 
 from __future__ import annotations
 
 import re
 
-import matplotlib
-
-matplotlib.use("Agg")
 from matplotlib import colormaps
 from matplotlib.ticker import FuncFormatter
 

@@ -1,7 +1,9 @@
-"""DACMP (the paper's planner): the planner itself, the Gaussian pyramid of the uncertainty map
-it reads (:mod:`.pyramid`, computed once per tick for maps that share storage:
-:mod:`.pyramid_reuse`), and the Dubins paths its PSO scores (:mod:`.dubins`)."""
+"""DACMP (the paper's planner): the planner itself and its settings (:mod:`.settings`), the
+Gaussian pyramid of the uncertainty map it reads (:mod:`.pyramid`, computed once per tick for
+maps that share storage: :mod:`.pyramid_reuse`), and the Dubins paths its PSO scores
+(:mod:`.dubins`)."""
 
 from agents.planners.dacmp.planner import DacmpPlanner
+from agents.planners.dacmp.settings import DacmpSettings
 
-__all__ = ["DacmpPlanner"]
+__all__ = ["DacmpPlanner", "DacmpSettings"]

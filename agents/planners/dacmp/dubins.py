@@ -119,7 +119,7 @@ class DubinsPoses:
     broadcasts, for the same numbers.
     """
 
-    def __init__(self, theta0: np.ndarray, r_min: float | np.ndarray, ndim: int = 2,
+    def __init__(self, theta0: float | np.ndarray, r_min: float | np.ndarray, ndim: int = 2,
                  shape: tuple[int, ...] | None = None):
         r = np.asarray(r_min, dtype=np.float64)
         if np.isnan(r).any():

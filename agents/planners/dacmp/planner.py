@@ -34,7 +34,7 @@ from __future__ import annotations
 import bisect
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -42,6 +42,7 @@ from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.dacmp.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
 from agents.planners.dacmp.pyramid_reuse import FirstLevels
+from agents.planners.dacmp.settings import DacmpSettings
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
@@ -50,28 +51,12 @@ _INTENT_MAX_AGE_S = 15.0
 _STACK_CELLS = 1 << 21
 
 
-@dataclass
-class DacmpPlanner:
-    particles: int = 40
-    iterations: int = 25
-    w_start: float = 0.9
-    w_end: float = 0.4
-    c1_start: float = 2.5
-    c1_end: float = 0.5
-    c2_start: float = 0.5
-    c2_end: float = 2.5
-    ring_mean_factor: float = 1.5
-    ring_sd_factor: float = 0.5
-    ring_max_factor: float = 2.5
-    heading_sd_rad: float = math.pi / 2
-    eta: float = 0.5
+@dataclass(frozen=True)
+class DacmpPlanner(DacmpSettings):
+    """The planner: its settings (:class:`DacmpSettings`, keyword arguments) and what the run
+    tells it about the map and the other UAV types."""
+
     levels: int = 7
-    level_weights: tuple[float, ...] | None = None
-    field_unit_m: float = 1000.0
-    threat_margin_m: float = 300.0
-    # Tracks not refreshed for this long no longer attract (eq. 22 needs g_m(t): nobody sees
-    # it); None: the map's memory time 1 / tau (a cell's uncertainty reaches 1 - 1/e).
-    track_max_age_s: float | None = None
     # Other UAVs' top speeds by type name (v_j of eq. 23); unknown types count as our own.
     speed_max_by_type: dict[str, float] = field(default_factory=dict)
     # Other UAVs' detection radii by type name (how far their next waypoint goes); unknown: ours.
@@ -85,14 +70,14 @@ class DacmpPlanner:
     def from_settings(cls, planner_settings, levels: int = 7,
                       speed_max_by_type: dict[str, float] | None = None,
                       detect_radius_by_type: dict[str, float] | None = None) -> DacmpPlanner:
+        """The planner of a scenario's ``[planner]`` table: its ``dacmp`` table has the fields of
+        :class:`DacmpSettings` (arrays as lists)."""
         d = planner_settings.dacmp
+        settings = {f.name: getattr(d, f.name) for f in fields(DacmpSettings)}
+        if settings["level_weights"] is not None:
+            settings["level_weights"] = tuple(settings["level_weights"])
         return cls(
-            particles=d.particles, iterations=d.iterations, w_start=d.w_start, w_end=d.w_end,
-            c1_start=d.c1_start, c1_end=d.c1_end, c2_start=d.c2_start, c2_end=d.c2_end,
-            ring_mean_factor=d.ring_mean_factor, ring_sd_factor=d.ring_sd_factor, ring_max_factor=d.ring_max_factor,
-            heading_sd_rad=d.heading_sd_rad, eta=d.eta, levels=levels,
-            level_weights=tuple(d.level_weights) if d.level_weights is not None else None,
-            field_unit_m=d.field_unit_m, threat_margin_m=d.threat_margin_m, track_max_age_s=d.track_max_age_s,
+            **settings, levels=levels,
             speed_max_by_type=dict(speed_max_by_type or {}),
             detect_radius_by_type=dict(detect_radius_by_type or {}),
         )

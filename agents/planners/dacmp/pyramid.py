@@ -36,8 +36,10 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import cast
 
 import numpy as np
+import numpy.typing as npt
 
 __all__ = ["SCALE", "Scratch", "reduce_rows", "pyr_down", "pyr_down_stack", "gaussian_pyramid", "level_shapes", "level_index",
            "sample_levels"]
@@ -109,9 +111,10 @@ class Scratch:
 
     def __init__(self) -> None:
         self._buffers: dict[str, np.ndarray] = {}
-        self._arrays: dict[tuple, np.ndarray] = {}  # (name, shape, dtype) -> view of the buffer
+        # (name, shape, dtype) -> view of the buffer
+        self._arrays: dict[tuple[str, tuple[int, ...], npt.DTypeLike], np.ndarray] = {}
 
-    def get(self, name: str, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
+    def get(self, name: str, shape: tuple[int, ...], dtype: npt.DTypeLike = np.float32) -> np.ndarray:
         key = (name, shape, dtype)
         a = self._arrays.get(key)
         if a is None:
@@ -166,7 +169,7 @@ def pyr_down(a: np.ndarray) -> np.ndarray:
 
 def level_shapes(shape: tuple[int, int], levels: int) -> list[tuple[int, int]]:
     """Shapes of ``gaussian_pyramid(q, levels)`` for a ``q`` of this shape (same stopping rule)."""
-    shapes = [tuple(shape)]
+    shapes = [cast("tuple[int, int]", tuple(shape))]
     while len(shapes) < levels and shapes[-1] != (1, 1):
         h, w = shapes[-1]
         shapes.append(((h + 1) // 2, (w + 1) // 2))

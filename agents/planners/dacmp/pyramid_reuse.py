@@ -28,13 +28,16 @@ too cost about what it saved when they were alike, and more when they were not.)
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar, cast
 
 import numpy as np
 
 from agents.maps.grid import Disk
 from agents.maps.umap import UncertaintyMap
 from agents.planners.dacmp.pyramid import SCALE, Scratch, pyr_down_stack, reduce_rows
+
+if TYPE_CHECKING:
+    from agents.maps.mapgroup import GroupMap
 
 # A map is patched when at most this share of its rows differ from the reference's; beyond
 # that, recomputing the patched rows and columns costs about what the whole map costs.
@@ -49,12 +52,21 @@ MAX_EXTRA = 64
 
 T = TypeVar("T")
 
+# FirstLevels' reference: (base map, t, (ny, nx), q, row pass transposed, G_1).
+_Reference = tuple[UncertaintyMap, float, tuple[int, int], np.ndarray, np.ndarray, np.ndarray]
+
 
 class _Band:
     """Rows ``r0:r1`` of a map that may differ from the reference's, within columns ``c0:c1``;
     its q on rows ``qa:qa + len(q)`` and row-pass output rows ``i_lo..i_hi``."""
 
     __slots__ = ("r0", "r1", "c0", "c1", "qa", "q", "i_lo", "i_hi", "rows")
+    # Set as the band is processed (_band_q, _patch_level).
+    qa: int
+    q: np.ndarray
+    i_lo: int
+    i_hi: int
+    rows: np.ndarray
 
     def __init__(self, r0: int, r1: int, c0: int, c1: int):
         self.r0, self.r1, self.c0, self.c1 = r0, r1, c0, c1
@@ -98,7 +110,7 @@ def _patch_level(ref_rows_t: np.ndarray, ref_out: np.ndarray, out: np.ndarray, b
         b.rows = np.empty((1, b.i_hi - b.i_lo + 1, ncols), out.dtype)
         reduce_rows(rows_of(b, a, z)[None], b.rows, n=n, row0=a, lo=b.i_lo, hi=b.i_hi)
     # Column pass (on the transpose): output column j reads row-pass columns 2j - 2 .. 2j + 2.
-    changed = []
+    changed: list[_Band] = []
     for b in bands:
         j_lo, j_hi = max(0, (b.c0 - 1) // 2), min(mw - 1, (b.c1 + 1) // 2)
         ca, cb = max(0, 2 * j_lo - 2), min(ncols, 2 * j_hi + 3)
@@ -128,7 +140,7 @@ class FirstLevels:
 
     def start(self) -> None:
         """A new planning call: the reference is chosen afresh."""
-        self._ref: tuple | None = None
+        self._ref: _Reference | None = None
         # Per map computed (in order): where its G_1 differs from the reference's (bands of
         # G_1), or None if it was computed in full.
         self._slots: list[list[_Band] | None] = []
@@ -140,10 +152,10 @@ class FirstLevels:
         ny, nx = umap.grid.shape
         extra = umap.extra_disks() if hasattr(umap, "extra_disks") else None  # a MapGroup member's
         if self.reuse and extra is not None and len(extra) <= MAX_EXTRA and min(ny, nx) >= _MIN_SIDE:
-            base = umap.base
-            if self._ref is None:
-                self._set_reference(base, t)
+            base = cast("GroupMap", umap).base  # (a member: it has extra_disks)
             ref = self._ref
+            if ref is None:
+                ref = self._set_reference(base, t)
             bands = _disk_bands([d for d, _ in extra], ny) if ref[0] is base and ref[1] == t else None
             if bands is not None:
                 self.patched += 1
@@ -160,8 +172,8 @@ class FirstLevels:
         pyr_down_stack(q, g1[None], work)
         return use(q[0])
 
-    def _set_reference(self, base: UncertaintyMap, t: float) -> None:
-        """Compute a group's base's q and G_1 at ``t`` in full and make it the reference."""
+    def _set_reference(self, base: UncertaintyMap, t: float) -> _Reference:
+        """Compute a group's base's q and G_1 at ``t`` in full and make it the reference (returned)."""
         ny, nx = base.grid.shape
         m, mw = (ny + 1) // 2, (nx + 1) // 2
         work = self._ref_work
@@ -171,7 +183,8 @@ class FirstLevels:
         pyr_down_stack(q, g1[None], work)
         # pyr_down_stack's intermediates, left in the scratch: row pass, its transpose.
         bt = work.get("pyr_rows_t", (1, nx, m), q.dtype)
-        self._ref = (base, t, (ny, nx), q[0], bt[0], g1)
+        ref = self._ref = (base, t, (ny, nx), q[0], bt[0], g1)
+        return ref
 
     def reduce_g1(self, g1: np.ndarray, g2: np.ndarray, scratch: Scratch) -> bool:
         """G_2 of every map of the call (after all of them were computed), ``g1`` and ``g2``
@@ -193,13 +206,14 @@ class FirstLevels:
                 pyr_down_stack(g1[i : i + 1], g2[i : i + 1], scratch)
             else:
                 lower = g1[i]
-                _patch_level(ref_rows_t, ref_g2[0], g2[i], bands, lambda b, a, z: lower[a:z], n, ncols)
+                # (the lambda is called within this iteration: it reads this iteration's lower)
+                _patch_level(ref_rows_t, ref_g2[0], g2[i], bands, lambda b, a, z: lower[a:z], n, ncols)  # noqa: B023
         return True
 
     def _use_patched(self, bands: list[_Band], use: Callable[[np.ndarray], T]) -> T:
         """``use(q)`` of a patched map: the reference's q with this map's changed cells written
         in for the call (they are few; copying the whole map would cost more)."""
-        ref_q = self._ref[3]
+        ref_q = cast("_Reference", self._ref)[3]  # (set: a patched map is a reference's)
         saved = []
         try:
             for b in bands:
@@ -215,7 +229,7 @@ class FirstLevels:
         """The q of the rows each band's row pass reads, into the band: the reference's except
         in the band's columns (bands are far enough apart that no band's rows reach another's
         changes)."""
-        _, _, (ny, nx), ref_q, _, _ = self._ref
+        _, _, (ny, nx), ref_q, _, _ = cast("_Reference", self._ref)  # (set: see compute)
         for b in bands:
             _, _, b.qa, qb = _row_reads(b, ny)
             b.q = ref_q[None, b.qa : qb].copy()
@@ -226,7 +240,7 @@ class FirstLevels:
         reading any map's G_1."""
         if not self._pending:
             return
-        _, _, (ny, nx), _, ref_bt, ref_g1 = self._ref
+        _, _, (ny, nx), _, ref_bt, ref_g1 = cast("_Reference", self._ref)  # (set: patches are against it)
         for slot, g1, bands in self._pending:
             self._slots[slot] = _patch_level(ref_bt, ref_g1, g1, bands, lambda b, a, z: b.q[0, a - b.qa : z - b.qa], ny, nx)
         self._pending = []

@@ -1,0 +1,43 @@
+"""Embedding without surprises: write_run writes what `swarm report` needs, step() past the end
+is a clear error, and the event log reads back with UAV names."""
+
+from __future__ import annotations
+
+import pytest
+
+from swarm import APIMisuseError, Simulation
+from swarm.cli import main
+from swarm.outputs import write_run
+from swarm.recorder import read_events
+
+
+def test_write_run_from_the_api_is_a_folder_swarm_report_accepts(tmp_path, capsys):
+    with Simulation("paper-case1", duration_s=30.0) as sim:
+        result = sim.run()
+    out = write_run(result, tmp_path / "run", figures=False)
+    assert (out / "scenario.json").is_file()
+    assert main(["report", str(out), "--quiet"]) == 0
+    assert (out / "report.html").stat().st_size > 10_000
+
+
+def test_step_past_the_end_is_an_api_misuse():
+    with Simulation("paper-case1", duration_s=5.0) as sim:
+        sim.step(5)
+        assert sim.done
+        with pytest.raises(APIMisuseError, match="past the end"):
+            sim.step()
+    with Simulation("paper-case1", duration_s=5.0) as sim:
+        with pytest.raises(APIMisuseError, match="step at most 5 more"):
+            sim.step(6)
+        sim.step(5)  # the refused call changed nothing
+
+
+def test_events_read_back_with_names():
+    with Simulation("paper-case1", duration_s=10.0) as sim:
+        result = sim.run()
+    names = {"B1", "B2", "A1"}
+    events = list(read_events(result.events, names=True))
+    assert {e[2] for e in events if e[0] == "pose"} == names
+    assert all(e[2] in names and e[3] in names for e in events if e[0] == "rx")
+    raw = list(read_events(result.events))
+    assert {e[2] for e in raw if e[0] == "pose"} == {0, 1, 2}
