@@ -30,7 +30,7 @@ from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
-from agents.planners.base import Plan, Planner, PlanView
+from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.types import GRAVITY, UavType
 from comms.codec import FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
@@ -60,6 +60,16 @@ _MAX_SPEED = 1.0e4
 _MAX_ANGLE = 1.0e3
 _MAX_VALUE = 1.0e12
 _MAX_TIME = 1.0e9
+
+
+def _planner_name(planner: object) -> str:
+    return f"{type(planner).__module__}:{type(planner).__qualname__}"
+
+
+def _planner_error(planner: object, exc: Exception) -> PlannerError:
+    if isinstance(exc, PlannerError):
+        return exc
+    return PlannerError(f"planner {_planner_name(planner)} raised {type(exc).__name__}: {exc}")
 
 
 def _answer_hash(me: int, sender: int, t_cut: float) -> int:
@@ -222,7 +232,13 @@ class UavActor:
             try:
                 view = self.observe(reading)
                 if view is not None:
-                    plan = await plan_source(self, view) if plan_source is not None else self.planner.plan(view)
+                    try:
+                        plan = await plan_source(self, view) if plan_source is not None else self.planner.plan(view)
+                    except Exception as exc:  # the planner's, not the actor's: say so
+                        raise _planner_error(self.planner, exc) from exc
+                    if not isinstance(plan, Plan):
+                        raise PlannerError(f"planner {_planner_name(self.planner)} returned {type(plan).__name__}, "
+                                           f"not a Plan")
                     self.adopt(plan, reading.t)
                 out = self.act(reading)
             except Exception as exc:  # surfaced by the simulator with the UAV's name

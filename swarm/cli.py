@@ -113,6 +113,13 @@ def _cmd_validate(args) -> int:
 def _cmd_list(args) -> int:
     from swarm.scenario import builtin_scenarios, load_scenario
 
+    if args.planners:
+        from agents.planners import BUILTIN, available_planners
+
+        for name, where in available_planners().items():
+            origin = "built-in" if name in BUILTIN else "entry point"
+            print(f"{name:14s} {origin:12s} {where}")
+        return 0
     for name in builtin_scenarios():
         sc = load_scenario(name)
         print(f"{name:14s} {sc.description}")
@@ -215,10 +222,16 @@ def _cmd_sweep(args) -> int:
     from swarm.experiments.sweep import plan_runs, run_sweep
     from swarm.scenario import load_scenario
 
+    from agents.planners import PlannerError, resolve_planner
+
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
-    bad = [p for p in planners if p not in ("dacmp", "greedy")]
-    if bad or not planners:
-        raise UsageError(f"--planner {args.planner!r}: expected a comma-separated list of dacmp, greedy")
+    if not planners:
+        raise UsageError(f"--planner {args.planner!r}: expected a comma-separated list of planners")
+    for name in planners:
+        try:
+            resolve_planner(name)
+        except PlannerError as exc:
+            raise UsageError(f"--planner {args.planner!r}: {exc}") from None
     sc = load_scenario(args.scenario)
     runs = plan_runs(sc, seeds=args.seeds, planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
@@ -430,7 +443,9 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run one scenario and write its outputs")
     r.add_argument("scenario", help="built-in name (see `swarm list`) or path to a .toml file")
     r.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
-    r.add_argument("--planner", choices=["greedy", "dacmp"], default=None, help="planner (default: the scenario's)")
+    r.add_argument("--planner", default=None, metavar="NAME",
+                   help="planner: a built-in name (swarm list --planners), package.module:Class, or an entry-point "
+                        "name (default: the scenario's)")
     r.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario setting, e.g. --set radio.loss_base=0.3 (repeatable)")
@@ -501,7 +516,9 @@ def build_parser() -> argparse.ArgumentParser:
     rs.add_argument("--quiet", action="store_true", help="no progress bars or table")
     rs.set_defaults(func=_cmd_resilience)
 
-    ls = sub.add_parser("list", help="list the built-in scenarios")
+    ls = sub.add_parser("list", help="list the built-in scenarios (or, with --planners, the planners)")
+    ls.add_argument("--planners", action="store_true",
+                    help="list the planners a name can choose (built-in and registered under swarm.planners)")
     ls.set_defaults(func=_cmd_list)
 
     an = sub.add_parser("animate", help="render a run folder's animation (MP4 with ffmpeg, else GIF)")

@@ -40,7 +40,7 @@ from agents.actor import ActorOutput, SensorReading, UavActor
 from agents.maps.grid import PREFETCH_MIN, Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.umap import DENSE_MAX_CELLS
-from agents.planners import make_planner
+from agents.planners import Planner, PlannerContext, PlannerError, build_planner
 from agents.planners.base import Plan, PlanView
 from agents.planners.batching import PlanBatcher
 from comms.framecache import DecodeCache
@@ -104,7 +104,7 @@ class Simulation:
         scenario: Scenario | str | Path,
         *,
         seed: int | None = None,
-        planner: str | None = None,
+        planner: str | type | None = None,
         duration_s: float | None = None,
         batch_planning: bool = True,
     ):
@@ -115,7 +115,8 @@ class Simulation:
             scenario = load_scenario(scenario)
         overrides: dict[str, object] = {}
         if planner is not None:
-            overrides["planner.name"] = planner
+            # A class is named by where it lives (module:Class), as a scenario would name it.
+            overrides["planner.name"] = planner if isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
         if duration_s is not None:
             overrides["duration_s"] = duration_s
         if seed is not None:
@@ -218,6 +219,22 @@ class Simulation:
     def from_file(cls, ref: str | Path, **kw) -> Simulation:
         return cls(load_scenario(ref), **kw)
 
+    def _build_planner(self, uid: int, name: str, type_name: str) -> Planner:
+        """A UAV's own planner instance (agents.planners.registry)."""
+        sc = self.scenario
+        rank = sum(1 for b in self.world.uavs.values() if b.kind.name == type_name and b.uid != uid)
+        count = max(rank + 1, sum(1 for u in sc.uavs if u.type == type_name))
+        context = PlannerContext(
+            uav=uid, name=name, type=type_name, type_index=rank, type_count=count,
+            area_m=(self.grid.width_m, self.grid.height_m), cell_m=self.grid.cell_m, levels=sc.map.levels,
+            speed_max_by_type=dict(self.speed_max_by_type), detect_radius_by_type=dict(self.detect_radius_by_type),
+            settings=sc.planner,
+        )
+        try:
+            return build_planner(sc.planner.name, dict(sc.planner.options), context)
+        except PlannerError as exc:
+            raise SimulationError(str(exc)) from exc
+
     def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
         tid = self.targets.add(x, y, theta, v, value, rng)
         self._target_paths[tid] = []
@@ -236,9 +253,7 @@ class Simulation:
         # Scan disks and decoded frames are shared by every UAV using them within a few ticks.
         self.grid.set_disk_cache_size(max(256, 3 * len(self.world.uavs)))
         self._decoder.size = max(256, 4 * len(self.world.uavs))
-        planner = make_planner(self.scenario.planner, levels=self.scenario.map.levels,
-                               speed_max_by_type=self.speed_max_by_type,
-                               detect_radius_by_type=self.detect_radius_by_type)
+        planner = self._build_planner(uid, name, spec.type)
         self.actors[uid] = UavActor(
             uid, name, kind, self.grid, self.tau, planner, self.rng.generator("uav", name),
             self._actor_settings, Mailbox(self.scenario.radio.mailbox_capacity), decoder=self._decoder,
@@ -394,7 +409,10 @@ class Simulation:
             return
         if exc is not None:
             name = self.world.uavs[uid].name
-            err = SimulationError(f"UAV {name} raised {type(exc).__name__}: {exc}")
+            if isinstance(exc, PlannerError):
+                err = SimulationError(f"UAV {name}: {exc}")
+            else:
+                err = SimulationError(f"UAV {name} raised {type(exc).__name__}: {exc}")
             err.__cause__ = exc
             barrier.set_exception(err)
             return

@@ -1,29 +1,39 @@
-"""Planners behind one interface (:mod:`agents.planners.base`); pick one by name."""
+"""The public planner API: what a planner sees and returns, and how one is chosen.
+
+* :mod:`.base`: :class:`Plan` (next waypoint, mode, watched target), :class:`PlanView` (what a
+  planner sees of its UAV: pose, type, own map, own knowledge, own random stream) and the
+  :class:`Planner` protocol (``plan(view) -> Plan``, optionally ``plan_many(views)`` to plan
+  many UAVs in one call, as DACMP does: see :mod:`.batching`);
+* :mod:`.registry`: built-in names, ``package.module:Class`` and the ``swarm.planners``
+  entry-point group; :class:`PlannerContext`, what a planner may know before the run;
+* the planners: :mod:`.greedy` (the paper's baseline), :mod:`.dacmp` (the paper's planner).
+
+The deprecation policy of this API is in docs/embedding.md.
+"""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.planners.greedy import GreedyPlanner
+from agents.planners.registry import (
+    BUILTIN,
+    ENTRY_POINT_GROUP,
+    PlannerContext,
+    available_planners,
+    build_planner,
+    resolve_planner,
+)
 
-if TYPE_CHECKING:
-    from swarm.scenario.model import PlannerSettings
-
-PLANNER_NAMES = ("greedy", "dacmp")
-
-
-def make_planner(settings: PlannerSettings, *, levels: int = 7, speed_max_by_type: dict[str, float] | None = None,
-                 detect_radius_by_type: dict[str, float] | None = None) -> Planner:
-    """Build the planner named by a scenario's ``[planner]`` table (one instance per UAV)."""
-    name = settings.name
-    if name == "greedy":
-        return GreedyPlanner(headings=settings.greedy.headings)
-    if name == "dacmp":
-        from agents.planners.dacmp.planner import DacmpPlanner
-
-        return DacmpPlanner.from_settings(settings, levels, speed_max_by_type, detect_radius_by_type)
-    raise ValueError(f"unknown planner {name!r}; expected one of {', '.join(PLANNER_NAMES)}")
-
-
-__all__ = ["PLANNER_NAMES", "GreedyPlanner", "Plan", "PlanView", "Planner", "PlannerError", "make_planner"]
+__all__ = [
+    "BUILTIN",
+    "ENTRY_POINT_GROUP",
+    "GreedyPlanner",
+    "Plan",
+    "PlanView",
+    "Planner",
+    "PlannerContext",
+    "PlannerError",
+    "available_planners",
+    "build_planner",
+    "resolve_planner",
+]

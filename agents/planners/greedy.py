@@ -15,10 +15,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from agents.planners.base import Plan, PlanView
+
+if TYPE_CHECKING:
+    from agents.planners.registry import PlannerContext
 
 # Tie-breaking weights, far below any real difference in q.
 _STRAIGHT_BONUS = 1e-4
@@ -29,6 +33,11 @@ _JITTER = 1e-7
 class GreedyPlanner:
     headings: int = 15
     name: str = "greedy"
+
+    @classmethod
+    def from_context(cls, context: PlannerContext) -> GreedyPlanner:
+        """The planner of a scenario: its settings are the ``[planner.greedy]`` table."""
+        return cls(headings=context.settings.greedy.headings)
 
     def plan(self, view: PlanView) -> Plan:
         k = view.kind

@@ -547,8 +547,16 @@ DacmpSettings = _table_of(_dacmp.DacmpSettings, "DacmpSettings", base=_DacmpChec
 ApfSettings = _table_of(_apf.ApfSettings, "ApfSettings", exclude=("min_separation_m", "threat_margin_m"))
 
 
+_PLANNER_WORDS = ("a planner: a built-in name (see `swarm list --planners`), package.module:Class, "
+                  "or a name registered under the entry-point group swarm.planners")
+
+
 class PlannerSettings(_Model):
-    name: Literal["greedy", "dacmp"] = Field("dacmp", description="one of: greedy, dacmp")
+    # Resolved by agents.planners.registry; a user's class must be importable where the run runs.
+    name: Str = Field("dacmp", description=_PLANNER_WORDS)
+    # Keyword arguments of the planner's constructor (or of its from_context); the built-in
+    # planners take theirs from their own tables ([planner.dacmp], [planner.greedy]).
+    options: dict[Str, Any] = Field(default_factory=dict, description="a table [planner.options] of the planner's options")
     replan_s: Num = _num(10.0, gt=0)
     # False: a sighting ends interest in a target (search only, as in paper-fig11).
     surveillance: Bool = Field(True, description="true or false")
@@ -561,6 +569,17 @@ class PlannerSettings(_Model):
     greedy: GreedySettings = _table(GreedySettings, "planner.greedy")
     dacmp: DacmpSettings = _table(DacmpSettings, "planner.dacmp")
     apf: ApfSettings = _table(ApfSettings, "planner.apf")
+
+    @model_validator(mode="after")
+    def _known_planner(self) -> PlannerSettings:
+        from agents.planners.registry import PlannerError, option_problems
+
+        try:
+            problems = option_problems(self.name, self.options)
+        except PlannerError as exc:
+            _raise_if([_Problem(("name",), self.name, _PLANNER_WORDS, hint=str(exc))])
+        _raise_if([_Problem(("options", key), None, expected, found=found) for key, found, expected in problems])
+        return self
 
 
 class SafetySettings(_Model):

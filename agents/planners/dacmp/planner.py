@@ -35,6 +35,7 @@ import bisect
 import functools
 import math
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,6 +45,9 @@ from agents.planners.dacmp.pyramid import Scratch, level_index, level_shapes, py
 from agents.planners.dacmp.pyramid_reuse import FirstLevels
 from agents.planners.dacmp.settings import DacmpSettings
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
+
+if TYPE_CHECKING:
+    from agents.planners.registry import PlannerContext
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0
@@ -65,6 +69,12 @@ class DacmpPlanner(DacmpSettings):
     # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
     _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
     _first_levels: FirstLevels = field(default_factory=FirstLevels, init=False, repr=False, compare=False)
+
+    @classmethod
+    def from_context(cls, context: PlannerContext) -> DacmpPlanner:
+        """The planner of a scenario: its settings are the ``[planner.dacmp]`` table."""
+        return cls.from_settings(context.settings, context.levels, context.speed_max_by_type,
+                                 context.detect_radius_by_type)
 
     @classmethod
     def from_settings(cls, planner_settings, levels: int = 7,

@@ -1,0 +1,162 @@
+"""Choosing a planner: built-in names, ``package.module:Class``, and entry points.
+
+A scenario's ``[planner] name`` (or ``--planner``, or ``Simulation(planner=...)``) is one of:
+
+* a built-in name (:data:`BUILTIN`: ``dacmp``, ``greedy`` and the reference planners);
+* ``package.module:Class``: any class importable in the process that runs the simulation (on
+  ``PYTHONPATH``; for a Dask cluster, on every worker's);
+* a name registered by an installed distribution under the entry-point group
+  ``swarm.planners`` (``[project.entry-points."swarm.planners"] mine = "pkg.mod:Class"``).
+
+Each UAV gets its own instance. A class with a ``from_context(context, **options)`` class
+method is built by it (it sees the :class:`PlannerContext`: what a planner may know before the
+run); otherwise by ``Class(**options)``. ``options`` is the scenario's ``[planner.options]``
+table; :func:`option_problems` checks it against the signature before anything runs, so a
+wrong option is reported with its key path like any other scenario mistake.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+import inspect
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import Any
+
+from agents.planners.base import Planner, PlannerError
+
+__all__ = [
+    "BUILTIN",
+    "ENTRY_POINT_GROUP",
+    "PlannerContext",
+    "available_planners",
+    "build_planner",
+    "option_problems",
+    "resolve_planner",
+]
+
+ENTRY_POINT_GROUP = "swarm.planners"
+
+# Built-in planners by name: where their classes live (imported only when used).
+BUILTIN: dict[str, str] = {
+    "dacmp": "agents.planners.dacmp.planner:DacmpPlanner",
+    "greedy": "agents.planners.greedy:GreedyPlanner",
+}
+
+
+@dataclass(frozen=True)
+class PlannerContext:
+    """What a planner may know before the run starts, given to ``from_context``.
+
+    The area and map geometry, the UAV it plans for (id, name, type, and its rank among the
+    UAVs of its type when it was added: an a-priori assignment such as a lawnmower strip can
+    come from these alone), and the swarm's UAV types. Nothing about other UAVs' states: during
+    the run a planner sees only its :class:`~agents.planners.base.PlanView`.
+    """
+
+    uav: int
+    name: str
+    type: str
+    type_index: int  # 0 for the first UAV of its type, 1 for the second, ...
+    type_count: int  # UAVs of its type in the scenario (at least type_index + 1)
+    area_m: tuple[float, float]  # width, height
+    cell_m: float
+    levels: int  # map pyramid levels (map.levels)
+    speed_max_by_type: dict[str, float]
+    detect_radius_by_type: dict[str, float]
+    settings: Any = None  # the scenario's [planner] table (built-ins read their own sub-table)
+
+
+def _import(ref: str) -> type:
+    module_name, _, attr = ref.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise PlannerError(f"planner {ref!r}: cannot import module {module_name!r} ({exc}); "
+                           f"is it on PYTHONPATH?") from None
+    obj: Any = module
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise PlannerError(f"planner {ref!r}: module {module_name!r} has no {attr!r}")
+    if not callable(obj):
+        raise PlannerError(f"planner {ref!r}: {attr!r} is not a class")
+    return obj  # type: ignore[no-any-return]
+
+
+def _entry_points() -> dict[str, str]:
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_planners() -> dict[str, str]:
+    """Every planner a name can choose: ``{name: "module:Class"}``, built-ins first."""
+    found = dict(BUILTIN)
+    for name, value in sorted(_entry_points().items()):
+        found.setdefault(name, value)
+    return found
+
+
+def resolve_planner(name: str) -> type:
+    """The planner class a name stands for (see the module docstring)."""
+    if not isinstance(name, str) or not name:
+        raise PlannerError(f"planner {name!r}: expected a built-in name, module:Class or an entry-point name")
+    if name in BUILTIN:
+        return _import(BUILTIN[name])
+    if ":" in name:
+        return _import(name)
+    registered = _entry_points()
+    if name in registered:
+        return _import(registered[name])
+    known = list(available_planners())
+    close = difflib.get_close_matches(name, known, n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    raise PlannerError(f"unknown planner {name!r}; expected one of {', '.join(known)}, or module:Class{hint}")
+
+
+def _maker(cls: type) -> tuple[Any, bool]:
+    """The callable that builds an instance, and whether it takes the context first."""
+    maker = getattr(cls, "from_context", None)
+    return (maker, True) if maker is not None else (cls, False)
+
+
+def option_problems(name: str, options: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """``(key, found, expected)`` for each option the planner's constructor does not take or
+    lacks (checked against its signature; nothing is built)."""
+    cls = resolve_planner(name)
+    maker, with_context = _maker(cls)
+    try:
+        params = list(inspect.signature(maker).parameters.values())
+    except (TypeError, ValueError):  # no signature to read (a builtin type): let the call decide
+        return []
+    if with_context and params:
+        params = params[1:]
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return []
+    named = {p.name: p for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    problems = []
+    for key in options:
+        if key not in named:
+            close = difflib.get_close_matches(key, list(named), n=1)
+            valid = f"did you mean {close[0]!r}?" if close else (f"it takes: {', '.join(named)}" if named else "it takes none")
+            problems.append((key, f"unknown option {key!r}", f"an option of planner {name!r} ({valid})"))
+    for key, p in named.items():
+        if p.default is p.empty and key not in options and key != "name":
+            problems.append((key, "nothing (the option is missing)", f"a value: planner {name!r} requires it"))
+    return problems
+
+
+def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -> Planner:
+    """One UAV's planner instance."""
+    cls = resolve_planner(name)
+    maker, with_context = _maker(cls)
+    try:
+        planner = maker(context, **options) if with_context else maker(**options)
+    except PlannerError:
+        raise
+    except Exception as exc:
+        raise PlannerError(f"planner {name!r} could not be built for UAV {context.name}: "
+                           f"{type(exc).__name__}: {exc}") from exc
+    if not callable(getattr(planner, "plan", None)):
+        raise PlannerError(f"planner {name!r}: {cls.__name__} has no plan(view) method")
+    return planner  # type: ignore[no-any-return]
