@@ -173,7 +173,8 @@ def _cmd_run(args) -> int:
     sc = load_scenario(args.scenario)
     if args.set:
         sc = apply_overrides(sc, dict(parse_assignment(s) for s in args.set))
-    sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration)
+    sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration,
+                     memory_limit_gb=args.memory_limit)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
                                  note="t=0 s")
@@ -219,10 +220,9 @@ def _dask_executor(args):
 
 
 def _cmd_sweep(args) -> int:
+    from agents.planners import PlannerError, resolve_planner
     from swarm.experiments.sweep import plan_runs, run_sweep
     from swarm.scenario import load_scenario
-
-    from agents.planners import PlannerError, resolve_planner
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
     if not planners:
@@ -451,6 +451,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a scenario setting, e.g. --set radio.loss_base=0.3 (repeatable)")
     r.add_argument("--out", default=None, help="output folder (metrics.json, timeseries.csv, events.msgpack, trajectories.png)")
     r.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
+    r.add_argument("--memory-limit", type=float, default=None, metavar="GB",
+                   help="refuse a scenario estimated to need more (default: SWARM_MEMORY_LIMIT_GB, else half of "
+                        "this machine's memory)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
     r.add_argument("--json", action="store_true", help="print the metrics as JSON on stdout instead of the table")
     r.set_defaults(func=_cmd_run)

@@ -52,6 +52,7 @@ from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict
 from swarm import build
 from swarm.clock import DELIVERY, FAULT, TICK, Clock
 from swarm.errors import APIMisuseError, SimulationError, UsageError
+from swarm.memory import check_memory
 from swarm.metrics import Metrics
 from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
@@ -107,10 +108,14 @@ class Simulation:
         planner: str | type | None = None,
         duration_s: float | None = None,
         batch_planning: bool = True,
+        memory_limit_gb: float | None = None,
     ):
         """``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
         planner call (same event log as planning one by one, only faster; see
-        :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself."""
+        :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself.
+        ``memory_limit_gb``: refuse (:class:`~swarm.memory.MemoryLimitError`) a scenario whose
+        estimated memory is above it (default: ``SWARM_MEMORY_LIMIT_GB``, else half of this
+        machine's memory)."""
         if not isinstance(scenario, Scenario):
             scenario = load_scenario(scenario)
         overrides: dict[str, object] = {}
@@ -124,7 +129,9 @@ class Simulation:
         if overrides:
             from swarm.scenario import apply_overrides
 
-            scenario = apply_overrides(scenario, overrides)
+            scenario = apply_overrides(scenario, overrides, truncated=duration_s is not None)
+        # Before anything is allocated: refuse a run that cannot fit (swarm.memory).
+        self.memory_estimate = check_memory(scenario, memory_limit_gb)
         self.scenario = scenario
         self.seed = scenario.seed
         self.dt = scenario.dt_s

@@ -351,7 +351,10 @@ def test_apply_overrides_valid_dotted_keys():
     assert s.radio.loss_base == 0.3 and s.uavs[0].x_m == 500.0 and s.seed == 7
     assert base.radio.loss_base == 0.0  # the original is untouched
     assert s.uavs[-1].join_s == 300.0  # the folded join survives re-validation
-    assert base.with_overrides(duration_s=100).duration_s == 100.0
+    assert base.with_overrides(duration_s=400).duration_s == 400.0
+    with pytest.raises(ScenarioError, match="join after the end"):  # the joiner comes at 300 s
+        base.with_overrides(duration_s=100)
+    assert apply_overrides(base, {"duration_s": 100}, truncated=True).duration_s == 100.0  # cut short on purpose
     # moving the join time through the fault re-folds it
     joined = apply_overrides(parse_scenario({**load_scenario("paper-fig11").to_dict(),
                                              "faults": [{"kind": "join", "at_s": 5, "uav": "B6"}]}),

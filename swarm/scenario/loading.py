@@ -73,14 +73,16 @@ def scenario_from_toml(text: str, source: str) -> Scenario:
     return parse_scenario(doc, source)
 
 
-def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
-    """Validate an already-parsed document. ``name`` defaults to the source's file stem."""
+def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated: bool = False) -> Scenario:
+    """Validate an already-parsed document. ``name`` defaults to the source's file stem.
+    ``truncated``: the run is cut short on purpose (``--duration``), so UAVs may join after
+    its end."""
     if not isinstance(doc, dict):
         raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
     data = dict(doc)
     data.setdefault("name", _default_name(source))
     try:
-        return Scenario.model_validate(data)
+        return Scenario.model_validate(data, context={"truncated": truncated})
     except ValidationError as exc:
         # from None: our message says everything; pydantic's would only repeat it less clearly.
         raise _first_error(exc, doc, source) from None
@@ -93,15 +95,16 @@ def _default_name(source: str) -> str:
 
 
 # --- overrides -----------------------------------------------------------------------------
-def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any]) -> Scenario:
+def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncated: bool = False) -> Scenario:
     """A new scenario with dotted keys replaced, e.g. ``{"radio.loss_base": 0.3}`` or
-    ``{"uavs[0].x_m": 100}``; the result is validated as a whole."""
+    ``{"uavs[0].x_m": 100}``; the result is validated as a whole (``truncated``: see
+    :func:`parse_scenario`)."""
     source = f"{scenario.name} (with overrides)"
     doc = scenario._document()
     for dotted, value in overrides.items():
         _set_path(doc, dotted, value, source)
     try:
-        return parse_scenario(doc, source)
+        return parse_scenario(doc, source, truncated=truncated)
     except ScenarioError as err:
         if err.key in overrides or err.hint:
             raise

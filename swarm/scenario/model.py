@@ -33,6 +33,7 @@ from pydantic import (
     ConfigDict,
     Field,
     Strict,
+    ValidationInfo,
     create_model,
     field_validator,
     model_validator,
@@ -591,6 +592,11 @@ class MetricsSettings(_Model):
 
 
 # --- the scenario --------------------------------------------------------------------------
+# A run has at most this many ticks (duration_s / dt_s): ten million (116 days at dt 1 s).
+MAX_TICKS = 10_000_000
+_FLOAT32_TINY = 1.1754944e-38  # the smallest normal float32
+_FLOAT32_MAX = 3.4028235e38
+
 class Scenario(_Model):
     """Everything one run needs. Build it with :func:`load_scenario` or :func:`parse_scenario`."""
 
@@ -635,7 +641,7 @@ class Scenario(_Model):
         return value
 
     @model_validator(mode="after")
-    def _complete_and_cross_check(self) -> Scenario:
+    def _complete_and_cross_check(self, info: ValidationInfo) -> Scenario:
         # Filling in names and folding joins replaces items of lists this model has just built
         # (pydantic copies input lists), so the frozen model's attributes are never reassigned.
         if self.fleet:
@@ -651,7 +657,10 @@ class Scenario(_Model):
             if uav.name is None:
                 self.uavs[i] = uav.model_copy(update={"name": f"{uav.type}{per_type[uav.type]}"})
 
-        problems = self._cross_problems()
+        # A run shortened by Simulation(duration_s=...) / --duration may end before a late joiner
+        # joins; a scenario that says so itself is a mistake.
+        truncated = bool(info.context and info.context.get("truncated"))
+        problems = self._cross_problems(truncated)
         _raise_if(problems)
 
         for fault in self.faults:
@@ -678,7 +687,7 @@ class Scenario(_Model):
                                          f"and 0 <= y0 < y1 <= {_fmt(area.height_m)} (inside the area)"))
         return problems
 
-    def _cross_problems(self) -> list[_Problem]:
+    def _cross_problems(self, truncated: bool = False) -> list[_Problem]:
         """Checks that need more than one table: names, types, positions, fault references."""
         problems: list[_Problem] = []
         area = self.area
@@ -755,6 +764,34 @@ class Scenario(_Model):
                                      f"an array of {self.map.levels} numbers (one per pyramid layer 1..L, map.levels = {self.map.levels})"))
         if self.metrics.sample_s < self.dt_s:
             problems.append(_Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({_fmt(self.dt_s)})"))
+        problems += self._runnable_problems(truncated)
+        return problems
+
+    def _runnable_problems(self, truncated: bool) -> list[_Problem]:
+        """Values that validate one by one but cannot run: a run that would never finish, a
+        memory factor float32 cannot hold, a UAV that would join after the end."""
+        problems: list[_Problem] = []
+        ticks = self.duration_s / self.dt_s
+        if ticks > MAX_TICKS:
+            problems.append(_Problem(("dt_s",), self.dt_s, f"a number >= duration_s / {MAX_TICKS:,} "
+                                     f"({_fmt(self.duration_s / MAX_TICKS)}: a run has at most {MAX_TICKS:,} ticks)"))
+        # Map times and q are float32: tau must be a normal float32 and tau * duration finite.
+        if self.uavs and all(u.type in self.uav_types for u in self.uavs):
+            tau = self.effective_tau
+            key: tuple[str, ...] = ("map", "tau") if self.map.tau is not None else ("map", "prior_target_speed")
+            value = self.map.tau if self.map.tau is not None else self.map.prior_target_speed
+            if not (_FLOAT32_TINY <= tau and tau * max(self.duration_s, 1.0) <= _FLOAT32_MAX):
+                problems.append(_Problem(key, value, f"a value giving a map memory factor tau in [{_FLOAT32_TINY:.3g}, "
+                                         f"{_FLOAT32_MAX / max(self.duration_s, 1.0):.3g}] 1/s (float32 map times; "
+                                         f"this gives {tau:.3g})"))
+        for i, uav in enumerate(self.uavs):
+            if not truncated and uav.join_s is not None and uav.join_s >= self.duration_s:
+                problems.append(_Problem(("uavs", i, "join_s"), uav.join_s,
+                                         f"a number < duration_s ({_fmt(self.duration_s)}: it would join after the end)"))
+        for f, fault in enumerate(self.faults):
+            if not truncated and isinstance(fault, JoinFault) and fault.at_s >= self.duration_s:
+                problems.append(_Problem(("faults", f, "at_s"), fault.at_s,
+                                         f"a number < duration_s ({_fmt(self.duration_s)}: the UAV would join after the end)"))
         return problems
 
     def _uav_by_name(self, name: str) -> UavSpec:

@@ -967,5 +967,5 @@ def load_run_log(out_dir: str | Path) -> tuple[Scenario, list[list]]:
     """The validated scenario (``scenario.json``) and the events (``events.msgpack``) of a
     ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`)."""
     run = read_run_dir(out_dir)
-    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"))
+    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"), truncated=True)  # may be cut short
     return scenario, list(read_events(run.events))

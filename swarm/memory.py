@@ -1,0 +1,122 @@
+"""How much memory a scenario will need, estimated before anything is allocated.
+
+A mistyped ``area.cell_m`` (1 m instead of 100 m) turns a 50 km square into 2.5e9 cells: the
+run would allocate tens of GB and be killed by the kernel without a word. The simulation
+therefore estimates its memory from the scenario and refuses, with one error naming the
+settings that drive it, above a limit (by default half of this machine's physical memory; set
+``SWARM_MEMORY_LIMIT_GB``, ``swarm run --memory-limit GB`` or ``Simulation(memory_limit_gb=...)``).
+
+The estimate is an upper bound of the big arrays, not of Python's overhead:
+
+* the ground truth: one dense float32 last-seen map of every cell, and (on large grids) one
+  float32 buffer of q for certainty (eq. 8): 8 bytes a cell;
+* the UAVs' own maps: shared storage on dense grids (up to 2**20 cells: one base plus a little
+  per UAV); on larger grids, 64 x 64-cell float32 tiles allocated where a map was written: a
+  UAV's own swath over the run plus the swaths of the UAVs it can hear (within radio range),
+  at most the whole grid, rounded up to whole tiles;
+* DACMP's whole-map reads: one planning batch holds q and the pyramid of a map (float32 q and
+  float64 levels: about 16 bytes a cell);
+* per UAV, a mailbox of the frames of one tick (one from each UAV it hears, at most
+  ``radio.mailbox_capacity``, of a typical size).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+from swarm.errors import SwarmError
+from swarm.scenario import Scenario
+
+__all__ = ["MemoryEstimate", "MemoryLimitError", "check_memory", "default_limit_bytes", "estimate_memory"]
+
+_GB = 1024**3
+_DENSE_MAX_CELLS = 1 << 20  # agents.maps.umap.DENSE_MAX_CELLS (kept in step by a test)
+_TILE = 64  # agents.maps.umap.DEFAULT_TILE
+_TYPICAL_FRAME_BYTES = 512  # a beacon (hello, intent, a few scans) is 150-400 bytes
+
+
+class MemoryLimitError(SwarmError, MemoryError):
+    """A scenario would need more memory than the limit allows."""
+
+
+@dataclass(frozen=True)
+class MemoryEstimate:
+    cells: int
+    parts: dict[str, float]  # bytes by what needs them
+
+    @property
+    def total(self) -> float:
+        return sum(self.parts.values())
+
+
+def estimate_memory(sc: Scenario) -> MemoryEstimate:
+    """An upper bound of the run's big arrays, in bytes, by part (see the module docstring)."""
+    nx = math.ceil(sc.area.width_m / sc.area.cell_m)
+    ny = math.ceil(sc.area.height_m / sc.area.cell_m)
+    cells = nx * ny
+    n = len(sc.uavs)
+    parts: dict[str, float] = {"ground truth (8 B a cell)": 8.0 * cells}
+    if cells <= _DENSE_MAX_CELLS:
+        # MapGroup: one shared base; members differ by a few scans each (counted generously).
+        parts["UAV maps (shared storage)"] = 4.0 * cells * (1 + 0.05 * n)
+    else:
+        area = sc.area.width_m * sc.area.height_m
+        range_m = sc.radio.range_limit_m
+        heard_share = 1.0 if not math.isfinite(range_m) else min(1.0, math.pi * range_m**2 / area)
+        tile_cells = _TILE * _TILE
+        tiles_total = math.ceil(nx / _TILE) * math.ceil(ny / _TILE)
+        total = 0.0
+        for u in sc.uavs:
+            t = sc.uav_types[u.type]
+            flown = max(0.0, sc.duration_s - (u.join_s or 0.0))
+            swath_m2 = 2 * t.detect_radius_m * t.speed_max * flown + math.pi * t.detect_radius_m**2
+            # a band of swath 2 R_s touches tiles on a band (2 R_s + one tile) wide
+            band_factor = (2 * t.detect_radius_m + _TILE * sc.area.cell_m) / (2 * t.detect_radius_m)
+            own_tiles = swath_m2 * band_factor / (sc.area.cell_m**2 * tile_cells)
+            heard = 1.0 + (n - 1) * heard_share
+            total += min(float(tiles_total), own_tiles * heard) * tile_cells * 4.0
+        parts["UAV maps (tiles)"] = total
+    if sc.planner.name == "dacmp":
+        parts["DACMP map reads (16 B a cell)"] = 16.0 * cells
+    # Mailboxes are drained every tick: at most a frame from each other UAV, of a typical size.
+    parts["mailboxes"] = float(n * min(sc.radio.mailbox_capacity, n) * _TYPICAL_FRAME_BYTES)
+    return MemoryEstimate(cells, parts)
+
+
+def _physical_memory() -> int | None:
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # not POSIX
+        return None
+
+
+def default_limit_bytes() -> float:
+    """``SWARM_MEMORY_LIMIT_GB`` if set, else half of the physical memory (16 GB if unknown)."""
+    env = os.environ.get("SWARM_MEMORY_LIMIT_GB")
+    if env:
+        try:
+            value = float(env)
+        except ValueError:
+            raise MemoryLimitError(f"SWARM_MEMORY_LIMIT_GB={env!r}: expected a number of GB") from None
+        if not value > 0:
+            raise MemoryLimitError(f"SWARM_MEMORY_LIMIT_GB={env!r}: expected a positive number of GB")
+        return value * _GB
+    physical = _physical_memory()
+    return physical / 2 if physical else 16.0 * _GB
+
+
+def check_memory(sc: Scenario, limit_gb: float | None = None) -> MemoryEstimate:
+    """The estimate, or :class:`MemoryLimitError` if it is above the limit."""
+    est = estimate_memory(sc)
+    limit = default_limit_bytes() if limit_gb is None else limit_gb * _GB
+    if est.total > limit:
+        biggest = ", ".join(f"{name} {b / _GB:.1f} GB" for name, b in sorted(est.parts.items(), key=lambda p: -p[1])[:3])
+        raise MemoryLimitError(
+            f"scenario {sc.name!r} would need about {est.total / _GB:.1f} GB ({biggest}), above the limit of "
+            f"{limit / _GB:.1f} GB: it has {est.cells:,} cells (area.width_m {sc.area.width_m:g} x area.height_m "
+            f"{sc.area.height_m:g} at area.cell_m {sc.area.cell_m:g}) and {len(sc.uavs)} UAVs over duration_s "
+            f"{sc.duration_s:g}; use a larger area.cell_m or a smaller area, or raise the limit "
+            f"(--memory-limit GB, SWARM_MEMORY_LIMIT_GB)")
+    return est
