@@ -9,6 +9,7 @@ once at ``at_s``.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 
 # This module is the one definition of the fault kinds: their fields, defaults (a field without
@@ -173,6 +174,12 @@ class FaultSchedule:
 
     def add(self, fault: Fault) -> None:
         self.faults.append(fault)
+
+    def __iter__(self) -> Iterator[Fault]:
+        return iter(self.faults)
+
+    def __len__(self) -> int:
+        return len(self.faults)
 
     def kinds(self) -> list[str]:
         return sorted({f.kind for f in self.faults})

@@ -41,3 +41,15 @@ def test_events_read_back_with_names():
     assert all(e[2] in names and e[3] in names for e in events if e[0] == "rx")
     raw = list(read_events(result.events))
     assert {e[2] for e in raw if e[0] == "pose"} == {0, 1, 2}
+
+
+def test_check_events_takes_what_run_result_events_holds_and_schedules_iterate():
+    from faults.schedule import Drop, FaultSchedule
+    from swarm.testing.invariants import check_events
+
+    with Simulation("paper-case1", duration_s=30.0) as sim:
+        result = sim.run()
+        scenario = sim.scenario
+    assert check_events(result.events, scenario) == []
+    schedule = FaultSchedule([Drop(rate=0.5), Drop(rate=0.1, start_s=5.0)])
+    assert [f.rate for f in schedule] == [0.5, 0.1] and len(schedule) == 2

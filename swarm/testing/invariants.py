@@ -949,10 +949,13 @@ def default_checkers(*, live: bool = False, handover: bool = False, liveness: bo
     return out
 
 
-def check_events(events: Iterable[Sequence], scenario: Scenario, checkers: Iterable[Checker] | None = None, *,
+def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checkers: Iterable[Checker] | None = None, *,
                  faults: Iterable[Fault] | None = None) -> list[Violation]:
     """Run ``checkers`` (default: every log-only checker that holds for any planner) over a
-    run's events; returns the violations (empty: all invariants held)."""
+    run's events: decoded events, or the event log's bytes as ``RunResult.events`` and
+    ``events.msgpack`` hold them. Returns the violations (empty: all invariants held)."""
+    if isinstance(events, (bytes, bytearray, memoryview)):
+        events = read_events(bytes(events))
     checkers = list(checkers) if checkers is not None else default_checkers()
     live = [c.name for c in checkers if c.live_only]
     if live:
