@@ -1,0 +1,271 @@
+"""``swarm.env``: the PettingZoo parallel environment ``swarm_search_v0`` (docs/env.md).
+
+Checked against PettingZoo's own API and seed tests, and against the simulator: agents leave on
+a crash and enter when they join, an action is the waypoint the UAV flies from the first tick of
+its step, rewards are the step's ground truth (their sum over agents is the run's coverage and
+targets found), the same seed gives the same episode. Skipped without the ``rl`` extra.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pettingzoo")
+pytest.importorskip("gymnasium")
+
+from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+from agents.planners.dacmp.planner import DacmpPlanner
+from swarm.env import ENV_NAME, ExternalPlanner, RewardWeights, parallel_env, swarm_search_v0
+from swarm.errors import APIMisuseError, UsageError
+from swarm.scenario import apply_overrides, load_scenario
+
+
+def case1(duration_s: float = 120.0, faults=(), joiners=()):
+    """paper-case1, short, with optional faults and extra UAVs (dicts of a [[uavs]] table)."""
+    sc = load_scenario("paper-case1")
+    overrides: dict = {"duration_s": duration_s}
+    if faults:
+        overrides["faults"] = list(faults)
+    if joiners:
+        overrides["uavs"] = [u.model_dump(exclude_none=True) for u in sc.uavs] + list(joiners)
+    return apply_overrides(sc, overrides)
+
+
+def joiner(name: str, join_s: float) -> dict:
+    return {"name": name, "type": "B", "x_m": 45_000.0, "y_m": 25_000.0, "heading_deg": 180.0, "join_s": join_s}
+
+
+def run_random(env, seed: int, action_seed: int = 0):
+    """One episode under a seeded random policy: every step's (obs, rewards, term, trunc, infos)."""
+    rng = np.random.default_rng(action_seed)
+    obs, infos = env.reset(seed=seed)
+    steps = [(obs, {}, {}, {}, infos)]
+    while env.agents:
+        actions = {a: rng.uniform(-1.0, 1.0, 2).astype(np.float32) for a in env.agents}
+        steps.append(env.step(actions))
+    return steps
+
+
+def test_docs_example_runs():
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "env.md").read_text()
+    blocks = [b for b in re.findall(r"```python\n(.*?)```", doc, flags=re.S) if "parallel_env" in b]
+    assert blocks, "docs/env.md lost its usage example"
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(blocks[0], "docs/env.md", "exec"), {"__name__": "__main__"})
+    assert "'B1':" in out.getvalue() and "'A1'" not in out.getvalue()
+
+
+def test_import_swarm_needs_no_pettingzoo():
+    code = (
+        "import sys\n"
+        "import swarm, swarm.simulation\n"
+        "assert 'pettingzoo' not in sys.modules and 'gymnasium' not in sys.modules\n"
+        "sys.modules['pettingzoo'] = None  # as if the rl extra were not installed\n"
+        "try:\n"
+        "    import swarm.env\n"
+        "except ImportError as exc:\n"
+        "    assert 'uav-swarm-sim[rl]' in str(exc), exc\n"
+        "else:\n"
+        "    raise AssertionError('swarm.env imported without pettingzoo')\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+
+
+def test_names_and_version():
+    env = parallel_env(scenario=case1())
+    assert env.metadata["name"] == ENV_NAME == "swarm_search_v0"
+    assert swarm_search_v0.parallel_env is parallel_env
+    assert env.possible_agents == ["B1", "B2", "A1"]
+
+
+def test_pettingzoo_parallel_api():
+    parallel_api_test(parallel_env(scenario=case1()), num_cycles=20)
+
+
+def test_pettingzoo_parallel_api_with_crash_and_joiner():
+    sc = case1(faults=[{"kind": "crash", "uav": "B1", "at_s": 30.0}], joiners=[joiner("B3", 60.0)])
+    parallel_api_test(parallel_env(scenario=sc, controlled=["B"]), num_cycles=20)
+
+
+def test_pettingzoo_seed_test():
+    parallel_seed_test(lambda: parallel_env(scenario="paper-case1"))
+
+
+def test_random_episode_crash_truncation_and_spaces():
+    sc = case1(faults=[{"kind": "crash", "uav": "B1", "at_s": 30.0}])
+    env = parallel_env(scenario=sc)
+    steps = run_random(env, seed=1)
+    assert len(steps) == 1 + 12  # 120 s in steps of replan_s = 10 s
+    finished: set[str] = set()
+    for i, (obs, rewards, term, trunc, infos) in enumerate(steps):
+        assert not finished & set(obs), "an agent came back"
+        for a, o in obs.items():
+            space = env.observation_space(a)
+            assert space.contains(o), (a, o)
+            assert all(v.dtype == np.float32 for v in o.values())
+            assert infos[a]["t"] == pytest.approx(10.0 * i)
+        for a, r in rewards.items():
+            assert isinstance(r, float) and math.isfinite(r)
+            assert isinstance(term[a], bool) and isinstance(trunc[a], bool)
+        finished |= {a for a in term if term[a] or trunc[a]}
+    # The crash at 30 s happens at the start of the step [30, 40): B1 leaves after it.
+    obs, rewards, term, trunc, infos = steps[4]
+    assert term["B1"] and not trunc["B1"] and infos["B1"]["state"] == "crashed"
+    assert not any(term[a] for a in ("B2", "A1"))
+    assert all("B1" not in s[0] for s in steps[5:])
+    # The others are truncated at the scenario's duration.
+    obs, rewards, term, trunc, infos = steps[-1]
+    assert set(obs) == {"B2", "A1"} and all(trunc.values()) and not any(term.values())
+    assert env.agents == [] and env.sim is not None and env.sim.done
+    env.close()
+
+
+def test_late_joiners_enter():
+    sc = case1(joiners=[joiner("B3", 60.0), joiner("B4", 35.0)])
+    env = parallel_env(scenario=sc)
+    steps = run_random(env, seed=0)
+    assert env.possible_agents == ["B1", "B2", "A1", "B3", "B4"]
+    assert set(steps[0][0]) == {"B1", "B2", "A1"}
+    # B4 joins at 35 s (inside the step [30, 40)) and enters when that step ends; B3 joins at
+    # 60 s, a step boundary: it enters at 60 s and flies from the tick at 60 s.
+    first = {a: next(i for i, s in enumerate(steps) if a in s[0]) for a in ("B3", "B4")}
+    assert first == {"B4": 4, "B3": 6}
+    obs, rewards, term, trunc, infos = steps[6]
+    assert rewards["B3"] == 0.0 and not term["B3"] and not trunc["B3"]
+    assert infos["B3"]["state"] == "pending" and infos["B3"]["t"] == 60.0
+    assert steps[4][4]["B4"]["state"] == "alive"
+    assert steps[7][4]["B3"]["state"] == "alive" and steps[7][4]["B3"]["new_cells"] > 0
+    env.close()
+
+
+def test_waiting_for_a_joiner_when_no_agent_flies():
+    """The only flying agent crashes; the episode goes on (the others fly) until the next
+    controlled UAV joins, and that step returns it."""
+    sc = case1(faults=[{"kind": "crash", "uav": "B1", "at_s": 30.0}], joiners=[joiner("B3", 100.0)])
+    env = parallel_env(scenario=sc, controlled=["B1", "B3"])
+    env.reset()
+    for _ in range(3):
+        env.step({"B1": np.array([1.0, 0.0], np.float32)})
+    obs, rewards, term, trunc, infos = env.step({"B1": np.array([1.0, 0.0], np.float32)})
+    assert term == {"B1": True, "B3": False}
+    assert env.agents == ["B3"] and env.sim.now == 100.0 and infos["B3"]["t"] == 100.0
+    env.close()
+
+
+def test_action_is_the_waypoint_flown_from_the_first_tick():
+    env = parallel_env(scenario=case1())
+    env.reset()
+    sim = env.sim
+    b1 = sim.world.uavs[sim.names["B1"]]
+    planner = env._planners["B1"]
+    calls = []  # (t, plan) of every plan request B1 makes
+    answer = planner.plan
+
+    def recorded(view):
+        calls.append((view.t, answer(view)))
+        return calls[-1][1]
+
+    planner.plan = recorded
+    reach = 90.0 * 10.0  # speed_max of type B times the period
+
+    def act(forward, left):
+        x, y, th = b1.x, b1.y, b1.theta
+        _, _, _, _, infos = env.step({"B1": np.array([forward, left], np.float32)})
+        wx = x + forward * reach * math.cos(th) - left * reach * math.sin(th)
+        wy = y + forward * reach * math.sin(th) + left * reach * math.cos(th)
+        assert infos["B1"]["waypoint"] == pytest.approx((wx, wy))
+        return wx, wy
+
+    act(0.5, 0.25)  # half the reach ahead, a quarter to the left
+    # 10% of the reach: reached in the first ticks, so B1 replans inside the step (the same
+    # waypoint again); the next step's action must still take effect at that step's first tick.
+    near = act(0.1, 0.0)
+    inside = [(t, (p.wx, p.wy)) for t, p in calls if 10.0 < t < 20.0]
+    assert inside and all(w == pytest.approx(near) for _, w in inside)
+    far = act(-1.0, 1.0)
+    t, first = next((t, p) for t, p in calls if t >= 20.0)
+    assert t == 20.0 and (first.wx, first.wy) == pytest.approx(far)
+    assert sim.actors[sim.names["B1"]].plan.wx == pytest.approx(far[0])
+    env.close()
+
+
+def test_controlled_by_type_keeps_the_scenario_planner_for_the_rest():
+    env = parallel_env(scenario=case1(), controlled=["A"])
+    assert env.possible_agents == ["A1"]
+    env.reset()
+    planners = {b.name: type(env.sim.actors[uid].planner) for uid, b in env.sim.world.uavs.items()}
+    assert planners == {"B1": DacmpPlanner, "B2": DacmpPlanner, "A1": ExternalPlanner}
+    run_random(env, seed=0)
+    env.close()
+    with pytest.raises(UsageError, match="neither a UAV name"):
+        parallel_env(scenario=case1(), controlled=["C7"])
+
+
+def test_rewards_are_the_ground_truth_of_the_step():
+    weights = {"area": 2.0, "found": 7.0, "violation": -3.0}
+    env = parallel_env(scenario=case1(), rewards=weights)
+    steps = run_random(env, seed=2)
+    cells = found = 0
+    for _obs, rewards, _term, _trunc, infos in steps[1:]:
+        for a, r in rewards.items():
+            i = infos[a]
+            assert r == pytest.approx(2.0 * i["new_area_km2"] + 7.0 * i["found"] - 3.0 * i["violations"])
+            assert i["new_area_km2"] == pytest.approx(i["new_cells"] * 0.01)  # 100 m cells
+            cells += i["new_cells"]
+            found += i["found"]
+    # Every UAV is an agent: their new cells are the run's covered cells, their finds its finds.
+    assert cells == env.sim.metrics.covered_cells > 0
+    assert found == len(env.sim.metrics.found_t)
+    assert RewardWeights.of(weights) == RewardWeights(2.0, 7.0, -3.0)
+    with pytest.raises(UsageError, match="unknown reward weight"):
+        parallel_env(scenario=case1(), rewards={"coverage": 1.0})
+    env.close()
+
+
+def test_same_seed_same_episode():
+    sc = case1(duration_s=60.0)
+    env = parallel_env(scenario=sc, controlled=["B"])  # A1 flies DACMP from its own stream
+    a = run_random(env, seed=5, action_seed=1)
+    assert env.sim.seed == 5
+    b = run_random(env, seed=5, action_seed=1)  # reset again: the same episode
+    c = run_random(parallel_env(scenario=sc, controlled=["B"]), seed=5, action_seed=1)
+    for x, y in ((a, b), (a, c)):
+        assert len(x) == len(y)
+        for sx, sy in zip(x, y):
+            for dx, dy in zip(sx[1:4], sy[1:4]):
+                assert dx == dy
+            assert sx[0].keys() == sy[0].keys()
+            for agent in sx[0]:
+                for key in sx[0][agent]:
+                    np.testing.assert_array_equal(sx[0][agent][key], sy[0][agent][key])
+    env.reset(seed=None)  # the scenario's seed
+    assert env.sim.seed == sc.seed
+    env.close()
+
+
+def test_options_and_misuse():
+    env = parallel_env(scenario=case1(duration_s=30.0), flatten=True, map_size=5, n_tracks=2)
+    obs, _ = env.reset()
+    space = env.observation_space("B1")
+    assert obs["B1"].shape == space.shape == (5 * 5 + 8 + 2 * 6,)
+    assert obs["B1"].dtype == np.float32 and space.contains(obs["B1"])
+    with pytest.raises(UsageError, match="shape"):
+        env.step({"B1": np.zeros(3, np.float32)})
+    with pytest.raises(UsageError, match="unknown agent"):
+        env.step({"Z9": np.zeros(2, np.float32)})
+    env.close()
+    with pytest.raises(APIMisuseError, match="reset"):
+        parallel_env(scenario=case1()).step({})
+    with pytest.raises(UsageError, match="odd"):
+        parallel_env(scenario=case1(), map_size=4)
