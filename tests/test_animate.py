@@ -16,7 +16,9 @@ from swarm.cli import main
 from swarm.viz.animate import (
     DEFAULT_FPS,
     DEFAULT_SPEED,
+    FLASH_MAX_S,
     AnimateError,
+    banner_text,
     ffmpeg_available,
     frame_times,
     prepare_animation,
@@ -61,7 +63,7 @@ def test_replay_rebuilds_ground_truth_exactly(run_dir):
     assert [(t, rp.names[u]) for t, u in rp.crashes] == [(200.0, "B2")]
     texts = [text for _t, text, _k, _u in fault_events(rp)]
     assert "partition B1 | B2,A1 begins" in texts and "partition healed" in texts
-    assert "CRASH B2" in texts and "JOIN A2" in texts and "drop 30% on" in texts
+    assert "B2 crashed" in texts and "A2 joined" in texts and "drop 30% starts" in texts
 
 
 def test_coverage_raster_is_monotone_in_time(run_dir):
@@ -103,17 +105,67 @@ def test_frames_show_partition_crash_and_join(run_dir, tmp_path):
     assert not s.banner.get_visible()
     s = at(60)  # partition B1 | B2,A1: B1's links cut
     assert len(s.links_cut.get_segments()) >= 1 and "partition" in s.active.get_text()
-    s = at(101)  # A2 just joined: flashed
-    assert s.banner.get_visible() and "JOIN A2" in s.banner.get_text()
+    s = at(101)  # A2 just joined: flashed, with the time it joined
+    assert s.banner.get_visible() and "t=100 s: A2 joined" in s.banner.get_text()
     assert len(s.uav_scatters["A"].get_offsets()) == 2
     s = at(201)  # B2 crashed: flashed, wreck drawn, one UAV fewer
-    assert "CRASH B2" in s.banner.get_text() and len(s.wrecks.get_offsets()) == 1
+    assert "t=200 s: B2 crashed" in s.banner.get_text() and len(s.wrecks.get_offsets()) == 1
     assert len(s.uav_scatters["B"].get_offsets()) == 1
     assert "flying   3/4" in s.clock.get_text()
     s = at(290)  # long after: banner gone, drop still active
     assert not s.banner.get_visible() and "drop 30%" in s.active.get_text()
     rgba = np.asarray(s.frame_rgba())
     assert rgba.shape == (600, 800, 4) and len(np.unique(rgba.reshape(-1, 4), axis=0)) > 100
+    del anim
+
+
+def test_banner_shows_each_event_with_its_time_and_only_recent_ones(run_dir, tmp_path):
+    """Default speed (60 simulated s per video second, a frame every 6 s): the banner lists the
+    events of the last FLASH_MAX_S simulated seconds, newest first, each with its time."""
+    job = prepare_animation(run_dir, tmp_path / "a.gif", fps=10, speed=60)
+    anim, scene = job.make_animation()
+    scene.init()
+    assert scene.flash_s == FLASH_MAX_S == 60.0
+    scene.update(19)  # t = 114 s: A2 joined and corrupt ended at 100 s; the partition began 64 s ago
+    text = scene.banner.get_text()
+    assert text.splitlines()[0].startswith("t=100 s: ") and "t=100 s: A2 joined" in text
+    assert "t=100 s: corrupt 10% ends" in text and "partition" not in text
+    scene.update(26)  # t = 156 s: the partition healed at 150 s; the join (56 s ago) is still recent
+    assert scene.banner.get_text().splitlines()[0] == "t=150 s: partition healed"
+    scene.update(28)  # t = 168 s: the join is 68 s old: no longer in the banner
+    assert "A2 joined" not in scene.banner.get_text() and "t=150 s: partition healed" in scene.banner.get_text()
+    scene.update(40)  # t = 240 s: the crash at 200 s was 40 s ago, nothing since
+    assert scene.banner.get_text() == "t=200 s: B2 crashed" and scene.banner.get_visible()
+    scene.update(45)  # t = 270 s: nothing in the last 60 s
+    assert not scene.banner.get_visible() and scene.banner.get_text() == ""
+    events = [(12.0, "x crashed", "crash", 0), (312.4, "B2 crashed", "crash", 1)]
+    assert banner_text(events) == "t=312 s: B2 crashed\nt=12 s: x crashed"
+    assert banner_text(events, lines=1) == "t=312 s: B2 crashed"
+    del anim
+
+
+def test_no_links_to_a_crashed_uav_after_its_crash(run_dir, tmp_path):
+    """B2 crashes at 200 s. With unlimited range every pair of flying UAVs is linked; from the
+    crash on, no link (working, lossy or cut) ends at B2's wreck or anywhere near it."""
+    job = prepare_animation(run_dir, tmp_path / "a.gif", fps=10, speed=10)  # a frame per second
+    anim, scene = job.make_animation()
+    scene.init()
+    scene.range = math.inf
+    b2 = scene.rp.names.index("B2")
+    wreck = np.array(scene.wreck[b2])
+
+    def ends_at_b2() -> int:
+        segs = [seg for lc in (scene.links_ok, scene.links_lossy, scene.links_cut) for seg in lc.get_segments()]
+        return sum(any(np.hypot(*(np.asarray(p) - wreck)) < 1.0 for p in seg) for seg in segs)
+
+    scene.update(199)  # the last tick B2 flies, at the place it crashes: it has links
+    assert ends_at_b2() >= 1
+    for t in (200, 201, 205, 210, 230, 299):
+        scene.update(t)
+        assert ends_at_b2() == 0, f"t={t}: a link is drawn to the crashed B2"
+        n_flying = 3  # B1, A1, A2: every pair linked
+        assert sum(len(lc.get_segments()) for lc in (scene.links_ok, scene.links_lossy, scene.links_cut)) == \
+            n_flying * (n_flying - 1) // 2
     del anim
 
 

@@ -31,7 +31,8 @@ CHROMIUM = "/usr/bin/chromium"
 
 @pytest.fixture(scope="module")
 def reported_run(tmp_path_factory):
-    """faults-small (300 s: partition, late join, crash, drops), its GIF animation and its report."""
+    """faults-small (300 s: partition, late join, crash, drops), its GIF animation and its report.
+    Seconds to build: the tests that use it are marked ``slow`` (test_sweep_report is quick)."""
     out = tmp_path_factory.mktemp("report") / "run"
     assert main(["run", str(DATA / "faults-small.toml"), "--out", str(out), "--quiet"]) == 0
     assert main(["animate", str(out), "--out", str(out / "animation.gif"), "--fps", "5", "--speed", "60",
@@ -87,6 +88,7 @@ def _assert_self_contained(text: str) -> None:
         assert bad not in lowered, f"report contains {bad!r}"
 
 
+@pytest.mark.slow  # the reported_run fixture
 def test_run_report_is_self_contained(reported_run):
     html = (reported_run / "report.html").read_text()
     assert len(html) > 50_000
@@ -101,10 +103,11 @@ def test_run_report_is_self_contained(reported_run):
     assert base64.b64decode(gif[0]) == (reported_run / "animation.gif").read_bytes()
 
 
+@pytest.mark.slow  # the reported_run fixture
 def test_run_report_content(reported_run):
     html = (reported_run / "report.html").read_text()
     for text in ("faults-small", "greedy", "coverage", "certainty", "task load per UAV".split()[0],
-                 "CRASH B2", "JOIN A2", "partition B1 | B2,A1 begins", "partition healed", "drop 30% on",
+                 "B2 crashed", "A2 joined", "partition B1 | B2,A1 begins", "partition healed", "drop 30% starts",
                  "event log SHA-256", "B1", "A2"):
         assert text in html, text
     import json
@@ -161,7 +164,7 @@ def test_sweep_report(tmp_path):
     html = out.read_text()
     _assert_self_contained(html)
     assert "paper-fig11" in html and "radio.loss_base=0.3" in html and "greedy" in html and "dacmp" in html
-    assert "0.74 ± 0.02 [0.71, 0.77]" in html  # mean ± sd [95% interval]
+    assert "0.740 ± 0.020 [0.710, 0.770]" in html  # mean ± sd [95% interval], a fraction with 3 decimals
     assert html.count("<tr>") >= 1 + 4  # header + one row per group
     pngs = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
     assert len(pngs) == 1
@@ -169,6 +172,105 @@ def test_sweep_report(tmp_path):
         assert im.size[0] >= 800 and len(im.convert("RGB").getcolors(1 << 20)) > 50
     # Default output path, and a summary with no groups still gives a page.
     assert write_sweep_report(tmp_path, {"groups": []}).name == "report.html"
+
+
+def _stat(mean, sd=0.0, half=0.0):
+    return {"n": 4, "mean": mean, "sd": sd, "ci95": [mean - half, mean + half]}
+
+
+def _two_planner_summary() -> dict:
+    """dacmp and greedy at one setting; three metrics vary, two are the same in every group."""
+    groups = []
+    for planner, cov, sent, mb in (("dacmp", 0.74, 1234.0, 4.121e6), ("greedy", 0.69, 987.0, 3.2e6)):
+        groups.append({"planner": planner, "settings": {"radio.loss_base": 0.3}, "runs": 4, "metrics": {
+            "coverage": _stat(cov, 0.02, 0.03),
+            "radio.sent": _stat(sent, 40.0, 60.0),
+            "radio.bytes_sent": _stat(mb, 3.34e5, 5.3e5),
+            "violations.threat": _stat(0.0),  # zero everywhere
+            "handovers": _stat(3.0),  # constant, not zero
+        }})
+    # summarize() writes "other - first": greedy - dacmp, with the sweep's first planner (dacmp) the baseline.
+    comparisons = [{"settings": {"radio.loss_base": 0.3}, "planner": "greedy", "baseline": "dacmp", "paired_seeds": 4,
+                    "difference": {"coverage": _stat(-0.05, 0.01, 0.01), "radio.sent": _stat(-247.0, 30.0, 300.0),
+                                   "radio.bytes_sent": _stat(-9.21e5, 1e5, 2e5), "violations.threat": _stat(0.0),
+                                   "handovers": _stat(0.0)}}]
+    return {"scenario": "paper-fig11", "seeds": [1, 2, 3, 4], "groups": groups, "comparisons": comparisons}
+
+
+def test_sweep_report_leaves_out_metrics_that_never_differ(tmp_path, monkeypatch):
+    from swarm.viz import report
+
+    drawn = []
+    real = report.fig_sweep
+    monkeypatch.setattr(report, "fig_sweep", lambda groups, metrics: drawn.append(list(metrics)) or real(groups, metrics))
+    summary = _two_planner_summary()
+    assert report.constant_metrics(summary["groups"]) == {"violations.threat": 0.0, "handovers": 3.0}
+    html = write_sweep_report(tmp_path, summary, tmp_path / "sweep.html").read_text()
+    assert drawn == [["coverage", "radio.sent", "radio.bytes_sent"]]  # one panel each, none for the others
+    heads = re.findall(r"<th>([^<]*)</th>", html.split('id="differences"')[0])
+    assert "violations.threat" not in heads and "handovers" not in heads and "coverage" in heads
+    assert "Not shown, the same in every group: violations.threat = 0; handovers = 3." in html
+    # A single group: only all-zero metrics are left out (nothing to compare with, but a 0 is noise).
+    one = {"groups": summary["groups"][:1]}
+    assert report.constant_metrics(one["groups"]) == {"violations.threat": 0.0}
+
+
+def test_sweep_report_numbers_in_units(tmp_path):
+    html = write_sweep_report(tmp_path, _two_planner_summary(), tmp_path / "sweep.html").read_text()
+    nb = "\u202f"  # thin (narrow no-break) thousands separator
+    assert "<th>radio.bytes_sent (MB)</th>" in html
+    assert "4.12 ± 0.33 [3.59, 4.65]" in html  # 4.121e+06 ± 3.34e+05 bytes
+    assert f"1{nb}234 ± 40 [1{nb}174, 1{nb}294]" in html  # a count
+    assert "e+0" not in html.split("<body>")[1].split("data:image")[0]
+
+
+def test_sweep_report_paired_differences_are_first_minus_second(tmp_path):
+    from swarm.viz.report import paired_differences
+
+    summary = _two_planner_summary()
+    d = paired_differences(summary["comparisons"][0])
+    assert (d["first"], d["second"]) == ("dacmp", "greedy")
+    assert d["difference"]["coverage"]["mean"] == pytest.approx(0.05)
+    assert d["difference"]["coverage"]["ci95"] == pytest.approx([0.04, 0.06])
+    html = write_sweep_report(tmp_path, summary, tmp_path / "sweep.html").read_text()
+    section = html.split('id="differences"')[1]
+    assert "<h3>dacmp \u2212 greedy</h3>" in section
+    # dacmp covers more: positive, and marked better (its interval leaves out zero).
+    assert re.search(r'<td class="num better"[^>]*>\+0\.050 \[\+0\.040, \+0\.060\]</td>', section)
+    assert "<td>radio.bytes_sent (kB)</td>" in section  # bytes in kB, the unit in the row's name
+    assert ">+921 [+721, +1\u202f121]</td>" in section
+    assert "violations.threat" not in section
+    # The summary's own order on request.
+    html = write_sweep_report(tmp_path, summary, tmp_path / "sweep2.html", first_minus_second=False).read_text()
+    section = html.split('id="differences"')[1]
+    assert "<h3>greedy \u2212 dacmp</h3>" in section and "-0.050 [-0.060, -0.040]" in section
+    assert 'class="num worse"' in section
+
+
+def test_sweep_report_escapes_what_it_shows(tmp_path):
+    summary = {"scenario": "<script>alert(1)</script>", "groups": [
+        {"planner": "<b>x</b>", "settings": {"a": "<i>"}, "runs": 1, "metrics": {"coverage": _stat(0.5, 0.1, 0.1)}}]}
+    html = write_sweep_report(tmp_path, summary, tmp_path / "e.html").read_text()
+    _assert_self_contained(html)
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html and "&lt;b&gt;x&lt;/b&gt;" in html and "<i>" not in html
+
+
+def test_report_templates_are_package_data():
+    """The templates ship with the package (a non-editable install finds them) and jinja2 is a
+    declared dependency."""
+    import importlib.resources
+    import tomllib
+
+    root = Path(__file__).resolve().parent.parent
+    project = tomllib.loads((root / "pyproject.toml").read_text())
+    assert any(d.replace(" ", "").startswith("jinja2>=") for d in project["project"]["dependencies"])
+    patterns = project["tool"]["setuptools"]["package-data"]["swarm.viz"]
+    templates = importlib.resources.files("swarm.viz") / "templates"
+    names = sorted(p.name for p in templates.iterdir() if p.is_file())
+    assert {"base.html.j2", "run_report.html.j2", "sweep_report.html.j2"} <= set(names)
+    import fnmatch
+
+    assert all(any(fnmatch.fnmatch(f"templates/{n}", pat) for pat in patterns) for n in names)
 
 
 # --- in a real browser ------------------------------------------------------------------------

@@ -6,15 +6,18 @@ Each frame shows, at one simulated time:
   fresh the scan is (``exp(-tau * age)``, the map certainty of eq. 8); never-scanned cells
   white. It is rebuilt incrementally from the ``pose`` events and each type's detection radius
   (:class:`swarm.viz.replay.CoverageRaster`);
-* UAVs (one colour each, one marker per type), their trails, detection circles, wrecks;
+* UAVs (one colour each, one marker per type: :func:`swarm.viz.style.type_marker`), their
+  trails, detection circles, wrecks;
 * targets: unknown (hollow), found, watched (by a UAV in surveillance mode);
 * threats (radius filled, influence dotted);
-* radio links of the range graph: working (grey), losing more than half of their copies in
-  the last frame interval (orange, from ``rx`` / ``lost`` events), cut by an active partition
-  or to a UAV that just crashed (red dashed);
+* radio links of the range graph between flying UAVs: working (grey), losing more than half
+  of their copies in the last frame interval (orange, from ``rx`` / ``lost`` events), cut by an
+  active partition (red dashed); a crashed UAV has no links from its crash on;
 * a clock, running coverage / targets found / UAVs flying, the faults currently active, and
   fault events (schedule changes from the ``start`` header, crash and join events) flashed as
-  they fire (banner, red border, rings at the UAV).
+  they fire: a banner of the recent ones with their times (``t=200 s: B2 crashed``, newest
+  first, those of the last :data:`FLASH_MAX_S` simulated seconds), a red border, rings at
+  the UAV.
 
 Frame ``k`` shows time ``k * speed / fps`` (``speed``: simulated seconds per second of video),
 so a run of ``D`` seconds gives ``floor(D * fps / speed) + 1`` frames. Saved through
@@ -52,19 +55,36 @@ from swarm.viz.replay import (
     fault_label,
     load_run,
 )
-from swarm.viz.style import km_axes, line_width, many_uavs, natural_key, type_markers, uav_colours
+from swarm.viz.style import (
+    CRASH_MARKER,
+    TARGET_FOUND_COLOUR,
+    km_axes,
+    line_width,
+    many_uavs,
+    natural_key,
+    type_markers,
+    uav_colours,
+)
 
 DEFAULT_FPS = 10
 DEFAULT_SPEED = 60.0  # simulated seconds per second of video: a 2000 s run -> 33 s clip
 DEFAULT_TRAIL_S = 300.0
 DEFAULT_DPI = 80
-FLASH_VIDEO_S = 2.0  # how long (video seconds) a fault event stays flashed
+FLASH_VIDEO_S = 2.0  # how long (video seconds) a fault event stays flashed ...
+FLASH_MAX_S = 60.0  # ... but at most this many simulated seconds (and at least two frames)
+BANNER_LINES = 3  # the newest events shown in the banner
 LOSSY_FRACTION = 0.5
 _TRAIL_POINTS = 120  # at most this many points per trail (decimated)
 
 
 class AnimateError(SwarmError, ValueError):
     """The animation cannot be made as asked (bad option, missing encoder)."""
+
+
+def banner_text(events: list[tuple[float, str, str, int]], lines: int = BANNER_LINES) -> str:
+    """The newest ``lines`` of ``events`` (``(t, text, kind, uid)`` in time order), newest first,
+    each with its time: ``t=200 s: B2 crashed``."""
+    return "\n".join(f"t={t:.0f} s: {text}" for t, text, _kind, _uid in events[-lines:][::-1])
 
 
 def ffmpeg_available() -> bool:
@@ -117,7 +137,7 @@ class _Scene:
         self.rp = rp
         self.times = times
         self.step = speed / fps
-        self.flash_s = max(FLASH_VIDEO_S * speed, 2 * self.step)
+        self.flash_s = max(min(FLASH_VIDEO_S * speed, FLASH_MAX_S), 2 * self.step)
         self.trail_ticks = max(1, int(round(trail_s / rp.dt)))
         self.raster = CoverageRaster(rp)
         self.tau = rp.tau
@@ -203,7 +223,8 @@ class _Scene:
                                                 linewidths=0.5, zorder=5)
         self.type_ids = {typ: np.array([u for u, t in enumerate(rp.types) if t == typ], dtype=int)
                          for typ in self.markers}
-        self.wrecks = ax.scatter([], [], s=size * 1.2, marker="x", c="black", linewidths=1.5, zorder=5)
+        self.wrecks = ax.scatter([], [], s=size * 1.5, marker=CRASH_MARKER, c="black", edgecolors="white",
+                                 linewidths=0.6, zorder=5)
         self.targets = ax.scatter([], [], s=70, marker="*", linewidths=0.8, zorder=6)
         self.rings = ax.scatter([], [], s=900, facecolors="none", linewidths=2.0, zorder=7)
         self.clock = ax.text(0.015, 0.985, "", transform=ax.transAxes, va="top", ha="left", fontsize=11,
@@ -232,14 +253,14 @@ class _Scene:
                                       color=self.colours[rp.names[u]], mec="black",
                                       label=f"{rp.names[u]} ({rp.types[u]})"))
         handles += [
-            Line2D([], [], ls="", marker="x", color="black", label="crashed UAV"),
+            Line2D([], [], ls="", marker=CRASH_MARKER, color="black", mec="white", label="crashed UAV"),
             Line2D([], [], ls="", marker="o", mfc="none", color="0.3", ms=9, label="detection radius"),
             Line2D([], [], ls="", marker="*", mfc="white", mec="0.3", ms=10, label="target, not found"),
-            Line2D([], [], ls="", marker="*", mfc="#ff7f0e", mec="black", ms=10, label="target found"),
+            Line2D([], [], ls="", marker="*", mfc=TARGET_FOUND_COLOUR, mec="black", ms=10, label="target found"),
             Line2D([], [], ls="", marker="*", mfc="#2ca02c", mec="black", ms=12, label="target watched"),
             Line2D([], [], color="0.35", lw=1, label="radio link"),
             Line2D([], [], color="#ff8c00", lw=1.5, label=f"link losing >{LOSSY_FRACTION:.0%}"),
-            Line2D([], [], color="#d62728", lw=1.5, ls="--", label="link cut (partition/crash)"),
+            Line2D([], [], color="#d62728", lw=1.5, ls="--", label="link cut (partition)"),
         ]
         if rp.threats:
             handles.append(Patch(color="red", alpha=0.35, label="threat"))
@@ -294,8 +315,8 @@ class _Scene:
         self.image.set_data(fresh)
 
         x, y = rp.x[i], rp.y[i]
-        flying = np.isfinite(x)
         crashed = np.array([u in self.crash_t and self.crash_t[u] <= t + 1e-9 for u in range(n)], dtype=bool)
+        flying = np.isfinite(x) & ~crashed  # a UAV that crashed during the tick shown is down
         pos = np.column_stack([np.nan_to_num(x), np.nan_to_num(y)])
 
         for typ, sc in self.uav_scatters.items():
@@ -328,7 +349,7 @@ class _Scene:
         self.trails.set_segments(segs)
         self.trails.set_colors(cols if cols else [(0, 0, 0, 0)])
 
-        self._links(t, flying, pos, crashed)
+        self._links(t, flying, pos)
         self._targets(t, i, flying)
         coverage = self.raster.coverage()
         found = int(np.count_nonzero(rp.found_t <= t + 1e-9))
@@ -339,13 +360,14 @@ class _Scene:
         self._faults(t, pos, flying)
         return self.artists()
 
-    def _links(self, t: float, flying: np.ndarray, pos: np.ndarray, crashed: np.ndarray) -> None:
+    def _links(self, t: float, flying: np.ndarray, pos: np.ndarray) -> None:
+        """Links between flying UAVs in range (a crashed UAV is not flying: no link to it)."""
         rp = self.rp
         n = rp.n_uavs
         alive = np.flatnonzero(flying)
         ok_segs = np.empty((0, 2, 2))
         lossy_segs = np.empty((0, 2, 2))
-        cut_parts = []
+        cut_segs = np.empty((0, 2, 2))
         if len(alive) >= 2:
             ii, jj = np.triu_indices(len(alive), 1)
             a, b = alive[ii], alive[jj]
@@ -376,20 +398,10 @@ class _Scene:
             seg = np.stack([pos[a], pos[b]], axis=1)
             ok_segs = seg[~cut & ~lossy]
             lossy_segs = seg[lossy]
-            cut_parts.append(seg[cut])
-        # Links to UAVs that crashed recently: what the survivors just lost.
-        for u in np.flatnonzero(crashed):
-            if t - self.crash_t[u] > self.flash_s or self.wreck.get(u) is None or len(alive) == 0:
-                continue
-            wx, wy = self.wreck[u]
-            dist = np.hypot(pos[alive, 0] - wx, pos[alive, 1] - wy)
-            peers = alive[dist <= self.range]
-            if len(peers):
-                wreck = np.broadcast_to(np.array([wx, wy]), (len(peers), 2))
-                cut_parts.append(np.stack([pos[peers], wreck], axis=1))
+            cut_segs = seg[cut]
         self.links_ok.set_segments(ok_segs)
         self.links_lossy.set_segments(lossy_segs)
-        self.links_cut.set_segments(np.concatenate(cut_parts) if cut_parts else np.empty((0, 2, 2)))
+        self.links_cut.set_segments(cut_segs)
 
     def _targets(self, t: float, i: int, flying: np.ndarray) -> None:
         rp = self.rp
@@ -402,7 +414,7 @@ class _Scene:
             if k in watched:
                 face.append("#2ca02c")
             elif rp.found_t[k] <= t + 1e-9:
-                face.append("#ff7f0e")
+                face.append(TARGET_FOUND_COLOUR)
             else:
                 face.append("white")
         self.targets.set_offsets(np.column_stack([tx[ids], ty[ids]]) if len(ids) else np.empty((0, 2)))
@@ -415,12 +427,13 @@ class _Scene:
         if recent:
             age = t - recent[-1][0]
             alpha = 1.0 - 0.6 * age / self.flash_s
-            self.banner.set_text("\n".join(e[1] for e in recent[-3:][::-1]))
+            self.banner.set_text(banner_text(recent, BANNER_LINES))
             self.banner.set_visible(True)
             self.banner.get_bbox_patch().set_alpha(0.9 * alpha)
             self.border.set_visible(True)
             self.border.set_alpha(alpha)
         else:
+            self.banner.set_text("")
             self.banner.set_visible(False)
             self.border.set_visible(False)
         ring_xy, ring_c = [], []

@@ -2,51 +2,134 @@
 
 Drawn on a :class:`matplotlib.figure.Figure` with its own Agg canvas (no display needed, and the
 host program's pyplot backend is left alone). Colours come from
-:func:`swarm.viz.style.uav_colours`; with many UAVs the legend lists types instead of every UAV
-so it stays legible.
+:func:`swarm.viz.style.uav_colours`, markers from :func:`swarm.viz.style.type_marker`; with many
+UAVs the legend lists types instead of every UAV so it stays legible.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import IO
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch
 
-from swarm.viz.style import many_uavs, uav_colours
+from swarm.viz.style import (
+    COVERAGE_GREY,
+    CRASH_MARKER,
+    TARGET_FOUND_COLOUR,
+    TARGET_NOT_FOUND_COLOUR,
+    many_uavs,
+    natural_key,
+    type_marker,
+    uav_colours,
+)
+
+__all__ = ["crashed_uavs", "found_targets", "trajectories_figure", "trajectories_plot"]
 
 
-def trajectories_figure(result, path: Path, title: str | None = None) -> None:
-    """UAV paths, target paths, threats and the final coverage map (like the paper's Fig. 9)."""
+def found_targets(result) -> set[int] | None:
+    """Ids of the targets found (seen at least once) in a run, or None if the metrics do not say.
+
+    ``metrics.json``'s ``surveillance_ratio`` has one entry per found target (keyed by its id as
+    a string), from the same record as ``targets_found``; used only when the two agree.
+    """
+    m = result.metrics or {}
+    ratio = m.get("surveillance_ratio")
+    if not isinstance(ratio, dict):
+        return None
+    try:
+        ids = {int(k) for k in ratio}
+    except (TypeError, ValueError):
+        return None
+    if m.get("targets_found") is not None and m["targets_found"] != len(ids):
+        return None
+    return ids
+
+
+def crashed_uavs(result) -> set[str]:
+    """Names of the UAVs whose final state is ``crashed`` (``metrics.json`` ``per_uav``)."""
+    per = (result.metrics or {}).get("per_uav") or {}
+    return {name for name, p in per.items() if isinstance(p, dict) and p.get("state") == "crashed"}
+
+
+def trajectories_plot(result, title: str | None = None) -> Figure:
+    """The figure of :func:`trajectories_figure`, not saved (to inspect or embed)."""
     w, h = result.area
-    fig = Figure(figsize=(7.5, 7.0), dpi=110)
+    fig = Figure(figsize=(9.6, 7.0), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.subplots()
     covered = np.isfinite(result.union_last_seen)
-    ax.imshow(np.where(covered, 1.0, 0.0), origin="lower", extent=(0, w / 1000, 0, h / 1000),
-              cmap="Greys", vmin=0, vmax=4, alpha=0.9, interpolation="nearest")
+    grey = ListedColormap(["white", COVERAGE_GREY])
+    ax.imshow(covered.astype(np.uint8), origin="lower", extent=(0, w / 1000, 0, h / 1000), cmap=grey, vmin=0,
+              vmax=1, interpolation="nearest", zorder=0)
     colours = uav_colours(list(result.paths))
     many = many_uavs(len(result.paths))
-    for name, p in sorted(result.paths.items()):
-        if len(p) == 0:
-            continue
+    crashed = crashed_uavs(result)
+    types = result.uav_types or {}
+    handles: list[Artist] = []
+    type_counts: dict[str, int] = {}
+    for name, p in sorted(result.paths.items(), key=lambda kv: natural_key(kv[0])):
+        typ = types.get(name, "?")
+        type_counts[typ] = type_counts.get(typ, 0) + 1
+        marker = type_marker(typ)
         colour = colours[name]
-        ax.plot(p[:, 1] / 1000, p[:, 2] / 1000, "-", lw=0.9 if not many else 0.5, color=colour,
-                label=None if many else f"{name} ({result.uav_types.get(name, '?')})")
-        ax.plot(p[-1, 1] / 1000, p[-1, 2] / 1000, "o", ms=4, color=colour)
-    for k, (tid, p) in enumerate(sorted(result.target_paths.items())):
+        if not many:
+            handles.append(Line2D([], [], ls="-", lw=0.9, color=colour, marker=marker, ms=5, mec="black", mew=0.5,
+                                  label=f"{name} ({typ})" + (", crashed" if name in crashed else "")))
         if len(p) == 0:
             continue
-        ax.plot(p[:, 1] / 1000, p[:, 2] / 1000, "--", lw=0.8, color="black",
-                label="targets" if k == 0 else None)
-        ax.plot(p[-1, 1] / 1000, p[-1, 2] / 1000, "*", ms=7, color="black")
-    for k, th in enumerate(result.threats):
-        ax.add_patch(Circle((th.x / 1000, th.y / 1000), th.radius / 1000, color="red", alpha=0.35,
-                            label="threats" if k == 0 else None))
+        ax.plot(p[:, 1] / 1000, p[:, 2] / 1000, "-", lw=0.9 if not many else 0.5, color=colour, zorder=3)
+        if name in crashed:
+            ax.plot(p[-1, 1] / 1000, p[-1, 2] / 1000, CRASH_MARKER, ms=8 if not many else 5, color=colour,
+                    mec="black", mew=0.6, zorder=5, clip_on=False)
+        else:
+            ax.plot(p[-1, 1] / 1000, p[-1, 2] / 1000, marker, ms=5 if not many else 3.5, color=colour,
+                    mec="black", mew=0.5, zorder=5, clip_on=False)
+    if many:
+        for typ in sorted(type_counts):
+            handles.append(Line2D([], [], ls="-", lw=0.5, color="0.4", marker=type_marker(typ), mec="black",
+                                  label=f"type {typ} ({type_counts[typ]} UAVs)"))
+    if crashed:
+        handles.append(Line2D([], [], ls="", marker=CRASH_MARKER, ms=8, color="0.45", mec="black", mew=0.6,
+                              label=f"crashed ({len(crashed)})"))
+
+    found = found_targets(result)
+    n_found = n_lost = 0
+    drew_path = False
+    for tid, p in sorted(result.target_paths.items()):
+        if len(p) == 0:
+            continue
+        ax.plot(p[:, 1] / 1000, p[:, 2] / 1000, "--", lw=0.8, color="black", zorder=2)
+        drew_path = True
+        hit = found is not None and tid in found
+        n_found += hit
+        n_lost += not hit
+        ax.plot(p[-1, 1] / 1000, p[-1, 2] / 1000, "*", ms=11 if hit else 10,
+                mfc=TARGET_FOUND_COLOUR if hit else TARGET_NOT_FOUND_COLOUR, mec="black", mew=0.7 if hit else 1.1,
+                zorder=6, clip_on=False)
+    if drew_path:
+        handles.append(Line2D([], [], ls="--", lw=0.8, color="black", label="target path"))
+    if found is not None:
+        handles.append(Line2D([], [], ls="", marker="*", ms=11, mfc=TARGET_FOUND_COLOUR, mec="black", mew=0.7,
+                              label=f"target found ({n_found})"))
+        handles.append(Line2D([], [], ls="", marker="*", ms=10, mfc=TARGET_NOT_FOUND_COLOUR, mec="black", mew=1.1,
+                              label=f"target not found ({n_lost})"))
+    elif drew_path:  # metrics without per-target detection: one neutral symbol
+        handles.append(Line2D([], [], ls="", marker="*", ms=10, mfc="0.5", mec="black",
+                              label=f"target, end ({n_lost})"))
+    for th in result.threats:
+        ax.add_patch(Circle((th.x / 1000, th.y / 1000), th.radius / 1000, color="red", alpha=0.35, zorder=1))
         ax.add_patch(Circle((th.x / 1000, th.y / 1000), th.d_max / 1000, fill=False, color="red",
-                            ls=":", lw=0.7))
+                            ls=":", lw=0.7, zorder=1))
+    if result.threats:
+        handles.append(Patch(color="red", alpha=0.35, label="threat"))
+    handles.append(Patch(fc=COVERAGE_GREY, ec="0.5", lw=0.5, label="scanned at least once"))
     ax.set_xlim(0, w / 1000)
     ax.set_ylim(0, h / 1000)
     ax.set_aspect("equal")
@@ -56,6 +139,17 @@ def trajectories_figure(result, path: Path, title: str | None = None) -> None:
     ax.set_title(title or f"{m['scenario']} · {m['planner']} · seed {m['seed']} · "
                  f"coverage {m['coverage']:.3f} · targets {m['targets_found']}/{m['targets_total']}",
                  fontsize=9)
-    ax.legend(loc="upper right", fontsize=7, framealpha=0.8, ncol=2 if not many else 1)
+    # Beside the map, not over it: nothing of the run is hidden under the legend.
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7,
+              frameon=False, ncol=2 if len(handles) > 30 else 1)
     fig.tight_layout()
-    fig.savefig(path)
+    return fig
+
+
+def trajectories_figure(result, path: str | Path | IO[bytes], title: str | None = None) -> None:
+    """UAV paths (end marker by type; a cross where a UAV crashed), target paths with found and
+    never-found targets apart, threats and the final coverage map (like the paper's Fig. 9),
+    saved to ``path``: a file name (format from its suffix) or a binary file object (PNG)."""
+    fig = trajectories_plot(result, title)
+    suffix = Path(path).suffix.lstrip(".").lower() if isinstance(path, (str, Path)) else ""
+    fig.savefig(path, format=suffix or "png")

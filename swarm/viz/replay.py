@@ -336,15 +336,16 @@ def fault_events(rp: Replay) -> list[tuple[float, str, str, int]]:
         if kind in ("crash", "join"):
             continue
         label = fault_label(f)
-        out.append((float(f.get("start_s", 0.0)), label + (" begins" if kind == "partition" else " on"), kind, -1))
+        out.append((float(f.get("start_s", 0.0)), label + (" begins" if kind == "partition" else " starts"),
+                    str(kind), -1))
         end = f.get("end_s")
         if end is not None and end <= rp.duration:
-            out.append((float(end), "partition healed" if kind == "partition" else label + " off", kind + "-end", -1))
+            out.append((float(end), "partition healed" if kind == "partition" else label + " ends", f"{kind}-end", -1))
     for t, uid in rp.crashes:
-        out.append((t, f"CRASH {rp.names[uid]}", "crash", uid))
+        out.append((t, f"{rp.names[uid]} crashed", "crash", uid))
     for t, uid in rp.joins:
         if t > 0:
-            out.append((t, f"JOIN {rp.names[uid]}", "join", uid))
+            out.append((t, f"{rp.names[uid]} joined", "join", uid))
     out.sort(key=lambda e: e[0])
     return out
 

@@ -2,7 +2,10 @@
 
 A report is one ``.html`` file that opens offline: inline CSS, no scripts, every figure a PNG
 ``data:`` URI, the run's animation (if one was made) a GIF ``data:`` URI or an MP4 base64
-``<video>`` source. Nothing is fetched from anywhere.
+``<video>`` source. Nothing is fetched from anywhere. The pages are Jinja2 templates
+(``swarm/viz/templates/``: ``base.html.j2``, ``run_report.html.j2``, ``sweep_report.html.j2``,
+``macros.html.j2``, ``report.css``), rendered with autoescaping; this module computes what they
+show.
 
 A run report holds the scenario summary, the metrics (``metrics.json``), figures — trajectories
 over the first-scan map, coverage and certainty over time (``timeseries.csv``), targets found
@@ -10,25 +13,33 @@ and watched over time, task load per UAV (seconds in search vs surveillance, sta
 paper's Fig. 14), radio counters — and a fault timeline (schedule windows, crashes, joins and
 every UAV's state over time). Figures use km axes, one colour per UAV and legends that list
 types instead of UAVs beyond 12 UAVs.
+
+A sweep report holds a table of every metric that differs between groups (mean ± sd [95%
+interval], in readable units: :func:`swarm.viz.style.metric_unit`), one panel per such metric,
+and the paired differences of the sweep's ``comparisons`` written as "first planner − second"
+(``summary.json`` stores them as ``other − first``; the report flips them).
 """
 
 from __future__ import annotations
 
 import base64
-import html
+import functools
 import io
 import math
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
 from matplotlib import colormaps
+from matplotlib.artist import Artist
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from comms.messages import MODE_SURVEIL
 from swarm.errors import SwarmError
@@ -42,17 +53,36 @@ from swarm.viz.replay import (
     load_run,
 )
 from swarm.viz.style import (
+    CRASH_MARKER,
     MODE_COLOURS,
+    TARGET_FOUND_COLOUR,
+    TARGET_NOT_FOUND_COLOUR,
+    THIN_SEP,
+    format_metric,
     km_axes,
     line_width,
     many_uavs,
+    metric_unit,
     natural_key,
     type_markers,
     uav_colours,
 )
 
+__all__ = [
+    "ReportError",
+    "build_run_report",
+    "build_sweep_report",
+    "constant_metrics",
+    "find_animation",
+    "paired_differences",
+    "render",
+    "write_report",
+    "write_sweep_report",
+]
+
 ANIMATION_NAMES = ("animation.mp4", "animation.gif")
 _DPI = 100
+MINUS = "\u2212"  # in "dacmp − greedy"
 
 
 class ReportError(SwarmError, ValueError):
@@ -73,11 +103,8 @@ def _png_uri(fig: Figure) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _e(value) -> str:
-    return html.escape(str(value), quote=True)
-
-
 def _fmt(value) -> str:
+    """A table cell's text: numbers short (``0.7423``, ``12``), None and NaN ``–``."""
     if isinstance(value, bool):
         return "yes" if value else "no"
     if isinstance(value, float):
@@ -93,48 +120,33 @@ def _fmt(value) -> str:
     return str(value)
 
 
-def _table(rows: list[tuple], header: tuple | None = None, cls: str = "kv") -> str:
-    out = [f'<table class="{cls}">' if cls else "<table>"]
-    if header:
-        out.append("<thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead>")
-    out.append("<tbody>")
-    for row in rows:
-        out.append("<tr>" + "".join(f"<td>{_e(_fmt(c))}</td>" for c in row) + "</tr>")
-    out.append("</tbody></table>")
-    return "".join(out)
+def _cell(text, cls: str | None = None, title: str | None = None) -> dict:
+    """A table cell with a CSS class (``num``: right-aligned) and a tooltip."""
+    return {"text": text, "cls": cls, "title": title}
 
 
-_CSS = """
-body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:0;background:#f4f5f7;color:#222}
-main{max-width:1120px;margin:0 auto;padding:18px 24px 40px}
-h1{font-size:1.5em;margin:.2em 0}h2{font-size:1.2em;margin:1.6em 0 .5em;border-bottom:2px solid #dde;padding-bottom:4px}
-.sub{color:#555;margin-bottom:10px}
-nav a{margin-right:12px;color:#2b5ea7;text-decoration:none;font-size:.9em}
-.cards{display:flex;flex-wrap:wrap;gap:10px;margin:12px 0}
-.card{background:#fff;border:1px solid #dde;border-radius:6px;padding:8px 14px;min-width:120px}
-.card b{display:block;font-size:1.35em}.card span{color:#666;font-size:.8em}
-.row{display:flex;flex-wrap:wrap;gap:18px;align-items:flex-start}
-.row>div{flex:1 1 340px}
-table{border-collapse:collapse;background:#fff;font-size:.85em;margin:4px 0}
-th,td{border:1px solid #dde;padding:3px 8px;text-align:left;vertical-align:top}
-th{background:#eef1f6}td:not(:first-child){font-variant-numeric:tabular-nums}
-figure{background:#fff;border:1px solid #dde;border-radius:6px;margin:10px 0;padding:8px;text-align:center}
-figure img,figure video{max-width:100%;height:auto}
-figcaption{color:#555;font-size:.85em;margin-top:4px;text-align:left}
-.kv td:first-child{white-space:nowrap}.kv td{overflow-wrap:anywhere}
-.scroll{overflow-x:auto}.note{color:#777;font-style:italic}
-"""
+@functools.cache
+def _environment() -> Environment:
+    env = Environment(
+        loader=PackageLoader("swarm.viz", "templates"),
+        autoescape=select_autoescape(enabled_extensions=("html.j2", "html"), default_for_string=True, default=True),
+        undefined=StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+    env.filters["fmt"] = _fmt
+    return env
 
 
-def _page(title: str, body: str) -> str:
-    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
-            f"<title>{_e(title)}</title><style>{_CSS}</style></head>\n<body><main>\n{body}\n</main></body></html>\n")
+def render(template: str, **context: Any) -> str:
+    """Render one of the report templates (``run_report.html.j2``, ``sweep_report.html.j2``)."""
+    context.setdefault("written", f"{datetime.now(UTC):%Y-%m-%d %H:%M}")
+    return _environment().get_template(template).render(**context)
 
 
-def _figure(uri: str, caption: str, alt: str, width: int | None = None) -> str:
-    w = f' width="{width}"' if width else ""
-    return f'<figure><img src="{uri}" alt="{_e(alt)}"{w}><figcaption>{_e(caption)}</figcaption></figure>'
+def _figure(fig: Figure, caption: str, alt: str, width: int | None = None) -> dict:
+    return {"uri": _png_uri(fig), "caption": caption, "alt": alt, "width": width}
 
 
 # --- run figures ------------------------------------------------------------------------------
@@ -175,20 +187,26 @@ def fig_trajectories(rp: Replay) -> Figure:
         ax.plot(xs[ok], ys[ok], "-", lw=lw, color=c, zorder=3)
         j = np.flatnonzero(ok)
         ax.plot(xs[j[0]], ys[j[0]], "o", ms=3, mfc="white", mec=c, zorder=4)
-        end_marker = "x" if u in crashed else markers[rp.types[u]]
-        ax.plot(xs[j[-1]], ys[j[-1]], end_marker, ms=6 if not many else 4, color=c, clip_on=False,
-                mec="black" if u not in crashed else c, mew=0.5 if u not in crashed else 1.5, zorder=5)
+        if u in crashed:
+            ax.plot(xs[j[-1]], ys[j[-1]], CRASH_MARKER, ms=8 if not many else 5, color=c, clip_on=False,
+                    mec="black", mew=0.6, zorder=5)
+        else:
+            ax.plot(xs[j[-1]], ys[j[-1]], markers[rp.types[u]], ms=6 if not many else 4, color=c, clip_on=False,
+                    mec="black", mew=0.5, zorder=5)
+    n_found = n_lost = 0
     for k in range(rp.n_targets):
         tx, ty = rp.target_x[:, k], rp.target_y[:, k]
         ok = np.isfinite(tx)
         if not ok.any():
             continue
         ax.plot(tx[ok], ty[ok], "--", lw=0.7, color="black", zorder=2)
-        found = np.isfinite(rp.found_t[k])
+        found = bool(np.isfinite(rp.found_t[k]))
+        n_found += found
+        n_lost += not found
         j = np.flatnonzero(ok)[-1]
-        ax.plot(tx[j], ty[j], "*", ms=9, mfc="#ff7f0e" if found else "white", mec="black", mew=0.6, zorder=6,
-                clip_on=False)
-    handles = []
+        ax.plot(tx[j], ty[j], "*", ms=10 if found else 9, mfc=TARGET_FOUND_COLOUR if found else TARGET_NOT_FOUND_COLOUR,
+                mec="black", mew=0.6 if found else 1.0, zorder=6, clip_on=False)
+    handles: list[Artist] = []
     if many:
         for typ, m in markers.items():
             count = rp.types.count(typ)
@@ -198,19 +216,23 @@ def fig_trajectories(rp: Replay) -> Figure:
     else:
         for u in sorted(range(rp.n_uavs), key=lambda u: natural_key(rp.names[u])):
             handles.append(Line2D([], [], ls="-", lw=lw, color=colours[rp.names[u]], marker=markers[rp.types[u]],
-                                  mec="black", label=f"{rp.names[u]} ({rp.types[u]})"))
+                                  mec="black", label=f"{rp.names[u]} ({rp.types[u]})"
+                                  + (", crashed" if u in crashed else "")))
     handles += [Line2D([], [], ls="", marker="o", ms=4, mfc="white", mec="0.3", label="start"),
-                Line2D([], [], ls="--", lw=0.7, color="black", marker="*", ms=8, mfc="#ff7f0e", mec="black",
-                       label="target (found)"),
-                Line2D([], [], ls="", marker="*", ms=8, mfc="white", mec="black", label="target (never found)")]
+                Line2D([], [], ls="--", lw=0.7, color="black", label="target path"),
+                Line2D([], [], ls="", marker="*", ms=9, mfc=TARGET_FOUND_COLOUR, mec="black", mew=0.6,
+                       label=f"target found ({n_found})"),
+                Line2D([], [], ls="", marker="*", ms=9, mfc=TARGET_NOT_FOUND_COLOUR, mec="black", mew=1.0,
+                       label=f"target not found ({n_lost})")]
     if crashed:
-        handles.append(Line2D([], [], ls="", marker="x", color="0.2", mew=1.5, label="crashed"))
+        handles.append(Line2D([], [], ls="", marker=CRASH_MARKER, ms=8, color="0.45", mec="black", mew=0.6,
+                              label=f"crashed ({len(crashed)})"))
     if rp.threats:
         handles.append(Patch(color="red", alpha=0.35, label="threat"))
     fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.8, 0.94), fontsize=7, frameon=False)
-    m = rp.metrics or {}
+    metrics = rp.metrics or {}
     ax.set_title(f"{rp.header.get('scenario', '?')} · {rp.header.get('planner', '?')} · seed "
-                 f"{rp.header.get('seed', '?')} · coverage {m.get('coverage', float('nan')):.3f}", fontsize=9)
+                 f"{rp.header.get('seed', '?')} · coverage {metrics.get('coverage', float('nan')):.3f}", fontsize=9)
     return fig
 
 
@@ -428,19 +450,16 @@ def find_animation(run_dir: str | Path) -> Path | None:
     return max(found, key=lambda p: p.stat().st_mtime) if found else None
 
 
-def _animation_html(path: Path | None) -> str:
+def _animation(path: Path | None) -> dict | None:
+    """What the template embeds of the animation: its kind, ``data:`` URI, name and size."""
     if path is None:
-        return ('<p class="note">No animation in this run folder. Make one with <code>swarm animate RUNDIR</code>, '
-                'then run <code>swarm report RUNDIR</code> again to embed it.</p>')
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    if path.suffix.lower() == ".gif":
-        media = f'<img src="data:image/gif;base64,{data}" alt="animation of the run">'
-    elif path.suffix.lower() == ".mp4":
-        media = (f'<video controls loop muted playsinline><source src="data:video/mp4;base64,{data}" '
-                 'type="video/mp4">Your browser cannot play MP4 video.</video>')
-    else:
+        return None
+    kind = path.suffix.lower().lstrip(".")
+    if kind not in ("gif", "mp4"):
         raise ReportError(f"{path}: an animation must be .gif or .mp4")
-    return f"<figure>{media}<figcaption>{_e(path.name)} ({path.stat().st_size / 1e6:.1f} MB)</figcaption></figure>"
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    mime = "image/gif" if kind == "gif" else "video/mp4"
+    return {"kind": kind, "uri": f"data:{mime};base64,{data}", "name": path.name, "mb": path.stat().st_size / 1e6}
 
 
 def _scenario_rows(rp: Replay) -> list[tuple]:
@@ -477,9 +496,14 @@ def _scenario_rows(rp: Replay) -> list[tuple]:
     return rows
 
 
+
+def _count(m: dict, key: str) -> str:
+    return format_metric(key, m.get(key)) if m.get(key) is not None else "–"
+
+
 def _metrics_rows(m: dict) -> list[tuple]:
-    r = m.get("radio", {})
-    v = m.get("violations", {})
+    r = m.get("radio", {}) or {}
+    v = m.get("violations", {}) or {}
     rows = [
         ("simulated / wall", f"{_fmt(m.get('sim_seconds'))} s / {_fmt(m.get('wall_seconds'))} s"),
         ("coverage", f"{m.get('coverage', float('nan')):.4f}"),
@@ -487,12 +511,12 @@ def _metrics_rows(m: dict) -> list[tuple]:
         ("targets found", f"{m.get('targets_found')} / {m.get('targets_total')}"),
         ("surveillance ratio (mean)", f"{m.get('surveillance_ratio_mean', float('nan')):.3f}"),
         ("handovers (fast to slow)", f"{m.get('handovers')} ({m.get('handovers_fast_to_slow')})"),
-        ("radio sent / delivered", f"{r.get('sent')} / {r.get('delivered')}"),
-        ("radio dropped / rejected", f"{r.get('dropped')} / {r.get('rejected')}"),
+        ("radio sent / delivered", f"{_count(r, 'sent')} / {_count(r, 'delivered')}"),
+        ("radio dropped / rejected", f"{_count(r, 'dropped')} / {_count(r, 'rejected')}"),
         ("radio dropped by cause",
-         ", ".join(f"{k} {n}" for k, n in (r.get("dropped_by_cause") or {}).items()) or "none"),
+         ", ".join(f"{k} {format_metric(k, n)}" for k, n in (r.get("dropped_by_cause") or {}).items()) or "none"),
         ("radio bytes sent / duplicated / in flight",
-         f"{r.get('bytes_sent')} / {r.get('duplicated')} / {r.get('in_flight')}"),
+         f"{_count(r, 'bytes_sent')} / {_count(r, 'duplicated')} / {_count(r, 'in_flight')}"),
         ("violations separation / threat / dynamics",
          f"{v.get('separation')} / {v.get('threat')} / {v.get('dynamics')}"),
         ("faults applied", ", ".join(f"{k} {n}" for k, n in (m.get("faults_applied") or {}).items()) or "none"),
@@ -502,29 +526,21 @@ def _metrics_rows(m: dict) -> list[tuple]:
 
 
 def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
-    """The HTML text of a run's report."""
+    """The HTML text of a run's report (``run_report.html.j2``)."""
     m = rp.metrics or {}
     hd = rp.header
     title = f"{hd.get('scenario', 'run')} · {hd.get('planner', '?')} · seed {hd.get('seed', '?')}"
-    parts = [f"<h1>{_e(title)}</h1>",
-             f'<div class="sub">run folder <code>{_e(run_dir.resolve())}</code> · report written '
-             f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>",
-             '<nav><a href="#figures">figures</a><a href="#animation">animation</a><a href="#faults">faults</a>'
-             '<a href="#scenario">scenario</a><a href="#metrics">metrics</a><a href="#uavs">UAVs</a></nav>']
     cards = [("coverage", f"{m.get('coverage', float('nan')):.3f}"),
              ("certainty", f"{m.get('certainty', float('nan')):.3f}"),
              ("targets found", f"{m.get('targets_found', '?')} / {m.get('targets_total', rp.n_targets)}"),
              ("surveillance ratio", f"{m.get('surveillance_ratio_mean', float('nan')):.3f}"),
-             ("handovers", m.get("handovers", "–")),
+             ("handovers", _fmt(m.get("handovers"))),
              ("UAVs", rp.n_uavs),
              ("simulated", f"{_fmt(rp.duration)} s")]
-    parts.append('<div class="cards">' + "".join(f"<div class=\"card\"><b>{_e(v)}</b><span>{_e(k)}</span></div>"
-                                                 for k, v in cards) + "</div>")
-    parts.append('<h2 id="figures">Figures</h2>')
-    figs = [
-        (fig_trajectories(rp), "Trajectories: UAV paths (one colour each, end marker by type), target paths "
-                               "(dashed), threats (red), over the map of when each cell was first scanned.",
-         "trajectories", 820),
+    specs = [
+        (fig_trajectories(rp), "Trajectories: UAV paths (one colour each, end marker by type, a cross where a UAV "
+                               "crashed), target paths (dashed; filled star: found, hollow: never found), threats "
+                               "(red), over the map of when each cell was first scanned.", "trajectories", 820),
         (fig_coverage(rp), "Coverage and certainty over time (timeseries.csv); shaded: partitions; dashed: "
                            "crashes (red) and late joins (green).", "coverage and certainty", None),
         (fig_targets(rp), "Targets found (first detection) and targets watched by a UAV in surveillance mode.",
@@ -534,51 +550,42 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
         (fig_radio(rp), "Radio: cumulative frame copies sent, delivered, dropped and rejected; per-interval "
                         "delivery; drops by cause (metrics.json).", "radio counters", None),
     ]
-    for fig, caption, alt, width in figs:
-        if fig is None:
-            parts.append(f'<p class="note">{_e(alt)}: no timeseries.csv in the run folder.</p>')
-            continue
-        parts.append(_figure(_png_uri(fig), caption, alt, width))
-    parts.append('<h2 id="animation">Animation</h2>')
-    parts.append(_animation_html(animation))
-    parts.append('<h2 id="faults">Fault timeline</h2>')
-    parts.append(_figure(_png_uri(fig_fault_timeline(rp)),
-                         "Fault windows from the schedule in the event log's start header (orange: link faults, "
-                         "red: partitions), crashes and late joins, and every UAV's state over time.",
-                         "fault timeline"))
-    events = fault_events(rp)
-    if events:
-        parts.append(_table([(f"{t:g} s", text) for t, text, _k, _u in events], ("time", "event")))
-    else:
-        parts.append('<p class="note">No faults in this run.</p>')
-    applied = m.get("faults_applied") or {}
-    if applied:
-        parts.append("<p>Times each fault kind changed something (metrics.json <code>faults_applied</code>):</p>")
-        parts.append(_table(sorted(applied.items()), ("kind", "times applied")))
-    parts.append('<div class="row"><div><h2 id="scenario">Scenario</h2>' + _table(_scenario_rows(rp)) + "</div>"
-                 '<div><h2 id="metrics">Metrics</h2>'
-                 + (_table(_metrics_rows(m)) if m else '<p class="note">No metrics.json in the run folder.</p>')
-                 + "</div></div>")
-    parts.append('<h2 id="uavs">UAVs</h2>')
+    figures = [_figure(fig, caption, alt, width) if fig is not None else {"uri": None, "alt": alt}
+               for fig, caption, alt, width in specs]
+    timeline = _figure(fig_fault_timeline(rp), "Fault windows from the schedule in the event log's start header "
+                       "(orange: link faults, red: partitions), crashes and late joins, and every UAV's state over "
+                       "time.", "fault timeline")
     secs = rp.mode_seconds()
-    per = m.get("per_uav", {})
-    rows = []
+    per = m.get("per_uav", {}) or {}
+    uav_rows = []
     for u in _uav_order(rp):
         name = rp.names[u]
         p = per.get(name, {})
         s = secs[name]
-        rows.append((name, rp.types[u], p.get("state", "–"), s["search"], s["surveil"], s["not flying"],
-                     p.get("frames_sent"), p.get("frames_delivered"), p.get("frames_rejected"), p.get("plans")))
-    header = ("UAV", "type", "final state", "search s", "surveillance s", "not flying s", "frames sent",
-              "frames received", "frames rejected", "plans")
-    parts.append('<div class="scroll">' + _table(rows, header, cls="grid") + "</div>")
+        uav_rows.append((name, rp.types[u], p.get("state", "–"), s["search"], s["surveil"], s["not flying"],
+                         p.get("frames_sent"), p.get("frames_delivered"), p.get("frames_rejected"), p.get("plans")))
     handovers = m.get("handover_list") or []
-    if handovers:
-        parts.append("<h2>Handovers</h2>")
-        parts.append(_table([(f"{h['t']:g} s", h["target"], f"{h['from']} ({h['from_type']})",
-                              f"{h['to']} ({h['to_type']})", f"{h['latency_s']:g} s") for h in handovers],
-                            ("time", "target", "from", "to", "latency")))
-    return _page(f"Report: {title}", "\n".join(parts))
+    return render(
+        "run_report.html.j2",
+        title=f"Report: {title}",
+        heading=title,
+        run_dir=str(run_dir.resolve()),
+        nav=[("figures", "figures"), ("animation", "animation"), ("faults", "faults"), ("scenario", "scenario"),
+             ("metrics", "metrics"), ("uavs", "UAVs")],
+        card_items=cards,
+        figures=figures,
+        animation=_animation(animation),
+        fault_timeline=timeline,
+        fault_rows=[(f"{t:g} s", text) for t, text, _k, _u in fault_events(rp)],
+        applied_rows=sorted((m.get("faults_applied") or {}).items()),
+        scenario_rows=_scenario_rows(rp),
+        metric_rows=_metrics_rows(m) if m else [],
+        uav_rows=uav_rows,
+        uav_header=("UAV", "type", "final state", "search s", "surveillance s", "not flying s", "frames sent",
+                    "frames received", "frames rejected", "plans"),
+        handover_rows=[(f"{h['t']:g} s", h["target"], f"{h['from']} ({h['from_type']})", f"{h['to']} ({h['to_type']})",
+                        f"{h['latency_s']:g} s") for h in handovers],
+    )
 
 
 def write_report(run_dir: str | Path, out: str | Path | None = None, animation: str | Path | None = None) -> Path:
@@ -591,6 +598,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, animation: 
     rp = load_run(d)
     if rp.metrics is None:
         raise RunDirError(f"{d / 'metrics.json'}: missing; a complete run folder has it (written last by `swarm run`)")
+    anim: Path | None
     if animation is not None:
         anim = Path(animation)
         if not anim.is_file():
@@ -609,6 +617,12 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, animation: 
 
 # --- sweep report -----------------------------------------------------------------------------
 
+# Metrics where a higher value is plainly better (+1) or worse (-1); paired differences of the
+# others are only marked as differing.
+BETTER_DIRECTION = {"coverage": 1, "certainty": 1, "targets_found": 1, "surveillance_ratio_mean": 1,
+                    "violations.separation": -1, "violations.threat": -1, "violations.dynamics": -1}
+
+
 def _num(v) -> float:
     try:
         return float(v)
@@ -616,9 +630,12 @@ def _num(v) -> float:
         return float("nan")
 
 
+def _settings_text(settings: dict | None) -> str:
+    return ", ".join(f"{k}={_fmt(v)}" for k, v in (settings or {}).items())
+
+
 def _group_label(g: dict) -> str:
-    settings = g.get("settings") or {}
-    s = ", ".join(f"{k}={_fmt(v)}" for k, v in settings.items())
+    s = _settings_text(g.get("settings"))
     return f"{g.get('planner', '?')}" + (f" · {s}" if s else "")
 
 
@@ -631,9 +648,72 @@ def _metric_names(groups: list[dict]) -> list[str]:
     return names
 
 
+def _stat(g: dict, metric: str) -> dict:
+    s = (g.get("metrics") or {}).get(metric)
+    return s if isinstance(s, dict) else {}
+
+
+def _ci(s: dict) -> tuple[float, float] | None:
+    ci = s.get("ci95")
+    if isinstance(ci, (list, tuple)) and len(ci) == 2:
+        lo, hi = _num(ci[0]), _num(ci[1])
+        if math.isfinite(lo) and math.isfinite(hi):
+            return lo, hi
+    return None
+
+
+def constant_metrics(groups: list[dict], metrics: list[str] | None = None) -> dict[str, float]:
+    """``{metric: value}`` of the metrics that are the same in every group: every group has a
+    finite mean, all means are equal and no group has a spread (sd 0 or none). They carry no
+    comparison, so the report lists them in one line instead of a column and a panel each.
+    With a single group only all-zero metrics count (one group has nothing to compare with, but
+    zero counters are still noise)."""
+    out: dict[str, float] = {}
+    if not groups:
+        return out
+    for metric in metrics if metrics is not None else _metric_names(groups):
+        stats = [_stat(g, metric) for g in groups]
+        if any(not s for s in stats):
+            continue
+        means = [_num(s.get("mean")) for s in stats]
+        sds = [_num(s.get("sd")) for s in stats]
+        if not all(math.isfinite(x) for x in means) or any(math.isfinite(sd) and sd != 0 for sd in sds):
+            continue
+        ref = means[0]
+        if all(abs(x - ref) <= 1e-12 * max(1.0, abs(ref)) for x in means) and (len(groups) > 1 or ref == 0):
+            out[metric] = ref
+    return out
+
+
+def _column_unit(groups: list[dict], metric: str):
+    mags = [abs(_num(_stat(g, metric).get("mean"))) for g in groups]
+    mags = [x for x in mags if math.isfinite(x)]
+    return metric_unit(metric, max(mags) if mags else 0.0)
+
+
+def _stat_text(unit, s: dict) -> str:
+    """``0.740 ± 0.020 [0.710, 0.770]`` in ``unit`` (spread and interval when there are)."""
+    text = unit.number(s.get("mean"))
+    sd = _num(s.get("sd"))
+    if math.isfinite(sd) and text != "–":
+        text += f" ± {unit.number(sd)}"
+    ci = _ci(s)
+    if ci is not None and text != "–":
+        text += f" [{unit.number(ci[0])}, {unit.number(ci[1])}]"
+    return text
+
+
+def _with_unit(metric: str, unit) -> str:
+    return f"{metric} ({unit.suffix})" if unit.suffix else metric
+
+
+def _tick_formatter() -> FuncFormatter:
+    return FuncFormatter(lambda v, _pos: f"{v:,.6g}".replace(",", THIN_SEP))
+
+
 def fig_sweep(groups: list[dict], metrics: list[str]) -> Figure:
     """One panel per metric: a bar per group at its mean, whiskers its 95% interval, a dot at
-    the mean; colour by planner."""
+    the mean; colour by planner; values in the metric's unit (:func:`metric_unit`)."""
     n_g = len(groups)
     cols = 2 if len(metrics) > 1 else 1
     rows = math.ceil(len(metrics) / cols)
@@ -646,15 +726,16 @@ def fig_sweep(groups: list[dict], metrics: list[str]) -> Figure:
     labels = [_group_label(g) for g in groups]
     y = np.arange(n_g)
     for ax, metric in zip(axes, metrics):
-        mean = np.array([_num((g.get("metrics") or {}).get(metric, {}).get("mean")) for g in groups])
+        unit = _column_unit(groups, metric)
+        mean = np.array([_num(_stat(g, metric).get("mean")) for g in groups]) / unit.scale
         lo = np.full(n_g, np.nan)
         hi = np.full(n_g, np.nan)
         for i, g in enumerate(groups):
-            ci = (g.get("metrics") or {}).get(metric, {}).get("ci95")
-            if isinstance(ci, (list, tuple)) and len(ci) == 2:
-                lo[i], hi[i] = _num(ci[0]), _num(ci[1])
+            ci = _ci(_stat(g, metric))
+            if ci is not None:
+                lo[i], hi[i] = ci[0] / unit.scale, ci[1] / unit.scale
         colours = [pc[str(g.get("planner", "?"))] for g in groups]
-        ax.barh(y, np.nan_to_num(mean), color=colours, alpha=0.35, height=0.6)
+        ax.barh(y, np.nan_to_num(mean, posinf=0.0, neginf=0.0), color=colours, alpha=0.35, height=0.6)
         err = np.vstack([np.clip(mean - lo, 0, None), np.clip(hi - mean, 0, None)])
         has = np.isfinite(err).all(axis=0)
         ax.errorbar(mean[has], y[has], xerr=err[:, has], fmt="none", ecolor="black", elinewidth=1.2, capsize=3)
@@ -662,13 +743,15 @@ def fig_sweep(groups: list[dict], metrics: list[str]) -> Figure:
         ax.set_yticks(y)
         ax.set_yticklabels(labels, fontsize=8)
         ax.invert_yaxis()
-        ax.set_title(metric, fontsize=9)
+        ax.set_title(_with_unit(metric, unit), fontsize=9)
+        ax.xaxis.set_major_formatter(_tick_formatter())
         ax.grid(axis="x", alpha=0.3)
         finite = np.concatenate([mean[np.isfinite(mean)], lo[np.isfinite(lo)], hi[np.isfinite(hi)]])
         if finite.size:
-            top = float(finite.max())
+            top = max(0.0, float(finite.max()))
             left = min(0.0, float(finite.min()))
-            ax.set_xlim(left, top + 0.08 * (top - left if top > left else 1.0))
+            pad = 0.08 * (top - left if top > left else 1.0)
+            ax.set_xlim(left - (pad if left < 0 else 0.0), top + pad)
     for ax in axes[len(metrics):]:
         ax.set_visible(False)
     fig.legend(handles=[Patch(color=pc[p], label=p) for p in planners], loc="lower center", ncol=len(planners),
@@ -678,60 +761,132 @@ def fig_sweep(groups: list[dict], metrics: list[str]) -> Figure:
     return fig
 
 
-def build_sweep_report(sweep_dir: Path, summary: dict) -> str:
+def paired_differences(comparison: dict, first_minus_second: bool = True) -> dict:
+    """One entry of ``summary["comparisons"]`` (``planner − baseline``, per metric, as
+    :func:`swarm.experiments.sweep.summarize` writes it) turned around to "first − second":
+    ``{"first", "second", "settings", "paired_seeds", "difference": {metric: {"mean", "sd",
+    "ci95"}}}`` where ``first`` is the sweep's first planner (the summary's ``baseline``).
+    ``first_minus_second=False`` keeps the summary's own ``second − first``."""
+    base, other = str(comparison.get("baseline", "?")), str(comparison.get("planner", "?"))
+    sign = -1.0 if first_minus_second else 1.0
+    diffs = {}
+    for metric, s in (comparison.get("difference") or {}).items():
+        if not isinstance(s, dict):
+            continue
+        d = dict(s)
+        d["mean"] = sign * _num(s.get("mean"))
+        ci = _ci(s)
+        d["ci95"] = sorted((sign * ci[0], sign * ci[1])) if ci is not None else None
+        diffs[metric] = d
+    first, second = (base, other) if first_minus_second else (other, base)
+    return {"first": first, "second": second, "settings": dict(comparison.get("settings") or {}),
+            "paired_seeds": comparison.get("paired_seeds"), "difference": diffs}
+
+
+def _difference_cell(metric: str, unit, d: dict | None) -> dict:
+    if not d:
+        return _cell("–", "num")
+    mean = _num(d.get("mean"))
+    text = unit.number(mean, signed=True)
+    ci = _ci(d)
+    cls = "num"
+    if ci is not None:
+        text += f" [{unit.number(ci[0], signed=True)}, {unit.number(ci[1], signed=True)}]"
+        if ci[0] > 0 or ci[1] < 0:
+            direction = BETTER_DIRECTION.get(metric, 0) * (1 if ci[0] > 0 else -1)
+            cls += " better" if direction > 0 else " worse" if direction < 0 else " differs"
+    sd = _num(d.get("sd"))
+    return _cell(text, cls, f"sd {unit.format(sd)}; {d.get('n', '?')} paired seeds" if math.isfinite(sd) else None)
+
+
+def _difference_tables(comparisons: list, metrics: list[str], first_minus_second: bool) -> list[dict]:
+    """One table per planner pair: a row per metric, a column per setting."""
+    pairs: dict[tuple[str, str], list[dict]] = {}
+    for c in comparisons:
+        if isinstance(c, dict):
+            d = paired_differences(c, first_minus_second)
+            pairs.setdefault((d["first"], d["second"]), []).append(d)
+    tables = []
+    for (first, second), ds in pairs.items():
+        names = [m for m in metrics if any(m in d["difference"] for d in ds)]
+        if not names:
+            continue
+        header = ["metric"] + [f"{_settings_text(d['settings']) or 'all runs'} ({_fmt(d['paired_seeds'])} paired seeds)"
+                               for d in ds]
+        rows = []
+        for metric in names:
+            mags = [abs(_num(d["difference"].get(metric, {}).get("mean"))) for d in ds]
+            mags = [x for x in mags if math.isfinite(x)]
+            unit = metric_unit(metric, max(mags) if mags else 0.0)
+            rows.append([_with_unit(metric, unit)]
+                        + [_difference_cell(metric, unit, d["difference"].get(metric)) for d in ds])
+        tables.append({"title": f"{first} {MINUS} {second}", "header": header, "rows": rows})
+    return tables
+
+
+def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bool = True) -> str:
+    """The HTML text of a sweep's report (``sweep_report.html.j2``); see :func:`write_sweep_report`."""
     groups = summary.get("groups")
     if not isinstance(groups, list):
         raise ReportError(f"{sweep_dir}: summary has no 'groups' list")
-    metrics = _metric_names(groups)
+    every = _metric_names(groups)
+    constant = constant_metrics(groups, every)
+    metrics = [m for m in every if m not in constant]
     title = f"Sweep: {summary.get('scenario', sweep_dir.name)}"
-    parts = [f"<h1>{_e(title)}</h1>",
-             f'<div class="sub">sweep folder <code>{_e(sweep_dir.resolve())}</code> · {len(groups)} groups · '
-             f"{sum(int(r) for r in (_num(g.get('runs')) for g in groups) if math.isfinite(r))} runs · report written "
-             f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>",
-             '<nav><a href="#summary">summary</a><a href="#comparison">comparison</a></nav>']
-    extra = [(k, ", ".join(_fmt(x) for x in v) if isinstance(v, list) else _fmt(v)) for k, v in summary.items()
-             if k != "groups" and (isinstance(v, (str, int, float, bool)) or v is None
-                                   or (isinstance(v, list) and all(isinstance(x, (str, int, float)) for x in v)))]
-    if extra:
-        parts.append(_table(extra, ("setting", "value")))
-    parts.append('<h2 id="summary">Summary</h2>')
-    rows = []
+    settings_rows = [(k, ", ".join(_fmt(x) for x in v) if isinstance(v, list) else _fmt(v)) for k, v in summary.items()
+                     if k not in ("groups", "comparisons")
+                     and (isinstance(v, (str, int, float, bool)) or v is None
+                          or (isinstance(v, list) and all(isinstance(x, (str, int, float)) for x in v)))]
+    units = {m: _column_unit(groups, m) for m in metrics}
+    summary_rows = []
     for g in groups:
-        settings = ", ".join(f"{k}={_fmt(v)}" for k, v in (g.get("settings") or {}).items()) or "–"
-        row = [g.get("planner", "?"), settings, g.get("runs", "–")]
+        row: list = [g.get("planner", "?"), _settings_text(g.get("settings")) or "–", g.get("runs", "–")]
         for metric in metrics:
-            s = (g.get("metrics") or {}).get(metric)
-            if not s:
-                row.append("–")
-                continue
-            ci = s.get("ci95")
-            ci_ok = isinstance(ci, (list, tuple)) and len(ci) == 2
-            ci_txt = f" [{_fmt(_num(ci[0]))}, {_fmt(_num(ci[1]))}]" if ci_ok else ""
-            row.append(f"{_fmt(_num(s.get('mean')))} ± {_fmt(_num(s.get('sd')))}{ci_txt}")
-        rows.append(tuple(row))
-    header = ("planner", "settings", "runs", *metrics)
-    parts.append('<div class="scroll">' + _table(rows, header, cls="grid") + "</div>")
-    parts.append('<p class="note">Cells: mean ± standard deviation [95% interval] over the runs of a group.</p>')
-    parts.append('<h2 id="comparison">Comparison</h2>')
-    if metrics and groups:
-        parts.append(_figure(_png_uri(fig_sweep(groups, metrics)),
-                             "Each metric per group: bar and dot at the mean, whiskers the 95% interval; colour "
-                             "by planner.", "sweep comparison"))
-    else:
-        parts.append('<p class="note">No metrics to compare.</p>')
-    return _page(title, "\n".join(parts))
+            s = _stat(g, metric)
+            row.append(_cell(_stat_text(units[metric], s) if s else "–", "num"))
+        summary_rows.append(row)
+    left_out = [f"{m} = {format_metric(m, v)}" for m, v in constant.items()]
+    sweep_figure = (_figure(fig_sweep(groups, metrics), "Each metric that differs between groups: bar and dot at "
+                            "the mean, whiskers the 95% interval; colour by planner.", "sweep comparison")
+                    if metrics and groups else None)
+    comparisons = summary.get("comparisons") or []
+    differences = _difference_tables(comparisons if isinstance(comparisons, list) else [], metrics,
+                                     first_minus_second)
+    nav = [("summary", "summary"), ("comparison", "comparison")] + ([("differences", "paired differences")]
+                                                                    if differences else [])
+    n_runs = sum(int(r) for r in (_num(g.get("runs")) for g in groups) if math.isfinite(r))
+    return render(
+        "sweep_report.html.j2",
+        title=title,
+        heading=title,
+        sweep_dir=str(sweep_dir.resolve()),
+        n_groups=len(groups),
+        n_runs=n_runs,
+        nav=nav,
+        settings_rows=settings_rows,
+        summary_header=["planner", "settings", "runs", *(_with_unit(m, units[m]) for m in metrics)],
+        summary_rows=summary_rows,
+        left_out=left_out,
+        sweep_figure=sweep_figure,
+        differences=differences,
+        order_text="first planner minus second" if first_minus_second else "second planner minus first",
+    )
 
 
-def write_sweep_report(sweep_dir: str | Path, summary: dict, out_path: str | Path | None = None) -> Path:
+def write_sweep_report(sweep_dir: str | Path, summary: dict, out_path: str | Path | None = None, *,
+                       first_minus_second: bool = True) -> Path:
     """Write the HTML report of a sweep (default ``SWEEP_DIR/report.html``).
 
     ``summary`` has the shape of the sweep's ``summary.json``: ``{"groups": [{"planner": str,
     "settings": {key: value}, "runs": int, "metrics": {name: {"mean": float, "sd": float,
-    "ci95": [lo, hi]}}}], ...}``; other top-level scalar entries are listed as settings.
+    "ci95": [lo, hi]}}}], "comparisons": [...], ...}``; other top-level scalar entries are listed
+    as settings. Metrics that are the same in every group are named in one line, not tabled or
+    drawn. Paired comparisons are shown as "first planner − second" (the summary's baseline
+    minus the other planner; ``first_minus_second=False``: the summary's own order).
     """
     d = Path(sweep_dir)
     out = Path(out_path) if out_path is not None else d / "report.html"
     if not out.parent.is_dir():
         raise ReportError(f"{out.parent}: no such folder")
-    atomic_write(out, build_sweep_report(d, summary).encode("utf-8"))
+    atomic_write(out, build_sweep_report(d, summary, first_minus_second=first_minus_second).encode("utf-8"))
     return out
