@@ -32,10 +32,12 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
+from matplotlib.artist import Artist
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.colors import ListedColormap
@@ -109,25 +111,25 @@ class _BlitGifWriter(PillowWriter):
     3, so a few hundred frames stay small; a GIF is palettised anyway)."""
 
     def __init__(self, scene: _Scene, fps: float):
-        super().__init__(fps=fps)
+        super().__init__(fps=fps)  # type: ignore[arg-type]  # the stubs say int; any positive fps works
         self.scene = scene
 
     def grab_frame(self, **savefig_kwargs):
         w, h = self.scene.fig.canvas.get_width_height()
-        im = Image.frombuffer("RGBA", (w, h), self.scene.frame_rgba(), "raw", "RGBA", 0, 1)
-        self._frames.append(im.convert("RGB").quantize(colors=255, method=Image.Quantize.FASTOCTREE,
-                                                       dither=Image.Dither.NONE))
+        im = Image.frombuffer("RGBA", (w, h), self.scene.frame_rgba(), "raw", "RGBA", 0, 1)  # type: ignore[arg-type]
+        frame = im.convert("RGB").quantize(colors=255, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+        self._frames.append(frame)  # type: ignore[attr-defined]  # PillowWriter's own frame list
 
 
 class _BlitMp4Writer(FFMpegWriter):
     """FFMpegWriter fed raw RGBA frames from the scene's blitted canvas."""
 
     def __init__(self, scene: _Scene, fps: float, **kwargs):
-        super().__init__(fps=fps, **kwargs)
+        super().__init__(fps=fps, **kwargs)  # type: ignore[arg-type]  # as above
         self.scene = scene
 
     def grab_frame(self, **savefig_kwargs):
-        self._proc.stdin.write(bytes(self.scene.frame_rgba()))
+        self._proc.stdin.write(bytes(self.scene.frame_rgba()))  # type: ignore[attr-defined]  # MovieWriter's pipe
 
 
 class _Scene:
@@ -176,10 +178,10 @@ class _Scene:
         FigureCanvasAgg(fig)
         # No GUI here: Animation.save's per-frame draw_idle would re-render the whole figure for nothing
         # (frames come from frame_rgba).
-        fig.canvas.draw_idle = lambda *a, **k: None
+        fig.canvas.draw_idle = lambda *a, **k: None  # type: ignore[method-assign]
         self.fig = fig
-        self._background = None
-        self._background_size = None
+        self._background: Any = None  # the Agg canvas's saved region
+        self._background_size: tuple[int, int] | None = None
         ax = fig.add_axes((0.07, 0.08, 0.62, 0.84))
         self.ax = ax
         km_axes(ax, w, h)
@@ -241,7 +243,7 @@ class _Scene:
 
     def _legend(self) -> None:
         rp = self.rp
-        handles = []
+        handles: list[Artist] = []
         if self.many:
             for typ, marker in self.markers.items():
                 count = int(np.count_nonzero(np.array(rp.types) == typ))
@@ -285,7 +287,7 @@ class _Scene:
     def frame_rgba(self) -> memoryview:
         """The current frame as RGBA bytes: the static background (axes, ticks, legend, colour
         bar: drawn once) restored, then only the changing artists drawn over it (blitting)."""
-        canvas = self.fig.canvas
+        canvas = cast(FigureCanvasAgg, self.fig.canvas)  # attached in _build
         size = canvas.get_width_height()
         if self._background is None or self._background_size != size:
             drawn = self._drawn()
@@ -323,8 +325,8 @@ class _Scene:
             ids = self.type_ids[typ]
             ids = ids[flying[ids]]
             sc.set_offsets(pos[ids] if len(ids) else np.empty((0, 2)))
-            sc.set_facecolors(self.col[ids] if len(ids) else np.empty((0, 4)))
-        wreck_ids = [u for u in np.flatnonzero(crashed) if self.wreck.get(u) is not None]
+            sc.set_facecolor(self.col[ids] if len(ids) else np.empty((0, 4)))  # type: ignore[arg-type]  # RGBA rows
+        wreck_ids = [u for u in np.flatnonzero(crashed).tolist() if self.wreck.get(u) is not None]
         self.wrecks.set_offsets(np.array([self.wreck[u] for u in wreck_ids]).reshape(-1, 2))
 
         d = np.where(flying, 2 * self.radius, 0.0)
@@ -399,9 +401,10 @@ class _Scene:
             ok_segs = seg[~cut & ~lossy]
             lossy_segs = seg[lossy]
             cut_segs = seg[cut]
-        self.links_ok.set_segments(ok_segs)
-        self.links_lossy.set_segments(lossy_segs)
-        self.links_cut.set_segments(cut_segs)
+        # An (n, 2, 2) array is a sequence of segments; the stubs only name sequences.
+        self.links_ok.set_segments(ok_segs)  # type: ignore[arg-type]
+        self.links_lossy.set_segments(lossy_segs)  # type: ignore[arg-type]
+        self.links_cut.set_segments(cut_segs)  # type: ignore[arg-type]
 
     def _targets(self, t: float, i: int, flying: np.ndarray) -> None:
         rp = self.rp
@@ -418,8 +421,8 @@ class _Scene:
             else:
                 face.append("white")
         self.targets.set_offsets(np.column_stack([tx[ids], ty[ids]]) if len(ids) else np.empty((0, 2)))
-        self.targets.set_facecolors(face if face else "none")
-        self.targets.set_edgecolors(["0.3" if f == "white" else "black" for f in face] if face else "none")
+        self.targets.set_facecolor(face if face else "none")
+        self.targets.set_edgecolor(["0.3" if f == "white" else "black" for f in face] if face else "none")
         self.targets.set_sizes([110 if f == "#2ca02c" else 70 for f in face] if face else [70])
 
     def _faults(self, t: float, pos: np.ndarray, flying: np.ndarray) -> None:
@@ -429,7 +432,9 @@ class _Scene:
             alpha = 1.0 - 0.6 * age / self.flash_s
             self.banner.set_text(banner_text(recent, BANNER_LINES))
             self.banner.set_visible(True)
-            self.banner.get_bbox_patch().set_alpha(0.9 * alpha)
+            patch = self.banner.get_bbox_patch()
+            if patch is not None:
+                patch.set_alpha(0.9 * alpha)
             self.border.set_visible(True)
             self.border.set_alpha(alpha)
         else:
@@ -444,7 +449,7 @@ class _Scene:
                     ring_xy.append(where)
                     ring_c.append("#d62728" if kind == "crash" else "#2ca02c")
         self.rings.set_offsets(np.array(ring_xy, dtype=float).reshape(-1, 2))
-        self.rings.set_edgecolors(ring_c if ring_c else "none")
+        self.rings.set_edgecolor(ring_c if ring_c else "none")
         active = [label for start, end, label in self.windowed if start <= t < end]
         self.active.set_text(("faults active:\n  " + "\n  ".join(active)) if active else "")
 
@@ -481,6 +486,7 @@ class AnimationJob:
         """
         anim, scene = self.make_animation()
         out_path = self.out_path
+        writer: _BlitMp4Writer | _BlitGifWriter
         if out_path.suffix.lower() == ".mp4":
             writer = _BlitMp4Writer(scene, self.fps, codec="h264", extra_args=["-pix_fmt", "yuv420p"],
                                     metadata={"title": f"{self.replay.header.get('scenario', '')} replay"})
