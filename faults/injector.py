@@ -98,7 +98,8 @@ class FaultInjector:
 
     # --- the radio's LinkFilter -------------------------------------------------------------
 
-    def filter(self, t: float, src: int, dst: int, data: bytes, rng: np.random.Generator):
+    def filter(self, t: float, src: int, dst: int, data: bytes,
+               rng: np.random.Generator) -> tuple[list[tuple[float, bytes]], str | None]:
         if self.blocked(src, dst):
             self.fired["partition"] += 1
             return [], "partition"
@@ -106,7 +107,7 @@ class FaultInjector:
             return [(0.0, data)], None
         extra = 0.0
         n_copies = 1
-        for i, (f, scope) in enumerate(self._active):
+        for f, scope in self._active:
             if not scope.covers(src, dst):
                 continue
             if type(f) is Drop:

@@ -9,8 +9,9 @@ once at ``at_s``.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, field
+from typing import Any, ClassVar, Literal
 
 # This module is the one definition of the fault kinds: their fields, defaults (a field without
 # one is required, here and in a scenario's [[faults]] table) and the bounds a value must keep.
@@ -33,6 +34,8 @@ class LinkFault:
     links: tuple[tuple[str, str], ...] = field(
         default=(), metadata={"expected": "an array of [sender, receiver] UAV name pairs (empty = all)"}
     )
+    # Each kind's tag: a class variable, not a field (the subclasses give the value).
+    kind: ClassVar[str]
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
@@ -46,7 +49,7 @@ class Drop(LinkFault):
     """i.i.d. loss of each frame copy with probability ``rate``."""
 
     rate: float = field(metadata=_PROBABILITY)
-    kind = "drop"
+    kind: ClassVar[Literal["drop"]] = "drop"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,7 +60,7 @@ class Burst(LinkFault):
     p_exit_bad: float = field(metadata={"gt": 0, "le": 1})
     loss_good: float = field(default=0.0, metadata=_PROBABILITY)
     loss_bad: float = field(default=1.0, metadata=_PROBABILITY)
-    kind = "burst"
+    kind: ClassVar[Literal["burst"]] = "burst"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -66,7 +69,7 @@ class Delay(LinkFault):
 
     extra_s: float = field(metadata={"ge": 0})
     jitter_s: float = field(default=0.0, metadata={"ge": 0})
-    kind = "delay"
+    kind: ClassVar[Literal["delay"]] = "delay"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -74,7 +77,7 @@ class Duplicate(LinkFault):
     """One more copy of a frame with probability ``rate``."""
 
     rate: float = field(metadata=_PROBABILITY)
-    kind = "duplicate"
+    kind: ClassVar[Literal["duplicate"]] = "duplicate"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,7 +86,7 @@ class Corrupt(LinkFault):
 
     rate: float = field(metadata=_PROBABILITY)
     bytes: int = field(default=1, metadata={"ge": 1, "note": "bytes flipped per corrupted frame"})
-    kind = "corrupt"
+    kind: ClassVar[Literal["corrupt"]] = "corrupt"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -100,7 +103,7 @@ class Partition:
     start_s: float = field(default=0.0, metadata=_START)
     end_s: float = field(default=math.inf, metadata=_END)
     one_way: bool = False
-    kind = "partition"
+    kind: ClassVar[Literal["partition"]] = "partition"
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
@@ -123,7 +126,7 @@ class Crash:
 
     uav: str = field(metadata=_UAV)
     at_s: float = field(metadata={"ge": 0})
-    kind = "crash"
+    kind: ClassVar[Literal["crash"]] = "crash"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -132,17 +135,17 @@ class Join:
 
     uav: str = field(metadata=_UAV)
     at_s: float = field(metadata={"ge": 0})
-    kind = "join"
+    kind: ClassVar[Literal["join"]] = "join"
 
 
 Fault = Drop | Burst | Delay | Duplicate | Corrupt | Partition | Crash | Join
 # In the order error messages list them ("kind = one of: drop, burst, partition, ...").
-FAULT_KINDS: dict[str, type] = {
+FAULT_KINDS: dict[str, type[Fault]] = {
     cls.kind: cls for cls in (Drop, Burst, Partition, Delay, Duplicate, Corrupt, Crash, Join)
 }
 
 
-def fault_to_dict(f: Fault) -> dict:
+def fault_to_dict(f: Fault) -> dict[str, Any]:
     d = asdict(f)
     for k, v in list(d.items()):
         if isinstance(v, float) and math.isinf(v):
@@ -150,7 +153,7 @@ def fault_to_dict(f: Fault) -> dict:
     return {"kind": f.kind, **d}
 
 
-def fault_from_dict(d: dict) -> Fault:
+def fault_from_dict(d: Mapping[str, Any]) -> Fault:
     """Inverse of :func:`fault_to_dict` (validated input, e.g. a scenario's ``[[faults]]``)."""
     d = dict(d)
     cls = FAULT_KINDS[d.pop("kind")]
@@ -184,5 +187,5 @@ class FaultSchedule:
     def kinds(self) -> list[str]:
         return sorted({f.kind for f in self.faults})
 
-    def to_list(self) -> list[dict]:
+    def to_list(self) -> list[dict[str, Any]]:
         return [fault_to_dict(f) for f in self.faults]

@@ -32,8 +32,11 @@ import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from types import CodeType, FrameType
+from typing import Any
 
 import agents.actor
 import agents.maps.grid
@@ -76,9 +79,9 @@ _ACTOR_FILE = agents.actor.__file__
 _RADIO_FILE = comms.radio.__file__
 
 
-def classify(frame) -> str:
+def classify(frame: FrameType | None) -> str:
     """The phase a stack (innermost frame given) is in; see the module docstring."""
-    codes = []
+    codes: list[CodeType] = []
     while frame is not None:
         codes.append(frame.f_code)
         frame = frame.f_back
@@ -110,9 +113,10 @@ class _Sampler:
     def __init__(self, interval: float = 0.001):
         self.interval = interval
         self.counts: Counter[str] = Counter()
-        self._saved = None
+        # The handler signal.signal replaced (None: one not installed from Python).
+        self._saved: Callable[[int, FrameType | None], Any] | int | None = None
 
-    def _on_signal(self, signum, frame) -> None:
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self.counts[classify(frame)] += 1
 
     def start(self) -> None:

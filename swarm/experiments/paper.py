@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
@@ -77,7 +78,7 @@ PLANNER_COLOUR = {"greedy": "tab:blue", "dacmp": "tab:red"}
 CASE3_WINDOW_FROM_S = 600.0  # case3 table: mean coverage from this time on
 
 # What the paper reports (section 4), quoted; never computed.
-PAPER = {
+PAPER: dict[str, dict[str, Any]] = {
     "fig11": {"duration_s": 2000.0, "runs": 30, "targets_total": 14,
               "coverage": {"greedy": 0.712, "dacmp": 0.763},
               "targets_found": {"greedy": 12.1, "dacmp": 13.7}},
@@ -182,7 +183,7 @@ def run_fig11(out_dir: str | Path, *, seeds: int | Sequence[int] = 30, duration_
     runs = {p: _finished(out, p, seed_list) for p in FIG11_PLANNERS}
     rep.figures += [fig11_over_time(runs, out / "fig11_over_time.png"),
                     fig11_final(runs, out / "fig11_final.png")]
-    results = {"experiment": "fig11", "scenario": SCENARIO["fig11"], "seeds": seed_list,
+    results: dict[str, Any] = {"experiment": "fig11", "scenario": SCENARIO["fig11"], "seeds": seed_list,
                "duration_s": expected_duration(load_scenario(SCENARIO["fig11"]), duration_s),
                "failed": len(res.failed), "planners": {}, "difference": None}
     summary = res.summary
@@ -551,8 +552,8 @@ def case1_measures(log: RunLog) -> dict:
     if to_slow_t1 and 0 in log.targets:
         h = to_slow_t1[0]
         uid = log.uid(h["to"])
-        p = log.poses.get(uid)
-        if p is not None:
+        p = log.poses.get(uid) if uid is not None else None
+        if uid is not None and p is not None:
             txy = log.target_at(0, p[:, 0])
             d = np.hypot(p[:, 1] - txy[:, 0], p[:, 2] - txy[:, 1])
             i = min(int(np.searchsorted(p[:, 0], h["t"])), len(p) - 1)
@@ -651,11 +652,14 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
     x = np.arange(len(FIG11_PLANNERS))
     for ax, key, ylabel in ((axes[0], "coverage", "coverage rate at end"),
                             (axes[1], "targets_found", "targets found at end")):
-        means, errs, ns, durations = [], [], [], set()
+        means: list[float] = []
+        errs: list[list[float]] = []
+        ns: list[int] = []
+        durations: set[float] = set()
         for p in FIG11_PLANNERS:
             vals = [r["metrics"][key] for r in runs.get(p, [])]
             durations |= {r["metrics"]["sim_seconds"] for r in runs.get(p, [])}
-            d = describe(vals) if vals else {"n": 0, "mean": math.nan, "ci95": [math.nan, math.nan]}
+            d: dict[str, Any] = describe(vals) if vals else {"n": 0, "mean": math.nan, "ci95": [math.nan, math.nan]}
             means.append(d["mean"])
             errs.append([d["mean"] - d["ci95"][0], d["ci95"][1] - d["mean"]])
             ns.append(d["n"])
@@ -759,11 +763,11 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
             ax.broken_barh([(a, b - a)], (y - 0.35, 0.7), facecolors=MODE_COLOUR[mode], edgecolor="none")
             if mode == "surveil" and tg >= 0 and b - a >= 0.03 * log.end_t:
                 ax.text((a + b) / 2, y, f"T{tg + 1}", ha="center", va="center", fontsize=7)
-    for t, m, a, b in log.handovers:
+    for t, _m, a, b in log.handovers:
         if a in ypos and b in ypos:
             ax.annotate("", xy=(t, ypos[b]), xytext=(t, ypos[a]),
                         arrowprops={"arrowstyle": "->", "color": "black", "lw": 0.8})
-    for t, m, u in [(t, m, u) for m, (t, u) in log.found.items()]:
+    for t, u in log.found.values():
         if u in ypos:
             ax.plot(t, ypos[u] + 0.38, "v", color="black", ms=4)
     labels = [f"{log.names[u]} ({'slow' if log.is_slow(u) else 'fast'}, {log.types.get(u, '?')})" for u in uids]
@@ -773,7 +777,7 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
     ax.set_xlim(0, log.end_t)
     ax.set_xlabel("time (s)")
     ax.set_title(title, fontsize=10)
-    handles = [Patch(color=MODE_COLOUR[k], label=k) for k in ("search", "surveil")]
+    handles: list[Artist] = [Patch(color=MODE_COLOUR[k], label=k) for k in ("search", "surveil")]
     if any(totals[u]["pending"] for u in uids):
         handles.append(Patch(color=MODE_COLOUR["pending"], label="not joined yet"))
     if any(totals[u]["down"] for u in uids):
@@ -938,7 +942,8 @@ def _rows_case1(res: dict | None) -> list[dict]:
     rows.append(_row(e, "target 1 first found by", "UAV 1 (fast; our B1), by 50 s (Fig. 12a)",
                      (f"{f1['by']} at {f1['t']:g} s" if f1 else "not found") if res else NOT_RUN, note=note))
     h = (res or {}).get("handover_t1_to_slow")
-    rows.append(_row(e, "target 1 handed over to the slow UAV", "yes: UAV 1 → UAV 3 (our B1 → A1), between 250 s and 350 s (Fig. 12b-c)",
+    rows.append(_row(e, "target 1 handed over to the slow UAV",
+                     "yes: UAV 1 → UAV 3 (our B1 → A1), between 250 s and 350 s (Fig. 12b-c)",
                      (_handover_text(h) if h else "no") if res else NOT_RUN, note=note))
     if res:
         ours1 = _watchers_text(res["watchers_end"].get("1", []), res["slow_uavs"])
@@ -966,7 +971,8 @@ def _rows_case2(res: dict | None) -> list[dict]:
     def single(quantity, paper, ours):
         rows.append(_row(e, quantity, paper, ours if run else NOT_RUN, note=note))
 
-    single("targets found (of 6)", f"{q['targets_found']} (every target found)", f"{run['targets_found']} of {run['targets_total']}" if run else "")
+    single("targets found (of 6)", f"{q['targets_found']} (every target found)",
+           f"{run['targets_found']} of {run['targets_total']}" if run else "")
     if run:
         who = "; ".join(f"T{k}: " + "+".join(w["uav"] + ("" if w["in_range"] else " (out of range)") for w in v)
                         for k, v in run["watchers_end"].items() if v)
@@ -1002,8 +1008,10 @@ def _rows_case3(res: dict | None) -> list[dict]:
     w = CASE3_WINDOW_FROM_S
     rows = []
     if not res:
-        for quantity, paper in ((f"mean coverage from {w:g} s on, without / with the joiner", "not quoted; with joiner higher (Fig. 18)"),
-                                (f"mean coverage from {w:g} s on, with − without (paired)", "positive (Fig. 18), no number given"),
+        for quantity, paper in ((f"mean coverage from {w:g} s on, without / with the joiner",
+                                 "not quoted; with joiner higher (Fig. 18)"),
+                                (f"mean coverage from {w:g} s on, with − without (paired)",
+                                 "positive (Fig. 18), no number given"),
                                 ("coverage at end, with − without (paired)", "positive (Fig. 18), no number given"),
                                 ("time from which the mean with the joiner stays above", "after the join at 300 s (Fig. 18)")):
             rows.append(_row(e, quantity, paper))

@@ -151,7 +151,7 @@ def parse_values(axis: str, text: str) -> list:
     parts = [p.strip() for p in text.split(",") if p.strip()]
     if not parts:
         raise UsageError(f"--values {text!r}: expected a comma-separated list of values")
-    out = []
+    out: list[float | None] = []
     for p in parts:
         if axis == "range" and p.lower() in ("inf", "unlimited", "none"):
             out.append(None)
@@ -190,7 +190,7 @@ def crash_candidates(scenario: Scenario) -> list[str]:
     (no ``join_s``, no join fault) and that the scenario does not crash itself, in scenario order."""
     joined = {f.uav for f in scenario.faults if f.kind == "join"}
     crashed = {f.uav for f in scenario.faults if f.kind == "crash"}
-    return [u.name for u in scenario.uavs if not u.join_s and u.name not in joined | crashed]
+    return [name for name, u in zip(scenario.uav_names, scenario.uavs) if not u.join_s and name not in joined | crashed]
 
 
 def burst_fault(mean_frames: float, mean_loss: float) -> dict:
@@ -523,9 +523,10 @@ def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Pat
     for ax, (q, ylabel, bounds) in zip(axes, panels):
         if not _errorbars(ax, results, q, x, bounds):
             no_data(ax)
-        for name, ls in zip(reference or {}, (":", "--")):
+        refs = reference or {}
+        for name, ls in zip(refs, (":", "--")):
             for p in PLANNERS:
-                v = reference[name][p].get(q)
+                v = refs[name][p].get(q)
                 if v is not None and math.isfinite(v):
                     ax.axhline(v, color=PLANNER_COLOUR[p], ls=ls, lw=1.0, alpha=0.8,
                                label=f"{PLANNER_LABEL[p]}, {name} (loss axis)")
@@ -610,23 +611,34 @@ def _delivered(d: dict) -> str:
 
 
 def _columns(results: dict) -> list[tuple[str, Callable[[dict], str]]]:
+    # A column's cell of one point (pt) is a function of the point; these make them, each bound
+    # to its own planner and quantity.
+    def planner_ci(p: str, q: str, digits: int) -> Callable[[dict], str]:
+        return lambda pt: _ci(pt["planners"][p][q], digits)
+
+    def difference_ci(q: str, digits: int) -> Callable[[dict], str]:
+        return lambda pt: _ci((pt["difference"] or {}).get(q), digits, signed=True)
+
+    def kept_ci(p: str) -> Callable[[dict], str]:
+        return lambda pt: _ci(pt["planners"][p].get("kept_coverage"), 3)
+
+    def delivered(p: str) -> Callable[[dict], str]:
+        return lambda pt: _delivered(pt["planners"][p])
+
     cols: list[tuple[str, Callable[[dict], str]]] = []
     qs = [("coverage", "coverage", 3), ("targets_found", "targets found", 2)]
     if results["surveillance"]:
         qs.append(("surveillance_ratio_mean", "surveillance ratio", 3))
     for q, label, digits in qs:
         for p in reversed(PLANNERS):  # DACMP first
-            cols.append((f"{label}, {PLANNER_LABEL[p]}",
-                         lambda pt, p=p, q=q, digits=digits: _ci(pt["planners"][p][q], digits)))
-        cols.append((f"{label}, DACMP − greedy (paired)",
-                     lambda pt, q=q, digits=digits: _ci((pt["difference"] or {}).get(q), digits, signed=True)))
+            cols.append((f"{label}, {PLANNER_LABEL[p]}", planner_ci(p, q, digits)))
+        cols.append((f"{label}, DACMP − greedy (paired)", difference_ci(q, digits)))
     if results["has_baseline"]:
         for p in reversed(PLANNERS):
             cols.append((f"coverage kept vs {value_label(results['axis'], results['baseline'])}, {PLANNER_LABEL[p]}",
-                         lambda pt, p=p: _ci(pt["planners"][p].get("kept_coverage"), 3)))
+                         kept_ci(p)))
     for p in reversed(PLANNERS):
-        cols.append((f"frames delivered (share of sent), {PLANNER_LABEL[p]}",
-                     lambda pt, p=p: _delivered(pt["planners"][p])))
+        cols.append((f"frames delivered (share of sent), {PLANNER_LABEL[p]}", delivered(p)))
     cols.append(("runs (DACMP / greedy, failed)", lambda pt: " / ".join(
         str(pt["planners"][p]["runs"]) for p in reversed(PLANNERS))
         + (f", {sum(pt['planners'][p]['failed'] for p in PLANNERS)} failed"

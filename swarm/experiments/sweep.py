@@ -230,7 +230,9 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
     if own:
         executor = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1)
     try:
-        futures: dict[Future, RunSpec] = {executor.submit(execute, s): s for s in todo}
+        # No executor: nothing to do (otherwise it is our own pool).
+        futures: dict[Future[dict[str, Any]], RunSpec] = (
+            {executor.submit(execute, s): s for s in todo} if executor is not None else {})
         for fut in as_completed(futures):
             spec = futures[fut]
             try:
@@ -257,7 +259,7 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
         write_summary(out, runs)
         raise
     finally:
-        if own:
+        if own and executor is not None:
             executor.shutdown(wait=True, cancel_futures=True)
     result.summary = write_summary(out, runs)
     return result
@@ -407,7 +409,7 @@ def load_runs(out_dir: str | Path) -> Any:
     if not path.is_file():
         raise UsageError(f"{path}: no such file (is {out_dir} a sweep folder written by this version?)")
     try:
-        import pandas as pd
+        import pandas as pd  # type: ignore[import-untyped]  # optional, and the gate installs no pandas-stubs
     except ImportError:
         with path.open(newline="") as fh:
             return [{k: _parse_cell(v) for k, v in row.items()} for row in csv.DictReader(fh)]
@@ -450,7 +452,9 @@ def sweep(scenario: str | os.PathLike | Scenario, out_dir: str | Path, *, seeds:
 
 def split_values(text: str) -> list[str]:
     """Split ``v1,v2,[1,2]`` at top-level commas (commas inside brackets or quotes stay)."""
-    parts, depth, quote, cur = [], 0, None, []
+    parts: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, None
     for ch in text:
         if quote:
             quote = None if ch == quote else quote

@@ -137,7 +137,8 @@ def _set_path(doc: dict[str, Any], dotted: str, value: Any, source: str) -> None
         here = key_path(tuple(parts[: depth + 1]))
         if isinstance(part, int):
             if not isinstance(node, list):
-                raise ScenarioError(source, key_path(tuple(parts[:depth])), found_words(node), "an array (it is indexed with [n])")
+                raise ScenarioError(source, key_path(tuple(parts[:depth])), found_words(node),
+                                    "an array (it is indexed with [n])")
             if not part < len(node):
                 raise ScenarioError(source, here, f"index {part}", f"an index from 0 to {len(node) - 1}")
         elif not isinstance(node, dict):
@@ -189,7 +190,7 @@ def _unwrap(tp: Any) -> Any:
             tp = get_args(tp)[0]
         elif origin in (Union, types.UnionType) and type(None) in get_args(tp):
             rest = [a for a in get_args(tp) if a is not type(None)]
-            tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]
+            tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]  # noqa: UP007 (a union made at run time)
         else:
             return tp
 
@@ -244,7 +245,8 @@ def _issues(err: Any, doc: Any) -> list[_Issue]:
             out.append(_Issue(where.path, found, problem.expected, problem.hint))
         return out
 
-    if len(loc) >= 2 and loc[-1] == "[key]" and kind != "extra_forbidden":  # pydantic's marker for a dict key that failed validation
+    # "[key]": pydantic's marker for a dict key that failed validation.
+    if len(loc) >= 2 and loc[-1] == "[key]" and kind != "extra_forbidden":
         where = _resolve(loc[:-1])
         return [_Issue(where.path, f"the key {loc[-2]!r}", "a name (keys are strings)")]
     where = _resolve(loc)

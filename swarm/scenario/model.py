@@ -25,7 +25,8 @@ import functools
 import math
 import types
 import typing
-from typing import Annotated, Any, Literal, NamedTuple, Union, get_args, get_origin
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Annotated, Any, Literal, NamedTuple, Protocol, Union, get_args, get_origin
 
 from pydantic import (
     AllowInfNan,
@@ -103,7 +104,8 @@ def _range_words(noun: str, gt: float | None, ge: float | None, lt: float | None
     return noun
 
 
-def _num(default: Any = ..., *, gt=None, ge=None, lt=None, le=None, note: str = "", optional: bool = False) -> Any:
+def _num(default: Any = ..., *, gt: float | None = None, ge: float | None = None, lt: float | None = None,
+         le: float | None = None, note: str = "", optional: bool = False) -> Any:
     """A float field whose ``description`` is the human 'expected' text used in errors."""
     words = _range_words("a number", gt, ge, lt, le)
     if note:
@@ -113,7 +115,7 @@ def _num(default: Any = ..., *, gt=None, ge=None, lt=None, le=None, note: str = 
     return Field(default, gt=gt, ge=ge, lt=lt, le=le, description=words)
 
 
-def _int(default: Any = ..., *, ge=None, le=None, note: str = "") -> Any:
+def _int(default: Any = ..., *, ge: int | None = None, le: int | None = None, note: str = "") -> Any:
     words = _range_words("a whole number", None, ge, None, le)
     if note:
         words += f" ({note})"
@@ -145,7 +147,8 @@ class _Invalid(ValueError):
 
     def __init__(self, problems: list[_Problem]):
         self.problems = problems
-        super().__init__("; ".join(f"{key_path(p.path)}: found {p.found or found_words(p.value)}; expected {p.expected}" for p in problems))
+        super().__init__("; ".join(f"{key_path(p.path)}: found {p.found or found_words(p.value)}; expected {p.expected}"
+                                   for p in problems))
 
 
 def _raise_if(problems: list[_Problem]) -> None:
@@ -164,8 +167,11 @@ class _Model(BaseModel):
 _METADATA_KEYS = frozenset({"gt", "ge", "lt", "le", "note", "each", "expected"})
 
 
-def _strict_type(tp: Any, each: dict | None = None) -> Any:
-    """The strict scenario type of a dataclass annotation; tuples are TOML arrays."""
+def _strict_type(tp: Any, each: dict[str, Any] | None = None) -> Any:
+    """The strict scenario type of a dataclass annotation; tuples are TOML arrays.
+
+    The types are built at run time, so ``list[x]`` and ``tuple[x, y]`` are spelled as the
+    ``types.GenericAlias`` they evaluate to (which mypy reads as a value, not a type)."""
     simple = {float: Num, int: Int, bool: Bool, str: Str}
     if tp in simple:
         return simple[tp]
@@ -175,13 +181,13 @@ def _strict_type(tp: Any, each: dict | None = None) -> Any:
         return _strict_type(inner, each) | None
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         item = _strict_type(args[0])
-        return list[Annotated[item, Field(**each)] if each else item]
+        return types.GenericAlias(list, (Annotated[item, Field(**each)] if each else item,))
     if origin is tuple:
-        return tuple[tuple(_strict_type(a) for a in args)]
+        return types.GenericAlias(tuple, tuple(_strict_type(a) for a in args))
     raise TypeError(f"no scenario type for the dataclass annotation {tp!r}")
 
 
-def _table_field(f: dataclasses.Field, tp: Any) -> tuple[Any, Any]:
+def _table_field(f: dataclasses.Field[Any], tp: Any) -> tuple[Any, Any]:
     """``(type, FieldInfo)`` of the scenario field for dataclass field ``f`` (annotation ``tp``).
 
     No default: required. ``math.inf``: absent from the scenario (``None``, "leave it out"), as a
@@ -315,7 +321,7 @@ class UavSpec(_Model):
     """One UAV at the start (or at ``join_s`` for a late joiner)."""
 
     # None is replaced after validation by f"{type}{k}", k counting from 1 within the type.
-    name: Str | None = Field(None, description="a string (unique UAV name), or leave it out")
+    name: Str | None = Field(default=None, description="a string (unique UAV name), or leave it out")
     type: Str = Field(..., description="a UAV type name defined in [uav_types]")
     x_m: Num = _num(..., note="metres east of the area's corner, inside the area")
     y_m: Num = _num(..., note="metres north of the area's corner, inside the area")
@@ -337,9 +343,10 @@ class FleetSpec(_Model):
     count: Int = _int(..., ge=1, le=100_000)
     # grid: a near-square lattice over the region, row by row from the south-west corner, each
     # UAV at the centre of its lattice cell; random: uniform in the region.
-    layout: Literal["grid", "random"] = Field("grid", description="one of: grid, random")
+    layout: Literal["grid", "random"] = Field(default="grid", description="one of: grid, random")
     region: list[Num] | None = Field(
-        None, description="[x0_m, y0_m, x1_m, y1_m] inside the area with x0 < x1 and y0 < y1, or leave it out (the whole area)"
+        default=None,
+        description="[x0_m, y0_m, x1_m, y1_m] inside the area with x0 < x1 and y0 < y1, or leave it out (the whole area)",
     )
     # None: each UAV gets a random heading from the layout stream.
     heading_deg: Num | None = _num(None, note="degrees, 0 = east; absent = random per UAV", optional=True)
@@ -460,11 +467,25 @@ class RadioSettings(_Model):
 
 
 # --- faults --------------------------------------------------------------------------------
+# The checks below are mixins of generated tables: each reads fields it does not define, so its
+# ``self`` is typed by the protocol of what it reads (mypy's idiom for a mixin).
+class _Window(Protocol):
+    @property
+    def start_s(self) -> float: ...
+    @property
+    def end_s(self) -> float | None: ...  # None: until the end
+
+
+class _Groups(Protocol):
+    @property
+    def groups(self) -> Sequence[Sequence[str]]: ...
+
+
 class _WindowedFault(_Model):
     """Checks of a fault with a window (the fields come from :mod:`faults.schedule`)."""
 
     @model_validator(mode="after")
-    def _window(self) -> _WindowedFault:
+    def _window(self: _Window) -> _Window:
         if self.end_s is not None and self.end_s <= self.start_s:
             _raise_if([_Problem(("end_s",), self.end_s, f"a number > start_s ({_fmt(self.start_s)})")])
         return self
@@ -478,8 +499,8 @@ class _PartitionChecks(_WindowedFault):
     """Checks of a partition's groups: at least two, none empty, a UAV in at most one."""
 
     @model_validator(mode="after")
-    def _groups(self) -> _PartitionChecks:
-        problems = []
+    def _groups(self: _Groups) -> _Groups:
+        problems: list[_Problem] = []
         if len(self.groups) < 2:
             problems.append(_Problem(("groups",), self.groups, "at least 2 groups of UAV names"))
         seen: dict[str, int] = {}
@@ -500,7 +521,7 @@ class _PartitionChecks(_WindowedFault):
 _COMMON_FAULT_KEYS = ("start_s", "end_s", "uavs", "links")
 
 
-def _fault_table(cls: type) -> type[_Model]:
+def _fault_table(cls: type[_faults.Fault]) -> type[_Model]:
     """The ``[[faults]]`` table of the fault kind ``cls`` (a :mod:`faults.schedule` class)."""
     names = [f.name for f in dataclasses.fields(cls)]
     common = [n for n in _COMMON_FAULT_KEYS if n in names]
@@ -514,16 +535,40 @@ def _fault_table(cls: type) -> type[_Model]:
 # One table per kind of faults.schedule, in its order (the order error messages list them).
 _FAULT_CLASSES: dict[str, type[_Model]] = {kind: _fault_table(cls) for kind, cls in _faults.FAULT_KINDS.items()}
 FAULT_KINDS: tuple[str, ...] = tuple(_FAULT_CLASSES)
-DropFault = _FAULT_CLASSES["drop"]
-BurstFault = _FAULT_CLASSES["burst"]
-PartitionFault = _FAULT_CLASSES["partition"]
-DelayFault = _FAULT_CLASSES["delay"]
-DuplicateFault = _FAULT_CLASSES["duplicate"]
-CorruptFault = _FAULT_CLASSES["corrupt"]
-CrashFault = _FAULT_CLASSES["crash"]
-JoinFault = _FAULT_CLASSES["join"]
 
-Fault = Annotated[Union[tuple(_FAULT_CLASSES.values())], Field(discriminator="kind")]  # noqa: UP007
+if TYPE_CHECKING:
+    # What mypy sees of the generated tables (here and for [planner.dacmp], [planner.apf]). It
+    # cannot see the fields of a class made by create_model, so each table is declared, for type
+    # checking only, as what it is: a model with the checks it is built on (its first base, as
+    # _fault_table picks it: the pydantic API, model_dump, model_copy, ...) and the fields of the
+    # dataclass it is generated from (its second base). Still one definition: the fields are the
+    # dataclass's, not repeated here. Where the two differ the static view is the dataclass's:
+    # arrays are lists at run time (typed as the dataclass's tuples); a field whose default is
+    # math.inf (end_s) is None when left out; the dataclass's methods (active, separates) and
+    # ApfSettings' excluded fields are not on the table. ``kind`` is the dataclass's class
+    # variable, a literal that tags the union. The ignores: mypy reads the dataclasses as frozen
+    # and the models as not (pydantic's frozen is in model_config, where mypy does not look).
+    class DropFault(_LinkFault, _faults.Drop, frozen=True): ...  # type: ignore[misc]
+    class BurstFault(_LinkFault, _faults.Burst, frozen=True): ...  # type: ignore[misc]
+    class PartitionFault(_PartitionChecks, _faults.Partition, frozen=True): ...  # type: ignore[misc]
+    class DelayFault(_LinkFault, _faults.Delay, frozen=True): ...  # type: ignore[misc]
+    class DuplicateFault(_LinkFault, _faults.Duplicate, frozen=True): ...  # type: ignore[misc]
+    class CorruptFault(_LinkFault, _faults.Corrupt, frozen=True): ...  # type: ignore[misc]
+    class CrashFault(_Model, _faults.Crash, frozen=True): ...  # type: ignore[misc]
+    class JoinFault(_Model, _faults.Join, frozen=True): ...  # type: ignore[misc]
+
+    Fault = DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault | JoinFault
+else:
+    DropFault = _FAULT_CLASSES["drop"]
+    BurstFault = _FAULT_CLASSES["burst"]
+    PartitionFault = _FAULT_CLASSES["partition"]
+    DelayFault = _FAULT_CLASSES["delay"]
+    DuplicateFault = _FAULT_CLASSES["duplicate"]
+    CorruptFault = _FAULT_CLASSES["corrupt"]
+    CrashFault = _FAULT_CLASSES["crash"]
+    JoinFault = _FAULT_CLASSES["join"]
+
+    Fault = Annotated[Union[tuple(_FAULT_CLASSES.values())], Field(discriminator="kind")]  # noqa: UP007
 
 
 # --- planner, safety, metrics --------------------------------------------------------------
@@ -531,21 +576,30 @@ class GreedySettings(_Model):
     headings: Int = _int(15, ge=3, note="candidate headings per decision")
 
 
+class _LevelWeights(Protocol):
+    @property
+    def level_weights(self) -> Sequence[float] | None: ...
+
+
 class _DacmpChecks(_Model):
     """Checks of [planner.dacmp] beyond each field's bounds."""
 
     @model_validator(mode="after")
-    def _positive_sum(self) -> _DacmpChecks:
+    def _positive_sum(self: _LevelWeights) -> _LevelWeights:
         # The length is checked against map.levels by Scenario.
         if self.level_weights is not None and not sum(self.level_weights) > 0:
             _raise_if([_Problem(("level_weights",), self.level_weights, "weights with a positive sum")])
         return self
 
 
-DacmpSettings = _table_of(_dacmp.DacmpSettings, "DacmpSettings", base=_DacmpChecks)
-# Not in [planner.apf]: min_separation_m is [safety]'s (the simulation passes it; the invariant
-# checkers read it too), and threat_margin_m is not a scenario setting (its default holds).
-ApfSettings = _table_of(_apf.ApfSettings, "ApfSettings", exclude=("min_separation_m", "threat_margin_m"))
+if TYPE_CHECKING:  # the static view of generated tables: see DropFault
+    class DacmpSettings(_DacmpChecks, _dacmp.DacmpSettings, frozen=True): ...  # type: ignore[misc]
+    class ApfSettings(_Model, _apf.ApfSettings, frozen=True): ...  # type: ignore[misc]
+else:
+    DacmpSettings = _table_of(_dacmp.DacmpSettings, "DacmpSettings", base=_DacmpChecks)
+    # Not in [planner.apf]: min_separation_m is [safety]'s (the simulation passes it; the invariant
+    # checkers read it too), and threat_margin_m is not a scenario setting (its default holds).
+    ApfSettings = _table_of(_apf.ApfSettings, "ApfSettings", exclude=("min_separation_m", "threat_margin_m"))
 
 
 _PLANNER_WORDS = ("a planner: a built-in name (see `swarm list --planners`), package.module:Class, "
@@ -554,13 +608,13 @@ _PLANNER_WORDS = ("a planner: a built-in name (see `swarm list --planners`), pac
 
 class PlannerSettings(_Model):
     # Resolved by agents.planners.registry; a user's class must be importable where the run runs.
-    name: Str = Field("dacmp", description=_PLANNER_WORDS)
+    name: Str = Field(default="dacmp", description=_PLANNER_WORDS)
     # Keyword arguments of the planner's constructor (or of its from_context); the built-in
     # planners take theirs from their own tables ([planner.dacmp], [planner.greedy]).
     options: dict[Str, Any] = Field(default_factory=dict, description="a table [planner.options] of the planner's options")
     replan_s: Num = _num(10.0, gt=0)
     # False: a sighting ends interest in a target (search only, as in paper-fig11).
-    surveillance: Bool = Field(True, description="true or false")
+    surveillance: Bool = Field(default=True, description="true or false")
     # Our choice (the paper does not say how a watcher flies): it circles its target at radius
     # max(loiter_radius_factor * R_s, loiter_turn_factor * turn radius at minimum speed),
     # following a vector field with approach gain loiter_gain.
@@ -600,8 +654,8 @@ _FLOAT32_MAX = 3.4028235e38
 class Scenario(_Model):
     """Everything one run needs. Build it with :func:`load_scenario` or :func:`parse_scenario`."""
 
-    name: Str = Field("scenario", description="a string")
-    description: Str = Field("", description="a string")
+    name: Str = Field(default="scenario", description="a string")
+    description: Str = Field(default="", description="a string")
     seed: Int = _int(0, ge=0)
     duration_s: Num = _num(2000.0, gt=0)
     dt_s: Num = _num(1.0, gt=0, le=10)
@@ -650,7 +704,8 @@ class Scenario(_Model):
                 self.uavs.extend(fleet.expand(i, self.area))
             self.fleet.clear()  # consumed: the scenario now lists every UAV in uavs
         if not self.uavs:
-            _raise_if([_Problem(("uavs",), self.uavs, "an array of tables [[uavs]] with at least one UAV (here or in [[fleet]])")])
+            _raise_if([_Problem(("uavs",), self.uavs,
+                                "an array of tables [[uavs]] with at least one UAV (here or in [[fleet]])")])
         per_type: dict[str, int] = {}
         for i, uav in enumerate(self.uavs):
             per_type[uav.type] = per_type.get(uav.type, 0) + 1
@@ -679,7 +734,8 @@ class Scenario(_Model):
                 problems.append(_Problem(("fleet", i, "type"), fleet.type, f"a UAV type defined in [uav_types]: {types_list}"))
             elif fleet.speed is not None and not spec.speed_min <= fleet.speed <= spec.speed_max:
                 problems.append(_Problem(("fleet", i, "speed"), fleet.speed,
-                                         f"a number in [{_fmt(spec.speed_min)}, {_fmt(spec.speed_max)}] (type {fleet.type}'s speed range)"))
+                                         f"a number in [{_fmt(spec.speed_min)}, {_fmt(spec.speed_max)}] "
+                                         f"(type {fleet.type}'s speed range)"))
             r = fleet.region
             if r is not None and not (len(r) == 4 and 0.0 <= r[0] < r[2] <= area.width_m and 0.0 <= r[1] < r[3] <= area.height_m):
                 problems.append(_Problem(("fleet", i, "region"), r,
@@ -708,15 +764,17 @@ class Scenario(_Model):
             spec = self.uav_types.get(uav.type)
             if spec is None:
                 problems.append(_Problem(("uavs", i, "type"), uav.type, f"a UAV type defined in [uav_types]: {types_list}"))
-            if uav.name in first_with_name:
-                problems.append(_Problem(("uavs", i, "name"), uav.name,
-                                         f"a name not already used by uavs[{first_with_name[uav.name]}] (UAV names are unique)",
+            name = typing.cast(str, uav.name)  # filled in (_complete_and_cross_check) before these checks
+            if name in first_with_name:
+                problems.append(_Problem(("uavs", i, "name"), name,
+                                         f"a name not already used by uavs[{first_with_name[name]}] (UAV names are unique)",
                                          "a UAV without a name is called TYPE + its number within the type, e.g. B1"))
-            first_with_name.setdefault(uav.name, i)
+            first_with_name.setdefault(name, i)
             check_inside(("uavs", i), uav)
             if spec is not None and uav.speed is not None and not spec.speed_min <= uav.speed <= spec.speed_max:
                 problems.append(_Problem(("uavs", i, "speed"), uav.speed,
-                                         f"a number in [{_fmt(spec.speed_min)}, {_fmt(spec.speed_max)}] (type {uav.type}'s speed range)"))
+                                         f"a number in [{_fmt(spec.speed_min)}, {_fmt(spec.speed_max)}] "
+                                         f"(type {uav.type}'s speed range)"))
 
         for i, target in enumerate(self.targets.placed):
             check_inside(("targets", "placed", i), target)
@@ -761,7 +819,8 @@ class Scenario(_Model):
         weights = self.planner.dacmp.level_weights
         if weights is not None and len(weights) != self.map.levels:
             problems.append(_Problem(("planner", "dacmp", "level_weights"), weights,
-                                     f"an array of {self.map.levels} numbers (one per pyramid layer 1..L, map.levels = {self.map.levels})"))
+                                     f"an array of {self.map.levels} numbers "
+                                     f"(one per pyramid layer 1..L, map.levels = {self.map.levels})"))
         if self.metrics.sample_s < self.dt_s:
             problems.append(_Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({_fmt(self.dt_s)})"))
         problems += self._runnable_problems(truncated)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from hypothesis import strategies as st
 
@@ -103,7 +103,7 @@ def times(duration_s: float, step_s: float = 1.0, *, min_s: float = 0.0) -> st.S
 
 
 @st.composite
-def windows(draw, duration_s: float, step_s: float = 1.0, *, open_ended: bool = True) -> tuple[float, float]:
+def windows(draw: st.DrawFn, duration_s: float, step_s: float = 1.0, *, open_ended: bool = True) -> tuple[float, float]:
     """``(start_s, end_s)`` with ``0 <= start_s < end_s``; ``end_s`` is ``inf`` (until the end of
     the run, the simplest) or a tick ``<= duration_s``. Shrinks to ``(0, inf)``."""
     n = _steps(duration_s, step_s)
@@ -121,7 +121,7 @@ def scopes(uavs: Sequence[str]) -> st.SearchStrategy[tuple[tuple[str, ...], tupl
 
 
 @functools.lru_cache(maxsize=256)
-def _scopes(uavs: tuple[str, ...]) -> st.SearchStrategy:
+def _scopes(uavs: tuple[str, ...]) -> st.SearchStrategy[tuple[tuple[str, ...], tuple[tuple[str, str], ...]]]:
     names = list(uavs)
     everything = st.just(((), ()))
     if not names:
@@ -142,7 +142,7 @@ def _scopes(uavs: tuple[str, ...]) -> st.SearchStrategy:
 
 
 @st.composite
-def drops(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Drop:
+def drops(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Drop:
     """i.i.d. loss; the rate is at least 0.05 so the fault does something."""
     start, end = draw(windows(duration_s, step_s))
     scope, links = draw(scopes(uavs))
@@ -150,7 +150,7 @@ def drops(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> 
 
 
 @st.composite
-def bursts(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Burst:
+def bursts(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Burst:
     """Gilbert-Elliott bursts (a bad state that loses at least half the copies)."""
     start, end = draw(windows(duration_s, step_s))
     scope, links = draw(scopes(uavs))
@@ -161,7 +161,7 @@ def bursts(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) ->
 
 
 @st.composite
-def delays(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0, max_extra_s: float = 5.0) -> Delay:
+def delays(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0, max_extra_s: float = 5.0) -> Delay:
     """Extra latency (whole ticks, at least one) plus optional jitter."""
     start, end = draw(windows(duration_s, step_s))
     scope, links = draw(scopes(uavs))
@@ -171,14 +171,14 @@ def delays(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0, ma
 
 
 @st.composite
-def duplicates(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Duplicate:
+def duplicates(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Duplicate:
     start, end = draw(windows(duration_s, step_s))
     scope, links = draw(scopes(uavs))
     return Duplicate(start_s=start, end_s=end, uavs=scope, links=links, rate=draw(probabilities(0.05)))
 
 
 @st.composite
-def corrupts(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Corrupt:
+def corrupts(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Corrupt:
     start, end = draw(windows(duration_s, step_s))
     scope, links = draw(scopes(uavs))
     return Corrupt(start_s=start, end_s=end, uavs=scope, links=links, rate=draw(probabilities(0.05)),
@@ -186,7 +186,7 @@ def corrupts(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) 
 
 
 @st.composite
-def partitions(draw, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Partition:
+def partitions(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Partition:
     """Two or more disjoint, non-empty groups (not every UAV need be in one), both ways or one way."""
     names = list(uavs)
     if len(names) < 2:
@@ -214,7 +214,7 @@ def joins(uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> st.Sea
     return st.builds(Join, uav=st.sampled_from(list(uavs)), at_s=times(duration_s, step_s, min_s=step_s))
 
 
-_BUILDERS = {
+_BUILDERS: dict[str, Callable[[list[str], float, float], st.SearchStrategy[Fault]]] = {
     "drop": drops, "delay": delays, "duplicate": duplicates, "corrupt": corrupts, "burst": bursts,
     "partition": partitions, "crash": crashes, "join": joins,
 }
@@ -234,7 +234,7 @@ def _faults(uavs: tuple[str, ...], duration_s: float, kinds: tuple[str, ...], st
     unknown = [k for k in kinds if k not in _BUILDERS]
     if unknown:
         raise ValueError(f"unknown fault kind(s) {unknown}; known: {', '.join(ALL_KINDS)}")
-    options = []
+    options: list[st.SearchStrategy[Fault]] = []
     for kind in ALL_KINDS:  # fixed order: the simplest kinds shrink first
         if kind not in kinds:
             continue
@@ -252,7 +252,7 @@ def _faults(uavs: tuple[str, ...], duration_s: float, kinds: tuple[str, ...], st
 
 
 @st.composite
-def fault_schedules(draw, uavs: Sequence[str], duration_s: float, *, kinds: Sequence[str] = ALL_KINDS,
+def fault_schedules(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, *, kinds: Sequence[str] = ALL_KINDS,
                     min_faults: int = 0, max_faults: int = 6, step_s: float = 1.0,
                     joinable: Sequence[str] | None = None) -> FaultSchedule:
     """A :class:`~faults.schedule.FaultSchedule` of ``min_faults..max_faults`` faults naming only
@@ -273,7 +273,7 @@ def fault_schedules(draw, uavs: Sequence[str], duration_s: float, *, kinds: Sequ
 
 
 @st.composite
-def link_models(draw, *, min_range_m: float = 1000.0, max_range_m: float = 20_000.0, lossy: bool = True,
+def link_models(draw: st.DrawFn, *, min_range_m: float = 1000.0, max_range_m: float = 20_000.0, lossy: bool = True,
                 max_latency_s: float = 2.0, bandwidth: bool = True) -> LinkModel:
     """A :class:`~comms.radio.LinkModel`; shrinks to the ideal radio (unlimited range, no loss,
     no latency). Ranges are whole metres; loss grows from ``loss_base`` at distance 0 to

@@ -75,7 +75,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -89,7 +89,7 @@ from faults.schedule import Delay, Fault, LinkFault, Partition, fault_from_dict
 from swarm.errors import SwarmError, UsageError
 from swarm.outputs import read_run_dir
 from swarm.recorder import read_events
-from swarm.scenario import Scenario, parse_scenario
+from swarm.scenario import Scenario, UavTypeSpec, parse_scenario
 
 __all__ = [
     "Checker",
@@ -152,7 +152,7 @@ class InvariantViolation(SwarmError, AssertionError):
 # --- the run's context ---------------------------------------------------------------------------
 
 
-def _uav_type(name: str, spec) -> UavType:
+def _uav_type(name: str, spec: UavTypeSpec) -> UavType:
     return UavType(name=name, speed_min=spec.speed_min, speed_max=spec.speed_max, accel_max=spec.accel_max,
                    bank_max_rad=math.radians(spec.bank_max_deg), detect_radius=spec.detect_radius_m,
                    w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
@@ -177,8 +177,8 @@ class RunContext:
         self._override = list(faults) if faults is not None else None
         self._start_faults: list[Fault] = []
         self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
-        for i, u in enumerate(scenario.uavs):  # the simulator numbers scenario UAVs in order
-            self._learn(i, u.name, u.type)
+        for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
+            self._learn(i, name, u.type)
         if sim is not None:
             for uid, b in sim.world.uavs.items():
                 self._learn(uid, b.name, b.kind.name)
@@ -247,13 +247,13 @@ class RunContext:
     def in_range(self, pa: Sequence[float], pb: Sequence[float]) -> bool:
         return math.hypot(pa[0] - pb[0], pa[1] - pb[1]) <= self.range_m + _EPS
 
-    def can_talk(self, a: int, b: int, t: float, poses: dict[int, Sequence[float]]) -> bool:
+    def can_talk(self, a: int, b: int, t: float, poses: Mapping[int, Sequence[float]]) -> bool:
         pa, pb = poses.get(a), poses.get(b)
         if pa is None or pb is None or not self.in_range(pa, pb):
             return False
         return not (self.blocked(a, b, t) or self.blocked(b, a, t))
 
-    def connected(self, poses: dict[int, Sequence[float]]) -> bool:
+    def connected(self, poses: Mapping[int, Sequence[float]]) -> bool:
         """Whether the flying UAVs form one radio component (ranges only)."""
         ids = sorted(poses)
         if len(ids) <= 1:
@@ -295,6 +295,15 @@ class Checker:
     def bind(self, ctx: RunContext) -> None:
         self.ctx = ctx
 
+    @property
+    def context(self) -> RunContext:
+        """The run's context, which :meth:`bind` gives (a :class:`Monitor` binds its checkers
+        before it feeds them any event)."""
+        if self.ctx is None:
+            raise UsageError(f"the {self.name!r} checker is not bound to a run: feed it through a Monitor "
+                             "(or call bind(RunContext(scenario)) first)")
+        return self.ctx
+
     def attach(self, sim: Any) -> None:
         """Called once when a monitor attaches to a live simulation (after :meth:`bind`)."""
 
@@ -334,7 +343,7 @@ class SeparationChecker(Checker):
         poses = _poses(events)
         if not poses:
             return
-        d_min = self.min_separation_m if self.min_separation_m is not None else self.ctx.min_separation_m
+        d_min = self.min_separation_m if self.min_separation_m is not None else self.context.min_separation_m
         ids = sorted(poses)
         close: set[tuple[int, int]] = set()
         if len(ids) >= 2:
@@ -349,7 +358,8 @@ class SeparationChecker(Checker):
                     self._excused.add(pair)  # too close from the moment they were both flying
                     continue
                 self._active.add(pair)
-                self.violate(t, f"{self.ctx.name(pair[0])} and {self.ctx.name(pair[1])} are "
+                ctx = self.context
+                self.violate(t, f"{ctx.name(pair[0])} and {ctx.name(pair[1])} are "
                                 f"{float(d[i, j]):.1f} m apart (< {d_min:g} m)", pair, distance_m=float(d[i, j]))
         self._active &= close
         self._excused &= close
@@ -372,9 +382,10 @@ class ThreatClearanceChecker(Checker):
         poses = _poses(events)
         if not poses:
             return
+        ctx = self.context
         inside: set[tuple[int, int]] = set()
         for uid, p in poses.items():
-            for k, x, y, r in self.ctx.threats:
+            for k, x, y, r in ctx.threats:
                 d = math.hypot(p[0] - x, p[1] - y)
                 if d >= r:
                     continue
@@ -386,7 +397,7 @@ class ThreatClearanceChecker(Checker):
                     self._excused.add(key)
                     continue
                 self._active.add(key)
-                self.violate(t, f"{self.ctx.name(uid)} is {r - d:.1f} m inside threat {k} (radius {r:g} m)",
+                self.violate(t, f"{ctx.name(uid)} is {r - d:.1f} m inside threat {k} (radius {r:g} m)",
                              [uid], threat=k, depth_m=r - d)
         self._active &= inside
         self._excused &= inside
@@ -410,9 +421,10 @@ class DynamicsChecker(Checker):
         poses = _poses(events)
         if not poses:
             return
-        dt = self.ctx.dt
+        ctx = self.context
+        dt = ctx.dt
         for uid, p in poses.items():
-            kind = self.ctx.kind(uid)
+            kind = ctx.kind(uid)
             prev = self._prev.get(uid)
             self._prev[uid] = (t, *p)
             if kind is None:
@@ -454,22 +466,24 @@ class RadioChecker(Checker):
         poses = _poses(events)
         if poses:
             self._history.append((t, poses))
-            dt = self.ctx.dt
-            max_delay = self.max_delay_s if self.max_delay_s is not None else self.ctx.max_delay_s()
+            ctx = self.context
+            dt = ctx.dt
+            max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
             while self._history and self._history[0][0] < t - dt - max_delay - dt - _EPS:
                 self._history.popleft()
         rx = [e for e in events if e[0] == "rx"]
         if not rx:
             return
-        dt = self.ctx.dt
-        max_delay = self.max_delay_s if self.max_delay_s is not None else self.ctx.max_delay_s()
+        ctx = self.context
+        dt = ctx.dt
+        max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
         for e in rx:
             src, dst = e[2], e[3]
             if dst not in poses:
-                self.violate(t, f"{self.ctx.name(dst)} read a frame from {self.ctx.name(src)} while not flying",
+                self.violate(t, f"{ctx.name(dst)} read a frame from {ctx.name(src)} while not flying",
                              [src, dst], cause="receiver_down")
                 continue
-            reasons = []
+            reasons: list[str] = []
             legal = False
             for s, ps in reversed(self._history):  # latest candidate send tick first
                 if s > t - dt + _EPS:
@@ -483,7 +497,7 @@ class RadioChecker(Checker):
                 reasons.append(f"at {s:g} s {why}")
             if not legal:
                 detail = "; ".join(reasons) if reasons else "no tick it could have been sent in"
-                self.violate(t, f"frame {self.ctx.name(src)} -> {self.ctx.name(dst)} delivered illegally: {detail}",
+                self.violate(t, f"frame {ctx.name(src)} -> {ctx.name(dst)} delivered illegally: {detail}",
                              [src, dst], reasons=reasons)
 
     def _illegal(self, src: int, dst: int, s: float, poses: dict[int, tuple]) -> str | None:
@@ -493,9 +507,10 @@ class RadioChecker(Checker):
         if pd is None:
             return "the receiver was not flying"
         d = math.hypot(ps[0] - pd[0], ps[1] - pd[1])
-        if d > self.ctx.range_m + _EPS:
-            return f"they were {d:.0f} m apart (range {self.ctx.range_m:g} m)"
-        if self.ctx.blocked(src, dst, s):
+        ctx = self.context
+        if d > ctx.range_m + _EPS:
+            return f"they were {d:.0f} m apart (range {ctx.range_m:g} m)"
+        if ctx.blocked(src, dst, s):
             return "a partition separated them"
         return None
 
@@ -511,7 +526,8 @@ class _LiveChecker(Checker):
 
     def _maps(self, uids: Iterable[int]) -> dict[int, np.ndarray]:
         sim = self._sim()
-        return {u: sim.uav_map(self.ctx.name(u)) for u in uids}
+        ctx = self.context
+        return {u: sim.uav_map(ctx.name(u)) for u in uids}
 
 
 class MapMonotonicityChecker(_LiveChecker):
@@ -569,16 +585,17 @@ class MapAgreementChecker(_LiveChecker):
         self.checks = 0  # how many times agreement was judged (a test can assert it was)
 
     def _radio_lossy(self) -> bool:
-        r = self.ctx.scenario.radio
+        r = self.context.scenario.radio
         return (r.loss_base > 0 or r.loss_at_range > 0 or r.bandwidth_bytes_per_s is not None)
 
     def on_group(self, t, events):
         poses = _poses(events)
         if not poses:
             return
+        ctx = self.context
         members = frozenset(poses)
         quiet_now = (members == self._members and not any(e[0] in ("crash", "join") for e in events)
-                     and not self.ctx.link_faults_active(t) and self.ctx.connected(poses)
+                     and not ctx.link_faults_active(t) and ctx.connected(poses)
                      and (self.allow_radio_loss or not self._radio_lossy()))
         if not quiet_now:
             self._quiet_since = None
@@ -607,9 +624,9 @@ class MapAgreementChecker(_LiveChecker):
             if frac > self.tolerance:
                 iy, ix = (int(v[0]) for v in np.nonzero(behind))
                 who = [u for u in sorted(members) if u in then and then[u][iy, ix] == known[iy, ix]]
-                self.violate(t, f"after {t - self._quiet_since:g} s connected and fault-free, {self.ctx.name(uid)} "
+                self.violate(t, f"after {t - self._quiet_since:g} s connected and fault-free, {ctx.name(uid)} "
                                 f"still misses {int(behind.sum())} cell(s) ({frac:.1%}) that "
-                                f"{', '.join(self.ctx.name(u) for u in who)} knew at {then_t:g} s, e.g. cell "
+                                f"{', '.join(ctx.name(u) for u in who)} knew at {then_t:g} s, e.g. cell "
                                 f"(ix={ix}, iy={iy}): {float(now[uid][iy, ix]):g} < {float(known[iy, ix]):g}",
                              [uid, *who[:1]], cells=int(behind.sum()), fraction=frac, quiet_since=self._quiet_since)
                 self._reported_window = self._quiet_since
@@ -631,6 +648,7 @@ class JoinerCatchUpChecker(_LiveChecker):
 
     def on_group(self, t, events):
         sim = self._sim()
+        ctx = self.context
         poses = _poses(events)
         for e in events:
             if e[0] == "join" and e[1] > 0:
@@ -638,15 +656,15 @@ class JoinerCatchUpChecker(_LiveChecker):
                 j = sim.world.uavs[uid]
                 nbrs = tuple(u for u, b in sorted(sim.world.uavs.items())
                              if u != uid and b.state == "alive"
-                             and self.ctx.in_range((b.x, b.y), (j.x, j.y)))
+                             and ctx.in_range((b.x, b.y), (j.x, j.y)))
                 if nbrs:
                     maps = self._maps(nbrs)
                     self._pending[uid] = (float(e[1]), np.maximum.reduce(list(maps.values())), nbrs)
         if not poses:
             return
         for uid, (t_join, target, nbrs) in list(self._pending.items()):
-            if uid not in poses or self.ctx.link_faults_active(t) or not any(
-                    self.ctx.can_talk(uid, n, t, poses) for n in nbrs):
+            if uid not in poses or ctx.link_faults_active(t) or not any(
+                    ctx.can_talk(uid, n, t, poses) for n in nbrs):
                 if t > t_join + _EPS:  # the join tick itself precedes the joiner's first pose
                     del self._pending[uid]
                 continue
@@ -658,9 +676,9 @@ class JoinerCatchUpChecker(_LiveChecker):
             elif t >= t_join + self.bound_s - _EPS:
                 del self._pending[uid]
                 self.checks += 1
-                self.violate(t, f"{self.ctx.name(uid)} joined at {t_join:g} s and {t - t_join:g} s later still misses "
+                self.violate(t, f"{ctx.name(uid)} joined at {t_join:g} s and {t - t_join:g} s later still misses "
                                 f"{int(behind.sum())} cell(s) ({frac:.1%}) that its neighbours "
-                                f"{', '.join(self.ctx.name(n) for n in nbrs)} knew when it joined",
+                                f"{', '.join(ctx.name(n) for n in nbrs)} knew when it joined",
                              [uid, *nbrs], cells=int(behind.sum()), fraction=frac, joined=t_join)
 
 
@@ -692,23 +710,24 @@ class SingleWatcherChecker(_WatchChecker):
         poses = _poses(events)
         if not poses:
             return
+        ctx = self.context
         now: set[tuple[int, int, int]] = set()
-        for m, ws in sorted(self.watchers(poses).items()):
-            ws = sorted(ws)
+        for m, watching in sorted(self.watchers(poses).items()):
+            ws = sorted(watching)
             for i, a in enumerate(ws):
                 for b in ws[i + 1:]:
-                    ta, tb = self.ctx.type_name.get(a), self.ctx.type_name.get(b)
+                    ta, tb = ctx.type_name.get(a), ctx.type_name.get(b)
                     if ta is None or ta != tb:
                         continue
-                    if not self.ctx.can_talk(a, b, t, poses):
+                    if not ctx.can_talk(a, b, t, poses):
                         continue
                     key = (m, a, b)
                     now.add(key)
                     since = self._since.setdefault(key, t)
                     if t - since > self.settle_s + _EPS and key not in self._reported:
                         self._reported.add(key)
-                        self.violate(t, f"{self.ctx.name(a)} and {self.ctx.name(b)} (both type "
-                                        f"{self.ctx.type_name.get(a)}) have both watched target {m} for "
+                        self.violate(t, f"{ctx.name(a)} and {ctx.name(b)} (both type "
+                                        f"{ctx.type_name.get(a)}) have both watched target {m} for "
                                         f"{t - since:g} s while able to talk (settle time {self.settle_s:g} s)",
                                      [a, b], target=m, since=since)
         for key in list(self._since):
@@ -740,7 +759,7 @@ class HandoverChecker(_WatchChecker):
         poses = _poses(events)
         if not poses:
             return
-        ctx = self.ctx
+        ctx = self.context
         watchers = self.watchers(poses)
         offers: set[tuple[int, int]] = set()
         overlaps: set[tuple[int, int, int]] = set()
@@ -750,13 +769,13 @@ class HandoverChecker(_WatchChecker):
                 kf = ctx.kind(f)
                 if kf is None:
                     continue
-                slower_watching = [s for s in ws if s != f and ctx.kind(s) is not None
-                                   and ctx.kind(s).speed_max < kf.speed_max]
+                slower = [(s, k_s) for s in ws if s != f and (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max]
+                slower_watching = [s for s, _ in slower]
                 # The release clock starts when the slower UAV has arrived (watches the target
                 # from within its detection radius), as the handover metric counts it: a slow
                 # UAV declaring a target from 10 km away has not taken it over yet.
-                arrived = [s for s in slower_watching if pos is not None
-                           and math.hypot(poses[s][0] - pos[0], poses[s][1] - pos[1]) <= ctx.kind(s).detect_radius]
+                arrived = [s for s, k_s in slower if pos is not None
+                           and math.hypot(poses[s][0] - pos[0], poses[s][1] - pos[1]) <= k_s.detect_radius]
                 for s in arrived:
                     if ctx.can_talk(f, s, t, poses):
                         key = (m, f, s)
@@ -770,9 +789,9 @@ class HandoverChecker(_WatchChecker):
                 if slower_watching or pos is None:
                     continue
                 free = [s for s, p in sorted(poses.items())
-                        if s != f and p[4] != MODE_SURVEIL and ctx.kind(s) is not None
-                        and ctx.kind(s).speed_max < kf.speed_max
-                        and math.hypot(p[0] - pos[0], p[1] - pos[1]) < ctx.kind(s).influence_radius
+                        if s != f and p[4] != MODE_SURVEIL and (k_s := ctx.kind(s)) is not None
+                        and k_s.speed_max < kf.speed_max
+                        and math.hypot(p[0] - pos[0], p[1] - pos[1]) < k_s.influence_radius
                         and ctx.can_talk(f, s, t, poses)]
                 if not free:
                     continue
@@ -791,8 +810,8 @@ class HandoverChecker(_WatchChecker):
                 for f in prev:
                     if f in watchers.get(m, ()) or f not in poses:
                         continue
-                    took = [s for s in watchers.get(m, ()) if ctx.kind(s) is not None and ctx.kind(f) is not None
-                            and ctx.kind(s).speed_max < ctx.kind(f).speed_max]
+                    took = [s for s in watchers.get(m, ()) if (k_s := ctx.kind(s)) is not None
+                            and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max]
                     if took and poses[f][4] == MODE_SURVEIL:
                         self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
                                         f"watching target {poses[f][5]} instead of returning to search",
@@ -825,7 +844,7 @@ class NoDropChecker(_WatchChecker):
         for m, (t0, w) in list(self._pending.items()):
             if t - t0 > self.grace_s + _EPS:
                 del self._pending[m]
-                self.violate(t0, f"{self.ctx.name(w)} stopped watching target {m} while flying and nobody watched it "
+                self.violate(t0, f"{self.context.name(w)} stopped watching target {m} while flying and nobody watched it "
                                  f"within {self.grace_s:g} s", [w], target=m,
                              now=poses.get(w, (None,) * 6)[4:6])
         for m, prev in self._prev.items():
@@ -894,9 +913,9 @@ class Monitor:
 
     def flush(self) -> None:
         """Hand the buffered events (one instant) to the checkers."""
-        if not self._group:
-            return
         t, group = self._t, self._group
+        if not group or t is None:  # t is set whenever there is a group (see feed)
+            return
         self._group = []
         self.t_end = max(self.t_end, t)
         for c in self.checkers:

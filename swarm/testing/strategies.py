@@ -41,7 +41,7 @@ from hypothesis import note
 from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
-from faults.schedule import FaultSchedule, Join, fault_from_dict, fault_to_dict
+from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, parse_scenario
 from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
 
@@ -68,7 +68,7 @@ GENERATED_SOURCE = "<generated>"
 
 
 @st.composite
-def areas(draw, min_km: int = 5, max_km: int = 15, cell_m: Sequence[float] = (100.0, 200.0, 250.0)) -> dict:
+def areas(draw: st.DrawFn, min_km: int = 5, max_km: int = 15, cell_m: Sequence[float] = (100.0, 200.0, 250.0)) -> dict:
     """An ``[area]`` table: whole kilometres on each side (so any listed cell size tiles it)."""
     if not 1 <= min_km <= max_km:
         raise ValueError(f"need 1 <= min_km <= max_km, got {min_km}, {max_km}")
@@ -78,7 +78,7 @@ def areas(draw, min_km: int = 5, max_km: int = 15, cell_m: Sequence[float] = (10
 
 
 @st.composite
-def uav_type_specs(draw) -> dict:
+def uav_type_specs(draw: st.DrawFn) -> dict:
     """A ``[uav_types.NAME]`` table for a type that is not in Table 1 (types are data)."""
     speed_min = float(draw(st.integers(15, 60)))
     return {
@@ -101,7 +101,7 @@ def _lattice(area: dict, spacing_m: float, margin_m: float) -> list[tuple[float,
 
 
 @st.composite
-def fleets(draw, area: dict, types: Sequence[str] = ("B", "A"), *, min_uavs: int = 1, max_uavs: int = 4,
+def fleets(draw: st.DrawFn, area: dict, types: Sequence[str] = ("B", "A"), *, min_uavs: int = 1, max_uavs: int = 4,
            duration_s: float | None = None, late_joiners: bool = True, spacing_m: float = 2000.0,
            type_specs: dict[str, dict] | None = None) -> list[dict]:
     """``[[uavs]]`` entries of mixed ``types``, named TYPE + number (``B1``, ``A1``, ...), starting
@@ -133,7 +133,7 @@ def fleets(draw, area: dict, types: Sequence[str] = ("B", "A"), *, min_uavs: int
 
 
 @st.composite
-def target_layouts(draw, area: dict, *, max_targets: int = 3, speed_max: float = 20.0) -> dict:
+def target_layouts(draw: st.DrawFn, area: dict, *, max_targets: int = 3, speed_max: float = 20.0) -> dict:
     """A ``[targets]`` table: some placed targets and/or a random ``count``."""
     w, h = area["width_m"], area["height_m"]
     placed = draw(st.lists(
@@ -150,7 +150,7 @@ def target_layouts(draw, area: dict, *, max_targets: int = 3, speed_max: float =
 
 
 @st.composite
-def threat_layouts(draw, area: dict, keep_clear: Sequence[tuple[float, float]] = (), *, max_threats: int = 2,
+def threat_layouts(draw: st.DrawFn, area: dict, keep_clear: Sequence[tuple[float, float]] = (), *, max_threats: int = 2,
                    clearance_m: float = 3000.0) -> list[dict]:
     """``[[threats]]`` circles of 300-1500 m whose edge lies at least ``clearance_m`` from every
     point of ``keep_clear`` (the UAVs' start points: a UAV that starts beside a threat, pointing
@@ -169,7 +169,7 @@ def threat_layouts(draw, area: dict, keep_clear: Sequence[tuple[float, float]] =
 
 
 @st.composite
-def radio_tables(draw, *, max_range_m: float = 20_000.0, lossy: bool = True, bandwidth: bool = False) -> dict:
+def radio_tables(draw: st.DrawFn, *, max_range_m: float = 20_000.0, lossy: bool = True, bandwidth: bool = False) -> dict:
     """A ``[radio]`` table from :func:`swarm.testing.fault_strategies.link_models` (plus a mailbox size)."""
     m = draw(link_models(max_range_m=max_range_m, lossy=lossy, bandwidth=bandwidth))
     table: dict[str, Any] = {"loss_base": m.loss_base, "loss_at_range": m.loss_at_range,
@@ -187,7 +187,7 @@ def radio_tables(draw, *, max_range_m: float = 20_000.0, lossy: bool = True, ban
 
 @st.composite
 def scenario_documents(
-    draw,
+    draw: st.DrawFn,
     *,
     min_uavs: int = 1,
     max_uavs: int = 4,
@@ -244,7 +244,7 @@ def scenario_documents(
     return doc
 
 
-def _fault_doc(fault) -> dict:
+def _fault_doc(fault: Fault) -> dict[str, Any]:
     d = fault_to_dict(fault)
     out: dict[str, Any] = {}
     for k, v in d.items():

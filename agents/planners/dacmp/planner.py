@@ -35,7 +35,7 @@ import bisect
 import functools
 import math
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -231,7 +231,7 @@ class DacmpPlanner(DacmpSettings):
         if search:
             for i, plan in zip(search, self._pso([uavs[i] for i in search], g, layers)):
                 plans[i] = plan
-        return plans
+        return cast("list[Plan]", plans)  # every None (a UAV to plan afresh) got its PSO plan
 
     def _keep(self, u: _UavSearch, g, layers: _Layers) -> Plan | None:
         """The surveillance-mode rule of :meth:`plan_many` for one UAV (None: plan afresh)."""
@@ -256,16 +256,17 @@ class DacmpPlanner(DacmpSettings):
         fitness, keep_near = batch.fitness, batch.keep_near
         rows = np.arange(U)
         # Positions and velocities as (axis, UAV, particle): x and y rows share every operation.
-        # Particles in the ring outside the detection radius (section 3.1).
-        radius = np.abs(np.stack([u.ring_radius for u in uavs]))
-        angle = np.stack([u.ring_angle for u in uavs])
+        # Particles in the ring outside the detection radius (section 3.1). Every UAV here has
+        # made its draws (_UavSearch.draw), so none of these arrays is None.
+        radius = np.abs(np.stack(cast("list[np.ndarray]", [u.ring_radius for u in uavs])))
+        angle = np.stack(cast("list[np.ndarray]", [u.ring_angle for u in uavs]))
         z = keep_near(batch.p0 + radius * np.stack([np.cos(angle), np.sin(angle)]))
         v = np.zeros((2, U, M))
         f, _, _ = fitness(z, kept=True)
         best_z, bf = z.copy(), f.copy()
         gi = np.argmax(bf, axis=1)
         # (iteration, r1/r2/Q, axis, UAV, particle): the draws repeated for the x and y rows.
-        draws = np.repeat(np.stack([u.pso_draws for u in uavs], axis=2)[:, :, None], 2, axis=2)
+        draws = np.repeat(np.stack(cast("list[np.ndarray]", [u.pso_draws for u in uavs]), axis=2)[:, :, None], 2, axis=2)
         # The coefficients of every iteration, and c1 * r1, c2 * r2 for all of them in one go
         # (the same products as one iteration at a time).
         fracs = [it / (n_it - 1) if n_it > 1 else 1.0 for it in range(n_it)]
