@@ -193,3 +193,25 @@ def test_uav_colours_come_from_style():
 def test_files_are_replaced_atomically_in_one_place():
     users = [p.relative_to(ROOT).as_posix() for p in _sources() if "os.replace(" in p.read_text(encoding="utf-8")]
     assert users == ["swarm/outputs.py"]
+
+
+def test_the_type_checkers_view_of_the_generated_fault_tables_matches_what_runs():
+    # swarm/scenario/model.py declares the generated tables for mypy under TYPE_CHECKING; a
+    # kind added or rebased at run time must be declared there too.
+    import ast
+
+    tree = ast.parse(Path(model.__file__).read_text())
+    static: dict[str, tuple[str, str]] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for item in node.body:
+                if isinstance(item, ast.ClassDef) and item.name.endswith("Fault"):
+                    bases = [b.id if isinstance(b, ast.Name) else ast.unparse(b) for b in item.bases]
+                    static[item.name] = (bases[0], bases[1])
+    runtime = {cls.__name__: cls for cls in model._FAULT_CLASSES.values()}
+    assert set(static) == set(runtime)
+    for name, (validator_base, dataclass_ref) in static.items():
+        cls = runtime[name]
+        assert cls.__bases__[0].__name__ == validator_base, name
+        kind = next(k for k, c in model._FAULT_CLASSES.items() if c is cls)
+        assert dataclass_ref == f"_faults.{schedule.FAULT_KINDS[kind].__name__}", name
