@@ -14,8 +14,9 @@ The estimate is an upper bound of the big arrays, not of Python's overhead:
   per UAV); on larger grids, 64 x 64-cell float32 tiles allocated where a map was written: a
   UAV's own swath over the run plus the swaths of the UAVs it can hear (within radio range),
   at most the whole grid, rounded up to whole tiles;
-* DACMP's whole-map reads: one planning batch holds q and the pyramid of a map (float32 q and
-  float64 levels: about 16 bytes a cell);
+* DACMP's whole-map reads: q and the pyramid of a map (float32 q and float64 levels: about 16
+  bytes a cell), and the float32 pyramid levels of every UAV that replans in one batch (all of
+  them at t = 0: 4/3 bytes a cell each);
 * per UAV, a mailbox of the frames of one tick (one from each UAV it hears, at most
   ``radio.mailbox_capacity``, of a typical size).
 """
@@ -80,6 +81,9 @@ def estimate_memory(sc: Scenario) -> MemoryEstimate:
         parts["UAV maps (tiles)"] = total
     if sc.planner.name == "dacmp":
         parts["DACMP map reads (16 B a cell)"] = 16.0 * cells
+        # Every UAV replans at t = 0, in one batch: the float32 pyramid levels 1..L of every
+        # map at once (a third of the cells each: 1/4 + 1/16 + ...).
+        parts["DACMP pyramid levels of one batch"] = n * 4.0 * cells / 3.0
     # Mailboxes are drained every tick: at most a frame from each other UAV, of a typical size.
     parts["mailboxes"] = float(n * min(sc.radio.mailbox_capacity, n) * _TYPICAL_FRAME_BYTES)
     return MemoryEstimate(cells, parts)

@@ -8,11 +8,16 @@ import math
 
 import pytest
 
+from swarm import cli
 from swarm.experiments import bench
+from swarm.recorder import read_events
 from swarm.scenario import load_scenario
+from swarm.scenario.model import RadioSettings
+from swarm.simulation import Simulation
 
 FIELDS = {"case", "scenario", "planner", "uavs", "sim_seconds", "wall_seconds", "realtime_factor", "cpu_seconds",
-          "peak_rss_mb", "shares", "coverage", "event_log_sha256"}
+          "peak_rss_mb", "shares", "coverage", "event_log_sha256", "anti_entropy", "uav_steps_per_cpu_s",
+          "radio_bytes_per_uav_s", "event_log_bytes_per_uav_s"}
 SHARES = {"planning", "map", "radio", "actors", "world"}
 
 
@@ -32,6 +37,28 @@ def test_every_case_names_a_loadable_scenario_and_a_planner():
     assert {u.type for u in load_scenario("bench-100").uavs} == {"A", "B"}
 
 
+def test_bench_1000_dacmp_turns_anti_entropy_on_at_the_model_default():
+    (case,) = [c for c in bench.CASES if c.name == "bench-1000-dacmp"]
+    assert not case.quick and case.planner == "dacmp" and case.scenario == "bench-1000" and case.duration_s == 200.0
+    assert load_scenario("bench-1000").radio.sync_every_s == 0.0  # the file turns it off
+    sc = bench.case_scenario(case)
+    assert sc.radio.sync_every_s == bench.DEFAULT_SYNC_EVERY_S == RadioSettings().sync_every_s > 0
+    assert sc.radio.range_m == load_scenario("bench-1000").radio.range_m and len(sc.uavs) == 1000
+    # The other cases run their scenario as it is.
+    for c in bench.CASES:
+        if c.anti_entropy is None:
+            assert bench.case_scenario(c) == load_scenario(c.scenario)
+
+
+def test_uav_ticks_counts_the_uavs_alive_in_each_tick():
+    # paper-case3: 10 UAVs from 0 s, an 11th joins at 300 s.
+    with Simulation("paper-case3", duration_s=305.0) as sim:
+        result = sim.run()
+    poses = sum(1 for e in read_events(result.events) if e[0] == "pose")
+    assert bench.uav_ticks(result) == poses
+    assert 10 * 305 < poses < 11 * 305
+
+
 def test_bench_quick_emits_one_valid_json_line_per_case():
     out = io.StringIO()
     assert bench.main(quick=True, out=out, duration_s=60.0) == 0
@@ -49,6 +76,10 @@ def test_bench_quick_emits_one_valid_json_line_per_case():
         assert all(0.0 <= v <= 1.0 for v in r["shares"].values())
         assert math.isclose(sum(r["shares"].values()), 1.0, abs_tol=0.01)
         assert len(r["event_log_sha256"]) == 64 and 0.0 < r["coverage"] <= 1.0
+        assert r["anti_entropy"] is True  # paper-fig11 has the model's default
+        # 6 UAVs alive in every one of the 60 ticks (cpu_seconds is rounded to ms).
+        assert r["uav_steps_per_cpu_s"] == pytest.approx(6 * 60 / r["cpu_seconds"], rel=0.01)
+        assert r["radio_bytes_per_uav_s"] > 0 and r["event_log_bytes_per_uav_s"] > 0
     assert rows[1]["shares"]["planning"] > rows[0]["shares"]["planning"]  # DACMP plans, greedy barely
 
 
@@ -56,7 +87,23 @@ def test_bench_only_runs_the_named_case():
     out = io.StringIO()
     bench.main(only=["paper-fig11-greedy"], out=out, duration_s=5.0)
     (line,) = out.getvalue().splitlines()
-    assert json.loads(line)["case"] == "paper-fig11-greedy"
+    row = json.loads(line)
+    assert row["case"] == "paper-fig11-greedy"
+    # The per-UAV-second rates are the run's totals over 6 UAVs x 5 s.
+    with Simulation("paper-fig11", planner="greedy", duration_s=5.0) as sim:
+        result = sim.run()
+    assert row["event_log_sha256"] == result.metrics["event_log_sha256"]
+    assert row["radio_bytes_per_uav_s"] == round(result.metrics["radio"]["bytes_sent"] / 30.0, 1)
+    assert row["event_log_bytes_per_uav_s"] == round(len(result.events) / 30.0, 1)
+
+
+def test_bench_unknown_case_is_one_error_line_naming_the_cases(capsys):
+    assert cli.main(["bench", "--case", "paper-fig11-greedy", "--case", "no-such-case"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""  # nothing ran
+    (line,) = err.splitlines()
+    assert line.startswith("error: ") and "no-such-case" in line
+    assert all(c.name in line for c in bench.CASES)
 
 
 def test_samples_are_filed_under_the_innermost_phase():

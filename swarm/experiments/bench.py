@@ -4,7 +4,17 @@ Each line: ``case``, ``scenario``, ``planner``, ``uavs``, ``sim_seconds``, ``wal
 ``realtime_factor`` (sim/wall), ``cpu_seconds`` (this process's CPU time: less sensitive than
 wall time to other work on a shared machine), ``peak_rss_mb`` (of this process so far: run the
 big cases one per process, ``--case NAME``, for a per-case figure), ``coverage``,
-``event_log_sha256`` and ``shares``, the fraction of the run spent in:
+``event_log_sha256``, ``anti_entropy`` (whether the run had it: ``radio.sync_every_s > 0``), three
+rates per UAV-tick (a live UAV simulated for one tick: one ``pose`` event, one row of its path;
+a UAV-second is a UAV-tick times ``dt_s``):
+
+* ``uav_steps_per_cpu_s``: UAV-ticks simulated per CPU second (the sum over ticks of the UAVs
+  alive in the tick, over ``cpu_seconds``): a throughput comparable across swarm sizes;
+* ``radio_bytes_per_uav_s``: the radio's ``bytes_sent`` (every frame broadcast, counted once)
+  per UAV-second;
+* ``event_log_bytes_per_uav_s``: the event log's size (``events.msgpack``) per UAV-second;
+
+and ``shares``, the fraction of the run spent in:
 
 * ``planning``: the planners' ``plan`` calls (including the map reads they make);
 * ``map``: the actors' other map work: applying their own scans and heard scan records (disk
@@ -43,7 +53,14 @@ import agents.maps.grid
 import agents.maps.umap
 import agents.planners
 import comms.radio
+from swarm.results import RunResult
+from swarm.scenario import Scenario, apply_overrides, load_scenario
+from swarm.scenario.model import RadioSettings
 from swarm.simulation import Simulation
+
+# The model's default period of anti-entropy (a case that asks for it on a scenario that turns it
+# off gets this one).
+DEFAULT_SYNC_EVERY_S = float(RadioSettings.model_fields["sync_every_s"].default)
 
 
 @dataclass(frozen=True)
@@ -53,6 +70,9 @@ class Case:
     planner: str
     duration_s: float | None = None  # None: the scenario's
     quick: bool = False  # part of `swarm bench --quick` (CI)
+    # True: anti-entropy on, at the model's default period if the scenario turns it off (its own
+    # period if it has one); None: as the scenario has it.
+    anti_entropy: bool | None = None
 
 
 CASES = [
@@ -63,8 +83,11 @@ CASES = [
     # window around the UAV (then the full 2000 s, like greedy).
     Case("bench-100-dacmp", "bench-100", "dacmp", duration_s=200.0),
     Case("bench-100-greedy", "bench-100", "greedy"),
-    # 42 M cells: greedy only (DACMP's whole-map reads are out of reach here), 200 s.
+    # 42 M cells, 200 s.
     Case("bench-1000-greedy", "bench-1000", "greedy"),
+    # The same with DACMP (a whole-map read, 42 M cells, per replanning) and anti-entropy on (the
+    # scenario turns it off): heavy, run it on its own (--case).
+    Case("bench-1000-dacmp", "bench-1000", "dacmp", duration_s=200.0, anti_entropy=True),
     # ~75 000 link copies per simulated second: 30 s.
     Case("bench-dense-300-dacmp", "bench-dense-300", "dacmp", duration_s=30.0),
 ]
@@ -134,17 +157,35 @@ class _Sampler:
         return {k: round(self.counts[k] / n, 3) if n else 0.0 for k in SHARES}
 
 
+def case_scenario(case: Case) -> Scenario:
+    """The scenario a case runs (before its planner and duration are applied): the named one,
+    with anti-entropy turned on if the case asks for it and the scenario has it off."""
+    sc = load_scenario(case.scenario)
+    if case.anti_entropy is not None and case.anti_entropy != (sc.radio.sync_every_s > 0):
+        sc = apply_overrides(sc, {"radio.sync_every_s": DEFAULT_SYNC_EVERY_S if case.anti_entropy else 0.0})
+    return sc
+
+
+def uav_ticks(result: RunResult) -> int:
+    """The sum over the run's ticks of the UAVs alive in each: a live UAV adds one row to its
+    path (and one ``pose`` event to the log) per tick, so this is read after the run."""
+    return sum(len(p) for p in result.paths.values())
+
+
 def run_case(case: Case) -> dict:
-    sim = Simulation(case.scenario, planner=case.planner, duration_s=case.duration_s)
+    sim = Simulation(case_scenario(case), planner=case.planner, duration_s=case.duration_s)
     sampler = _Sampler()
     sampler.start()
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        m = sim.run().metrics
+        result = sim.run()
     finally:
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         shares = sampler.stop()
         sim.close()
+    m = result.metrics
+    ticks = uav_ticks(result)
+    uav_s = ticks * sim.dt
     return {
         "case": case.name,
         "scenario": case.scenario,
@@ -158,6 +199,10 @@ def run_case(case: Case) -> dict:
         "shares": shares,
         "coverage": round(m["coverage"], 4),
         "event_log_sha256": m["event_log_sha256"],
+        "anti_entropy": sim.scenario.radio.sync_every_s > 0,
+        "uav_steps_per_cpu_s": round(ticks / cpu, 1) if cpu > 0 else 0.0,
+        "radio_bytes_per_uav_s": round(m["radio"]["bytes_sent"] / uav_s, 1) if uav_s else 0.0,
+        "event_log_bytes_per_uav_s": round(len(result.events) / uav_s, 1) if uav_s else 0.0,
     }
 
 
