@@ -6,7 +6,9 @@
   many UAVs in one call, as DACMP does: see :mod:`.batching`);
 * :mod:`.registry`: built-in names, ``package.module:Class`` and the ``swarm.planners``
   entry-point group; :class:`PlannerContext`, what a planner may know before the run;
-* the planners: :mod:`.greedy` (the paper's baseline), :mod:`.dacmp` (the paper's planner).
+* the planners: :mod:`.greedy` (the paper's baseline), :mod:`.dacmp` (the paper's planner),
+  and the reference planners :mod:`.lawnmower`, :mod:`.formation` and :mod:`.levy` (search-only,
+  like greedy; docs/planners.md).
 
 The deprecation policy of this API is in docs/embedding.md.
 """
@@ -14,7 +16,10 @@ The deprecation policy of this API is in docs/embedding.md.
 from __future__ import annotations
 
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
+from agents.planners.formation import FormationPlanner
 from agents.planners.greedy import GreedyPlanner
+from agents.planners.lawnmower import LawnmowerPlanner
+from agents.planners.levy import LevyPlanner
 from agents.planners.registry import (
     BUILTIN,
     ENTRY_POINT_GROUP,
@@ -27,7 +32,10 @@ from agents.planners.registry import (
 __all__ = [
     "BUILTIN",
     "ENTRY_POINT_GROUP",
+    "FormationPlanner",
     "GreedyPlanner",
+    "LawnmowerPlanner",
+    "LevyPlanner",
     "Plan",
     "PlanView",
     "Planner",

@@ -33,6 +33,9 @@ _JITTER = 1e-7
 class GreedyPlanner:
     headings: int = 15
     name: str = "greedy"
+    # Search-only, as in the paper (section 4.2): with planner.surveillance = true it does not
+    # watch targets; a sighting changes nothing (docs/planners.md).
+    surveillance = False
 
     @classmethod
     def from_context(cls, context: PlannerContext) -> GreedyPlanner:

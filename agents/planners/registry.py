@@ -41,7 +41,12 @@ ENTRY_POINT_GROUP = "swarm.planners"
 # Built-in planners by name: where their classes live (imported only when used).
 BUILTIN: dict[str, str] = {
     "dacmp": "agents.planners.dacmp.planner:DacmpPlanner",
+    # Not in the paper: DACMP with a search-mode spacing term (agents/planners/dacmp/spread.py).
+    "dacmp-spread": "agents.planners.dacmp.spread:DacmpSpreadPlanner",
     "greedy": "agents.planners.greedy:GreedyPlanner",
+    "lawnmower": "agents.planners.lawnmower:LawnmowerPlanner",
+    "formation": "agents.planners.formation:FormationPlanner",
+    "levy": "agents.planners.levy:LevyPlanner",
 }
 
 
@@ -82,7 +87,7 @@ def _import(ref: str) -> type:
             raise PlannerError(f"planner {ref!r}: module {module_name!r} has no {attr!r}")
     if not callable(obj):
         raise PlannerError(f"planner {ref!r}: {attr!r} is not a class")
-    return obj  # type: ignore[no-any-return]
+    return obj
 
 
 def _entry_points() -> dict[str, str]:
@@ -159,4 +164,4 @@ def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -
                            f"{type(exc).__name__}: {exc}") from exc
     if not callable(getattr(planner, "plan", None)):
         raise PlannerError(f"planner {name!r}: {cls.__name__} has no plan(view) method")
-    return planner  # type: ignore[no-any-return]
+    return planner

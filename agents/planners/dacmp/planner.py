@@ -34,6 +34,7 @@ from __future__ import annotations
 import bisect
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, cast
 
@@ -103,7 +104,7 @@ class DacmpPlanner(DacmpSettings):
 
     @staticmethod
     def guide_point(q: np.ndarray, regions: tuple[int, int], cell_m: float, x: float, y: float,
-                    theta: float, tie_tol: float = 0.02, tie_key: np.ndarray | None = None) -> tuple[float, float] | None:
+                    theta: float, tie_tol: float = 0.0, tie_key: np.ndarray | None = None) -> tuple[float, float] | None:
         """Centre of the most uncertain of the (up to 8) sub-areas adjacent to the UAV's (eq. 20).
 
         The paper's coarsest layer "divides the map into 4 x 4 sub-areas": ``regions`` is that
@@ -111,9 +112,11 @@ class DacmpPlanner(DacmpSettings):
         cells. Blocks, not the layer's own samples: REDUCE centres coarse sample ``a`` on cell
         ``2**L a``, so the samples of a 4 x 4 layer sit at 0, 12.8, 25.6 and 38.4 km on a 50 km
         map and no guide point would ever lie in the eastern or northern strip.
-        Sub-areas within ``tie_tol`` (2%) of the best count as tied (early on everything unseen
-        is ~1). Among them, with ``tie_key`` (one number per neighbour, row by row) the smallest
-        key wins; without it, the one closest to the UAV's heading.
+        The most uncertain one, as the paper says; sub-areas within ``tie_tol`` of the best count
+        as tied (default 0: exact ties only, such as sub-areas nobody has seen, whose mean is
+        exactly 1). Among tied ones, with ``tie_key`` (one number per neighbour, row by row) the
+        smallest key wins; without it, the one closest to the UAV's heading. (A 2% tolerance
+        used before picked a less uncertain sub-area in 13% of plans on paper-fig11.)
         """
         ny, nx = regions
         h, w = q.shape
@@ -149,9 +152,15 @@ class DacmpPlanner(DacmpSettings):
         return cx, cy
 
     def rivals(self, view: PlanView, targets: list[tuple[int, float, float, float]],
-               D: float) -> dict[int, list[tuple[float, float, float]]]:
-        """Per target ``m``: the other UAVs of eq. 23, as ``(x_j(t+1), y_j(t+1), v_j,max)`` in
-        (m, m, field units / s), counting only those whose next waypoint is within ``D`` of ``m``.
+               D: float) -> list[tuple[float, float, float, tuple[int, ...]]]:
+        """The other UAVs of eq. 23, each once, as ``(x_j(t+1), y_j(t+1), v_j,max, scope)`` in
+        (m, m, field units / s, indices into ``targets``): ``scope`` lists the targets within
+        ``D`` of ``x_j(t+1)``; UAVs within ``D`` of none are left out.
+
+        Eq. 23 is one sum over the other UAVs ``j``, each counted when it and the particle are
+        "both in the scope of [a] target": a UAV near two known targets repels a particle near
+        both once, not once per target (counted per target, a watcher of one target pushed a
+        slow UAV off the next target it was taking over, or off its own).
 
         ``x_j(t+1)`` is ``j``'s announced next waypoint. A UAV in surveillance mode of ``m``
         within one planning step of it (``ring_max_factor`` times its detection radius: the
@@ -165,10 +174,12 @@ class DacmpPlanner(DacmpSettings):
 
         Two UAVs of one type that both claim ``m`` (surveillance mode of ``m``) repel each other
         equally (eq. 27), so both would let go; the nearer one keeps it ("the nearest UAV could
-        prioritize its own surveillance relationship", paper, Case 1): we ignore a same-type
-        rival for ``m`` that is farther from it than we are while we claim ``m`` ourselves.
+        prioritize its own surveillance relationship", paper, Case 1): while we claim ``m``
+        ourselves, a same-type rival claiming ``m`` from farther away is ignored, and one from
+        nearer counts as at ``g_m`` wherever it is, so the farther of two claimants yields at
+        once instead of flying on until the nearer one is one planning step from the target.
         """
-        out: dict[int, list[tuple[float, float, float]]] = {tid: [] for tid, *_ in targets}
+        out: list[tuple[float, float, float, tuple[int, ...]]] = []
         if not targets:
             return out
         k = view.kind
@@ -181,18 +192,27 @@ class DacmpPlanner(DacmpSettings):
                 continue
             v_j = self.speed_max_by_type.get(p.type, k.speed_max) / unit
             r_j = self.detect_radius_by_type.get(p.type, k.detect_radius)
-            for tid, tx, ty, _v in targets:
-                wx, wy = p.wx, p.wy
-                if p.mode == MODE_SURVEIL and p.target == tid:
+            wx, wy = p.wx, p.wy
+            if p.mode == MODE_SURVEIL:
+                claimed = [(tx, ty) for tid, tx, ty, _v in targets if tid == p.target]
+                if claimed:
+                    tx, ty = claimed[0]
                     d_j = math.hypot(p.x - tx, p.y - ty)
-                    if (claim == tid and p.type == k.name
-                            and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav)):
+                    rival = claim == p.target and p.type == k.name
+                    if rival and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav):
                         continue  # a same-type rival farther away: we keep the target
-                    if d_j <= self.ring_max_factor * r_j:
+                    if rival or d_j <= self.ring_max_factor * r_j:
                         wx, wy = tx, ty  # its next waypoint is the target
-                if math.hypot(wx - tx, wy - ty) < D:
-                    out[tid].append((wx, wy, v_j))
+            scope = tuple(i for i, (_tid, tx, ty, _v) in enumerate(targets) if math.hypot(wx - tx, wy - ty) < D)
+            if scope:
+                out.append((wx, wy, v_j, scope))
         return out
+
+    def crowding(self, uavs: list[_UavSearch], points: int) -> Callable[[np.ndarray], np.ndarray] | None:
+        """A factor on eq. 19's ``f_Sl`` at the points ``z`` of these UAVs (``(2, UAVs, points)``
+        to ``(UAVs, points)``), or None. The paper's DACMP has none; variants beyond the paper
+        do (:mod:`agents.planners.dacmp.spread`)."""
+        return None
 
     def plan(self, view: PlanView) -> Plan:
         return self.plan_many([view])[0]
@@ -327,6 +347,7 @@ class _Batch:
         self.dubins = DubinsPoses(np.array([u.view.theta for u in uavs]), column([u.r_min for u in uavs]), shape=shape)
         self.no_targets = np.zeros(shape)  # f_t where no UAV has a target term
         self.no_targets.flags.writeable = False
+        self.crowding = planner.crowding(uavs, points)  # None for DACMP itself
 
     def fitness(self, z: np.ndarray, kept: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s ``points`` points).
@@ -339,6 +360,8 @@ class _Batch:
         dub = self.dubins.lengths(d)
         R = self.R
         f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
+        if self.crowding is not None:
+            f_sl *= self.crowding(z)
         if self.guided:
             dot = self.guide_dir * d
             cosang = (dot[0] + dot[1]) / np.maximum(self.g_norm * np.hypot(d[0], d[1]), 1e-9)
@@ -399,7 +422,7 @@ class _UavSearch:
     slot: int  # the UAV's index in the _Layers of the plan_many call (its map's pyramid)
     guide: tuple[float, float] | None
     targets: list[tuple[int, float, float, float]]
-    rivals: dict[int, list[tuple[float, float, float]]]
+    rivals: list[tuple[float, float, float, tuple[int, ...]]]  # DacmpPlanner.rivals
     threats: list
     ring_radius: np.ndarray | None = None  # draw(): only a UAV that runs PSO draws these
     ring_angle: np.ndarray | None = None
@@ -438,15 +461,17 @@ class _UavSearch:
         """Add eq. 22 (target attraction) and eq. 23 (competing repulsion) into ``f_t``."""
         k = self.view.kind
         D, v_i = self.D, self.v_i
-        for tid, tx, ty, value in self.targets:
+        near = []  # per target: the points within D of it
+        for _tid, tx, ty, value in self.targets:
             d = np.hypot(px - tx, py - ty)
-            near = d < D
-            if not near.any():
-                continue
-            f_t += np.where(near, k.w_t * value / (np.maximum(d / unit, floor) * v_i * v_i), 0.0)
-            for wx, wy, v_j in self.rivals[tid]:
+            near.append(d < D)
+            if near[-1].any():
+                f_t += np.where(near[-1], k.w_t * value / (np.maximum(d / unit, floor) * v_i * v_i), 0.0)
+        for wx, wy, v_j, scope in self.rivals:  # each other UAV once (see DacmpPlanner.rivals)
+            shared = near[scope[0]] if len(scope) == 1 else np.logical_or.reduce([near[i] for i in scope])
+            if shared.any():
                 dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
-                f_t -= np.where(near, k.w_r / (dj * v_i * v_j), 0.0)
+                f_t -= np.where(shared, k.w_r / (dj * v_i * v_j), 0.0)
 
     def decide(self, wx: float, wy: float, f_s: float, f_t: float) -> Plan:
         """Mode switch at the chosen waypoint: surveillance of the nearest target within ``D``
