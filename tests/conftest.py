@@ -42,12 +42,14 @@ def deselects_slow(config: pytest.Config) -> bool:
 
 
 PROFILE = "ci"  # the profile this session runs (set below)
+QUICK_LOOP = False  # -m "not slow"
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    global PROFILE
+    global PROFILE, QUICK_LOOP
+    QUICK_LOOP = deselects_slow(config)
     PROFILE = (config.getoption("hypothesis_profile", None) or os.environ.get("HYPOTHESIS_PROFILE")
-               or ("quick" if deselects_slow(config) else "ci"))
+               or ("quick" if QUICK_LOOP else "ci"))
     settings.load_profile(PROFILE)
 
 
@@ -118,11 +120,39 @@ def fault_stats() -> FaultStats:
     return _STATS
 
 
+# --- the quick loop's budget ---------------------------------------------------------------------
+# `pytest -m "not slow"` should answer in under a minute. At its end, tests that took longer
+# than QUICK_TEST_BUDGET_S (setup, call and teardown) are listed: mark them `slow`, or make
+# them cheaper, and keep a quick test of the same thing (see tests/README.md). Only a hint.
+
+QUICK_TEST_BUDGET_S = 2.0
+_DURATIONS: Counter[str] = Counter()
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if QUICK_LOOP:
+        _DURATIONS[report.nodeid] += report.duration
+
+
+def _quick_loop_summary(tr) -> None:
+    over = [(d, nodeid) for nodeid, d in _DURATIONS.items() if d > QUICK_TEST_BUDGET_S]
+    if not over:
+        return
+    tr.section(f"quick loop: tests over {QUICK_TEST_BUDGET_S:g} s not marked slow")
+    for d, nodeid in sorted(over, reverse=True):
+        tr.write_line(f"{d:6.2f} s  {nodeid}")
+    tr.write_line("(a loaded machine inflates these; mark a test @pytest.mark.slow when it is slow on a quiet one)")
+
+
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    _quick_loop_summary(terminalreporter)
+    _fault_kind_summary(terminalreporter)
+
+
+def _fault_kind_summary(tr) -> None:
     s = _STATS
     if not s.schedules:
         return
-    tr = terminalreporter
     tr.section("fault-kind coverage (generated schedules)")
     tr.write_line(f"schedules generated: {s.schedules}; simulations run with one: {s.runs}")
     tr.write_line(f"{'kind':10s} {'scheduled':>10s} {'fired':>10s} {'runs fired':>11s}")

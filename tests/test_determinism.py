@@ -25,7 +25,8 @@ def _hash_in_subprocess(seed: int, hashseed: str, planner: str = "greedy") -> st
     return out.stdout.strip()
 
 
-@pytest.mark.parametrize("planner", ["greedy", pytest.param("dacmp", marks=pytest.mark.slow)])  # subprocesses
+@pytest.mark.slow  # four subprocesses; the in-process tests below are the quick loop's
+@pytest.mark.parametrize("planner", ["greedy", "dacmp"])
 def test_same_seed_same_hash_across_processes_and_hash_seeds(planner):
     a = _hash_in_subprocess(1, "0", planner)
     b = _hash_in_subprocess(1, "4242", planner)

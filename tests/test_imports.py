@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 
 BLOCK_HYPOTHESIS = "import sys; sys.modules['hypothesis'] = None\n"
@@ -19,6 +21,7 @@ def _modules(package: str) -> list[str]:
     return [package] + [f"{package}.{m.name}" for m in pkgutil.walk_packages([str(pkg_path)])]
 
 
+@pytest.mark.slow  # a subprocess importing every module (the swarm.testing one below is quick)
 def test_every_module_outside_swarm_testing_imports_without_hypothesis():
     names = [m for p in ("swarm", "agents", "comms", "faults") for m in _modules(p)
              if not m.startswith(("swarm.testing", "swarm.env")) and m != "swarm.__main__"]

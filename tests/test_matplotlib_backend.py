@@ -8,6 +8,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("swarm", "agents", "comms", "faults")
 
@@ -35,6 +37,7 @@ _HOST = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow  # a subprocess importing every viz and experiments module
 def test_importing_and_drawing_keeps_the_hosts_backend():
     out = subprocess.run([sys.executable, "-c", _HOST], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert out.returncode == 0, out.stderr

@@ -56,11 +56,13 @@ def test_built_in_scenarios_fit_the_default_limit_of_a_24_gb_machine():
         assert estimate_memory(load_scenario(name)).total < 12 * 1024**3, name
 
 
+# A `python -m swarm` subprocess each: the --set ones are slow (test_values_that_cannot_run_... checks
+# the same refusals in process); the --memory-limit one, a CLI option, is the quick loop's.
 @pytest.mark.parametrize("args, expected", [
-    (["--set", "area.cell_m=0.01"], "area.cell_m"),
-    (["--set", "map.tau=1e-300"], "map.tau"),
-    (["--set", "dt_s=1e-7"], "dt_s"),
-    (["--set", "uavs[2].join_s=1e6"], "uavs[2].join_s"),
+    pytest.param(["--set", "area.cell_m=0.01"], "area.cell_m", marks=pytest.mark.slow),
+    pytest.param(["--set", "map.tau=1e-300"], "map.tau", marks=pytest.mark.slow),
+    pytest.param(["--set", "dt_s=1e-7"], "dt_s", marks=pytest.mark.slow),
+    pytest.param(["--set", "uavs[2].join_s=1e6"], "uavs[2].join_s", marks=pytest.mark.slow),
     (["--set", "area.cell_m=1", "--memory-limit", "4"], "--memory-limit"),
 ])
 def test_cli_absurd_inputs_are_one_error_line_exit_2(args, expected):

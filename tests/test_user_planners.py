@@ -81,6 +81,7 @@ def test_a_raising_planner_stops_the_run_naming_planner_and_uav(on_path):
             sim.run()
 
 
+@pytest.mark.slow  # `python -m swarm` subprocesses, one with a process pool
 def test_cli_run_and_sweep_with_a_user_planner(tmp_path):
     out = tmp_path / "run"
     r = _swarm("run", "paper-case1", "--planner", EXAMPLE, "--duration", "60", "--out", str(out), "--quiet")
@@ -94,6 +95,7 @@ def test_cli_run_and_sweep_with_a_user_planner(tmp_path):
     assert planners == {"greedy", EXAMPLE}
 
 
+@pytest.mark.slow  # four `python -m swarm` subprocesses (the in-process tests above are quick)
 def test_cli_bad_planners_are_one_error_line_exit_2(tmp_path):
     (tmp_path / "broken_planners.py").write_text(BROKEN)
     cases = [
@@ -114,6 +116,7 @@ def test_list_planners_shows_the_built_ins():
     assert r.returncode == 0 and "dacmp" in r.stdout and "greedy" in r.stdout
 
 
+@pytest.mark.slow  # two `python -m swarm` subprocesses
 def test_a_planner_registered_as_an_entry_point_is_found_by_name(tmp_path):
     # What `pip install` of a distribution declaring [project.entry-points."swarm.planners"] leaves.
     dist = tmp_path / "my_planners-0.1.dist-info"
