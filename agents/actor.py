@@ -5,8 +5,9 @@ all have answered. An actor's step only touches its own state and returns an
 :class:`ActorOutput` (command, encoded frames, task); the simulator then processes outputs in
 UAV-id order, so the result does not depend on which task the event loop happens to run first.
 
-A step: drain the inbox (decode, schema-check, merge; malformed frames are counted as rejected
-and skipped) -> own scan and sightings -> replan if due -> local planner (APF) -> outbox.
+A step: drain the inbox (decode, schema-check, merge; malformed frames, and with ``[radio]
+auth`` frames failing their MAC, are counted as rejected and skipped) -> own scan and sightings
+-> replan if due -> local planner (APF) -> outbox.
 The replan sits between two halves (:meth:`UavActor.observe`, :meth:`UavActor.act`) so that the
 simulator can serve every UAV due in one tick with one batched planner call
 (:mod:`agents.planners.batching`); a decision is still made from the UAV's own view and random stream.
@@ -17,7 +18,7 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Awaitable, Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import cast
 
@@ -32,7 +33,7 @@ from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.types import GRAVITY, UavType
-from comms.codec import FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
+from comms.codec import AuthError, FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
@@ -133,17 +134,23 @@ class ActorSettings:
     loiter_radius_factor: float = 0.5
     loiter_turn_factor: float = 1.25
     loiter_gain: float = 1.0
+    # ... and feels the threats' repulsion (eq. 30) with apf.k_rep times this (see UavActor.act).
+    loiter_threat_weight: float = 0.15
     sync_every_s: float = 5.0  # anti-entropy digest period (0: off); see agents.maps.scanlog
     sync_settle_s: float = 2.0  # the digest covers scans up to this long ago (in flight: not missing)
     sync_max_records: int = 4000  # scans resent in answer to one digest
     sync_horizon_s: float = 600.0  # scans older than this are neither kept nor compared
     apf: ApfSettings = field(default_factory=ApfSettings)
+    # The swarm key ([radio] auth): frames are sent with their MAC and heard frames without the
+    # right one are rejected (comms.codec). None: no authentication.
+    auth_key: bytes | None = None
 
 
 @dataclass(slots=True)
 class ActorCounters:
     delivered: int = 0  # frames decoded and merged
-    rejected: int = 0  # frames that failed decoding or the schema
+    rejected: int = 0  # frames that failed decoding or the schema (auth failures included)
+    rejected_auth: int = 0  # of those, frames that failed their MAC (not written with the swarm key)
     frames_sent: int = 0
     plans: int = 0
     scans_resent: int = 0  # scans sent in answer to neighbours' digests
@@ -189,7 +196,9 @@ class UavActor:
         self._max_scan_r = max(grid.width_m, grid.height_m)
         # Shared by the simulation's actors so each broadcast frame is decoded once (a pure
         # memo: the same bytes give the same immutable Frame).
-        self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes)
+        # (A shared decoder decodes with the swarm's key, as settings.auth_key.)
+        self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes,
+                                                                          key=settings.auth_key)
         self._lookup = decoder.lookup if decoder is not None else None
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
@@ -292,12 +301,18 @@ class UavActor:
         plan = cast(Plan, self.plan)  # (set: observe() asks for a plan while there is none)
         speed = self.kind.speed_max
         goal_x, goal_y = plan.wx, plan.wy
+        apf = s.apf
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
             goal_x, goal_y, speed = self._loiter(r, k.tracks[plan.target])
+            # With the full eq. 30 field a watcher stays about 1.7 km off a no-fly zone's edge, and
+            # its target, 1.5-2 km from it, is lost as soon as it nears the zone (most of Case 2's
+            # lost targets). A weaker field lets it follow to about 0.75 km; the threat guard
+            # (agents.apf) still keeps it out.
+            apf = replace(apf, k_rep=apf.k_rep * s.loiter_threat_weight)
         others = [(p.x, p.y, p.v * math.cos(p.theta), p.v * math.sin(p.theta))
                   for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
         a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
-                               list(k.threats.values()), others, s.apf, s.dt)
+                               list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
         replies = self._answer_digests(t) if self._digests else []
@@ -377,6 +392,11 @@ class UavActor:
             if frame is None:
                 try:
                     frame = decode_frame(data)
+                except AuthError:  # (a FrameError too)
+                    counters.rejected += 1
+                    counters.rejected_auth += 1
+                    append((sender, len(data), False))
+                    continue
                 except FrameError:
                     counters.rejected += 1
                     append((sender, len(data), False))
@@ -488,7 +508,7 @@ class UavActor:
     def _frame(self, t: float, messages: Sequence[Message | Packed]) -> bytes:
         self._seq += 1
         self.counters.frames_sent += 1
-        return encode(self.uid, self._seq, t, messages)
+        return encode(self.uid, self._seq, t, messages, self.settings.auth_key)
 
     def _outbox(self, r: SensorReading, plan: Plan) -> list[bytes]:
         t = r.t

@@ -6,13 +6,26 @@ wrong number, e.g. a scan time of 1e300 that would poison a map forever)::
 
     [MAGIC, VERSION, sender, seq, t, [[kind, field, ...], ...]] + crc32
 
-Decoding never trusts the bytes: size cap first, then msgpack with container limits, then a
-strict shape and type check of every field. Anything wrong raises :class:`FrameError`, which the
-receiver counts as a rejected frame and carries on.
+With a swarm key (``[radio] auth = true``) the msgpack array is followed by its MAC, the first
+:data:`MAC_BYTES` (16) bytes of HMAC-SHA256 under the key (a truncation RFC 2104 and NIST
+SP 800-107 allow: 128 bits), and the CRC covers both::
+
+    [MAGIC, VERSION, ...] + mac16 + crc32
+
+The CRC is the link layer's and is checked first (a frame damaged in flight fails it); the MAC
+then says whether a member of the swarm wrote the frame: one without the key (a spoofer, or a
+sender without auth) cannot make it, and :func:`decode` raises :class:`AuthError` (a
+:class:`FrameError`). The MAC proves origin, not freshness: a captured frame replayed verbatim
+passes. Without a key nothing of this runs (no MAC written, none checked).
+
+Decoding never trusts the bytes: size cap first, then the CRC, the MAC (with a key), msgpack
+with container limits, then a strict shape and type check of every field. Anything wrong raises
+:class:`FrameError`, which the receiver counts as a rejected frame and carries on.
 """
 
 from __future__ import annotations
 
+import hmac
 import math
 import zlib
 from collections.abc import Iterable, Sequence
@@ -37,12 +50,22 @@ from comms.messages import (
 MAGIC = 0x5357  # "SW"
 VERSION = 1
 DEFAULT_MAX_BYTES = 65536
+MAC_BYTES = 16  # HMAC-SHA256 truncated to 128 bits
 
 K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST = 1, 2, 3, 4, 5, 6
 
 
 class FrameError(SwarmError, ValueError):
     """A received frame is malformed, truncated, oversized or fails the schema."""
+
+
+class AuthError(FrameError):
+    """A received frame fails its MAC (:func:`decode` with a key): written without the swarm key."""
+
+
+def mac(key: bytes, payload: bytes) -> bytes:
+    """The MAC of ``payload`` under ``key``: HMAC-SHA256, its first :data:`MAC_BYTES` bytes."""
+    return hmac.digest(key, payload, "sha256")[:MAC_BYTES]
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,10 +146,12 @@ def _pack_message(m: Message | Packed) -> Packed:
 _packer = msgpack.Packer(use_bin_type=True)
 
 
-def encode(sender: int, seq: int, t: float, messages: Sequence[Message | Packed]) -> bytes:
+def encode(sender: int, seq: int, t: float, messages: Sequence[Message | Packed], key: bytes | None = None) -> bytes:
     """The frame of ``messages``: :class:`~comms.messages.Message` objects, or their packed forms
-    (:func:`pack_hello`, ...)."""
+    (:func:`pack_hello`, ...). ``key``: the swarm key; the frame then carries its MAC."""
     payload: bytes = _packer.pack([MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]])
+    if key is not None:
+        payload += mac(key, payload)
     return payload + zlib.crc32(payload).to_bytes(4, "little")
 
 
@@ -232,8 +257,10 @@ def _message(raw: object) -> Message:
     raise FrameError(f"unknown message kind {kind}")
 
 
-def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> Frame:
-    """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception."""
+def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = None) -> Frame:
+    """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception. ``key``: the
+    swarm key; a frame whose MAC is not right under it (or that has none) raises
+    :class:`AuthError`."""
     if not isinstance(data, (bytes, bytearray)):
         raise FrameError("frame is not bytes")
     if len(data) > max_bytes:
@@ -243,6 +270,13 @@ def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> Frame:
     payload = bytes(data[:-4])
     if zlib.crc32(payload).to_bytes(4, "little") != bytes(data[-4:]):
         raise FrameError("checksum mismatch (corrupted or truncated frame)")
+    if key is not None:
+        if len(payload) <= MAC_BYTES:
+            raise AuthError("no MAC")
+        tag = payload[-MAC_BYTES:]
+        payload = payload[:-MAC_BYTES]
+        if not hmac.compare_digest(mac(key, payload), tag):
+            raise AuthError("MAC mismatch (not written with the swarm key)")
     try:
         raw = msgpack.unpackb(
             payload,

@@ -6,6 +6,9 @@ and the size cap, and a decoded :class:`~comms.codec.Frame` is immutable (frozen
 and tuples all the way down), so receivers can share one decoded frame: :class:`DecodeCache`
 keeps the frames it decoded, keyed by their bytes, for a while.
 
+A cache decodes with one swarm key (``key``: :func:`comms.codec.decode`'s), that of every
+receiver sharing it; a frame it holds passed the MAC.
+
 Failures are not remembered: a frame that does not decode is rejected by each receiver that
 gets it, each time (a corrupted copy is almost always unique to one link anyway). The cache
 only changes how often the codec runs, never what a receiver gets: a hit returns the frame
@@ -22,10 +25,11 @@ DECODE_CACHE_SIZE = 8192
 
 
 class DecodeCache:
-    __slots__ = ("max_bytes", "size", "_frames", "decoded", "lookup")
+    __slots__ = ("max_bytes", "key", "size", "_frames", "decoded", "lookup")
 
-    def __init__(self, max_bytes: int = DEFAULT_MAX_BYTES, size: int = DECODE_CACHE_SIZE):
+    def __init__(self, max_bytes: int = DEFAULT_MAX_BYTES, size: int = DECODE_CACHE_SIZE, key: bytes | None = None):
         self.max_bytes = max_bytes
+        self.key = key
         self.size = max(1, size)
         self._frames: dict[bytes, Frame] = {}
         self.decoded = 0  # frames actually run through the codec
@@ -34,14 +38,14 @@ class DecodeCache:
         self.lookup = self._frames.get
 
     def decode(self, data: bytes) -> Frame:
-        """:func:`comms.codec.decode` ``(data, max_bytes)``, memoised for ``bytes`` that decode."""
+        """:func:`comms.codec.decode` ``(data, max_bytes, key)``, memoised for ``bytes`` that decode."""
         frames = self._frames
         if type(data) is bytes:
             frame = frames.get(data)
             if frame is not None:
                 return frame
         self.decoded += 1
-        frame = decode(data, self.max_bytes)  # raises FrameError: not cached
+        frame = decode(data, self.max_bytes, self.key)  # raises FrameError: not cached
         if type(data) is bytes:
             if len(frames) >= self.size:
                 for k in list(islice(frames, max(1, self.size // 4))):  # oldest first

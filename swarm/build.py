@@ -7,6 +7,7 @@ and decide nothing at run time; :class:`swarm.simulation.Simulation` composes th
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable
 
@@ -20,7 +21,7 @@ from comms.radio import LinkFilter, LinkModel, Radio
 from swarm.scenario import Scenario, UavTypeSpec
 from swarm.world import TargetMotion
 
-__all__ = ["actor_settings", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
+__all__ = ["actor_settings", "auth_key", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
 
 
 def uav_type_from_spec(name: str, spec: UavTypeSpec) -> UavType:
@@ -55,8 +56,21 @@ def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], lin
     """The radio graph with the scenario's link model; ``link_rng(src, dst)`` gives a directed
     link's own random stream, ``link_filter`` (the fault injector) sees every frame copy."""
     r = sc.radio
-    model = LinkModel(r.range_m, r.loss_base, r.loss_at_range, r.latency_s, r.jitter_s, r.bandwidth_bytes_per_s)
+    model = LinkModel(r.range_m, r.loss_base, r.loss_at_range, r.latency_s, r.jitter_s, r.bandwidth_bytes_per_s,
+                      log_distance=r.log_distance_model())
     return Radio(model, link_rng=link_rng, link_filter=link_filter)
+
+
+def auth_key(sc: Scenario) -> bytes | None:
+    """The swarm key of ``[radio] auth`` (None when it is off): ``radio.auth_key`` as UTF-8, or when
+    absent SHA-256 of ``"uav-swarm-sim swarm key <seed>"`` (the run's seed: deterministic, never
+    from a clock or the OS, and different for every seed)."""
+    r = sc.radio
+    if not r.auth:
+        return None
+    if r.auth_key is not None:
+        return r.auth_key.encode("utf-8")
+    return hashlib.sha256(f"uav-swarm-sim swarm key {sc.seed}".encode()).digest()
 
 
 def actor_settings(sc: Scenario) -> ActorSettings:
@@ -78,6 +92,8 @@ def actor_settings(sc: Scenario) -> ActorSettings:
         loiter_radius_factor=p.loiter_radius_factor,
         loiter_turn_factor=p.loiter_turn_factor,
         loiter_gain=p.loiter_gain,
+        loiter_threat_weight=p.loiter_threat_weight,
         apf=ApfSettings(ap.k_att, ap.k_rep, ap.uav_b, ap.uav_c, ap.uav_dmax_m, sc.safety.min_separation_m,
                         lookahead_s=ap.lookahead_s),
+        auth_key=auth_key(sc),
     )

@@ -40,12 +40,14 @@ def radio_totals(sim: Simulation) -> dict:
     c = sim.radio.counters
     delivered = sum(a.counters.delivered for a in sim.actors.values())
     rejected = sum(a.counters.rejected for a in sim.actors.values())
+    rejected_auth = sum(a.counters.rejected_auth for a in sim.actors.values())
     queued = sum(len(a.mailbox) for a in sim.actors.values())
     return {
         "sent": c.sent,
         "delivered": delivered,
         "dropped": c.dropped_total,
         "rejected": rejected,
+        "rejected_auth": rejected_auth,  # of the rejected: failed their MAC ([radio] auth)
         "bytes_sent": c.bytes_sent,
         "duplicated": c.duplicated,
         "dropped_by_cause": dict(sorted(c.dropped.items())),
@@ -69,6 +71,7 @@ def run_metrics(sim: Simulation) -> dict:
             "frames_sent": a.counters.frames_sent,
             "frames_delivered": a.counters.delivered,
             "frames_rejected": a.counters.rejected,
+            "frames_rejected_auth": a.counters.rejected_auth,  # of those, failed their MAC
             "mailbox_dropped_full": a.mailbox.stats.dropped_full,
             "mailbox_max_depth": a.mailbox.stats.max_depth,
             "plans": a.counters.plans,

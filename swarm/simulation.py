@@ -179,7 +179,8 @@ class Simulation:
             link_rng=lambda s, d: self.rng.generator("link", self.world.uavs[s].name, self.world.uavs[d].name),
             link_filter=self.injector,
         )
-        self._decoder = DecodeCache(sc.radio.frame_max_bytes)  # each broadcast frame decoded once
+        # Each broadcast frame decoded once (with the swarm key, if [radio] auth).
+        self._decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc))
         self._in_flight = 0
 
     def _build_actors(self, sc: Scenario, batch_planning: bool) -> None:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from swarm.cli import main
-from swarm.experiments.paper import EXPERIMENTS, _stays_above_from, write_table
+from swarm.experiments.paper import EXPERIMENTS, FIG11_PLANNERS, _stays_above_from, fig11_planners, write_table
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = ["--duration", "60", "--workers", "2", "--quiet"]
@@ -51,30 +51,34 @@ def test_empty_folder_table_is_all_not_run(tmp_path):
 @pytest.mark.slow  # fills paper_out: each test needs the ones before it
 def test_fig11_writes_figures_and_table_then_skips_finished_runs(paper_out, capsys):
     out = paper_out
+    planners = fig11_planners()  # the paper's pair, then the reference planners
+    assert planners[:2] == FIG11_PLANNERS
+    n = 2 * len(planners)
     assert main(["paper", "fig11", "--seeds", "2", "--out", str(out), *TINY]) == 0
     err = capsys.readouterr().err
-    assert "4 runs: 0 already finished, 4 ran, 0 failed" in err
+    assert f"{n} runs: 0 already finished, {n} ran, 0 failed" in err
     for name in ("fig11_over_time.png", "fig11_final.png"):
         _png(out / "fig11" / name)
     s = json.loads((out / "fig11" / "summary.json").read_text())
-    assert s["runs_finished"] == 4
+    assert s["runs_finished"] == n
     rows = _rows(out, "Fig. 11")
-    assert len(rows) == 6
+    assert len(rows) == 2 * len(planners) + 2
     for _, quantity, paper, ours, note in rows:
         assert paper and ours != "not run", quantity
         assert "60 s" in note
     assert any("0.712" in r[2] for r in rows) and any("13.7" in r[2] for r in rows)
-    assert sum(bool(MEASURED.search(r[3])) for r in rows) == 4
+    assert sum(bool(MEASURED.search(r[3])) for r in rows) == 2 * len(planners)
+    assert sum("reference planner, not in the paper" in r[2] for r in rows) == 2 * (len(planners) - 2)
     assert all("paired seeds" in r[3] for r in rows if "DACMP − greedy" in r[1])
     assert all(r[3] == "not run" for r in _rows(out, "Case"))  # the other experiments
     text = (out / "table.md").read_text()
     assert "paper (quoted)" in text and "ours (measured" in text
 
     metrics = sorted(out.glob("fig11/runs/*/*/*/metrics.json"))
-    assert len(metrics) == 4
+    assert len(metrics) == n
     before = {p: p.stat().st_mtime_ns for p in metrics}
     assert main(["paper", "fig11", "--seeds", "2", "--out", str(out), *TINY]) == 0
-    assert "4 runs: 4 already finished, 0 ran, 0 failed" in capsys.readouterr().err
+    assert f"{n} runs: {n} already finished, 0 ran, 0 failed" in capsys.readouterr().err
     assert {p: p.stat().st_mtime_ns for p in metrics} == before
 
 

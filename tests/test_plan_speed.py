@@ -72,7 +72,7 @@ def ref_level_sum(search_levels, lam, iy, ix) -> np.ndarray:
     return out
 
 
-def ref_guide_point(q, regions, cell_m, x, y, theta, tie_tol=0.02, tie_key=None):
+def ref_guide_point(q, regions, cell_m, x, y, theta, tie_tol=0.0, tie_key=None):
     ny, nx = regions
     h, w = q.shape
     if ny < 2 and nx < 2:

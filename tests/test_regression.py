@@ -24,6 +24,13 @@ History:
   pre-join scans reach every map; heard scans with absurd centres or radii are ignored. Frames
   and maps change: intended.
 - (batched planning and the faster guide sums left these hashes unchanged, as they must.)
+- DACMP's global guide takes the most uncertain neighbouring sub-area (exact ties only, as the
+  paper says; a 2% near-tie tolerance before): unchanged here (no near-tie in these 60 s), the
+  paper-fig11 event logs change.
+- DACMP surveillance for Case 2 (eq. 23 once per UAV, a watcher only in its own target's scope,
+  the farther same-type claimant yields, the declared target is the strongest pull, watchers
+  feel threats at 0.15 k_rep): unchanged here (one target, seen at 20 s; no watcher in a threat field),
+  paper-case2/3 logs change; paper-fig11's (search only) do not.
 """
 
 from __future__ import annotations

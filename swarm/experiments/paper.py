@@ -3,7 +3,8 @@
 One function per experiment, and :func:`run_paper` for one or all of them (the Python form of
 ``swarm paper``):
 
-* ``fig11`` — ``paper-fig11``, DACMP against greedy over seeds (Fig. 10-11): coverage and targets
+* ``fig11`` — ``paper-fig11``, DACMP against greedy over seeds (Fig. 10-11), with the reference
+  planners (lawnmower, formation, Lévy; not in the paper) beside them: coverage and targets
   found over time (mean, 95% band, min-max spread) and final values with 95% intervals;
 * ``case1`` — one ``paper-case1`` run (Fig. 12): distance of every UAV to target 1 over time with
   the handover and mode changes marked, and the trajectories;
@@ -72,9 +73,29 @@ from swarm.viz.style import uav_colours
 EXPERIMENTS = ("fig11", "case1", "case2", "case3")
 DEFAULT_SEEDS = {"fig11": 30, "case3": 10}
 SCENARIO = {"fig11": "paper-fig11", "case1": "paper-case1", "case2": "paper-case2", "case3": "paper-case3"}
-FIG11_PLANNERS = ("greedy", "dacmp")  # greedy first: sweep comparisons are "dacmp - greedy"
-PLANNER_LABEL = {"greedy": "greedy", "dacmp": "DACMP"}
-PLANNER_COLOUR = {"greedy": "tab:blue", "dacmp": "tab:red"}
+FIG11_PLANNERS = ("greedy", "dacmp")  # the paper's pair; greedy first: sweep comparisons are "dacmp - greedy"
+# Reference planners (not in the paper) run beside them and bracket the result (DACMP-SPEC.md,
+# "Reproduction targets"); each only where the registry has it (agents.planners.registry).
+FIG11_REFERENCE = ("lawnmower", "formation", "levy")
+PLANNER_LABEL = {"greedy": "greedy", "dacmp": "DACMP", "lawnmower": "lawnmower (reference)",
+                 "formation": "formation (reference)", "levy": "Lévy (reference)"}
+PLANNER_COLOUR = {"greedy": "tab:blue", "dacmp": "tab:red", "lawnmower": "tab:green", "formation": "tab:purple",
+                  "levy": "tab:brown"}
+
+
+def fig11_planners() -> tuple[str, ...]:
+    """The planners ``fig11`` runs: the paper's pair, then the reference planners the registry finds."""
+    from agents.planners.base import PlannerError
+    from agents.planners.registry import resolve_planner
+
+    found = []
+    for name in FIG11_REFERENCE:
+        try:
+            resolve_planner(name)
+        except PlannerError:
+            continue
+        found.append(name)
+    return (*FIG11_PLANNERS, *found)
 CASE3_WINDOW_FROM_S = 600.0  # case3 table: mean coverage from this time on
 
 # What the paper reports (section 4), quoted; never computed.
@@ -173,19 +194,22 @@ def _record(rep: ExperimentReport, sweep_dir: Path, res: SweepResult) -> None:
 def run_fig11(out_dir: str | Path, *, seeds: int | Sequence[int] = 30, duration_s: float | None = None,
               executor: Executor | None = None, workers: int | None = None,
               progress: ProgressFn | None = None) -> ExperimentReport:
-    """DACMP vs greedy on ``paper-fig11`` over ``seeds`` (Fig. 10-11)."""
+    """DACMP vs greedy on ``paper-fig11`` over ``seeds`` (Fig. 10-11), with the reference planners
+    (:func:`fig11_planners`) beside them."""
     out = Path(out_dir) / "fig11"
     rep = ExperimentReport("fig11")
     seed_list = seeds_from(seeds)
+    planners = fig11_planners()
     with executor_for(executor, workers) as ex:
-        res = _sweep(SCENARIO["fig11"], out, seed_list, FIG11_PLANNERS, duration_s, ex, progress, "fig11")
+        res = _sweep(SCENARIO["fig11"], out, seed_list, planners, duration_s, ex, progress, "fig11")
     _record(rep, out, res)
-    runs = {p: _finished(out, p, seed_list) for p in FIG11_PLANNERS}
+    runs = {p: _finished(out, p, seed_list) for p in planners}
     rep.figures += [fig11_over_time(runs, out / "fig11_over_time.png"),
                     fig11_final(runs, out / "fig11_final.png")]
     results: dict[str, Any] = {"experiment": "fig11", "scenario": SCENARIO["fig11"], "seeds": seed_list,
                "duration_s": expected_duration(load_scenario(SCENARIO["fig11"]), duration_s),
-               "failed": len(res.failed), "planners": {}, "difference": None}
+               "failed": len(res.failed), "planners": {}, "difference": None,
+               "reference": [p for p in planners if p not in FIG11_PLANNERS]}
     summary = res.summary
     for g in summary.get("groups", []):
         results["planners"][g["planner"]] = {
@@ -243,6 +267,10 @@ def run_case2(out_dir: str | Path, *, seeds: int | Sequence[int] | None = None, 
                for k in ("targets_found", "watched_end", "watched_end_in_range", "handovers_fast_to_slow",
                          "threat_violations",
                          "separation_violations", "coverage")},
+            # How many seeds meet each Case 2 condition, and all four (DACMP-SPEC: at least 18 of 20).
+            "conditions": {k: sum(1 for m in per_seed if m["conditions"][k]) for k in (*CASE2_CONDITIONS, "all")},
+            "passed": [m["seed"] for m in per_seed if m["conditions"]["all"]],
+            "per_seed": [{"seed": m["seed"], **m["conditions"]} for m in per_seed],
         }
     log = RunLog.load(run_dir)
     results["run"] = case2_measures(log)
@@ -592,7 +620,51 @@ def case2_measures(log: RunLog) -> dict:
                           for t, tg, a, b in log.handovers],
         "threat_violations": m["violations"]["threat"], "separation_violations": m["violations"]["separation"],
         "coverage": m["coverage"],
+        "conditions": case2_conditions(log),
     }
+
+
+# Case 2 on one seed (the paper's account of Fig. 13-15; tests/test_paper_cases.py): at least
+# this many fast -> slow handovers (the paper's UAV 3->9, 5->10, 4->8, 1->6), after each of which
+# the fast UAV leaves the target alone for this long.
+CASE2_MIN_HANDOVERS = 4
+CASE2_LET_GO_S = 60.0
+CASE2_CONDITIONS = ("found", "watched", "handovers", "safe")
+
+
+def case2_conditions(log: RunLog) -> dict[str, bool]:
+    """The four conditions of Case 2 on one run, and ``all`` of them: ``found``, every target
+    found; ``watched``, at the last tick every target is watched by exactly one UAV (in
+    surveillance mode assigned to it) that has it inside its detection radius; ``handovers``,
+    at least :data:`CASE2_MIN_HANDOVERS` fast -> slow handovers, each an arrival (at the
+    handover tick the slow UAV watches the target and has it inside its detection radius)
+    after which the fast UAV does not watch that target for :data:`CASE2_LET_GO_S`; ``safe``, no
+    separation, threat or dynamics violation."""
+    m = log.metrics
+    watchers = log.watchers_at_end()
+
+    def arrival_and_release(t: float, tg: int, fast: int, slow: int) -> bool:
+        p, q = log.poses.get(slow), log.poses.get(fast)
+        if p is None or q is None or tg not in log.targets:
+            return False
+        i = int(np.searchsorted(p[:, 0], t))
+        if i >= len(p) or p[i, 0] != t or int(p[i, 3]) != MODE_SURVEIL or int(p[i, 4]) != tg:
+            return False
+        tx, ty = log.target_at(tg, np.array([t]))[0]
+        r = float(log.type_specs.get(log.types.get(slow, "?"), {}).get("detect_radius_m", math.inf))
+        after = q[(q[:, 0] >= t) & (q[:, 0] <= t + CASE2_LET_GO_S)]
+        return (math.hypot(p[i, 1] - tx, p[i, 2] - ty) <= r and len(after) > 0
+                and not bool(np.any((after[:, 3] == MODE_SURVEIL) & (after[:, 4] == tg))))
+
+    fast_to_slow = [h for h in log.handovers if log.speed_max(h[2]) > log.speed_max(h[3])]
+    out = {
+        "found": m["targets_found"] == m["targets_total"],
+        "watched": len(watchers) == m["targets_total"] and all(len(w) == 1 and w[0][1] for w in watchers.values()),
+        "handovers": len(fast_to_slow) >= CASE2_MIN_HANDOVERS and all(arrival_and_release(*h) for h in fast_to_slow),
+        "safe": not any(m["violations"].values()),
+    }
+    out["all"] = all(out.values())
+    return out
 
 
 # --- figures -----------------------------------------------------------------------------------
@@ -612,23 +684,32 @@ def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None 
 
 
 def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
-    """Coverage and targets found over time per planner (paper Fig. 10a-b / 11a-b)."""
+    """Coverage and targets found over time per planner (paper Fig. 10a-b / 11a-b); reference
+    planners (not in the paper) are labelled as such, drawn dashed with their 95% band only (no
+    min-max spread), and have no quoted value."""
     fig, axes = subplots(1, 2, figsize=(12, 4.8))
     quoted = PAPER["fig11"]
     for ax, col, ylabel, letter in ((axes[0], "coverage", "coverage rate", "a"),
                                     (axes[1], "targets_found", "number of targets found", "b")):
         any_data = False
         t_end = 0.0
-        for p in FIG11_PLANNERS:
+        for p in runs:
             if not runs.get(p):
                 continue
             any_data = True
             t, v = _stack(runs[p], col)
             t_end = max(t_end, float(t[-1]))
             top = 1.0 if col == "coverage" else float(runs[p][0]["metrics"]["targets_total"])
-            _draw_band(ax, t, v, PLANNER_COLOUR[p], PLANNER_LABEL[p], (0.0, top))
+            colour, label = PLANNER_COLOUR.get(p, "tab:gray"), PLANNER_LABEL.get(p, p)
+            if p in FIG11_PLANNERS:
+                _draw_band(ax, t, v, colour, label, (0.0, top))
+            else:
+                b = {k: np.clip(a, 0.0, top) for k, a in _band(v).items()}
+                if v.shape[0] > 1:
+                    ax.fill_between(t, b["lo"], b["hi"], color=colour, alpha=0.25, lw=0)
+                ax.plot(t, b["mean"], "--", color=colour, lw=1.4, label=f"{label} mean, 95% CI ({v.shape[0]} runs)")
         if any_data and math.isclose(t_end, quoted["duration_s"]):
-            for p in FIG11_PLANNERS:
+            for p in FIG11_PLANNERS:  # the paper quotes only its own pair
                 ax.plot([t_end], [quoted[col][p]], marker="D", mfc="none", mec=PLANNER_COLOUR[p], ms=8, ls="none",
                         label=f"{PLANNER_LABEL[p]} paper (quoted): {quoted[col][p]:g}")
         if not any_data:
@@ -640,23 +721,24 @@ def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
         ax.set_xlim(left=0)
         ax.set_ylim(bottom=0)
         if any_data:
-            ax.legend(fontsize=7, loc="lower right")
+            ax.legend(fontsize=6.5, loc="upper left")
     return save_figure(fig, path)
 
 
 def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
     """Final coverage and targets found per planner, ours (mean, 95% interval) next to the
-    paper's quoted means."""
-    fig, axes = subplots(1, 2, figsize=(9, 4.5))
+    paper's quoted means (the paper's pair only: reference planners are not in the paper)."""
+    planners = list(runs) or list(FIG11_PLANNERS)
+    fig, axes = subplots(1, 2, figsize=(max(9.0, 2.2 * len(planners)), 4.5))
     quoted = PAPER["fig11"]
-    x = np.arange(len(FIG11_PLANNERS))
+    x = np.arange(len(planners))
     for ax, key, ylabel in ((axes[0], "coverage", "coverage rate at end"),
                             (axes[1], "targets_found", "targets found at end")):
         means: list[float] = []
         errs: list[list[float]] = []
         ns: list[int] = []
         durations: set[float] = set()
-        for p in FIG11_PLANNERS:
+        for p in planners:
             vals = [r["metrics"][key] for r in runs.get(p, [])]
             durations |= {r["metrics"]["sim_seconds"] for r in runs.get(p, [])}
             d: dict[str, Any] = describe(vals) if vals else {"n": 0, "mean": math.nan, "ci95": [math.nan, math.nan]}
@@ -664,22 +746,26 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
             errs.append([d["mean"] - d["ci95"][0], d["ci95"][1] - d["mean"]])
             ns.append(d["n"])
         e = np.array(errs).T
-        ax.bar(x - 0.2, means, 0.38, yerr=e, capsize=5, color=[PLANNER_COLOUR[p] for p in FIG11_PLANNERS],
+        ax.bar(x - 0.2, means, 0.38, yerr=e, capsize=5, color=[PLANNER_COLOUR.get(p, "tab:gray") for p in planners],
                alpha=0.8, label="ours (measured, mean, 95% CI)")
-        ax.bar(x + 0.2, [quoted[key][p] for p in FIG11_PLANNERS], 0.38, color="white",
-               edgecolor=[PLANNER_COLOUR[p] for p in FIG11_PLANNERS], hatch="//", label="paper (quoted, 2000 s)")
+        paper_i = [i for i, p in enumerate(planners) if p in quoted[key]]
+        ax.bar(x[paper_i] + 0.2, [quoted[key][planners[i]] for i in paper_i], 0.38, color="white",
+               edgecolor=[PLANNER_COLOUR[planners[i]] for i in paper_i], hatch="//", label="paper (quoted, 2000 s)")
         for i, (m, n) in enumerate(zip(means, ns)):
             if math.isfinite(m):
                 top_i = m + (e[1][i] if math.isfinite(e[1][i]) else 0.0)
                 ax.text(x[i] - 0.2, top_i, f"{m:.3g}\nn={n}", ha="center", va="bottom", fontsize=7)
-            ax.text(x[i] + 0.2, quoted[key][FIG11_PLANNERS[i]], f"{quoted[key][FIG11_PLANNERS[i]]:g}",
-                    ha="center", va="bottom", fontsize=7)
-        ax.set_xticks(x, [PLANNER_LABEL[p] for p in FIG11_PLANNERS])
+            if i in paper_i:
+                ax.text(x[i] + 0.2, quoted[key][planners[i]], f"{quoted[key][planners[i]]:g}",
+                        ha="center", va="bottom", fontsize=7)
+            else:
+                ax.text(x[i] + 0.2, 0.0, "not in\nthe paper", ha="center", va="bottom", fontsize=6, color="0.4")
+        ax.set_xticks(x, [PLANNER_LABEL.get(p, p).replace(" (", "\n(") for p in planners])
         ax.set_ylabel(ylabel)
         dur = ", ".join(f"{d:g} s" for d in sorted(durations)) or "-"
         ax.set_title(f"{ylabel} (ours at {dur})", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
-        top = np.nanmax([*(np.array(means) + e[1]), *(quoted[key][p] for p in FIG11_PLANNERS)])
+        top = np.nanmax([*(np.array(means) + e[1]), *(quoted[key][planners[i]] for i in paper_i)])
         ax.set_ylim(0, 1.3 * top)
         ax.legend(fontsize=7, loc="upper center", ncol=2)
     return save_figure(fig, path)
@@ -899,10 +985,13 @@ def _rows_fig11(res: dict | None) -> list[dict]:
     q = PAPER["fig11"]
     note = _duration_note(res, q["duration_s"])
     rows = []
+    # Reference planners: those the results ran (older results have none), else those fig11 would run.
+    reference = list(res.get("reference", [])) if res else list(fig11_planners()[len(FIG11_PLANNERS):])
     for key, label, digits in (("coverage", "coverage at end", 3), ("targets_found", "targets found (of 14)", 2)):
-        for p in FIG11_PLANNERS:
+        for p in (*FIG11_PLANNERS, *reference):
             d = ((res or {}).get("planners", {}).get(p) or {}).get(key)
-            rows.append(_row(e, f"{label}, {PLANNER_LABEL[p]}", f"{q[key][p]:g} (mean of 30 runs)",
+            paper = f"{q[key][p]:g} (mean of 30 runs)" if p in q[key] else "— (reference planner, not in the paper)"
+            rows.append(_row(e, f"{label}, {PLANNER_LABEL.get(p, p)}", paper,
                              _fmt(d, digits) if res else NOT_RUN, d, note))
     for key, label, digits in (("coverage", "coverage, DACMP − greedy (paired by seed)", 3),
                                ("targets_found", "targets found, DACMP − greedy (paired by seed)", 2)):
@@ -987,10 +1076,21 @@ def _rows_case2(res: dict | None) -> list[dict]:
            if run else "")
     single("threat violations", "0 (threats avoided)", f"{run['threat_violations']}" if run else "")
     single("separation violations", "not stated", f"{run['separation_violations']}" if run else "")
+    cond = (run or {}).get("conditions")
+    if cond:
+        single("Case 2 holds (found, watched at end, >= 4 handovers, no violations)", "yes",
+               "yes" if cond["all"] else "no (fails: " + ", ".join(k for k in CASE2_CONDITIONS if not cond[k]) + ")")
     st = (res or {}).get("seeds")
     if st:
         sn = f"over seeds {st['seeds'][0]}..{st['seeds'][-1]}" if st["seeds"] else "over seeds"
         seed_note = f"{run['duration_s']:g} s each" if run else ""
+        c = st.get("conditions")
+        if c:
+            n = len(st["seeds"])
+            rows.append(_row(e, f"seeds where Case 2 holds, {sn}", "(one run shown)",
+                             f"{c['all']} of {n} (found {c['found']}, watched at end {c['watched']}, "
+                             f">= {CASE2_MIN_HANDOVERS} handovers {c['handovers']}, no violations {c['safe']})",
+                             note=f"{seed_note}; DACMP-SPEC target: at least 18 of 20".lstrip("; ")))
         for key, label, paper, digits in (("targets_found", "targets found (of 6)", "6", 2),
                                           ("watched_end", "targets watched at end (assigned)", "6", 2),
                                           ("watched_end_in_range", "targets watched at end, in detection range", "6", 2),

@@ -42,6 +42,7 @@ from pydantic import (
 
 from agents import apf as _apf
 from agents.planners.dacmp import settings as _dacmp
+from comms import radio as _radio
 from faults import schedule as _faults
 from swarm.errors import UsageError
 from swarm.scenario.positions import found_words, key_path
@@ -435,16 +436,37 @@ class ThreatSpec(_Model):
         return self.influence_m if self.influence_m is not None else self.radius_m + 3000.0
 
 
+if TYPE_CHECKING:  # the static view of a generated table: see DropFault
+    class LogDistanceSettings(_Model, _radio.LogDistance, frozen=True): ...  # type: ignore[misc]
+else:
+    # [radio.log_distance]: generated from comms.radio.LogDistance (its fields, defaults, bounds).
+    LogDistanceSettings = _table_of(_radio.LogDistance, "LogDistanceSettings")
+
+_RADIO_MODELS = ("disk", "log_distance")
+
+
 class RadioSettings(_Model):
     """The paper says nothing about the radio; the defaults are the ideal radio used to
-    reproduce it (unlimited range, no loss)."""
+    reproduce it (unlimited range, no loss, no authentication).
+
+    ``model``: ``"disk"`` (every pair within ``range_m`` linked; loss ``loss_base`` at distance 0
+    rising quadratically to ``loss_at_range`` at the range limit; ``loss_at_range`` absent = the
+    same loss at every distance, and never below ``loss_base``) or ``"log_distance"`` (loss from
+    the link budget of ``[radio.log_distance]`` and each link's shadowing, ``loss_base`` a floor
+    on every frame, ``range_m`` an optional extra cap, ``loss_at_range`` not allowed); see
+    :class:`comms.radio.LinkModel` and :class:`comms.radio.LogDistance`. ``auth``: frames carry
+    a MAC under the swarm key (``auth_key`` as UTF-8, or when absent one derived from the
+    scenario's seed: :func:`swarm.build.auth_key`), and receivers reject frames without the right one.
+    """
 
     # inf is allowed here (and means the same as leaving it out): TOML can write `inf`.
     range_m: Annotated[float, Strict(), AllowInfNan(True)] | None = _num(
         None, gt=0, note="metres; inf = unlimited", optional=True
     )
+    model: Literal["disk", "log_distance"] = Field(default="disk", description=f"one of: {', '.join(_RADIO_MODELS)}")
     loss_base: Num = _num(0.0, ge=0, le=1)
-    loss_at_range: Num = _num(0.0, ge=0, le=1)
+    # None: loss_base (loss never falls with distance; checked below when given).
+    loss_at_range: Num | None = _num(None, ge=0, le=1, note='>= loss_base; model = "disk" only', optional=True)
     latency_s: Num = _num(0.0, ge=0)
     jitter_s: Num = _num(0.0, ge=0)
     bandwidth_bytes_per_s: Num | None = _num(None, gt=0, optional=True)
@@ -459,11 +481,44 @@ class RadioSettings(_Model):
     sync_settle_s: Num = _num(2.0, ge=0)
     sync_max_records: Int = _int(4000, ge=0)
     sync_horizon_s: Num = _num(600.0, gt=0, note="seconds; scans older than this are not resent")
+    # Authenticated frames (comms.codec): HMAC-SHA256 truncated to 16 bytes, counted in the bytes
+    # sent. Off by default (the paper is silent). auth_key is read only with auth = true.
+    auth: Bool = Field(default=False, description="true or false")
+    auth_key: Str | None = Field(
+        default=None, min_length=1,
+        description="a non-empty string (the swarm's key), or leave it out (a key derived from the seed)",
+    )
+    log_distance: LogDistanceSettings = _table(LogDistanceSettings, "radio.log_distance")
+
+    @model_validator(mode="after")
+    def _loss_never_falls(self) -> RadioSettings:
+        at = self.loss_at_range
+        if at is not None and self.model == "log_distance":
+            _raise_if([_Problem(("loss_at_range",), at, 'to be left out with model = "log_distance" '
+                                                        "(the link budget gives the loss; loss_base is a floor)")])
+        if at is not None and at < self.loss_base:
+            _raise_if([_Problem(("loss_at_range",), at,
+                                f"a number in [{_fmt(self.loss_base)}, 1] (>= loss_base: loss never falls with distance), "
+                                "or leave it out")])
+        return self
+
+    @property
+    def effective_loss_at_range(self) -> float:
+        """The disk model's loss at the range limit (``loss_base`` when ``loss_at_range`` is absent)."""
+        return self.loss_base if self.loss_at_range is None else self.loss_at_range
+
+    def log_distance_model(self) -> _radio.LogDistance | None:
+        """``[radio.log_distance]`` as the radio's :class:`~comms.radio.LogDistance` when
+        ``model = "log_distance"``; None for the disk model."""
+        if self.model != "log_distance":
+            return None
+        return _radio.LogDistance(**self.log_distance.model_dump())
 
     @property
     def range_limit_m(self) -> float:
-        """The range as a number; math.inf when unlimited."""
-        return math.inf if self.range_m is None else self.range_m
+        """How far links reach, as a number (math.inf when unlimited): ``range_m``, and with the
+        log-distance model at most its link budget's range (:attr:`comms.radio.LinkModel.radius_m`)."""
+        return _radio.LinkModel(range_m=self.range_m, log_distance=self.log_distance_model()).radius_m
 
 
 # --- faults --------------------------------------------------------------------------------
@@ -621,6 +676,10 @@ class PlannerSettings(_Model):
     loiter_radius_factor: Num = _num(0.5, gt=0, note="times the detection radius")
     loiter_turn_factor: Num = _num(1.25, ge=1, note="times the turn radius at minimum speed")
     loiter_gain: Num = _num(1.0, gt=0)
+    # Our choice: a watcher's threat repulsion (eq. 30) is planner.apf.k_rep times this, so it
+    # can follow its target to about 0.75 km of a no-fly zone's edge instead of about 1.7 km (the
+    # guard still turns it away inside one turn radius + 300 m).
+    loiter_threat_weight: Num = _num(0.15, gt=0, le=1, note="times planner.apf.k_rep")
     greedy: GreedySettings = _table(GreedySettings, "planner.greedy")
     dacmp: DacmpSettings = _table(DacmpSettings, "planner.dacmp")
     apf: ApfSettings = _table(ApfSettings, "planner.apf")

@@ -281,7 +281,7 @@ def link_models(draw: st.DrawFn, *, min_range_m: float = 1000.0, max_range_m: fl
     range_m = draw(st.one_of(st.none(), st.integers(int(min_range_m), int(max_range_m)).map(float)))
     base = at_range = 0.0
     if lossy:
-        base = draw(st.one_of(st.just(0.0), probabilities(0.0, 0.5)))
+        base = at_range = draw(st.one_of(st.just(0.0), probabilities(0.0, 0.5)))
         if range_m is not None:
             at_range = draw(st.one_of(st.just(base), probabilities(base, 1.0)))
     latency = draw(st.one_of(st.just(0.0), st.floats(0.0, max_latency_s).map(lambda x: round(x, 3))))

@@ -586,7 +586,8 @@ class MapAgreementChecker(_LiveChecker):
 
     def _radio_lossy(self) -> bool:
         r = self.context.scenario.radio
-        return (r.loss_base > 0 or r.loss_at_range > 0 or r.bandwidth_bytes_per_s is not None)
+        return (r.loss_base > 0 or r.effective_loss_at_range > 0 or r.model != "disk"
+                or r.bandwidth_bytes_per_s is not None)
 
     def on_group(self, t, events):
         poses = _poses(events)

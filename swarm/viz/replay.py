@@ -23,6 +23,7 @@ import msgpack
 import numpy as np
 
 from comms.messages import MODE_NAMES, MODE_SEARCH, MODE_SURVEIL
+from comms.radio import LogDistance
 from swarm.outputs import RunDirError, check_run_dir, read_json, read_run_dir
 
 __all__ = [
@@ -109,8 +110,13 @@ class Replay:
 
     @property
     def radio_range(self) -> float:
-        r = self.scenario.get("radio", {}).get("range_m")
-        return math.inf if r is None else float(r)
+        """How far links reach (``RadioSettings.range_limit_m``): the log-distance model's link
+        budget caps ``range_m``."""
+        radio = self.scenario.get("radio", {})
+        r = math.inf if radio.get("range_m") is None else float(radio["range_m"])
+        if radio.get("model") == "log_distance":
+            r = min(r, LogDistance(**(radio.get("log_distance") or {})).range_m)
+        return r
 
     @property
     def tau(self) -> float:

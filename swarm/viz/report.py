@@ -23,6 +23,7 @@ and the paired differences of the sweep's ``comparisons`` written as "first plan
 from __future__ import annotations
 
 import base64
+import dataclasses
 import functools
 import io
 import math
@@ -42,6 +43,7 @@ from matplotlib.patches import Circle, Patch
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from comms.messages import MODE_SURVEIL
+from comms.radio import LogDistance
 from swarm.errors import SwarmError
 from swarm.outputs import atomic_write
 from swarm.viz.replay import (
@@ -489,12 +491,26 @@ def _scenario_rows(rp: Replay) -> list[tuple]:
     rows += [
         ("targets", f"{rp.n_targets} ({tg.get('count', 0)} random, {len(tg.get('placed', []))} placed)"),
         ("threats", len(rp.threats)),
-        ("radio", f"range {'unlimited' if rng is None else f'{rng / 1000:g} km'}, loss {radio.get('loss_base', 0):g}"
-                  f"-{radio.get('loss_at_range', 0):g}, latency {radio.get('latency_s', 0):g} s"),
+        ("radio", _radio_words(radio, rng)),
         ("faults scheduled", len(rp.faults)),
     ]
     return rows
 
+
+
+def _radio_words(radio: dict, rng: float | None) -> str:
+    """The scenario row of the radio: model, range, loss, latency (and auth when on)."""
+    base = radio.get("loss_base", 0)
+    if radio.get("model", "disk") == "log_distance":
+        ld = {**dataclasses.asdict(LogDistance()), **(radio.get("log_distance") or {})}
+        words = (f"log-distance (exponent {ld['exponent']:g}, {ld['tx_power_dbm']:g} dBm, "
+                 f"sensitivity {ld['sensitivity_dbm']:g} dBm, shadowing {ld['sigma_db']:g} dB)"
+                 f"{'' if rng is None else f', range cap {rng / 1000:g} km'}, loss floor {base:g}")
+    else:
+        at = radio.get("loss_at_range")
+        words = (f"range {'unlimited' if rng is None else f'{rng / 1000:g} km'}, "
+                 f"loss {base:g}-{base if at is None else at:g}")
+    return words + f", latency {radio.get('latency_s', 0):g} s" + (", authenticated frames" if radio.get("auth") else "")
 
 
 def _count(m: dict, key: str) -> str:

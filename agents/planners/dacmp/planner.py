@@ -152,15 +152,21 @@ class DacmpPlanner(DacmpSettings):
         return cx, cy
 
     def rivals(self, view: PlanView, targets: list[tuple[int, float, float, float]],
-               D: float) -> list[tuple[float, float, float, tuple[int, ...]]]:
-        """The other UAVs of eq. 23, each once, as ``(x_j(t+1), y_j(t+1), v_j,max, scope)`` in
-        (m, m, field units / s, indices into ``targets``): ``scope`` lists the targets within
-        ``D`` of ``x_j(t+1)``; UAVs within ``D`` of none are left out.
+               D: float) -> list[tuple[float, float, float, tuple[int, ...], int]]:
+        """The other UAVs of eq. 23, each once, as ``(x_j(t+1), y_j(t+1), v_j,max, scope, at)``
+        in (m, m, field units / s, indices into ``targets``): ``scope`` lists the targets in
+        whose scope ``j`` is (UAVs in none are left out); ``at`` is the target whose ``g_m``
+        stands for ``x_j(t+1)`` (below), -1 if none.
 
         Eq. 23 is one sum over the other UAVs ``j``, each counted when it and the particle are
         "both in the scope of [a] target": a UAV near two known targets repels a particle near
         both once, not once per target (counted per target, a watcher of one target pushed a
-        slow UAV off the next target it was taking over, or off its own).
+        slow UAV off the next target it was taking over, or off its own). A UAV in search mode is
+        in the scope of every target within ``D`` of ``x_j(t+1)``; one in surveillance mode is in
+        the scope of its own target only (if within ``D`` of it), and of none when that target is
+        not among ``targets``: it is not competing for the others, and counted near them it kept
+        a slow UAV at the edge of ``D`` from taking over a target whose fast watcher had a slow
+        UAV watching another target 5 km away (paper-case2, seed 10), against eq. 25's outcome.
 
         ``x_j(t+1)`` is ``j``'s announced next waypoint. A UAV in surveillance mode of ``m``
         within one planning step of it (``ring_max_factor`` times its detection radius: the
@@ -179,7 +185,7 @@ class DacmpPlanner(DacmpSettings):
         nearer counts as at ``g_m`` wherever it is, so the farther of two claimants yields at
         once instead of flying on until the nearer one is one planning step from the target.
         """
-        out: list[tuple[float, float, float, tuple[int, ...]]] = []
+        out: list[tuple[float, float, float, tuple[int, ...], int]] = []
         if not targets:
             return out
         k = view.kind
@@ -192,20 +198,23 @@ class DacmpPlanner(DacmpSettings):
                 continue
             v_j = self.speed_max_by_type.get(p.type, k.speed_max) / unit
             r_j = self.detect_radius_by_type.get(p.type, k.detect_radius)
-            wx, wy = p.wx, p.wy
+            wx, wy, at = p.wx, p.wy, -1
             if p.mode == MODE_SURVEIL:
-                claimed = [(tx, ty) for tid, tx, ty, _v in targets if tid == p.target]
-                if claimed:
-                    tx, ty = claimed[0]
-                    d_j = math.hypot(p.x - tx, p.y - ty)
-                    rival = claim == p.target and p.type == k.name
-                    if rival and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav):
-                        continue  # a same-type rival farther away: we keep the target
-                    if rival or d_j <= self.ring_max_factor * r_j:
-                        wx, wy = tx, ty  # its next waypoint is the target
-            scope = tuple(i for i, (_tid, tx, ty, _v) in enumerate(targets) if math.hypot(wx - tx, wy - ty) < D)
+                claimed = [(i, tx, ty) for i, (tid, tx, ty, _v) in enumerate(targets) if tid == p.target]
+                if not claimed:
+                    continue  # it watches a target we do not weigh
+                i, tx, ty = claimed[0]
+                d_j = math.hypot(p.x - tx, p.y - ty)
+                rival = claim == p.target and p.type == k.name
+                if rival and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav):
+                    continue  # a same-type rival farther away: we keep the target
+                if rival or d_j <= self.ring_max_factor * r_j:
+                    wx, wy, at = tx, ty, i  # its next waypoint is the target
+                scope: tuple[int, ...] = (i,) if math.hypot(wx - tx, wy - ty) < D else ()
+            else:
+                scope = tuple(i for i, (_tid, tx, ty, _v) in enumerate(targets) if math.hypot(wx - tx, wy - ty) < D)
             if scope:
-                out.append((wx, wy, v_j, scope))
+                out.append((wx, wy, v_j, scope, at))
         return out
 
     def crowding(self, uavs: list[_UavSearch], points: int) -> Callable[[np.ndarray], np.ndarray] | None:
@@ -312,7 +321,8 @@ class DacmpPlanner(DacmpSettings):
                 # Nothing feasible (boxed in by threats or the border): head for the area centre.
                 plans.append(Plan(g.width_m / 2, g.height_m / 2))
             else:
-                plans.append(u.decide(float(wz[0, i, 0]), float(wz[1, i, 0]), f_s[i, 0], f_t[i, 0]))
+                plans.append(u.decide(float(wz[0, i, 0]), float(wz[1, i, 0]), f_s[i, 0], f_t[i, 0],
+                                      self.field_unit_m, g.cell_m / self.field_unit_m))
         return plans
 
 
@@ -422,7 +432,7 @@ class _UavSearch:
     slot: int  # the UAV's index in the _Layers of the plan_many call (its map's pyramid)
     guide: tuple[float, float] | None
     targets: list[tuple[int, float, float, float]]
-    rivals: list[tuple[float, float, float, tuple[int, ...]]]  # DacmpPlanner.rivals
+    rivals: list[tuple[float, float, float, tuple[int, ...], int]]  # DacmpPlanner.rivals
     threats: list
     ring_radius: np.ndarray | None = None  # draw(): only a UAV that runs PSO draws these
     ring_angle: np.ndarray | None = None
@@ -467,22 +477,33 @@ class _UavSearch:
             near.append(d < D)
             if near[-1].any():
                 f_t += np.where(near[-1], k.w_t * value / (np.maximum(d / unit, floor) * v_i * v_i), 0.0)
-        for wx, wy, v_j, scope in self.rivals:  # each other UAV once (see DacmpPlanner.rivals)
+        for wx, wy, v_j, scope, _at in self.rivals:  # each other UAV once (see DacmpPlanner.rivals)
             shared = near[scope[0]] if len(scope) == 1 else np.logical_or.reduce([near[i] for i in scope])
             if shared.any():
                 dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
                 f_t -= np.where(shared, k.w_r / (dj * v_i * v_j), 0.0)
 
-    def decide(self, wx: float, wy: float, f_s: float, f_t: float) -> Plan:
-        """Mode switch at the chosen waypoint: surveillance of the nearest target within ``D``
-        when the target term dominates (spec "mode switching")."""
+    def decide(self, wx: float, wy: float, f_s: float, f_t: float, unit: float, floor: float) -> Plan:
+        """Mode switch at the chosen waypoint (spec "mode switching"): surveillance when the
+        target term dominates (``f_t > f_S``), of the target within ``D`` whose own pull there
+        is the strongest: its eq. 22 term less the eq. 23 terms of the UAVs that stand at it
+        (``at`` of :meth:`DacmpPlanner.rivals`: its watchers within a planning step, a nearer
+        claimant of our type). Not simply the nearest target: a UAV drawn by a free target next
+        to one that another UAV keeps (one of its type, or a slower one: eq. 26-27 push it off
+        that one) declared the kept one, its nearest, and watched it beside its keeper."""
         mode, target = MODE_SEARCH, NO_TARGET
         if self.targets and f_t > f_s:
-            d_best = self.D
-            for tid, tx, ty, _v in self.targets:
+            k = self.view.kind
+            v_i, best = self.v_i, 0.0
+            for i, (tid, tx, ty, value) in enumerate(self.targets):
                 d = math.hypot(wx - tx, wy - ty)
-                if d < d_best:
-                    mode, target, d_best = MODE_SURVEIL, tid, d
+                if d >= self.D:
+                    continue
+                # Attraction and the repulsion of UAVs counted at g_m share the distance to g_m.
+                pull = k.w_t * value / (v_i * v_i) - sum(k.w_r / (v_i * v_j) for *_, v_j, _s, at in self.rivals if at == i)
+                pull /= max(d / unit, floor)
+                if pull > best:
+                    mode, target, best = MODE_SURVEIL, tid, pull
         return Plan(wx, wy, mode, target)
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -54,7 +54,8 @@ class DacmpSpreadPlanner(DacmpPlanner):
         from ``[planner.options]``."""
         if not (isinstance(spread_weight, (int, float)) and math.isfinite(spread_weight) and spread_weight >= 0):
             raise ValueError(f"spread_weight must be a number >= 0, got {spread_weight!r}")
-        return dataclasses.replace(super().from_context(context), spread_weight=float(spread_weight))
+        planner = cast("DacmpSpreadPlanner", super().from_context(context))  # from_settings builds cls
+        return dataclasses.replace(planner, spread_weight=float(spread_weight))
 
     def crowding(self, uavs: list[_UavSearch], points: int) -> _Crowding | None:
         """The factor on ``f_Sl`` (module docstring) for these UAVs, or None when none hears a peer."""
