@@ -486,7 +486,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     pa = sub.add_parser("paper", help="reproduce the paper's experiments (section 4): figures and a table")
     pa.add_argument("experiment", choices=["fig11", "case1", "case2", "case3", "all"],
-                    help="fig11 (DACMP vs greedy over seeds, beside the reference planners), case1 (handover), case2 (threats, task loads), "
+                    help="fig11 (DACMP vs greedy over seeds, beside the reference planners), case1 (handover), "
+                         "case2 (threats, task loads), "
                          "case3 (late joiner vs case2 over seeds), or all of them")
     pa.add_argument("--seeds", type=parse_seeds, default=None, metavar="N|A-B|a,b,c",
                     help="seeds: N (0..N-1), A-B or a,b,c (default: 30 for fig11, 10 for case3; "
