@@ -182,6 +182,7 @@ def _swarm(*args):
     return subprocess.run([sys.executable, "-m", "swarm", *args], capture_output=True, text=True)
 
 
+@pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
 def test_errors_are_one_line_exit_2(run_dir, tmp_path, capsys):
     empty = tmp_path / "empty"
     empty.mkdir()

@@ -50,6 +50,7 @@ def test_bench_1000_dacmp_turns_anti_entropy_on_at_the_model_default():
             assert bench.case_scenario(c) == load_scenario(c.scenario)
 
 
+@pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
 def test_uav_ticks_counts_the_uavs_alive_in_each_tick():
     # paper-case3: 10 UAVs from 0 s, an 11th joins at 300 s.
     with Simulation("paper-case3", duration_s=305.0) as sim:

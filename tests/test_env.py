@@ -66,6 +66,7 @@ def test_docs_example_runs():
     assert "'B1':" in out.getvalue() and "'A1'" not in out.getvalue()
 
 
+@pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
 def test_import_swarm_needs_no_pettingzoo():
     code = (
         "import sys\n"

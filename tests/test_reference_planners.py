@@ -116,6 +116,7 @@ def test_dubins_lengths_of_known_cases():
 # --- runs ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
 @pytest.mark.parametrize("planner", REFERENCE)
 def test_a_short_run_keeps_every_safety_rule_and_replays_to_the_same_event_log(planner):
     # paper-case2: two types, four threats, UAVs on opposite edges heading at each other.
@@ -161,6 +162,7 @@ def test_each_uav_has_its_own_planner_and_options_reach_it():
         Simulation(bad, duration_s=10.0)
 
 
+@pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
 def test_the_formation_flies_abreast_one_lane_apart():
     with Simulation("paper-fig11", planner="formation", duration_s=900.0) as sim:
         sim.step(300)
@@ -194,6 +196,7 @@ def test_levy_step_lengths_follow_their_power_law():
     assert (steps > rs + 10 * median_excess).mean() > 50 * 2.0 ** -10
 
 
+@pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
 def test_levy_draws_only_from_the_uavs_own_stream():
     with Simulation("paper-fig11", planner="levy", duration_s=600.0) as sim:
         sim.run()
