@@ -27,14 +27,14 @@ import math
 import os
 from dataclasses import dataclass
 
+from agents.maps.umap import DEFAULT_TILE as _TILE
+from agents.maps.umap import DENSE_MAX_CELLS as _DENSE_MAX_CELLS
 from swarm.errors import SwarmError
 from swarm.scenario import Scenario
 
 __all__ = ["MemoryEstimate", "MemoryLimitError", "check_memory", "default_limit_bytes", "estimate_memory"]
 
 _GB = 1024**3
-_DENSE_MAX_CELLS = 1 << 20  # agents.maps.umap.DENSE_MAX_CELLS (kept in step by a test)
-_TILE = 64  # agents.maps.umap.DEFAULT_TILE
 _TYPICAL_FRAME_BYTES = 512  # a beacon (hello, intent, a few scans) is 150-400 bytes
 
 
