@@ -138,11 +138,209 @@ class Join:
     kind: ClassVar[Literal["join"]] = "join"
 
 
-Fault = Drop | Burst | Delay | Duplicate | Corrupt | Partition | Crash | Join
+@dataclass(frozen=True, kw_only=True)
+class Pause:
+    """The UAV's actor stops: no inbox, no planning, no sending, from ``start_s`` until ``end_s``.
+
+    Its airframe keeps flying its last command, and its mailbox fills and overflows (frames
+    lost as ``mailbox_full``) as a bounded mailbox does. Then it goes on where it stopped, with
+    what it knew (a process pause, Jepsen's SIGSTOP / SIGCONT)."""
+
+    uav: str = field(metadata=_UAV)
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(metadata={"gt": 0, "note": "> start_s: when the actor resumes"})
+    kind: ClassVar[Literal["pause"]] = "pause"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class Restart:
+    """Crash at ``at_s``, then rejoin ``downtime_s`` later where it went down, with an empty
+    memory (map, tracks, peers, planner): a reboot that loses everything not flown."""
+
+    uav: str = field(metadata=_UAV)
+    at_s: float = field(metadata={"ge": 0})
+    downtime_s: float = field(metadata={"gt": 0, "note": "s between the crash and the rejoin"})
+    kind: ClassVar[Literal["restart"]] = "restart"
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClockSkew:
+    """While active the UAV's clock reads ``t + offset_s + drift * (t - start_s)``: every time
+    it stamps (its scans, its frames, the tracks it sees) is skewed. Receivers ignore what is
+    stamped later than their own clock (a max-CRDT would keep such cells fresh forever)."""
+
+    uav: str = field(metadata=_UAV)
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    offset_s: float = field(default=0.0, metadata={"ge": -1.0e6, "le": 1.0e6, "note": "s"})
+    drift: float = field(default=0.0, metadata={"ge": -0.5, "le": 0.5, "note": "s of error per s"})
+    kind: ClassVar[Literal["clock_skew"]] = "clock_skew"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+    def error(self, t: float) -> float:
+        """The clock's error at true time ``t`` (while active)."""
+        return self.offset_s + self.drift * (t - self.start_s)
+
+
+@dataclass(frozen=True, kw_only=True)
+class NavError:
+    """The UAV believes it is at its true position plus ``(bias_x_m, bias_y_m)`` plus Gaussian
+    noise of ``noise_m`` per axis (drawn each tick): it plans, flies and stamps its scans there,
+    while the ground truth senses where it really is."""
+
+    uav: str = field(metadata=_UAV)
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    bias_x_m: float = field(default=0.0, metadata={"ge": -1.0e6, "le": 1.0e6, "note": "m"})
+    bias_y_m: float = field(default=0.0, metadata={"ge": -1.0e6, "le": 1.0e6, "note": "m"})
+    noise_m: float = field(default=0.0, metadata={"ge": 0, "le": 1.0e6, "note": "m, standard deviation per axis"})
+    kind: ClassVar[Literal["nav_error"]] = "nav_error"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+# Ids of phantom targets (false alarms, liars' tracks): far above any real target's.
+PHANTOM_TARGET_ID = 1_000_000_000
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sensor:
+    """Detection faults of ``uavs`` (empty: all): each target inside the detection radius is
+    seen with probability ``p_detect`` per tick, and phantom targets (false alarms) appear in
+    the detection disk at ``false_alarm_rate`` per UAV-second."""
+
+    uavs: tuple[str, ...] = field(default=(), metadata={"expected": "an array of UAV names (empty = all)"})
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    p_detect: float = field(default=1.0, metadata=_PROBABILITY)
+    false_alarm_rate: float = field(default=0.0, metadata={"ge": 0, "le": 100, "note": "phantoms per UAV-second"})
+    kind: ClassVar[Literal["sensor"]] = "sensor"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class Jammer:
+    """A circle in which every frame copy to or from a UAV inside is lost with probability
+    ``rate``."""
+
+    x_m: float = field(metadata={"note": "m, the centre"})
+    y_m: float = field(metadata={"note": "m, the centre"})
+    radius_m: float = field(metadata={"gt": 0, "note": "m"})
+    rate: float = field(default=1.0, metadata=_PROBABILITY)
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    kind: ClassVar[Literal["jammer"]] = "jammer"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class Bridge:
+    """A partition between ``groups`` in which the ``bridge`` UAV (taken out of any group that
+    lists it) still talks to every side (Jepsen's bridge)."""
+
+    groups: tuple[tuple[str, ...], ...] = field(
+        metadata={"expected": "an array of at least 2 non-empty arrays of UAV names"}
+    )
+    bridge: str = field(metadata=_UAV)
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    kind: ClassVar[Literal["bridge"]] = "bridge"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class Swizzle:
+    """FoundationDB's swizzle-clog: at ``start_s`` a random ``count`` UAVs of ``uavs`` (empty:
+    all) are drawn; their links are cut one UAV at a time over the first half of the window,
+    then restored one at a time, in a random order, over the second half."""
+
+    uavs: tuple[str, ...] = field(default=(), metadata={"expected": "an array of UAV names (empty = all)"})
+    count: int = field(metadata={"ge": 1, "note": "UAVs clogged"})
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(metadata={"gt": 0, "note": "> start_s: when the last link is restored"})
+    kind: ClassVar[Literal["swizzle"]] = "swizzle"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class Liar:
+    """A Byzantine member (it holds the swarm key): it broadcasts scan records it never made
+    (``scans_per_s``, uniform over the area, stamped now) and false target tracks
+    (``tracks_per_s``, phantom targets at uniform positions)."""
+
+    uav: str = field(metadata=_UAV)
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    scans_per_s: float = field(default=1.0, metadata={"ge": 0, "le": 1000, "note": "fake scan records per s"})
+    tracks_per_s: float = field(default=0.0, metadata={"ge": 0, "le": 1000, "note": "fake tracks per s"})
+    kind: ClassVar[Literal["liar"]] = "liar"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class Spoofer:
+    """A transmitter that is not a swarm member: from ``(x_m, y_m)`` it sends ``rate_per_s``
+    well-formed frames a second, with a forged sender (``as_uav``; empty: a random member per
+    frame) and without the swarm key, to every live UAV within ``range_m``."""
+
+    x_m: float = field(metadata={"note": "m"})
+    y_m: float = field(metadata={"note": "m"})
+    range_m: float = field(metadata={"gt": 0, "note": "m"})
+    start_s: float = field(default=0.0, metadata=_START)
+    end_s: float = field(default=math.inf, metadata=_END)
+    rate_per_s: float = field(default=1.0, metadata={"gt": 0, "le": 1000, "note": "frames per s"})
+    as_uav: str = field(default="", metadata={"expected": "a UAV name defined in [[uavs]], or \"\" (a random member per frame)"})
+    kind: ClassVar[Literal["spoofer"]] = "spoofer"
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+Fault = (Drop | Burst | Delay | Duplicate | Corrupt | Partition | Crash | Join | Pause | Restart | ClockSkew
+         | NavError | Sensor | Jammer | Bridge | Swizzle | Liar | Spoofer)
 # In the order error messages list them ("kind = one of: drop, burst, partition, ...").
 FAULT_KINDS: dict[str, type[Fault]] = {
-    cls.kind: cls for cls in (Drop, Burst, Partition, Delay, Duplicate, Corrupt, Crash, Join)
+    cls.kind: cls for cls in (Drop, Burst, Partition, Delay, Duplicate, Corrupt, Crash, Join, Pause, Restart,
+                              ClockSkew, NavError, Sensor, Jammer, Bridge, Swizzle, Liar, Spoofer)
 }
+# Kinds that happen once, at ``at_s`` (the others have a window).
+NODE_EVENT_KINDS = ("crash", "join", "restart")
+
+
+def uav_names(f: Fault) -> list[tuple[tuple[str | int, ...], str]]:
+    """Every UAV name a fault refers to, with its path inside the fault (``("groups", 0, 1)``):
+    what a scenario's validation and ``Simulation.add_fault`` check against the UAVs."""
+    names: list[tuple[tuple[str | int, ...], str]] = []
+    for key in ("uav", "bridge"):
+        if hasattr(f, key):
+            names.append(((key,), getattr(f, key)))
+    if getattr(f, "as_uav", ""):
+        names.append((("as_uav",), getattr(f, "as_uav")))
+    for k, name in enumerate(getattr(f, "uavs", ())):
+        names.append((("uavs", k), name))
+    for k, pair in enumerate(getattr(f, "links", ())):
+        for end, name in enumerate(pair):
+            names.append((("links", k, end), name))
+    for g, group in enumerate(getattr(f, "groups", ())):
+        for k, name in enumerate(group):
+            names.append((("groups", g, k), name))
+    return names
 
 
 def fault_to_dict(f: Fault) -> dict[str, Any]:

@@ -48,7 +48,7 @@ from comms.mailbox import Mailbox
 from comms.messages import MODE_NAMES
 from comms.radio import Delivery
 from faults.injector import FaultInjector
-from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict
+from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict, uav_names
 from swarm import build
 from swarm.clock import DELIVERY, FAULT, TICK, Clock
 from swarm.errors import APIMisuseError, SimulationError, UsageError
@@ -347,12 +347,7 @@ class Simulation:
 
     def add_fault(self, fault: Fault) -> None:
         """Add a fault (see :mod:`faults.schedule`); node faults must not be in the past."""
-        names = set(self.names)
-        referenced = list(getattr(fault, "uavs", ())) + [n for pair in getattr(fault, "links", ()) for n in pair]
-        referenced += [n for g in getattr(fault, "groups", ()) for n in g]
-        if isinstance(fault, (Crash, Join)):
-            referenced.append(fault.uav)
-        unknown = [n for n in referenced if n not in names]
+        unknown = [n for _path, n in uav_names(fault) if n not in self.names]
         if unknown:
             raise UsageError(f"fault {fault.kind} names unknown UAV(s) {unknown}; known: {', '.join(self.names)}")
         if isinstance(fault, (Crash, Join)):

@@ -95,7 +95,8 @@ def test_each_fault_table_has_the_dataclass_fields_defaults_and_bounds(kind):
 def _required_values(cls: type) -> dict:
     """Values for the required fields of a fault kind that a scenario accepts."""
     sample = {"rate": 0.25, "p_enter_bad": 0.1, "p_exit_bad": 0.3, "extra_s": 2.0,
-              "groups": (("B1",), ("A1",)), "uav": "B1", "at_s": 5.0}
+              "groups": (("B1",), ("A1",)), "uav": "B1", "at_s": 5.0, "end_s": 50.0, "downtime_s": 10.0,
+              "x_m": 1000.0, "y_m": 2000.0, "radius_m": 500.0, "range_m": 3000.0, "bridge": "A2", "count": 2}
     return {f.name: sample[f.name] for f in dataclasses.fields(cls) if _default(f) is dataclasses.MISSING}
 
 

@@ -65,6 +65,16 @@ __all__ = [
     "CorruptFault",
     "CrashFault",
     "JoinFault",
+    "PauseFault",
+    "RestartFault",
+    "ClockSkewFault",
+    "NavErrorFault",
+    "SensorFault",
+    "JammerFault",
+    "BridgeFault",
+    "SwizzleFault",
+    "LiarFault",
+    "SpooferFault",
     "Fault",
     "FAULT_KINDS",
     "GreedySettings",
@@ -581,8 +591,8 @@ def _fault_table(cls: type[_faults.Fault]) -> type[_Model]:
     names = [f.name for f in dataclasses.fields(cls)]
     common = [n for n in _COMMON_FAULT_KEYS if n in names]
     own = sorted((n for n in names if n not in common), key=lambda n: n != "at_s")
-    base = (_PartitionChecks if cls is _faults.Partition else _LinkFault if issubclass(cls, _faults.LinkFault)
-            else _Model)
+    base = (_PartitionChecks if "groups" in names else _LinkFault if issubclass(cls, _faults.LinkFault)
+            else _WindowedFault if "end_s" in names else _Model)
     return _table_of(cls, f"{cls.__name__}Fault", base=base, order=[*common, "kind", *own],
                      extra={"kind": (Literal[cls.kind], cls.kind)})
 
@@ -611,8 +621,20 @@ if TYPE_CHECKING:
     class CorruptFault(_LinkFault, _faults.Corrupt, frozen=True): ...  # type: ignore[misc]
     class CrashFault(_Model, _faults.Crash, frozen=True): ...  # type: ignore[misc]
     class JoinFault(_Model, _faults.Join, frozen=True): ...  # type: ignore[misc]
+    class PauseFault(_WindowedFault, _faults.Pause, frozen=True): ...  # type: ignore[misc]
+    class RestartFault(_Model, _faults.Restart, frozen=True): ...  # type: ignore[misc]
+    class ClockSkewFault(_WindowedFault, _faults.ClockSkew, frozen=True): ...  # type: ignore[misc]
+    class NavErrorFault(_WindowedFault, _faults.NavError, frozen=True): ...  # type: ignore[misc]
+    class SensorFault(_WindowedFault, _faults.Sensor, frozen=True): ...  # type: ignore[misc]
+    class JammerFault(_WindowedFault, _faults.Jammer, frozen=True): ...  # type: ignore[misc]
+    class BridgeFault(_PartitionChecks, _faults.Bridge, frozen=True): ...  # type: ignore[misc]
+    class SwizzleFault(_WindowedFault, _faults.Swizzle, frozen=True): ...  # type: ignore[misc]
+    class LiarFault(_WindowedFault, _faults.Liar, frozen=True): ...  # type: ignore[misc]
+    class SpooferFault(_WindowedFault, _faults.Spoofer, frozen=True): ...  # type: ignore[misc]
 
-    Fault = DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault | JoinFault
+    Fault = (DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault
+             | JoinFault | PauseFault | RestartFault | ClockSkewFault | NavErrorFault | SensorFault | JammerFault
+             | BridgeFault | SwizzleFault | LiarFault | SpooferFault)
 else:
     DropFault = _FAULT_CLASSES["drop"]
     BurstFault = _FAULT_CLASSES["burst"]
@@ -622,6 +644,16 @@ else:
     CorruptFault = _FAULT_CLASSES["corrupt"]
     CrashFault = _FAULT_CLASSES["crash"]
     JoinFault = _FAULT_CLASSES["join"]
+    PauseFault = _FAULT_CLASSES["pause"]
+    RestartFault = _FAULT_CLASSES["restart"]
+    ClockSkewFault = _FAULT_CLASSES["clock_skew"]
+    NavErrorFault = _FAULT_CLASSES["nav_error"]
+    SensorFault = _FAULT_CLASSES["sensor"]
+    JammerFault = _FAULT_CLASSES["jammer"]
+    BridgeFault = _FAULT_CLASSES["bridge"]
+    SwizzleFault = _FAULT_CLASSES["swizzle"]
+    LiarFault = _FAULT_CLASSES["liar"]
+    SpooferFault = _FAULT_CLASSES["spoofer"]
 
     Fault = Annotated[Union[tuple(_FAULT_CLASSES.values())], Field(discriminator="kind")]  # noqa: UP007
 
@@ -850,18 +882,8 @@ class Scenario(_Model):
 
         joined_at: dict[str, int] = {}
         for f, fault in enumerate(self.faults):
-            if isinstance(fault, _LinkFault):
-                for k, name in enumerate(fault.uavs):
-                    check_name(("faults", f, "uavs", k), name)
-                for k, pair in enumerate(fault.links):
-                    for end, name in enumerate(pair):
-                        check_name(("faults", f, "links", k, end), name)
-            elif isinstance(fault, PartitionFault):
-                for g, group in enumerate(fault.groups):
-                    for k, name in enumerate(group):
-                        check_name(("faults", f, "groups", g, k), name)
-            elif isinstance(fault, (CrashFault, JoinFault)):
-                check_name(("faults", f, "uav"), fault.uav)
+            for path, name in _faults.uav_names(fault):
+                check_name(("faults", f, *path), name)
             if isinstance(fault, JoinFault) and fault.uav in names:
                 uav = self._uav_by_name(fault.uav)
                 if fault.uav in joined_at:
