@@ -227,8 +227,8 @@ class FaultInjector:
 
     def filter(self, t: float, src: int, dst: int, data: bytes,
                rng: np.random.Generator) -> tuple[list[tuple[float, bytes]], str | None]:
-        cut = self._cut(src, dst)
-        if cut is not None:
+        if self.blocked(src, dst):  # (then _cut names the cause; blocked is what a test may replace)
+            cut = self._cut(src, dst) or "partition"
             self.fired[cut] += 1
             return [], cut
         for j, inside in self._jammed:
