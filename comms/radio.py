@@ -170,6 +170,11 @@ class LinkModel:
 _Adjacency = dict[int, dict[int, dict[str, float]]]
 
 
+# The sender of a spoofer's frames in deliveries and ``rx`` events: no member has this id (they
+# are numbered from 0), so a checker tells a spoof from a member's frame.
+SPOOF_SENDER = -1
+
+
 class Delivery(NamedTuple):
     arrival_t: float
     sender: int
@@ -190,7 +195,8 @@ class LinkFilter(Protocol):
 
 @dataclass(slots=True)
 class RadioCounters:
-    sent: int = 0  # link copies offered (one per in-range neighbour)
+    sent: int = 0  # link copies offered (one per in-range neighbour; spoofers' copies included)
+    spoofed: int = 0  # of those, copies from spoofers (faults.schedule.Spoofer; sender SPOOF_SENDER)
     bytes_sent: int = 0
     duplicated: int = 0  # extra copies created by duplication faults
     dropped: dict[str, int] = field(default_factory=dict)  # by cause

@@ -9,9 +9,11 @@ once at ``at_s``.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any, ClassVar, Literal
+
+import numpy as np
 
 # This module is the one definition of the fault kinds: their fields, defaults (a field without
 # one is required, here and in a scenario's [[faults]] table) and the bounds a value must keep.
@@ -259,6 +261,13 @@ class Bridge:
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
 
+    def partition(self) -> Partition:
+        """The partition this bridge is: its groups without the bridge UAV (which is then in no
+        group, so :meth:`Partition.separates` never blocks it), same window. The one definition
+        of who a bridge separates, for the injector and the invariant checkers alike."""
+        groups = tuple(tuple(n for n in g if n != self.bridge) for g in self.groups)
+        return Partition(groups=groups, start_s=self.start_s, end_s=self.end_s)
+
 
 @dataclass(frozen=True, kw_only=True)
 class Swizzle:
@@ -274,6 +283,24 @@ class Swizzle:
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
+
+    def plan(self, pool: Sequence[int], rng: np.random.Generator) -> dict[int, tuple[float, float]]:
+        """Who is clogged when: ``{uav: (cut_s, restore_s)}``, the UAV clogged while
+        ``cut_s <= t < restore_s``. ``pool``: the candidate UAV ids (``uavs`` resolved, or every
+        UAV), in id order; ``rng``: the fault's own stream. ``min(count, len(pool))`` of them are
+        drawn, in the order they are cut; the k-th is cut at ``start_s + k * step`` (``step`` =
+        half the window / the number drawn), and they are restored in a second random order,
+        the k-th at ``start_s + half + (k + 1) * step``: the last one at ``end_s``. The one
+        definition, for the injector and the invariant checkers."""
+        n = min(self.count, len(pool))
+        if n == 0:
+            return {}
+        chosen = [int(u) for u in rng.choice(np.asarray(pool, dtype=np.int64), size=n, replace=False)]
+        restore_order = [chosen[int(i)] for i in rng.permutation(n)]
+        half = 0.5 * (self.end_s - self.start_s)
+        step = half / n
+        cut = {u: self.start_s + k * step for k, u in enumerate(chosen)}
+        return {u: (cut[u], self.start_s + half + (k + 1) * step) for k, u in enumerate(restore_order)}
 
 
 @dataclass(frozen=True, kw_only=True)

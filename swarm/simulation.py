@@ -43,12 +43,23 @@ from agents.maps.umap import DENSE_MAX_CELLS
 from agents.planners import Planner, PlannerContext, PlannerError, build_planner
 from agents.planners.base import Plan, PlanView
 from agents.planners.batching import PlanBatcher
+from comms.codec import encode
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
-from comms.messages import MODE_NAMES
-from comms.radio import Delivery
+from comms.messages import MODE_NAMES, Hello, Message, ScanRecords, TrackItem, Tracks
+from comms.radio import SPOOF_SENDER, Delivery
 from faults.injector import FaultInjector
-from faults.schedule import Crash, Fault, FaultSchedule, Join, fault_from_dict, uav_names
+from faults.schedule import (
+    PHANTOM_TARGET_ID,
+    Crash,
+    Fault,
+    FaultSchedule,
+    Join,
+    Spoofer,
+    Swizzle,
+    fault_from_dict,
+    uav_names,
+)
 from swarm import build
 from swarm.clock import DELIVERY, FAULT, TICK, Clock
 from swarm.errors import APIMisuseError, SimulationError, UsageError
@@ -59,6 +70,9 @@ from swarm.results import RunResult, radio_totals, run_metrics, run_result
 from swarm.rng import RngTree
 from swarm.scenario import Scenario, UavSpec, load_scenario
 from swarm.world import ALIVE, CRASHED, PENDING, Targets, UavBody, World
+
+# Scan records in each spoofed frame (see Simulation._spoof).
+SPOOF_SCANS = 4
 
 # Allocations between two young-generation collections during step()/run() (Python default: 700).
 _GC_THRESHOLD = 70_000
@@ -173,7 +187,8 @@ class Simulation:
 
     def _build_radio(self, sc: Scenario) -> None:
         """The fault injector and the radio whose frame copies it filters."""
-        self.injector = FaultInjector(FaultSchedule([]), self.names)
+        self.injector = FaultInjector(FaultSchedule([]), self.names,
+                                      fault_rng=lambda kind, k: self.rng.generator("fault", kind, k))
         self.radio = build.radio(
             sc,
             link_rng=lambda s, d: self.rng.generator("link", self.world.uavs[s].name, self.world.uavs[d].name),
@@ -350,6 +365,9 @@ class Simulation:
         unknown = [n for _path, n in uav_names(fault) if n not in self.names]
         if unknown:
             raise UsageError(f"fault {fault.kind} names unknown UAV(s) {unknown}; known: {', '.join(self.names)}")
+        if isinstance(fault, Swizzle) and not fault.start_s < fault.end_s < math.inf:
+            raise UsageError(f"swizzle needs start_s < end_s < inf (its links are restored by end_s), "
+                             f"got start_s={fault.start_s}, end_s={fault.end_s}")
         if isinstance(fault, (Crash, Join)):
             if fault.at_s < self.now:
                 raise UsageError(f"{fault.kind} at {fault.at_s} s is in the past (now {self.now} s)")
@@ -544,7 +562,13 @@ class Simulation:
         links (and the fault injector), arrivals scheduled on the clock in batches by time."""
         log = self.log
         self.radio.update_topology(alive, xy, self.dt)
+        self.injector.set_positions(alive, xy)  # (jammers: who is inside their circles now)
         deliveries: list[Delivery] = []
+        # Spoofers transmit first in the tick: their frames reach the mailboxes ahead of the
+        # members' frames of the same tick (a forged scan then wins over the real one of that
+        # origin and tick, if auth lets it in).
+        for fault, n, rng, seq in self.injector.spoofer_due(t, self.dt):
+            self._spoof(t, alive, xy, fault, n, rng, seq, deliveries)
 
         def lost(src: int, dst: int, nbytes: int, cause: str) -> None:
             log.emit("lost", t, src, dst, nbytes, cause)
@@ -567,6 +591,47 @@ class Simulation:
             batch = by_time[at]
             self._in_flight += len(batch)
             self.clock.schedule(at, partial(self._deliver, batch), DELIVERY)
+
+    def _spoof(self, t: float, alive: list[int], xy: np.ndarray, f: Spoofer, n: int, rng: np.random.Generator,
+               seq: int, out: list[Delivery]) -> None:
+        """``n`` frames of spoofer ``f`` at ``t``, each to every live UAV within ``range_m`` of it,
+        arriving after the radio's latency (no link: the spoofer is not in the radio graph, and
+        its copies are neither lost nor faulted). Every draw is from the spoofer's own stream
+        ``rng``. A frame: the forged sender's Hello at the spoofer's position, ScanRecords of
+        :data:`SPOOF_SCANS` disks (the forged sender's detection radius) at uniform points of
+        the area stamped ``t``, and Tracks of one phantom target (an id from
+        :data:`~faults.schedule.PHANTOM_TARGET_ID` up) at a uniform point; written without the
+        swarm key (the spoofer has none). Sender -1 in the deliveries and ``rx`` events (no
+        member has that id): what the invariant checkers tell a spoof by."""
+        members = sorted(self.world.uavs)
+        if not members:
+            return
+        if len(alive):
+            d = np.hypot(xy[:, 0] - f.x_m, xy[:, 1] - f.y_m)
+            hearers = [u for u, k in zip(alive, (d <= f.range_m).tolist()) if k]
+        else:
+            hearers = []
+        w, h = self.grid.width_m, self.grid.height_m
+        arrival = t + self.scenario.radio.latency_s
+        c = self.radio.counters
+        for i in range(n):
+            forged = self.names[f.as_uav] if f.as_uav else members[int(rng.integers(len(members)))]
+            kind = self.world.uavs[forged].kind
+            r = kind.detect_radius
+            pts = rng.uniform((0.0, 0.0), (w, h), size=(SPOOF_SCANS, 2))
+            records = [v for x, y in pts.tolist() for v in (t, x, y, r)]
+            tx, ty = rng.uniform((0.0, 0.0), (w, h)).tolist()
+            phantom = PHANTOM_TARGET_ID + int(rng.integers(1_000_000))
+            messages: list[Message] = [
+                Hello(forged, kind.name, f.x_m, f.y_m, kind.speed_min, float(rng.uniform(-math.pi, math.pi))),
+                ScanRecords(forged, tuple(records)),
+                Tracks((TrackItem(phantom, tx, ty, 0.0, 0.0, t, 1.0),)),
+            ]
+            data = encode(forged, seq + i, t, messages, key=None)
+            c.sent += len(hearers)
+            c.spoofed += len(hearers)
+            c.bytes_sent += len(data) * len(hearers)
+            out.extend(Delivery(arrival, SPOOF_SENDER, u, data) for u in hearers)
 
     def _integrate(self, alive: list[int], outputs: dict[int, ActorOutput]) -> None:
         """Physics: every live UAV flies its command for ``dt``, then the targets move."""

@@ -33,9 +33,12 @@ The invariants (``name``: class, parameters and their defaults):
 * ``dynamics``: :class:`DynamicsChecker`: consecutive poses of a UAV respect its type's limits
   (speed range, ``|a| <= accel_max``, turn radius) and the kinematics (no jumps).
 * ``radio``: :class:`RadioChecker`: every ``rx`` has a legal send tick: sender and receiver both
-  flying, within range, not separated by an active partition; and the receiver is flying
-  when it reads the frame. Send ticks considered: ``dt`` plus up to the largest possible
-  delay (radio latency + jitter + every delay fault) before the ``rx``.
+  flying, within range, not separated by an active partition or bridge (its bridge UAV talks
+  to every side), neither clogged by a swizzle; and the receiver is flying when it reads the
+  frame. A frame from sender -1 (a spoofer's) is legal only within an active spoofer's
+  ``range_m``. A jammer's losses are losses: nothing to check on an ``rx``. Send ticks
+  considered: ``dt`` plus up to the largest possible delay (radio latency + jitter + every
+  delay fault) before the ``rx``.
 * ``map_monotonic`` (live): :class:`MapMonotonicityChecker`: no cell's last-seen time ever
   decreases in any UAV's map.
 * ``map_agreement`` (live, liveness): :class:`MapAgreementChecker(quiet_s=20, lag_s=10)`: once the
@@ -55,8 +58,9 @@ The invariants (``name``: class, parameters and their defaults):
 * ``no_drop``: :class:`NoDropChecker(grace_s=10)`: a watched target is never left unwatched by
   a watcher that is still flying (unless someone else watches it within ``grace_s``).
 
-"Can talk" means: both flying, within radio range, and no active partition between them
-(either way). Times are simulated seconds; UAVs are named by their scenario names.
+"Can talk" means: both flying, within radio range, no active partition or bridge between them
+(either way), neither clogged by a swizzle, and neither inside an active jammer of rate 1.
+Times are simulated seconds; UAVs are named by their scenario names.
 
 Why these defaults: the planners replan every 10 s (``planner.replan_s``), so a settled
 assignment may take a few replans (settle 30 s; takeover and release 60 s; a target may go
@@ -85,10 +89,22 @@ import numpy as np
 from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
 from comms.messages import MODE_SURVEIL
-from faults.schedule import Delay, Fault, LinkFault, Partition, fault_from_dict
+from comms.radio import SPOOF_SENDER
+from faults.schedule import (
+    Bridge,
+    Delay,
+    Fault,
+    Jammer,
+    LinkFault,
+    Partition,
+    Spoofer,
+    Swizzle,
+    fault_from_dict,
+)
 from swarm.errors import SwarmError, UsageError
 from swarm.outputs import read_run_dir
 from swarm.recorder import read_events
+from swarm.rng import RngTree
 from swarm.scenario import Scenario, UavTypeSpec, parse_scenario
 
 __all__ = [
@@ -177,6 +193,8 @@ class RunContext:
         self._override = list(faults) if faults is not None else None
         self._start_faults: list[Fault] = []
         self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
+        self.seed = scenario.seed  # (the start event's, if it says otherwise: a swizzle's stream)
+        self._swizzle_plans: dict[int, dict[int, tuple[float, float]]] = {}  # id(fault) -> plan
         for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
             self._learn(i, name, u.type)
         if sim is not None:
@@ -196,6 +214,8 @@ class RunContext:
             for uid, name, type_name in header.get("uavs", []):
                 self._learn(uid, name, type_name)
             self._start_faults = [fault_from_dict(d) for d in header.get("faults", [])]
+            if isinstance(header.get("seed"), int):
+                self.seed = header["seed"]
         elif kind == "join":
             uid, name = ev[2], ev[3]
             type_name = self.type_name.get(uid)
@@ -224,20 +244,58 @@ class RunContext:
         if n != len(faults) + len(self.uid):
             cached = []
             for f in faults:
-                if isinstance(f, Partition):
-                    cached.append((f, {self.uid[m]: g for g, grp in enumerate(f.groups) for m in grp if m in self.uid}))
+                if isinstance(f, (Partition, Bridge)):  # a bridge is the partition without its bridge UAV
+                    p = f.partition() if isinstance(f, Bridge) else f
+                    cached.append((p, {self.uid[m]: g for g, grp in enumerate(p.groups) for m in grp if m in self.uid}))
             self._partition_cache = (len(faults) + len(self.uid), cached)
         return cached
 
+    def swizzle_plan(self, f: Swizzle) -> dict[int, tuple[float, float]]:
+        """A swizzle's ``{uav id: (cut_s, restore_s)}``: the live simulation's, or drawn again as
+        the simulator draws it (:meth:`faults.schedule.Swizzle.plan` from the run's seed and the
+        fault's stream ``("fault", "swizzle", k)``, ``k`` its index among the swizzles; the
+        pool "every UAV" is every UAV known here)."""
+        if self.sim is not None:
+            plan = self.sim.injector.swizzle_plan(f)
+            return plan if plan is not None else {}
+        plan = self._swizzle_plans.get(id(f))
+        if plan is None:
+            k = [g for g in self.faults if isinstance(g, Swizzle)].index(f)
+            pool = sorted({self.uid[n] for n in f.uavs if n in self.uid} if f.uavs else set(self.uid.values()))
+            plan = self._swizzle_plans[id(f)] = f.plan(pool, RngTree(self.seed).generator("fault", "swizzle", k))
+        return plan
+
+    def clogged(self, uid: int, t: float) -> bool:
+        """Whether a swizzle has cut every link of ``uid`` at ``t``."""
+        for f in self.faults:
+            if isinstance(f, Swizzle) and f.active(t):
+                window = self.swizzle_plan(f).get(uid)
+                if window is not None and window[0] <= t < window[1]:
+                    return True
+        return False
+
     def blocked(self, src: int, dst: int, t: float) -> bool:
-        """True when an active partition blocks frames from ``src`` to ``dst`` at ``t``."""
+        """True when an active partition or bridge blocks frames from ``src`` to ``dst`` at
+        ``t``, or a swizzle has clogged either of them."""
         for p, group_of in self._partitions():
             if p.active(t) and p.separates(group_of.get(src), group_of.get(dst)):
                 return True
-        return False
+        return self.clogged(src, t) or self.clogged(dst, t)
+
+    def jammed(self, pos: Sequence[float], t: float) -> bool:
+        """Whether a jammer that loses every copy (``rate`` 1) covers position ``pos`` at ``t``."""
+        return any(isinstance(f, Jammer) and f.rate >= 1.0 and f.active(t)
+                   and math.hypot(pos[0] - f.x_m, pos[1] - f.y_m) <= f.radius_m for f in self.faults)
+
+    def spoofed(self, pos: Sequence[float], t: float) -> bool:
+        """Whether an active spoofer's frames reach position ``pos`` at ``t``."""
+        return any(isinstance(f, Spoofer) and f.active(t)
+                   and math.hypot(pos[0] - f.x_m, pos[1] - f.y_m) <= f.range_m for f in self.faults)
 
     def link_faults_active(self, t: float) -> bool:
-        return any(isinstance(f, (LinkFault, Partition)) and f.active(t) for f in self.faults)
+        # Spoofers too: their frames (with auth off) put scans in some maps and not others.
+        return any(isinstance(f, (LinkFault, Partition, Bridge, Swizzle, Jammer, Spoofer)) and f.active(t)
+                   for f in self.faults)
 
     def max_delay_s(self) -> float:
         r = self.scenario.radio
@@ -250,6 +308,8 @@ class RunContext:
     def can_talk(self, a: int, b: int, t: float, poses: Mapping[int, Sequence[float]]) -> bool:
         pa, pb = poses.get(a), poses.get(b)
         if pa is None or pb is None or not self.in_range(pa, pb):
+            return False
+        if self.jammed(pa, t) or self.jammed(pb, t):
             return False
         return not (self.blocked(a, b, t) or self.blocked(b, a, t))
 
@@ -479,6 +539,9 @@ class RadioChecker(Checker):
         max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
         for e in rx:
             src, dst = e[2], e[3]
+            if src == SPOOF_SENDER:
+                self._check_spoof(t, dst, poses, dt, max_delay)
+                continue
             if dst not in poses:
                 self.violate(t, f"{ctx.name(dst)} read a frame from {ctx.name(src)} while not flying",
                              [src, dst], cause="receiver_down")
@@ -500,6 +563,24 @@ class RadioChecker(Checker):
                 self.violate(t, f"frame {ctx.name(src)} -> {ctx.name(dst)} delivered illegally: {detail}",
                              [src, dst], reasons=reasons)
 
+    def _check_spoof(self, t: float, dst: int, poses: dict[int, tuple], dt: float, max_delay: float) -> None:
+        """A spoofer's frame (sender -1) is legal only at a receiver that is flying when it reads
+        it and was within an active spoofer's ``range_m`` at a possible send tick."""
+        ctx = self.context
+        if dst not in poses:
+            self.violate(t, f"{ctx.name(dst)} read a spoofed frame while not flying", [dst], cause="receiver_down")
+            return
+        for s, ps in reversed(self._history):
+            if s > t - dt + _EPS:
+                continue
+            if s < t - dt - max_delay - _EPS:
+                break
+            pd = ps.get(dst)
+            if pd is not None and ctx.spoofed(pd, s):
+                return
+        self.violate(t, f"{ctx.name(dst)} read a frame from a non-member (sender {SPOOF_SENDER}) with no active "
+                        "spoofer in range", [dst], cause="spoof")
+
     def _illegal(self, src: int, dst: int, s: float, poses: dict[int, tuple]) -> str | None:
         ps, pd = poses.get(src), poses.get(dst)
         if ps is None:
@@ -511,7 +592,7 @@ class RadioChecker(Checker):
         if d > ctx.range_m + _EPS:
             return f"they were {d:.0f} m apart (range {ctx.range_m:g} m)"
         if ctx.blocked(src, dst, s):
-            return "a partition separated them"
+            return "a partition, bridge or swizzle separated them"
         return None
 
 
