@@ -357,8 +357,10 @@ def uav_names(f: Fault) -> list[tuple[tuple[str | int, ...], str]]:
     for key in ("uav", "bridge"):
         if hasattr(f, key):
             names.append(((key,), getattr(f, key)))
-    if isinstance(f, Spoofer) and f.as_uav:  # "" = a random member per frame
-        names.append((("as_uav",), f.as_uav))
+    # (by name, not by type: a scenario's [[faults]] table is not an instance of the dataclass)
+    as_uav = getattr(f, "as_uav", "")  # "" = a random member per frame
+    if as_uav:
+        names.append((("as_uav",), as_uav))
     for k, name in enumerate(getattr(f, "uavs", ())):
         names.append((("uavs", k), name))
     for k, pair in enumerate(getattr(f, "links", ())):
