@@ -330,8 +330,9 @@ def uav_names(f: Fault) -> list[tuple[tuple[str | int, ...], str]]:
     for key in ("uav", "bridge"):
         if hasattr(f, key):
             names.append(((key,), getattr(f, key)))
-    if getattr(f, "as_uav", ""):
-        names.append((("as_uav",), f.as_uav))
+    as_uav = getattr(f, "as_uav", "")
+    if as_uav:
+        names.append((("as_uav",), as_uav))
     for k, name in enumerate(getattr(f, "uavs", ())):
         names.append((("uavs", k), name))
     for k, pair in enumerate(getattr(f, "links", ())):
