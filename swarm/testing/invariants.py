@@ -58,6 +58,19 @@ The invariants (``name``: class, parameters and their defaults):
 "Can talk" means: both flying, within radio range, and no active partition between them
 (either way). Times are simulated seconds; UAVs are named by their scenario names.
 
+Node faults (docs/scenarios.md, "Node and sensing faults"): a ``restart`` is a crash then a
+rejoin (the UAV is not flying in between, and ``radio`` judges it so); its new map may be
+emptier than the old (``map_monotonic`` starts over with a new actor) and must catch up like
+a joiner's (``joiner_catch_up``). A UAV resuming from a ``pause`` reads frames its mailbox held
+since the pause began (``radio`` accepts send ticks back to then). ``map_agreement`` is not
+judged while a pause lasts or a clock skew's lead does (:meth:`RunContext.node_faults_disturb`),
+``joiner_catch_up``'s obligation lapses then. The checkers of the planner's behaviour excuse a
+UAV under a node fault (:meth:`RunContext.impaired`): ``separation`` and ``threat`` a paused
+one, one with a skewed clock or a navigation error, while the fault acts and for
+``RECOVER_S`` (30 s) after; ``single_watcher``, ``handover`` and ``no_drop`` those and one
+under a ``sensor`` fault, while it acts. A phantom target (id >= ``PHANTOM_TARGET_ID``: a false
+alarm's or a liar's) is never judged.
+
 Why these defaults: the planners replan every 10 s (``planner.replan_s``), so a settled
 assignment may take a few replans (settle 30 s; takeover and release 60 s; a target may go
 unwatched for one replan, 10 s). Maps: a neighbour's scans arrive with its next beacon (1 s);
