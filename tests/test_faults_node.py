@@ -238,6 +238,7 @@ def test_nav_noise_is_drawn_from_the_faults_own_stream():
 # --- sensor -----------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # two 200 s runs (about 1.3 s)
 def test_a_blind_sensor_finds_no_target_and_false_alarms_are_not_targets():
     sc, base, _ = _run([], duration_s=200.0)
     assert base.metrics["targets_found"] > 0
@@ -264,6 +265,7 @@ def test_false_alarms_reach_the_knowledge_as_phantom_targets():
 # --- liar -------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # two 300 s DACMP runs (about 5 s)
 def test_a_liar_lowers_coverage():
     f = Liar(uav="B1", scans_per_s=20.0, tracks_per_s=0.5)
     sc, base, _ = _run([], duration_s=300.0, planner="dacmp")
