@@ -46,6 +46,7 @@ from comms.messages import (
     ScanRecords,
     ThreatItem,
     Threats,
+    TrackItem,
     Tracks,
 )
 
@@ -85,6 +86,12 @@ def _answer_hash(me: int, sender: int, t_cut: float) -> int:
 # Bytes of a packed scan (four msgpack floats) and room left in a frame for its header.
 _SCAN_BYTES = 36
 _FRAME_SLACK = 256
+# A liar's fabrications (UavActor.lie): bytes of a ScanRecords message's own header (at most),
+# of a packed track item, and the made-up origin ids its fake scans carry (see lie()).
+_MSG_BYTES = 16
+_TRACK_BYTES = 80
+_GHOST_ORIGIN = 1_000_000_000
+_GHOSTS_PER_UAV = 4096
 
 
 @dataclass(frozen=True, slots=True)
@@ -209,6 +216,11 @@ class UavActor:
         self._pending_scans: list[float] = []
         self._received: list[tuple[int, int, bool]] = []
         self._seq = 0
+        # A liar's fabrications (see lie()): scans to make this tick, then to send; tracks to send.
+        self._lies: list[tuple[float, float, float]] = []
+        self._lie_scans: list[tuple[int, float, float, float, float]] = []
+        self._lie_tracks: list[tuple[int, float, float]] = []
+        self.lie_sink: Callable[[int], None] | None = None  # told how many fabrications were sent
         # Task plumbing (see run()).
         self._pending: SensorReading | None = None
         self._waiter: asyncio.Future[SensorReading] | None = None
@@ -276,6 +288,8 @@ class UavActor:
         self._pending_scans.extend((t, r.x, r.y, radius))
         if self._log_scans and self._plausible(r.x, r.y, radius):
             self.scans.add(self.uid, t, r.x, r.y, radius)
+        if self._lies:
+            self._fabricate(t)
         k = self.knowledge
         for st in r.targets:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
@@ -286,6 +300,66 @@ class UavActor:
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
                             self.grid, s.replan_s, s.surveillance, self.plan)
         return None
+
+    # --- a liar (the liar fault; swarm.node_faults) ----------------------------------------
+
+    def lie(self, scans: Sequence[tuple[float, float, float]], tracks: Sequence[tuple[int, float, float]]) -> None:
+        """Make this Byzantine UAV claim, this tick, the scans ``(x, y, radius)`` it never made
+        and sightings ``(target, x, y)`` of targets that do not exist (set by the simulation
+        before it wakes the actor; the draws are the fault's).
+
+        The fake scans are stamped with the UAV's own time, stamped into its own map and scan
+        log as if real (so its map, its log and what it sends agree: anti-entropy spreads them
+        like any scan) and sent with its next beacon; the tracks go with that beacon, stamped
+        then. Receivers keep one scan per origin and tick (agents.maps.scanlog), so the j-th
+        fake scan of a tick carries the made-up origin ``_GHOST_ORIGIN + uid * 4096 + j``, as a
+        member holding the swarm key can. What does not fit in the beacon frame is dropped;
+        :attr:`lie_sink` is told how many were sent."""
+        self._lies.extend(scans)
+        self._lie_tracks.extend(tracks)
+
+    def _fabricate(self, t: float) -> None:
+        ghost = _GHOST_ORIGIN + (self.uid * _GHOSTS_PER_UAV) % (2**30)
+        for j, (x, y, radius) in enumerate(self._lies):
+            origin = ghost + j % _GHOSTS_PER_UAV
+            d = self.grid.disk_stamp(x, y, radius)
+            if d is not None:
+                self.umap.stamp(d, t)
+            if self._log_scans and self._plausible(x, y, radius):
+                self.scans.add(origin, t, x, y, radius)
+            self._lie_scans.append((origin, t, x, y, radius))
+        self._lies = []
+
+    def _pack_lies(self, t: float, msgs: list[Message | Packed], room: int) -> int:
+        """Add the pending fabrications to a beacon's messages while they fit; returns the room
+        left."""
+        sent = 0
+        by_origin: dict[int, list[float]] = {}
+        for origin, tr, x, y, radius in self._lie_scans:
+            flat = by_origin.get(origin)
+            cost = _SCAN_BYTES + (0 if flat is not None else _MSG_BYTES)
+            if room - cost < 2 * _FRAME_SLACK:
+                break
+            if flat is None:
+                flat = by_origin[origin] = []
+            flat.extend((tr, x, y, radius))
+            room -= cost
+            sent += 1
+        for origin, flat in by_origin.items():
+            msgs.append(pack_scans(origin, flat))
+        items = []
+        for target, x, y in self._lie_tracks:
+            if room - _TRACK_BYTES < 2 * _FRAME_SLACK:
+                break
+            items.append(TrackItem(target, x, y, 0.0, 0.0, t, 1.0))
+            room -= _TRACK_BYTES
+        if items:
+            msgs.append(pack_tracks(items))
+            sent += len(items)
+        self._lie_scans, self._lie_tracks = [], []
+        if sent and self.lie_sink is not None:
+            self.lie_sink(sent)
+        return room
 
     def adopt(self, plan: Plan, t: float) -> None:
         """Take a new plan (made from this tick's :class:`PlanView`)."""
@@ -524,6 +598,8 @@ class UavActor:
             if self._pending_scans:
                 msgs.append(pack_scans(self.uid, self._pending_scans))
                 self._pending_scans = []
+            if self._lie_scans or self._lie_tracks:
+                room = self._pack_lies(t, msgs, room)
             if s.sync_every_s > 0 and t >= self._next_digest and room > _FRAME_SLACK:
                 # The digest rides on the beacon (no extra frame); a long run's digest is split
                 # over several beacons (agents.maps.scanlog.ScanLog.digest).

@@ -2,8 +2,9 @@
 
 UAVs are named by their scenario names (``"B1"``); the injector resolves names to ids. Link
 faults act on frame copies while ``start_s <= t < end_s`` and can be restricted to frames from
-or to some UAVs (``uavs``) or to directed links (``links``). Node faults (crash, join) happen
-once at ``at_s``.
+or to some UAVs (``uavs``) or to directed links (``links``). Node events (crash, join,
+restart) happen once at ``at_s``; the other node and sensing faults (pause, clock_skew,
+nav_error, sensor, liar) act on their UAVs' ticks in their window (swarm.node_faults).
 """
 
 from __future__ import annotations
@@ -146,7 +147,9 @@ class Pause:
 
     Its airframe keeps flying its last command, and its mailbox fills and overflows (frames
     lost as ``mailbox_full``) as a bounded mailbox does. Then it goes on where it stopped, with
-    what it knew (a process pause, Jepsen's SIGSTOP / SIGCONT)."""
+    what it knew (a process pause, Jepsen's SIGSTOP / SIGCONT). While paused it reads no
+    sensor (its scans count nowhere). A UAV on its first tick (just joined or restarted) has no
+    last command and is paused from its second."""
 
     uav: str = field(metadata=_UAV)
     start_s: float = field(default=0.0, metadata=_START)
@@ -159,8 +162,10 @@ class Pause:
 
 @dataclass(frozen=True, kw_only=True)
 class Restart:
-    """Crash at ``at_s``, then rejoin ``downtime_s`` later where it went down, with an empty
-    memory (map, tracks, peers, planner): a reboot that loses everything not flown."""
+    """Crash at ``at_s``, then rejoin ``downtime_s`` later where it went down (same speed and
+    heading), with an empty memory (map, tracks, peers, scan log, planner, a new random
+    stream): a reboot that loses everything not flown. Its mailbox and counters carry over. A
+    UAV not flying at ``at_s`` is not restarted."""
 
     uav: str = field(metadata=_UAV)
     at_s: float = field(metadata={"ge": 0})
@@ -306,8 +311,9 @@ class Swizzle:
 @dataclass(frozen=True, kw_only=True)
 class Liar:
     """A Byzantine member (it holds the swarm key): it broadcasts scan records it never made
-    (``scans_per_s``, uniform over the area, stamped now) and false target tracks
-    (``tracks_per_s``, phantom targets at uniform positions)."""
+    (``scans_per_s``, uniform over the area, stamped now, under made-up origin ids since a
+    receiver keeps one scan per origin and tick) and false target tracks (``tracks_per_s``,
+    phantom targets at uniform positions), with its beacons."""
 
     uav: str = field(metadata=_UAV)
     start_s: float = field(default=0.0, metadata=_START)

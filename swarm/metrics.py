@@ -125,11 +125,18 @@ class Metrics:
         return 1.0 - float(np.mean(q, dtype=np.float64))
 
     def observe(self, t: float, dt: float, plans: dict[int, tuple[int, int]], sensed: dict[int, list[int]],
-                types: dict[int, str], speed_max: dict[str, float]) -> list[tuple]:
+                types: dict[int, str], speed_max: dict[str, float],
+                detected: dict[int, list[int]] | None = None) -> list[tuple]:
         """Account one tick. ``plans``: uid -> (mode, target); ``sensed``: uid -> target ids
-        inside its detection radius. Returns events to log (found, handover, release)."""
+        inside its detection radius. ``detected`` (a sensor fault: some UAVs' sensors miss
+        targets): uid -> the real targets its sensor reported, for those UAVs; a target is
+        found when a sensor reports it (a miss is not a find, a false alarm is never a target),
+        while holding and watching stay the ground truth of ``sensed``. Returns events to log
+        (found, handover, release)."""
         events: list[tuple] = []
         for uid, targets in sensed.items():
+            if detected is not None:
+                targets = detected.get(uid, targets)
             for m in targets:
                 if m not in self.found_t:
                     self.found_t[m] = t

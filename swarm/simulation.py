@@ -51,10 +51,16 @@ from comms.radio import SPOOF_SENDER, Delivery
 from faults.injector import FaultInjector
 from faults.schedule import (
     PHANTOM_TARGET_ID,
+    ClockSkew,
     Crash,
     Fault,
     FaultSchedule,
     Join,
+    Liar,
+    NavError,
+    Pause,
+    Restart,
+    Sensor,
     Spoofer,
     Swizzle,
     fault_from_dict,
@@ -65,6 +71,7 @@ from swarm.clock import DELIVERY, FAULT, TICK, Clock
 from swarm.errors import APIMisuseError, SimulationError, UsageError
 from swarm.memory import check_memory
 from swarm.metrics import Metrics
+from swarm.node_faults import NodeFaults, WindowFault
 from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
 from swarm.rng import RngTree
@@ -216,6 +223,10 @@ class Simulation:
         self._failed: BaseException | None = None
         self._closed = False
         self._wall = 0.0
+        # Windowed node and sensing faults while active (swarm.node_faults), and the restarts
+        # under way: uid -> schedule index of the restart fault that took it down.
+        self.node_faults = NodeFaults(self.rng, self.names, (self.grid.width_m, self.grid.height_m), self.dt)
+        self._restarting: dict[int, int] = {}
 
     def _populate(self, sc: Scenario) -> None:
         """The scenario's targets (placed, then random), UAVs and faults, in that order."""
@@ -245,7 +256,8 @@ class Simulation:
     def _build_planner(self, uid: int, name: str, type_name: str) -> Planner:
         """A UAV's own planner instance (agents.planners.registry)."""
         sc = self.scenario
-        rank = sum(1 for b in self.world.uavs.values() if b.kind.name == type_name and b.uid != uid)
+        # (Those added before it: the same rank when a restart builds it again later.)
+        rank = sum(1 for b in self.world.uavs.values() if b.kind.name == type_name and b.uid < uid)
         count = max(rank + 1, sum(1 for u in sc.uavs if u.type == type_name))
         context = PlannerContext(
             uav=uid, name=name, type=type_name, type_index=rank, type_count=count,
@@ -368,15 +380,28 @@ class Simulation:
         if isinstance(fault, Swizzle) and not fault.start_s < fault.end_s < math.inf:
             raise UsageError(f"swizzle needs start_s < end_s < inf (its links are restored by end_s), "
                              f"got start_s={fault.start_s}, end_s={fault.end_s}")
-        if isinstance(fault, (Crash, Join)):
+        index = len(self.injector.schedule)  # its place in the schedule: names its random streams
+        if isinstance(fault, (Crash, Join, Restart)):
             if fault.at_s < self.now:
                 raise UsageError(f"{fault.kind} at {fault.at_s} s is in the past (now {self.now} s)")
             uid = self.names[fault.uav]
+            at = float(max(fault.at_s, self.clock.now))
             if isinstance(fault, Crash):
-                self.clock.schedule(max(fault.at_s, self.clock.now), lambda: self._crash(uid), FAULT)
+                self.clock.schedule(at, lambda: self._crash(uid), FAULT)
+            elif isinstance(fault, Restart):
+                self.clock.schedule(at, lambda: self._restart_down(uid, index), FAULT)
+                self.clock.schedule(at + fault.downtime_s, lambda: self._restart_up(uid, index), FAULT)
             else:
                 self.world.uavs[uid].join_s = fault.at_s
-                self.clock.schedule(max(fault.at_s, self.clock.now), lambda: self._join(uid), FAULT)
+                self.clock.schedule(at, lambda: self._join(uid), FAULT)
+        elif isinstance(fault, (Pause, ClockSkew, NavError, Sensor, Liar)):
+            if fault.end_s <= fault.start_s:
+                raise UsageError(f"{fault.kind} ends at {fault.end_s} s, not after its start at {fault.start_s} s")
+            if fault.end_s > self.now:  # (a window wholly in the past does nothing)
+                wf: WindowFault = fault
+                self.clock.schedule(float(max(fault.start_s, self.clock.now)), lambda: self._window_on(index, wf), FAULT)
+                if math.isfinite(fault.end_s):
+                    self.clock.schedule(float(fault.end_s), lambda: self._window_off(index, wf), FAULT)
         self.injector.add(fault)
 
     # --- node events ------------------------------------------------------------------------
@@ -391,16 +416,22 @@ class Simulation:
             self.injector.note_fired("join")
         self.log.emit("join", self.clock.now, uid, b.name, b.x, b.y)
 
-    def _crash(self, uid: int) -> None:
+    def _crash(self, uid: int, kind: str = "crash") -> None:
+        """Fail-stop (a ``crash``, or the first half of a ``restart``: ``kind`` is what fired)."""
         b = self.world.uavs[uid]
         if b.state != ALIVE:
-            if b.state == PENDING:
+            if b.state == PENDING and kind == "crash":
                 b.state = CRASHED  # crashed before joining: never flies
                 self.injector.note_fired("crash")
                 self.log.emit("crash", self.clock.now, uid, b.name)
             return
         b.state = CRASHED
-        self.injector.note_fired("crash")
+        if kind == "crash":
+            self.injector.note_fired("crash")
+        self._outputs.pop(uid, None)  # (its last command: nothing left to fly on a pause)
+        for index, f in self.node_faults.active:
+            if isinstance(f, Pause):
+                self.node_faults.forget(index, uid)  # the process is gone: so is its pause (no resume event)
         task = self._tasks.pop(uid, None)
         if task is not None:
             task.cancel()
@@ -409,6 +440,45 @@ class Simulation:
             self.log.emit("lost", self.clock.now, sender, uid, len(data), "receiver_down")
         self._plans.pop(uid, None)
         self.log.emit("crash", self.clock.now, uid, b.name)
+
+    def _restart_down(self, uid: int, index: int) -> None:
+        """A restart's crash: only a flying UAV restarts (one pending or down is left as it is)."""
+        if self.world.uavs[uid].state != ALIVE:
+            return
+        self._crash(uid, "restart")
+        self._restarting[uid] = index
+
+    def _restart_up(self, uid: int, index: int) -> None:
+        """The rejoin: a fresh actor (empty map, knowledge, scan log; a new planner and random
+        stream) on the airframe where it went down, with the speed and heading it had. The
+        mailbox (the radio) and the counters (the run's accounting) carry over."""
+        if self._restarting.get(uid) != index:
+            return  # it never went down for this restart
+        del self._restarting[uid]
+        b = self.world.uavs[uid]
+        old = self.actors[uid]
+        actor = UavActor(
+            uid, b.name, b.kind, self.grid, self.tau, self._build_planner(uid, b.name, b.kind.name),
+            self.rng.generator("uav", b.name, "restart", index), self._actor_settings, old.mailbox,
+            decoder=self._decoder, map_group=self._map_group,
+        )
+        actor.counters = old.counters
+        self.actors[uid] = actor
+        b.state = ALIVE
+        self.injector.note_fired("restart")
+        self.log.emit("restart", self.clock.now, uid, b.name, b.x, b.y)
+
+    def _window_on(self, index: int, fault: WindowFault) -> None:
+        """A node or sensing fault's window opens: it acts from this tick (swarm.node_faults)."""
+        self.node_faults.active.append((index, fault))
+
+    def _window_off(self, index: int, fault: WindowFault) -> None:
+        nf = self.node_faults
+        nf.active = [(i, f) for i, f in nf.active if i != index]
+        for uid in sorted(self.world.uavs):
+            if nf.forget(index, uid):
+                self.log.emit("resume" if isinstance(fault, Pause) else "fault_off", self.clock.now,
+                              *(() if isinstance(fault, Pause) else (fault.kind,)), uid)
 
     def _deliver(self, batch: list[Delivery]) -> None:
         uavs = self.world.uavs
@@ -493,6 +563,12 @@ class Simulation:
         world = self.world
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
+        nf = self.node_faults
+        if nf.active:  # pause, clock_skew, nav_error, sensor, liar (swarm.node_faults)
+            nf.apply(t, alive, readings, self.actors, self._outputs.__contains__, self.log.emit,
+                     self.injector.note_fired)
+        elif nf.paused or nf.detected is not None:
+            nf.paused, nf.truth, nf.detected = set(), {}, None
         # Every live UAV scans its disk this tick (its own map, then the ground truth and every
         # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
         if len(alive) >= PREFETCH_MIN:
@@ -504,7 +580,16 @@ class Simulation:
 
     async def _wake_actors(self, alive: list[int], readings: dict[int, SensorReading]) -> dict[int, ActorOutput]:
         """Hand every live actor its reading and wait until all of them have answered."""
-        self._outputs = {}
+        last, self._outputs = self._outputs, {}
+        paused = self.node_faults.paused
+        if paused:
+            # Not woken: its airframe flies its last command, nothing is sent or read (and its
+            # mailbox fills). _sense pauses only UAVs that answered the last tick.
+            for uid in alive:
+                if uid in paused:
+                    prev = last[uid]
+                    self._outputs[uid] = ActorOutput(prev.a, prev.omega, [], prev.plan, [])
+            alive = [uid for uid in alive if uid not in paused]
         if alive:
             self._barrier = asyncio.get_running_loop().create_future()
             self._waiting = len(alive)
@@ -531,6 +616,8 @@ class Simulation:
         # events in the same order as one emit() each, subscribers included).
         events: list[tuple] = []
         add = events.append
+        nf = self.node_faults
+        paused, truth = nf.paused, nf.truth
         for uid in alive:
             b = uavs[uid]
             out = outputs[uid]
@@ -539,14 +626,21 @@ class Simulation:
             last_plans[uid] = plan
             if prev is None or prev.mode != plan.mode or prev.target != plan.target:
                 add(("mode", t, uid, plan.mode, plan.target))
-            metrics_scan(b.x, b.y, b.kind.detect_radius, t)
             plans[uid] = (plan.mode, plan.target)
-            sensed[uid] = [s.target for s in readings[uid].targets]
+            if paused and uid in paused:
+                sensed[uid] = []  # a paused process reads no sensor: it scans and sees nothing
+                if nf.detected is not None:
+                    nf.detected.pop(uid, None)
+            else:
+                metrics_scan(b.x, b.y, b.kind.detect_radius, t)
+                # The truth inside its detection radius (a sensor fault's misses and phantoms
+                # are what the UAV believes, not what is there; see Metrics.observe).
+                sensed[uid] = truth[uid] if truth and uid in truth else [s.target for s in readings[uid].targets]
             add(("pose", t, uid, b.x, b.y, b.v, b.theta, plan.mode, plan.target))
             paths[uid].extend((t, b.x, b.y))
             events += [("rx", t, sender, uid, nbytes, ok) for sender, nbytes, ok in out.received]
         types = {u: uavs[u].kind.name for u in alive}
-        events += self.metrics.observe(t, self.dt, plans, sensed, types, self.speed_max_by_type)
+        events += self.metrics.observe(t, self.dt, plans, sensed, types, self.speed_max_by_type, nf.detected)
         tg = self.targets
         target_paths = self._target_paths
         for i, (x, y) in enumerate(zip(tg.x, tg.y)):

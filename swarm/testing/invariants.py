@@ -62,6 +62,19 @@ The invariants (``name``: class, parameters and their defaults):
 (either way), neither clogged by a swizzle, and neither inside an active jammer of rate 1.
 Times are simulated seconds; UAVs are named by their scenario names.
 
+Node faults (docs/scenarios.md, "Node and sensing faults"): a ``restart`` is a crash then a
+rejoin (the UAV is not flying in between, and ``radio`` judges it so); its new map may be
+emptier than the old (``map_monotonic`` starts over with a new actor) and must catch up like
+a joiner's (``joiner_catch_up``). A UAV resuming from a ``pause`` reads frames its mailbox held
+since the pause began (``radio`` accepts send ticks back to then). ``map_agreement`` is not
+judged while a pause lasts or a clock skew's lead does (:meth:`RunContext.node_faults_disturb`),
+``joiner_catch_up``'s obligation lapses then. The checkers of the planner's behaviour excuse a
+UAV under a node fault (:meth:`RunContext.impaired`): ``separation`` and ``threat`` a paused
+one, one with a skewed clock or a navigation error, while the fault acts and for
+``RECOVER_S`` (30 s) after; ``single_watcher``, ``handover`` and ``no_drop`` those and one
+under a ``sensor`` fault, while it acts. A phantom target (id >= ``PHANTOM_TARGET_ID``: a false
+alarm's or a liar's) is never judged.
+
 Why these defaults: the planners replan every 10 s (``planner.replan_s``), so a settled
 assignment may take a few replans (settle 30 s; takeover and release 60 s; a target may go
 unwatched for one replan, 10 s). Maps: a neighbour's scans arrive with its next beacon (1 s);
@@ -91,12 +104,17 @@ from agents.types import UavType
 from comms.messages import MODE_SURVEIL
 from comms.radio import SPOOF_SENDER
 from faults.schedule import (
+    PHANTOM_TARGET_ID,
     Bridge,
+    ClockSkew,
     Delay,
     Fault,
     Jammer,
     LinkFault,
+    NavError,
     Partition,
+    Pause,
+    Sensor,
     Spoofer,
     Swizzle,
     fault_from_dict,
@@ -216,7 +234,7 @@ class RunContext:
             self._start_faults = [fault_from_dict(d) for d in header.get("faults", [])]
             if isinstance(header.get("seed"), int):
                 self.seed = header["seed"]
-        elif kind == "join":
+        elif kind in ("join", "restart"):
             uid, name = ev[2], ev[3]
             type_name = self.type_name.get(uid)
             if self.sim is not None and uid in self.sim.world.uavs:
@@ -291,6 +309,37 @@ class RunContext:
         """Whether an active spoofer's frames reach position ``pos`` at ``t``."""
         return any(isinstance(f, Spoofer) and f.active(t)
                    and math.hypot(pos[0] - f.x_m, pos[1] - f.y_m) <= f.range_m for f in self.faults)
+
+    def impaired(self, uid: int, t: float, kinds: tuple[type, ...] = (Pause, ClockSkew, NavError),
+                 after_s: float = 0.0) -> bool:
+        """Whether a node fault of ``kinds`` acts on ``uid`` at ``t``, or did until less than
+        ``after_s`` ago (a ``sensor`` fault with empty ``uavs`` acts on all). Checkers of what
+        the planner does excuse such a UAV: a paused one flies its last command blind, one with
+        a skewed clock is not heard (its stamps are in the others' future) or hears nobody, one
+        with a navigation error plans from where it is not. They judge the planner, not the
+        fault."""
+        name = self.names.get(uid)
+        for f in self.faults:
+            if isinstance(f, kinds) and getattr(f, "start_s", 0.0) <= t < getattr(f, "end_s", 0.0) + after_s:
+                if isinstance(f, Sensor):
+                    if not f.uavs or name in f.uavs:
+                        return True
+                elif getattr(f, "uav", None) == name:
+                    return True
+        return False
+
+    def node_faults_disturb(self, t: float) -> bool:
+        """Whether a node fault keeps the maps from agreeing at ``t``: a pause (the UAV merges
+        nothing), or a clock skew until its clock's lead is over (receivers ignore scans from
+        their future: until true time reaches those stamps, nobody else has those cells)."""
+        for f in self.faults:
+            if isinstance(f, Pause) and f.active(t):
+                return True
+            if isinstance(f, ClockSkew) and f.start_s <= t:
+                lead = f.offset_s + (f.drift * (f.end_s - f.start_s) if f.drift > 0 else 0.0)  # its largest
+                if t < f.end_s + max(0.0, lead) + _EPS:
+                    return True
+        return False
 
     def link_faults_active(self, t: float) -> bool:
         # Spoofers too: their frames (with auth off) put scans in some maps and not others.
@@ -417,6 +466,10 @@ class SeparationChecker(Checker):
                 if pair[0] not in self._prev or pair[1] not in self._prev:
                     self._excused.add(pair)  # too close from the moment they were both flying
                     continue
+                ctx = self.context
+                if ctx.impaired(pair[0], t, _SAFETY_EXCUSED, RECOVER_S) or ctx.impaired(pair[1], t, _SAFETY_EXCUSED, RECOVER_S):
+                    self._excused.add(pair)  # a node fault's doing (until they are apart again)
+                    continue
                 self._active.add(pair)
                 ctx = self.context
                 self.violate(t, f"{ctx.name(pair[0])} and {ctx.name(pair[1])} are "
@@ -453,8 +506,8 @@ class ThreatClearanceChecker(Checker):
                 inside.add(key)
                 if key in self._active or key in self._excused:
                     continue
-                if uid not in self._prev:
-                    self._excused.add(key)
+                if uid not in self._prev or ctx.impaired(uid, t, _SAFETY_EXCUSED, RECOVER_S):
+                    self._excused.add(key)  # (a node fault's doing: excused until it is out)
                     continue
                 self._active.add(key)
                 self.violate(t, f"{ctx.name(uid)} is {r - d:.1f} m inside threat {k} (radius {r:g} m)",
@@ -521,22 +574,33 @@ class RadioChecker(Checker):
         super().__init__()
         self.max_delay_s = max_delay_s
         self._history: deque[tuple[float, dict[int, tuple]]] = deque()
+        # A paused UAV (the pause fault) reads its mailbox when it resumes: frames sent since
+        # its pause began. uid -> pause start; after the resume, uid -> (pause start, resume).
+        self._paused: dict[int, float] = {}
+        self._resumed: dict[int, tuple[float, float]] = {}
 
     def on_group(self, t, events):
+        ctx = self.context
+        dt = ctx.dt
+        for e in events:
+            if e[0] == "pause":
+                self._paused[e[2]] = float(e[1])
+            elif e[0] in ("resume", "crash") and e[2] in self._paused:
+                start = self._paused.pop(e[2])
+                if e[0] == "resume":
+                    self._resumed[e[2]] = (start, float(e[1]))
+        for uid in [u for u, (_, tr) in self._resumed.items() if t > tr + dt + _EPS]:
+            del self._resumed[uid]  # it has read what it held (its first tick after the resume)
         poses = _poses(events)
+        max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
         if poses:
             self._history.append((t, poses))
-            ctx = self.context
-            dt = ctx.dt
-            max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
-            while self._history and self._history[0][0] < t - dt - max_delay - dt - _EPS:
+            floor = min([t, *self._paused.values(), *(s for s, _ in self._resumed.values())])
+            while self._history and self._history[0][0] < floor - dt - max_delay - dt - _EPS:
                 self._history.popleft()
         rx = [e for e in events if e[0] == "rx"]
         if not rx:
             return
-        ctx = self.context
-        dt = ctx.dt
-        max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
         for e in rx:
             src, dst = e[2], e[3]
             if src == SPOOF_SENDER:
@@ -546,12 +610,14 @@ class RadioChecker(Checker):
                 self.violate(t, f"{ctx.name(dst)} read a frame from {ctx.name(src)} while not flying",
                              [src, dst], cause="receiver_down")
                 continue
+            held = self._resumed.get(dst)
+            oldest = (held[0] if held is not None else t) - dt - max_delay - _EPS
             reasons: list[str] = []
             legal = False
             for s, ps in reversed(self._history):  # latest candidate send tick first
                 if s > t - dt + _EPS:
                     continue
-                if s < t - dt - max_delay - _EPS:
+                if s < oldest:
                     break
                 why = self._illegal(src, dst, s, ps)
                 if why is None:
@@ -619,6 +685,7 @@ class MapMonotonicityChecker(_LiveChecker):
     def __init__(self) -> None:
         super().__init__()
         self._last: dict[int, np.ndarray] = {}
+        self._actor: dict[int, object] = {}
 
     def attach(self, sim):
         self._snapshot(None)
@@ -629,6 +696,9 @@ class MapMonotonicityChecker(_LiveChecker):
             if b.state == "crashed" and uid in self._last:
                 continue  # a crashed UAV's map no longer changes
             cur = sim.uav_map(b.name)
+            if self._actor.get(uid, sim.actors[uid]) is not sim.actors[uid]:
+                self._last.pop(uid, None)  # restarted (a fresh actor): a new map, empty at first
+            self._actor[uid] = sim.actors[uid]
             prev = self._last.get(uid)
             if prev is not None and t is not None:
                 dec = cur < prev
@@ -676,8 +746,8 @@ class MapAgreementChecker(_LiveChecker):
             return
         ctx = self.context
         members = frozenset(poses)
-        quiet_now = (members == self._members and not any(e[0] in ("crash", "join") for e in events)
-                     and not ctx.link_faults_active(t) and ctx.connected(poses)
+        quiet_now = (members == self._members and not any(e[0] in ("crash", "join", "restart") for e in events)
+                     and not ctx.link_faults_active(t) and not ctx.node_faults_disturb(t) and ctx.connected(poses)
                      and (self.allow_radio_loss or not self._radio_lossy()))
         if not quiet_now:
             self._quiet_since = None
@@ -733,7 +803,7 @@ class JoinerCatchUpChecker(_LiveChecker):
         ctx = self.context
         poses = _poses(events)
         for e in events:
-            if e[0] == "join" and e[1] > 0:
+            if (e[0] == "join" and e[1] > 0) or e[0] == "restart":  # a restarted UAV rejoins empty
                 uid = e[2]
                 j = sim.world.uavs[uid]
                 nbrs = tuple(u for u, b in sorted(sim.world.uavs.items())
@@ -745,7 +815,7 @@ class JoinerCatchUpChecker(_LiveChecker):
         if not poses:
             return
         for uid, (t_join, target, nbrs) in list(self._pending.items()):
-            if uid not in poses or ctx.link_faults_active(t) or not any(
+            if uid not in poses or ctx.link_faults_active(t) or ctx.node_faults_disturb(t) or not any(
                     ctx.can_talk(uid, n, t, poses) for n in nbrs):
                 if t > t_join + _EPS:  # the join tick itself precedes the joiner's first pose
                     del self._pending[uid]
@@ -764,6 +834,15 @@ class JoinerCatchUpChecker(_LiveChecker):
                              [uid, *nbrs], cells=int(behind.sum()), fraction=frac, joined=t_join)
 
 
+# The node faults whose UAVs the assignment checkers excuse (the safety checkers: _SAFETY_EXCUSED,
+# also for RECOVER_S after the fault: a UAV that resumes, or learns where it really is, heading
+# into a threat or another UAV at full speed needs a turn or two to get out; a U-turn of the
+# paper's fast type takes about 20 s).
+_WATCH_EXCUSED = (Pause, ClockSkew, NavError, Sensor)
+_SAFETY_EXCUSED = (Pause, ClockSkew, NavError)
+RECOVER_S = 30.0
+
+
 class _WatchChecker(Checker):
     """Helpers for the assignment invariants: watchers per target from the pose events."""
 
@@ -771,9 +850,14 @@ class _WatchChecker(Checker):
     def watchers(poses: dict[int, tuple]) -> dict[int, set[int]]:
         out: dict[int, set[int]] = {}
         for uid, p in poses.items():
-            if p[4] == MODE_SURVEIL and p[5] >= 0:
+            # (A phantom target, a false alarm's or a liar's, is not a target: nothing to judge.)
+            if p[4] == MODE_SURVEIL and 0 <= p[5] < PHANTOM_TARGET_ID:
                 out.setdefault(int(p[5]), set()).add(uid)
         return out
+
+    def excused(self, uid: int, t: float) -> bool:
+        """A UAV under a node or sensing fault (RunContext.impaired) is not judged."""
+        return self.context.impaired(uid, t, _WATCH_EXCUSED)
 
 
 class SingleWatcherChecker(_WatchChecker):
@@ -801,7 +885,7 @@ class SingleWatcherChecker(_WatchChecker):
                     ta, tb = ctx.type_name.get(a), ctx.type_name.get(b)
                     if ta is None or ta != tb:
                         continue
-                    if not ctx.can_talk(a, b, t, poses):
+                    if not ctx.can_talk(a, b, t, poses) or self.excused(a, t) or self.excused(b, t):
                         continue
                     key = (m, a, b)
                     now.add(key)
@@ -849,14 +933,14 @@ class HandoverChecker(_WatchChecker):
             pos = self._targets.get(m)
             for f in sorted(ws):
                 kf = ctx.kind(f)
-                if kf is None:
+                if kf is None or self.excused(f, t):
                     continue
                 slower = [(s, k_s) for s in ws if s != f and (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max]
                 slower_watching = [s for s, _ in slower]
                 # The release clock starts when the slower UAV has arrived (watches the target
                 # from within its detection radius), as the handover metric counts it: a slow
                 # UAV declaring a target from 10 km away has not taken it over yet.
-                arrived = [s for s, k_s in slower if pos is not None
+                arrived = [s for s, k_s in slower if pos is not None and not self.excused(s, t)
                            and math.hypot(poses[s][0] - pos[0], poses[s][1] - pos[1]) <= k_s.detect_radius]
                 for s in arrived:
                     if ctx.can_talk(f, s, t, poses):
@@ -871,7 +955,7 @@ class HandoverChecker(_WatchChecker):
                 if slower_watching or pos is None:
                     continue
                 free = [s for s, p in sorted(poses.items())
-                        if s != f and p[4] != MODE_SURVEIL and (k_s := ctx.kind(s)) is not None
+                        if s != f and p[4] != MODE_SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
                         and k_s.speed_max < kf.speed_max
                         and math.hypot(p[0] - pos[0], p[1] - pos[1]) < k_s.influence_radius
                         and ctx.can_talk(f, s, t, poses)]
@@ -890,7 +974,7 @@ class HandoverChecker(_WatchChecker):
         if self.require_search:
             for m, prev in self._prev_watchers.items():
                 for f in prev:
-                    if f in watchers.get(m, ()) or f not in poses:
+                    if f in watchers.get(m, ()) or f not in poses or self.excused(f, t):
                         continue
                     took = [s for s in watchers.get(m, ()) if (k_s := ctx.kind(s)) is not None
                             and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max]
@@ -932,7 +1016,7 @@ class NoDropChecker(_WatchChecker):
         for m, prev in self._prev.items():
             if watchers.get(m) or m in self._pending:
                 continue
-            alive = sorted(w for w in prev if w in poses)
+            alive = sorted(w for w in prev if w in poses and not self.excused(w, t))
             if alive:
                 self._pending[m] = (t, alive[0])
         self._prev = watchers
