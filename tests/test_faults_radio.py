@@ -426,3 +426,21 @@ def test_every_fault_kind_fires_in_the_demo_scenario():
     fired = m["faults_applied"]
     assert {k for k in FAULT_KINDS if fired.get(k, 0) >= 1} == set(FAULT_KINDS), fired
     assert m["radio"]["rejected_auth"] > 0 and m["violations"]["dynamics"] == 0
+
+
+def test_no_spoofed_frame_changes_any_map_in_the_demo_scenario():
+    """The issue's check: with [radio] auth on, the demo's maps are those of the same run
+    without its spoofer (the last fault, so the others keep their places and streams)."""
+    sc = load_scenario("demo-all-faults")
+    assert sc.faults[-1].kind == "spoofer"
+    quiet = sc.model_copy(update={"faults": sc.faults[:-1]})
+    maps = []
+    for scenario in (sc, quiet):
+        with Simulation(scenario) as sim:
+            m = sim.run().metrics
+            maps.append({name: sim.uav_map(name) for name in sim.names})
+        if scenario is sc:
+            assert m["faults_applied"]["spoofer"] > 0 and m["radio"]["rejected_auth"] > 0
+    assert maps[0].keys() == maps[1].keys()
+    for name in maps[0]:
+        assert np.array_equal(maps[0][name], maps[1][name]), name
