@@ -330,7 +330,7 @@ def uav_names(f: Fault) -> list[tuple[tuple[str | int, ...], str]]:
     for key in ("uav", "bridge"):
         if hasattr(f, key):
             names.append(((key,), getattr(f, key)))
-    if getattr(f, "as_uav", ""):
+    if isinstance(f, Spoofer) and f.as_uav:  # "" = a random member per frame
         names.append((("as_uav",), f.as_uav))
     for k, name in enumerate(getattr(f, "uavs", ())):
         names.append((("uavs", k), name))
