@@ -345,7 +345,7 @@ def _cmd_resilience(args) -> int:
     values = None
     if args.values is not None:
         if args.axis == "all":
-            raise UsageError("--values needs one axis (loss, burst, range or crash), not all")
+            raise UsageError("--values needs one axis, not all")
         values = parse_values(args.axis, args.values)
     with _experiment_runner(args) as (executor, on_progress):
         report = run_resilience(args.axis, args.out, values=values, scenario=args.scenario, seeds=args.seeds,
@@ -500,19 +500,25 @@ def build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--quiet", action="store_true", help="no progress bars or table")
     pa.set_defaults(func=_cmd_paper)
 
-    rs = sub.add_parser("resilience", help="coverage and targets found under loss, burst loss, limited range, crashes")
-    rs.add_argument("axis", choices=["loss", "burst", "range", "crash", "all"],
+    rs = sub.add_parser("resilience", help="coverage and targets found under loss, bursts, range, crashes, pauses, "
+                                           "restarts, clock skew, missed detections, a jammer, liars")
+    rs.add_argument("axis", choices=["loss", "burst", "range", "crash", "pause", "restart", "skew", "detect", "jammer",
+                                     "liar", "all"],
                     help="loss (i.i.d. loss 0..1), burst (Gilbert-Elliott bursts at 30%% mean loss), range "
-                         "(2..20 km, unlimited), crash (0..5 UAVs crash), or all of them")
+                         "(2..20 km, unlimited), crash (0..5 UAVs crash), pause (3 UAVs pause 0..1200 s), restart "
+                         "(0..5 UAVs restart), skew (3 clocks 0..600 s ahead), detect (detection probability 1..0.2), "
+                         "jammer (radius 0..25 km at the centre), liar (0..3 lying UAVs), or all of them")
     # An option, not a positional: it has a default (a required scenario is positional).
     rs.add_argument("--scenario", default="paper-fig11", help="built-in name or .toml file (default paper-fig11)")
     rs.add_argument("--seeds", type=parse_seeds, default=parse_seeds("10"), metavar="N|A-B|a,b,c",
                     help="seeds per planner and value: N (0..N-1), A-B or a,b,c (default 10: seeds 0-9)")
     rs.add_argument("--values", default=None, metavar="V1,V2,...",
                     help="values of one axis instead of its defaults: loss rates, burst lengths in frames, "
-                         "ranges in km (inf = unlimited), numbers of crashed UAVs")
+                         "ranges in km (inf = unlimited), numbers of UAVs (crash, restart, liar), seconds (pause, "
+                         "skew), probabilities (detect), km (jammer)")
     rs.add_argument("--duration", type=float, default=None, help="simulated seconds per run (default: the scenario's)")
-    rs.add_argument("--crash-at", type=float, default=300.0, metavar="S", help="crash time of the crash axis (default 300 s)")
+    rs.add_argument("--crash-at", type=float, default=300.0, metavar="S",
+                    help="when the crash, restart and pause axes' faults happen (default 300 s)")
     rs.add_argument("--burst-loss", type=float, default=0.3, metavar="RATE",
                     help="mean loss rate of the burst axis (default 0.3)")
     _add_executor_args(rs, "submit the runs to a running Dask scheduler, e.g. tcp://10.0.0.5:8786")

@@ -165,7 +165,7 @@ def test_crash_order_skips_joiners_and_uavs_the_scenario_crashes(small_scenario_
     (["burst", "--values", "0.5"], "expected a mean burst length >= 1 frame"),
     (["burst", "--burst-loss", "1"], "--burst-loss 1"),
     (["range", "--values", "-2"], "expected a range in km > 0"),
-    (["crash", "--values", "7"], "paper-fig11 has 6 UAVs that can crash (B1, B2, B3, B4, B5, B6)"),
+    (["crash", "--values", "7"], "paper-fig11 has 6 UAVs that fly from the start and do not crash (B1, B2, B3, B4, B5, B6)"),
     (["crash", "--crash-at", "5000"], "--crash-at 5000: expected a time from 0 to before the end of the run (2000 s)"),
     (["all", "--duration", "100"], "--crash-at 300: expected a time from 0 to before the end of the run (100 s)"),
     (["loss", "--seeds", "0"], "--seeds: found '0'"),
@@ -193,3 +193,61 @@ def test_unreachable_scheduler_is_one_error_line(tmp_path, capsys):
                  "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "cannot reach a Dask scheduler" in err and "Traceback" not in err
+
+
+# --- the fault axes (issue 16) -------------------------------------------------------------------
+
+@pytest.mark.parametrize("axis, value, kind, count", [
+    ("pause", 60.0, "pause", 3), ("restart", 2, "restart", 2), ("skew", 10.0, "clock_skew", 3),
+    ("detect", 0.5, "sensor", 1), ("jammer", 10.0, "jammer", 1), ("liar", 2, "liar", 2),
+])
+def test_each_fault_axis_plans_its_faults(axis, value, kind, count):
+    from swarm.experiments.resilience import BASELINE, plan_axis
+
+    sc = load_scenario("paper-fig11")
+    runs = plan_axis(axis, sc, values=[BASELINE[axis], value], seeds=[0], duration_s=600)
+    assert len(runs) == 2 * len(PLANNERS)
+    base, degraded = runs[0], runs[-1]
+    assert [f for f in base.scenario["faults"] if f["kind"] == kind] == []  # the baseline has none
+    made = [f for f in degraded.scenario["faults"] if f["kind"] == kind]
+    assert len(made) == count
+    names = crash_candidates(sc)
+    if axis in ("pause", "restart", "skew", "liar"):
+        assert [f["uav"] for f in made] == names[:count]
+    if axis == "jammer":
+        assert made[0]["radius_m"] == 10_000.0 and (made[0]["x_m"], made[0]["y_m"]) == (25_000.0, 25_000.0)
+    if axis == "pause":
+        assert (made[0]["start_s"], made[0]["end_s"]) == (300.0, 360.0)
+
+
+@pytest.mark.parametrize("axis, text, expected", [
+    ("detect", "1.5", "expected a probability of detection from 0 to 1"),
+    ("liar", "1.5", "is not a number; the liar axis takes whole numbers"),
+    ("jammer", "-1", "expected a jammer radius in km >= 0"),
+    ("pause", "inf", "expected a pause length in s >= 0"),
+])
+def test_fault_axis_values_are_checked(axis, text, expected):
+    with pytest.raises(UsageError, match=expected):
+        parse_values(axis, text)
+
+
+@pytest.mark.slow  # 24 short runs
+def test_fault_axes_run_and_their_faults_fire(out, capsys):
+    """Each new axis runs, its faults fire in the degraded runs, and the figure and tables exist."""
+    kinds = {"pause": "pause", "restart": "restart", "skew": "clock_skew", "detect": "sensor", "jammer": "jammer",
+             "liar": "liar"}
+    values = {"pause": "0,30", "restart": "0,2", "skew": "0,60", "detect": "1,0.3", "jammer": "0,15", "liar": "0,2"}
+    for axis, kind in kinds.items():
+        args = ["resilience", axis, "--values", values[axis], "--seeds", "1", "--crash-at", "10", "--out", str(out), *TINY]
+        assert main(args) == 0
+        assert "4 runs: 0 already finished, 4 ran, 0 failed" in capsys.readouterr().err
+        _png(out / axis / f"{axis}.png")
+        res = _results(out, axis)
+        degraded = res["points"][-1]["label"]
+        assert res["points"][0]["label"] != degraded
+        fired = [json.loads(p.read_text())["faults_applied"].get(kind, 0)
+                 for p in (out / axis / "runs").glob("*/*/seed-000/metrics.json")
+                 if "=0," not in p.parent.parent.name and not p.parent.parent.name.endswith(("=0", "=0.0", "=1.0"))]
+        assert len(fired) == 2 and all(n > 0 for n in fired), (axis, fired)
+    top = (out / "table.md").read_text()
+    assert all(f"## {a}:" in top for a in kinds)

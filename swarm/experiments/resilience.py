@@ -1,5 +1,6 @@
 """Resilience experiments: how coverage and targets found degrade with radio loss, burst loss,
-radio range and crashed UAVs, DACMP and greedy side by side over seeds.
+radio range, crashed UAVs, paused and restarted UAVs, clock skew, missed detections, a jammer
+and lying UAVs, DACMP and greedy side by side over seeds.
 
 An *axis* is one kind of degradation and the values to try along it:
 
@@ -14,7 +15,19 @@ An *axis* is one kind of degradation and the values to try along it:
 * ``range`` — radio range limit ``radio.range_m`` = 2, 5, 10, 20 km and unlimited;
 * ``crash`` — 0..5 UAVs crash (fail-stop) at ``crash_at_s`` (300 s); the first ``k`` UAVs of the
   scenario that fly from the start and are not already crashed by it, in scenario order (on
-  ``paper-fig11``: B1, ..., Bk, the southernmost first).
+  ``paper-fig11``: B1, ..., Bk, the southernmost first);
+* ``pause`` — the first :data:`FAULTED_UAVS` (3) of those UAVs pause (their actors stop, the
+  airframes fly on with their last command) at ``crash_at_s`` for 0, 60, 200, 600, 1200 s;
+* ``restart`` — 0..5 of them restart at ``crash_at_s``: down for :data:`RESTART_DOWNTIME_S`
+  (60 s), then back where they went down with an empty memory;
+* ``skew`` — the clocks of the first 3 run ahead by 0, 2, 10, 60, 600 s for the whole run (their
+  frames and scans are stamped in the others' future, which receivers ignore);
+* ``detect`` — every UAV's probability of detecting a target inside its radius, per tick: 1, 0.8,
+  0.6, 0.4, 0.2 (a ``sensor`` fault over the whole run);
+* ``jammer`` — a jammer at the centre of the area that loses every frame to or from a UAV within
+  0 (none), 5, 10, 15, 20, 25 km of it, over the whole run;
+* ``liar`` — 0..3 of those UAVs are Byzantine for the whole run: each broadcasts one scan record a
+  second that it never made (:class:`faults.schedule.Liar` defaults).
 
 Each axis is one sweep (:mod:`swarm.experiments.sweep`): every planner x value x seed runs once, in a process
 pool or on any ``concurrent.futures`` executor (a Dask client's); a finished run folder is skipped
@@ -68,13 +81,18 @@ from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABE
 from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 
-AXES = ("loss", "burst", "range", "crash")
+AXES = ("loss", "burst", "range", "crash", "pause", "restart", "skew", "detect", "jammer", "liar")
+# Axes whose values count UAVs, taken from crash_candidates in order.
+COUNT_AXES = ("crash", "restart", "liar")
 PLANNERS = FIG11_PLANNERS  # greedy first: the sweep's paired comparisons are "dacmp - greedy"
 DEFAULT_SCENARIO = "paper-fig11"
 DEFAULT_SEEDS = 10
 DEFAULT_CRASH_AT_S = 300.0
 DEFAULT_BURST_LOSS = 0.3
 MAX_DEFAULT_CRASHES = 5
+# The pause and skew axes degrade this many UAVs (half of paper-fig11's six).
+FAULTED_UAVS = 3
+RESTART_DOWNTIME_S = 60.0
 # The check of issue 4: with 30% i.i.d. loss DACMP keeps at least 90% of its loss-free coverage.
 TARGET_LOSS = 0.3
 TARGET_KEPT = 0.9
@@ -84,10 +102,20 @@ DEFAULT_VALUES: dict[str, tuple] = {
     "burst": (3.0, 10.0, 30.0, 100.0, 300.0),
     "range": (2.0, 5.0, 10.0, 20.0, None),  # km; None = unlimited
     "crash": tuple(range(MAX_DEFAULT_CRASHES + 1)),  # capped to the UAVs the scenario has
+    "pause": (0.0, 60.0, 200.0, 600.0, 1200.0),  # s
+    "restart": tuple(range(MAX_DEFAULT_CRASHES + 1)),
+    "skew": (0.0, 2.0, 10.0, 60.0, 600.0),  # s ahead
+    "detect": (1.0, 0.8, 0.6, 0.4, 0.2),
+    "jammer": (0.0, 5.0, 10.0, 15.0, 20.0, 25.0),  # km; 0 = no jammer
+    "liar": (0, 1, 2, 3),
 }
 SETTING = {"loss": "radio.loss_base", "burst": "burst.mean_frames", "range": "radio.range_km",
-           "crash": "crashed_uavs"}
-BASELINE = {"loss": 0.0, "range": None, "crash": 0}  # the undegraded value; burst has none
+           "crash": "crashed_uavs", "pause": "pause.length_s", "restart": "restarted_uavs",
+           "skew": "clock_skew.offset_s", "detect": "sensor.p_detect", "jammer": "jammer.radius_km",
+           "liar": "liars"}
+# The undegraded value of each axis; burst has none.
+BASELINE = {"loss": 0.0, "range": None, "crash": 0, "pause": 0.0, "restart": 0, "skew": 0.0, "detect": 1.0,
+            "jammer": 0.0, "liar": 0}
 # Quantities per run (from metrics.json): delivered = radio.delivered (frame copies decoded by
 # receivers; the radio's throughput, which range and crashes cut too), delivered_fraction =
 # radio.delivered / radio.sent (copies offered to UAVs in range: what loss cuts);
@@ -130,8 +158,12 @@ def value_label(axis: str, v: Any) -> str:
         return "unlimited" if v is None else f"{v:g} km"
     if axis == "burst":
         return f"{v:g}"
-    if axis == "crash":
+    if axis in COUNT_AXES:
         return str(int(v))
+    if axis == "jammer":
+        return "none" if not v else f"{v:g} km"
+    if axis in ("pause", "skew"):
+        return f"{v:g} s"
     return f"{v:g}"
 
 
@@ -140,6 +172,12 @@ AXIS_TITLE = {
     "burst": "mean burst length (frame copies per link, Gilbert-Elliott)",
     "range": "radio range",
     "crash": "UAVs crashed",
+    "pause": f"pause length of {FAULTED_UAVS} UAVs",
+    "restart": f"UAVs restarted ({RESTART_DOWNTIME_S:g} s down, memory lost)",
+    "skew": f"clock ahead on {FAULTED_UAVS} UAVs",
+    "detect": "probability of detection per tick (all UAVs)",
+    "jammer": "jammer radius at the centre of the area",
+    "liar": "lying UAVs (fake scan records)",
 }
 
 
@@ -157,9 +195,9 @@ def parse_values(axis: str, text: str) -> list:
             out.append(None)
             continue
         try:
-            v = int(p) if axis == "crash" else float(p)
+            v = int(p) if axis in COUNT_AXES else float(p)
         except ValueError:
-            kind = "whole numbers" if axis == "crash" else "numbers"
+            kind = "whole numbers" if axis in COUNT_AXES else "numbers"
             raise UsageError(f"--values {text!r}: {p!r} is not a number; the {axis} axis takes {kind}") from None
         out.append(v)
     return _check_values(axis, out)
@@ -169,10 +207,17 @@ def _check_values(axis: str, values: Sequence) -> list:
     values = list(values)
     if not values:
         raise UsageError(f"the {axis} axis needs at least one value")
-    expect = {"loss": ("a loss rate from 0 to 1", lambda v: v is not None and 0.0 <= v <= 1.0),
+    expects = {"loss": ("a loss rate from 0 to 1", lambda v: v is not None and 0.0 <= v <= 1.0),
               "burst": ("a mean burst length >= 1 frame", lambda v: v is not None and math.isfinite(v) and v >= 1.0),
               "range": ("a range in km > 0, or inf for unlimited", lambda v: v is None or (v > 0 and math.isfinite(v))),
-              "crash": ("a number of UAVs >= 0", lambda v: v is not None and float(v).is_integer() and v >= 0)}[axis]
+              "crash": ("a number of UAVs >= 0", lambda v: v is not None and float(v).is_integer() and v >= 0),
+              "pause": ("a pause length in s >= 0", lambda v: v is not None and math.isfinite(v) and v >= 0),
+              "skew": ("a clock offset in s (>= -1e6 and <= 1e6)", lambda v: v is not None and -1e6 <= v <= 1e6),
+              "detect": ("a probability of detection from 0 to 1", lambda v: v is not None and 0.0 <= v <= 1.0),
+              "jammer": ("a jammer radius in km >= 0 (0: none)", lambda v: v is not None and math.isfinite(v) and v >= 0),
+              }
+    count = ("a number of UAVs >= 0", lambda v: v is not None and float(v).is_integer() and v >= 0)
+    expect = expects.get(axis, count)  # restart, liar: counts like crash
     for v in values:
         try:
             ok = expect[1](v)
@@ -182,7 +227,7 @@ def _check_values(axis: str, values: Sequence) -> list:
             raise UsageError(f"{axis} value {v!r}: expected {expect[0]}")
     if len(set(values)) != len(values):
         raise UsageError(f"{axis} values {values}: a value is repeated")
-    return [int(v) for v in values] if axis == "crash" else values
+    return [int(v) for v in values] if axis in COUNT_AXES else values
 
 
 def crash_candidates(scenario: Scenario) -> list[str]:
@@ -216,9 +261,33 @@ def _point(axis: str, scenario: Scenario, v: Any, *, crash_at_s: float, burst_lo
     if axis == "burst":
         return (((SETTING[axis], v), ("burst.mean_loss", burst_loss)),
                 {"faults": faults + [burst_fault(v, burst_loss)]})
-    names = crash_candidates(scenario)[:v]
-    return (((SETTING[axis], v), ("crash_at_s", crash_at_s)),
-            {"faults": faults + [{"kind": "crash", "uav": n, "at_s": crash_at_s} for n in names]} if names else {})
+    if axis == "crash":
+        names = crash_candidates(scenario)[:v]
+        return (((SETTING[axis], v), ("crash_at_s", crash_at_s)),
+                {"faults": faults + [{"kind": "crash", "uav": n, "at_s": crash_at_s} for n in names]} if names else {})
+    new = _fault_point(axis, scenario, v, crash_at_s)
+    settings: tuple[tuple[str, Any], ...] = ((SETTING[axis], v),)
+    if axis in ("pause", "restart"):
+        settings += (("at_s", crash_at_s),)
+    return settings, ({"faults": faults + new} if new else {})
+
+
+def _fault_point(axis: str, scenario: Scenario, v: Any, at_s: float) -> list[dict]:
+    """The faults (as ``[[faults]]`` tables) that make value ``v`` of a fault axis."""
+    names = crash_candidates(scenario)
+    if axis == "pause":
+        return [{"kind": "pause", "uav": n, "start_s": at_s, "end_s": at_s + v} for n in names[:FAULTED_UAVS]] if v else []
+    if axis == "restart":
+        return [{"kind": "restart", "uav": n, "at_s": at_s, "downtime_s": RESTART_DOWNTIME_S} for n in names[:v]]
+    if axis == "skew":
+        return [{"kind": "clock_skew", "uav": n, "offset_s": v} for n in names[:FAULTED_UAVS]] if v else []
+    if axis == "detect":
+        return [{"kind": "sensor", "p_detect": v}] if v < 1.0 else []
+    if axis == "jammer":
+        a = scenario.area
+        return [{"kind": "jammer", "x_m": a.width_m / 2, "y_m": a.height_m / 2, "radius_m": v * 1000.0}] if v else []
+    assert axis == "liar"
+    return [{"kind": "liar", "uav": n} for n in names[:v]]
 
 
 def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, seeds: Sequence[int],
@@ -229,17 +298,20 @@ def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, 
     if axis not in AXES:
         raise UsageError(f"unknown axis {axis!r}; expected one of {', '.join(AXES)}")
     run_s = expected_duration(scenario, duration_s)
-    if axis == "crash":
+    if axis in (*COUNT_AXES, "pause", "skew"):
         n = len(crash_candidates(scenario))
-        if values is None:
-            values = [k for k in DEFAULT_VALUES["crash"] if k <= max(n - 1, 0)]
-        if not 0.0 <= crash_at_s < run_s:
-            raise UsageError(f"--crash-at {crash_at_s:g}: expected a time from 0 to before the end of the run "
-                             f"({run_s:g} s)")
-        too_many = [k for k in values if k > n]
-        if too_many:
-            raise UsageError(f"crash value {max(too_many)}: {scenario.name} has {n} UAVs that can crash "
-                             f"({', '.join(crash_candidates(scenario))})")
+        if axis in COUNT_AXES:
+            if values is None:
+                values = [k for k in DEFAULT_VALUES[axis] if k <= max(n - 1, 0)]
+            too_many = [k for k in values if k > n]
+            if too_many:
+                raise UsageError(f"{axis} value {max(too_many)}: {scenario.name} has {n} UAVs that fly from the start "
+                                 f"and do not crash ({', '.join(crash_candidates(scenario))})")
+        elif n == 0:
+            raise UsageError(f"the {axis} axis needs UAVs that fly from the start; {scenario.name} has none")
+    if axis in ("crash", "restart", "pause") and not 0.0 <= crash_at_s < run_s:
+        raise UsageError(f"--crash-at {crash_at_s:g}: expected a time from 0 to before the end of the run "
+                         f"({run_s:g} s)")
     if axis == "burst" and not 0.0 < burst_loss < 1.0:
         raise UsageError(f"--burst-loss {burst_loss:g}: expected a mean loss rate between 0 and 1 (exclusive)")
     values = _check_values(axis, DEFAULT_VALUES[axis] if values is None else values)
@@ -325,7 +397,7 @@ def run_resilience(axis: str, out_dir: str | Path = "results/resilience", *, val
     if axis not in (*AXES, "all"):
         raise UsageError(f"unknown axis {axis!r}; expected one of {', '.join(AXES)}, all")
     if axis == "all" and values is not None:
-        raise UsageError("--values needs one axis (loss, burst, range or crash), not all")
+        raise UsageError("--values needs one axis, not all")
     out = Path(out_dir)
     names = AXES if axis == "all" else (axis,)
     for name in names:  # a mistake in any axis is reported before the first run
@@ -408,8 +480,9 @@ def measure(axis: str, axis_dir: Path, runs: Sequence[RunSpec], summary: dict, *
         "runs_finished": sum(len(v) for v in per.values()), "runs_failed": sum(failed.values()),
         "errors": summary.get("errors", []), "points": points,
     }
-    if axis == "crash":
+    if axis in ("crash", "restart", "pause"):
         results["crash_at_s"] = crash_at_s
+    if axis in (*COUNT_AXES, "pause", "skew"):
         results["crash_order"] = crash_candidates(scenario)
     if axis == "burst":
         results["burst_mean_loss"] = burst_loss
@@ -503,9 +576,18 @@ def _errorbars(ax, results: dict, quantity: str, x: np.ndarray, bounds: tuple[fl
 
 def _run_note(results: dict) -> str:
     extra = ""
-    if results["axis"] == "crash":
-        order = results.get("crash_order", [])
+    axis = results["axis"]
+    order = results.get("crash_order", [])
+    if axis == "crash":
         extra = f"; crash at {results['crash_at_s']:g} s, in order {', '.join(order)}"
+    elif axis == "restart":
+        extra = f"; restart at {results['crash_at_s']:g} s, {RESTART_DOWNTIME_S:g} s down, in order {', '.join(order)}"
+    elif axis == "pause":
+        extra = f"; {', '.join(order[:FAULTED_UAVS])} paused from {results['crash_at_s']:g} s"
+    elif axis == "skew":
+        extra = f"; clocks of {', '.join(order[:FAULTED_UAVS])} ahead"
+    elif axis == "liar":
+        extra = f"; liars in order {', '.join(order)}, one fake scan a second each"
     if results["axis"] == "burst":
         extra = f"; mean loss {results['burst_mean_loss']:g}, bad state loses every copy"
     fails = f"; {results['runs_failed']} runs failed" if results["runs_failed"] else ""
@@ -701,7 +783,8 @@ def write_axis_table(results: dict, axis_dir: Path) -> tuple[Path, Path]:
 def write_table(out_dir: str | Path) -> tuple[Path, Path]:
     """Rewrite ``table.md`` / ``table.csv`` in ``out_dir`` from every axis's ``results.json``."""
     out = Path(out_dir)
-    lines = ["# Resilience: DACMP and greedy under radio loss, burst loss, limited range and crashes", "",
+    lines = ["# Resilience: DACMP and greedy under radio loss, burst loss, limited range, crashes, pauses, "
+             "restarts, clock skew, missed detections, a jammer and liars", "",
              "Written by `swarm resilience` from the results in this folder: per axis value, the mean over seeds",
              "and the Student-t 95% interval of the mean; differences and kept fractions are paired by seed.", ""]
     rows = []
