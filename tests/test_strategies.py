@@ -303,3 +303,38 @@ def test_fault_schedule_of_lists_the_scenario_faults():
     schedule = fault_schedule_of(parse_scenario(doc))
     assert [f.kind for f in schedule.faults] == ["drop", "crash"]
     assert schedule.faults[1] == Crash(uav="B2", at_s=3.0)
+
+
+# --- swarm testing (the `swarm` profile; tests/README.md) ---------------------------------------
+
+
+@settings(max_examples=examples(100), suppress_health_check=[HealthCheck.too_slow])
+@given(scenario=scenarios(swarm=True), config=configurations())
+def test_swarm_tested_scenarios_are_valid_and_round_trip(scenario, config):
+    assert config["radio_model"] in ("disk", "log_distance") and config["replan_s"] > 0
+    assert scenario.radio.model in ("disk", "log_distance")
+    assert scenario_from_toml(scenario_toml(scenario), "generated.toml") == scenario
+
+
+SEARCH = settings(phases=[Phase.generate], max_examples=1000)  # literal: each value must turn up in this many
+
+
+def test_swarm_testing_varies_the_configuration_and_off_keeps_the_defaults():
+    swarm = scenarios(swarm=True, max_duration_s=30)
+    for want in (lambda s: s.radio.model == "log_distance", lambda s: s.map.tau is not None,
+                 lambda s: s.planner.replan_s != 10.0, lambda s: {u.type for u in s.uavs} == {"A"},
+                 lambda s: len(s.faults) >= 2 and len({f.kind for f in s.faults}) == 1):
+        find(swarm, want, settings=SEARCH)  # each is reachable (raises if never drawn)
+    plain = find(scenarios(swarm=False, max_duration_s=30), lambda s: len(s.uavs) >= 2, settings=GENERATE_ONLY)
+    assert plain.radio.model == "disk" and plain.map.tau is None and plain.planner.replan_s == 10.0
+
+
+def test_swarm_testing_follows_the_switch_when_not_given(monkeypatch):
+    from swarm.testing import strategies as strat
+
+    monkeypatch.setattr(strat, "_SWARM_TESTING", False)
+    assert not strat.swarm_testing_enabled()
+    strat.set_swarm_testing(True)
+    assert strat.swarm_testing_enabled()
+    sc = find(scenarios(max_duration_s=30), lambda s: s.radio.model == "log_distance", settings=SEARCH)
+    assert sc.radio.model == "log_distance"  # scenarios() with swarm=None read the switch at draw time

@@ -33,12 +33,12 @@ from hypothesis import strategies as st
 from comms.radio import LinkModel
 from faults.schedule import (
     FAULT_KINDS,
+    Bridge,
     Burst,
+    ClockSkew,
     Corrupt,
     Crash,
     Delay,
-    Bridge,
-    ClockSkew,
     Drop,
     Duplicate,
     Fault,
