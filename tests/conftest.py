@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from swarm.testing.fault_strategies import ALL_KINDS
+from swarm.testing.strategies import set_swarm_testing
 
 DATA = Path(__file__).parent / "data"
 
@@ -21,6 +22,11 @@ DATA = Path(__file__).parent / "data"
 #   HYPOTHESIS_PROFILE=deep .venv/bin/python -m pytest tests/test_strategies.py tests/test_invariants.py
 # quick: ci with a tenth of the examples (same derandomized draws, fewer of them); the profile
 #   of the quick loop, ``pytest -m "not slow"``.
+# swarm: swarm testing (FoundationDB's simulation, Groce et al. 2012): the ci count of examples,
+#   random ones each run, and every generated scenario also draws its configuration (UAV types
+#   flown, radio model disk / log_distance, map tau, replan period) and the subset of fault kinds
+#   it may use (swarm.testing.strategies.set_swarm_testing, turned on in pytest_configure).
+#   HYPOTHESIS_PROFILE=swarm .venv/bin/python -m pytest tests/test_strategies.py tests/test_invariants.py tests/test_stateful.py
 # Which one: HYPOTHESIS_PROFILE if set; else `quick` when the marker expression deselects the
 # slow tests (``-m "not slow"``); else `ci` (a plain ``python -m pytest``, what CI runs).
 # Chosen in pytest_configure, before any test module is imported: the modules read
@@ -34,6 +40,10 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.register_profile("quick", parent=settings.get_profile("ci"), max_examples=10)
+settings.register_profile(
+    "swarm", max_examples=100, deadline=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 
 
 def deselects_slow(config: pytest.Config) -> bool:
@@ -51,6 +61,7 @@ def pytest_configure(config: pytest.Config) -> None:
     PROFILE = (config.getoption("hypothesis_profile", None) or os.environ.get("HYPOTHESIS_PROFILE")
                or ("quick" if QUICK_LOOP else "ci"))
     settings.load_profile(PROFILE)
+    set_swarm_testing(PROFILE == "swarm")
 
 
 @pytest.fixture

@@ -18,7 +18,27 @@ from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
 
 from comms.radio import LinkModel, Radio
-from faults.schedule import Burst, Corrupt, Crash, Delay, Drop, Duplicate, FaultSchedule, Join, Partition
+from faults.schedule import (
+    FAULT_KINDS,
+    Bridge,
+    ClockSkew,
+    Corrupt,
+    Crash,
+    Drop,
+    Duplicate,
+    FaultSchedule,
+    Jammer,
+    Join,
+    Liar,
+    NavError,
+    Partition,
+    Pause,
+    Restart,
+    Sensor,
+    Spoofer,
+    Swizzle,
+    uav_names,
+)
 from swarm import Simulation
 from swarm.recorder import read_events
 from swarm.scenario import Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
@@ -33,6 +53,8 @@ from swarm.testing.fault_strategies import (
 )
 from swarm.testing.invariants import DynamicsChecker, RadioChecker, ThreatClearanceChecker, check_events
 from swarm.testing.strategies import (
+    _fault_doc,
+    configurations,
     fault_schedule_of,
     fleets,
     radio_tables,
@@ -46,39 +68,80 @@ from swarm.testing.strategies import (
 )
 
 NAMES = ["B1", "B2", "A1", "A2"]
-KIND_CLASSES = {"drop": Drop, "burst": Burst, "delay": Delay, "duplicate": Duplicate, "corrupt": Corrupt,
-                "partition": Partition, "crash": Crash, "join": Join}
+AREA = (8_000.0, 6_000.0)
 
 
 # --- fault schedules -------------------------------------------------------------------------------
+
+
+def test_all_kinds_are_the_fault_kinds_of_faults_schedule():
+    assert sorted(ALL_KINDS) == sorted(FAULT_KINDS) and len(ALL_KINDS) == len(FAULT_KINDS) == 18
+    assert ALL_KINDS[0] == "drop"  # the simplest kind shrinks first
 
 
 @settings(max_examples=examples(400))
 @given(duration=st.integers(10, 300), kinds=st.lists(st.sampled_from(ALL_KINDS), min_size=1, unique=True),
        data=st.data())
 def test_fault_schedules_name_known_uavs_and_stay_inside_the_run(fault_stats, duration, kinds, data):
-    schedule = data.draw(fault_schedules(NAMES, float(duration), kinds=kinds, max_faults=8))
+    schedule = data.draw(fault_schedules(NAMES, float(duration), kinds=kinds, max_faults=8, area=AREA))
     fault_stats.schedule(schedule.faults)
     assert isinstance(schedule, FaultSchedule)
     joined = [f.uav for f in schedule.faults if isinstance(f, Join)]
     assert len(joined) == len(set(joined)), "a UAV can only join once"
     for f in schedule.faults:
         assert f.kind in kinds
-        assert isinstance(f, KIND_CLASSES[f.kind])
-        names = list(getattr(f, "uavs", ())) + [n for p in getattr(f, "links", ()) for n in p]
-        names += [n for g in getattr(f, "groups", ()) for n in g] + [getattr(f, "uav", "B1")]
-        assert set(names) <= set(NAMES)
+        assert isinstance(f, FAULT_KINDS[f.kind])
+        assert {n for _path, n in uav_names(f)} <= set(NAMES)
         if isinstance(f, (Crash, Join)):
             assert 0.0 <= f.at_s < duration
             assert f.at_s > 0 or isinstance(f, Crash)  # a join at 0 s would not be late
+        elif isinstance(f, Restart):
+            assert 0.0 <= f.at_s and f.downtime_s >= 1.0 and f.at_s + f.downtime_s < duration, "rejoins in the run"
         else:
             assert 0.0 <= f.start_s < duration
             assert f.end_s == math.inf or f.start_s < f.end_s <= duration
-        if isinstance(f, Partition):
+        if isinstance(f, (Pause, Swizzle)):
+            assert math.isfinite(f.end_s)
+        if isinstance(f, (Partition, Bridge)):
             flat = [n for g in f.groups for n in g]
             assert len(f.groups) >= 2 and all(f.groups) and len(flat) == len(set(flat))
-        if isinstance(f, (Drop, Duplicate, Corrupt)):
+        if isinstance(f, Bridge):
+            assert f.bridge not in flat
+        if isinstance(f, Swizzle):
+            assert 1 <= f.count <= len(f.uavs or NAMES) and f.end_s - f.start_s >= 2.0
+        if isinstance(f, (Drop, Duplicate, Corrupt, Jammer)):
             assert 0.05 <= f.rate <= 1.0
+        if isinstance(f, (Jammer, Spoofer)):
+            assert 0.0 <= f.x_m <= AREA[0] and 0.0 <= f.y_m <= AREA[1], "placed inside the area"
+        if isinstance(f, Jammer):
+            assert 0 < f.radius_m <= max(AREA) / 2
+        # Never an inert fault: each kind's values change something.
+        if isinstance(f, ClockSkew):
+            assert f.offset_s != 0 or f.drift != 0
+            assert -0.5 <= f.drift <= 0.5
+        if isinstance(f, NavError):
+            assert f.bias_x_m != 0 or f.bias_y_m != 0 or f.noise_m > 0
+        if isinstance(f, Sensor):
+            assert f.p_detect < 1.0 or f.false_alarm_rate > 0
+        if isinstance(f, Liar):
+            assert f.scans_per_s > 0 or f.tracks_per_s > 0
+
+
+@settings(max_examples=examples(300), suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data(), kind=st.sampled_from(ALL_KINDS), duration=st.integers(3, 120))
+def test_every_strategy_gives_a_valid_scenario_fault_that_round_trips(data, kind, duration):
+    """Each kind's strategy, drawn alone: as a scenario's [[faults]] table it validates, loads
+    back (through TOML, what `swarm run` reads) to the same fault, and add_fault accepts it."""
+    fault = data.draw(faults(NAMES, float(duration), kinds=[kind], area=AREA))
+    assert fault.kind == kind
+    doc = {"name": "one-fault", "duration_s": float(duration),
+           "area": {"width_m": AREA[0], "height_m": AREA[1], "cell_m": 200.0},
+           "uavs": [{"name": n, "type": n[0], "x_m": 500.0 + 2000.0 * i, "y_m": 500.0} for i, n in enumerate(NAMES)],
+           "faults": [_fault_doc(fault)]}
+    sc = parse_scenario(doc)
+    assert fault_schedule_of(sc).faults == [fault]
+    again = scenario_from_toml(scenario_toml(sc), "again.toml")
+    assert again == sc and fault_schedule_of(again).faults == [fault]
 
 
 GENERATE_ONLY = settings(phases=[Phase.generate])  # any example will do: no shrinking (seconds saved)
@@ -240,3 +303,38 @@ def test_fault_schedule_of_lists_the_scenario_faults():
     schedule = fault_schedule_of(parse_scenario(doc))
     assert [f.kind for f in schedule.faults] == ["drop", "crash"]
     assert schedule.faults[1] == Crash(uav="B2", at_s=3.0)
+
+
+# --- swarm testing (the `swarm` profile; tests/README.md) ---------------------------------------
+
+
+@settings(max_examples=examples(100), suppress_health_check=[HealthCheck.too_slow])
+@given(scenario=scenarios(swarm=True), config=configurations())
+def test_swarm_tested_scenarios_are_valid_and_round_trip(scenario, config):
+    assert config["radio_model"] in ("disk", "log_distance") and config["replan_s"] > 0
+    assert scenario.radio.model in ("disk", "log_distance")
+    assert scenario_from_toml(scenario_toml(scenario), "generated.toml") == scenario
+
+
+SEARCH = settings(phases=[Phase.generate], max_examples=1000)  # literal: each value must turn up in this many
+
+
+def test_swarm_testing_varies_the_configuration_and_off_keeps_the_defaults():
+    swarm = scenarios(swarm=True, max_duration_s=30)
+    for want in (lambda s: s.radio.model == "log_distance", lambda s: s.map.tau is not None,
+                 lambda s: s.planner.replan_s != 10.0, lambda s: {u.type for u in s.uavs} == {"A"},
+                 lambda s: len(s.faults) >= 2 and len({f.kind for f in s.faults}) == 1):
+        find(swarm, want, settings=SEARCH)  # each is reachable (raises if never drawn)
+    plain = find(scenarios(swarm=False, max_duration_s=30), lambda s: len(s.uavs) >= 2, settings=GENERATE_ONLY)
+    assert plain.radio.model == "disk" and plain.map.tau is None and plain.planner.replan_s == 10.0
+
+
+def test_swarm_testing_follows_the_switch_when_not_given(monkeypatch):
+    from swarm.testing import strategies as strat
+
+    monkeypatch.setattr(strat, "_SWARM_TESTING", False)
+    assert not strat.swarm_testing_enabled()
+    strat.set_swarm_testing(True)
+    assert strat.swarm_testing_enabled()
+    sc = find(scenarios(max_duration_s=30), lambda s: s.radio.model == "log_distance", settings=SEARCH)
+    assert sc.radio.model == "log_distance"  # scenarios() with swarm=None read the switch at draw time

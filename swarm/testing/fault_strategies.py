@@ -12,8 +12,12 @@ inside the run (``0 <= t < duration_s``, on multiples of ``step_s``, the physics
         ...  # schedule is a faults.schedule.FaultSchedule; sim.add_fault(f) for f in schedule.faults
 
 Shrinking goes towards simple cases: the empty schedule, fewer faults, the simplest kinds first
-(``drop`` ... ``join``), windows that start at 0 and last to the end of the run, no scope
-(all links), round rates (1.0 loses every copy, so a failure does not hang on luck), ideal links.
+(the order of :data:`ALL_KINDS`: ``drop`` ... ``spoofer``), windows that start at 0 and last to
+the end of the run, no scope (all links), round rates (1.0 loses every copy, so a failure does
+not hang on luck), ideal links.
+
+Faults placed in space (``jammer``, ``spoofer``) are put inside the area: pass ``area=(width_m,
+height_m)`` (the scenario strategies do); without it they lie in :data:`DEFAULT_AREA_M`.
 
 Needs ``hypothesis`` (the ``test`` extra); nothing in the simulator imports this module.
 """
@@ -29,7 +33,9 @@ from hypothesis import strategies as st
 from comms.radio import LinkModel
 from faults.schedule import (
     FAULT_KINDS,
+    Bridge,
     Burst,
+    ClockSkew,
     Corrupt,
     Crash,
     Delay,
@@ -37,15 +43,28 @@ from faults.schedule import (
     Duplicate,
     Fault,
     FaultSchedule,
+    Jammer,
     Join,
+    Liar,
+    NavError,
     Partition,
+    Pause,
+    Restart,
+    Sensor,
+    Spoofer,
+    Swizzle,
 )
 
 __all__ = [
     "ALL_KINDS",
+    "DEFAULT_AREA_M",
     "LINK_KINDS",
     "NODE_KINDS",
+    "RADIO_KINDS",
+    "SENSING_KINDS",
+    "bridges",
     "bursts",
+    "clock_skews",
     "corrupts",
     "crashes",
     "delays",
@@ -53,21 +72,44 @@ __all__ = [
     "duplicates",
     "fault_schedules",
     "faults",
+    "jammers",
     "joins",
+    "liars",
     "link_models",
+    "nav_errors",
     "partitions",
+    "pauses",
     "probabilities",
+    "restarts",
     "scopes",
+    "sensors",
+    "spoofers",
+    "swizzles",
     "times",
     "windows",
 ]
 
-#: Every kind the injector supports, simplest first (this is also the shrink order).
-ALL_KINDS: tuple[str, ...] = ("drop", "delay", "duplicate", "corrupt", "burst", "partition", "crash", "join")
+#: Every fault kind of :data:`faults.schedule.FAULT_KINDS`, simplest first (this is also the
+#: shrink order): loss on links, then whole links cut, then whole UAVs, then UAVs that are
+#: wrong (clocks, positions, sensors), then UAVs and transmitters that lie.
+ALL_KINDS: tuple[str, ...] = ("drop", "delay", "duplicate", "corrupt", "burst", "jammer", "partition", "bridge",
+                              "swizzle", "crash", "join", "pause", "restart", "sensor", "nav_error", "clock_skew",
+                              "liar", "spoofer")
+#: Faults on frame copies, scoped by UAVs and links (:class:`faults.schedule.LinkFault`).
 LINK_KINDS: tuple[str, ...] = ("drop", "delay", "duplicate", "corrupt", "burst")
-NODE_KINDS: tuple[str, ...] = ("crash", "join")
-# (Interim, while issue 16's strategies for the ten new kinds are written: they must be in ALL_KINDS.)
-assert set(ALL_KINDS) <= set(FAULT_KINDS), "a strategy for a fault kind faults.schedule does not define"
+#: Other radio faults: a place (jammer), groups (partition, bridge), a drawn subset (swizzle),
+#: a transmitter outside the swarm (spoofer).
+RADIO_KINDS: tuple[str, ...] = ("jammer", "partition", "bridge", "swizzle", "spoofer")
+#: Faults of one named UAV (they need a name to draw; ``join`` from the ``joinable`` ones).
+NODE_KINDS: tuple[str, ...] = ("crash", "join", "pause", "restart", "nav_error", "clock_skew", "liar")
+#: Faults of the sensors of some UAVs.
+SENSING_KINDS: tuple[str, ...] = ("sensor",)
+assert len(ALL_KINDS) == len(set(ALL_KINDS)) and set(ALL_KINDS) == set(FAULT_KINDS), \
+    "ALL_KINDS must list every fault kind of faults.schedule once"
+assert set(LINK_KINDS + RADIO_KINDS + NODE_KINDS + SENSING_KINDS) == set(ALL_KINDS)
+
+#: Where a fault placed in space lies when no ``area`` is given: a 10 km square.
+DEFAULT_AREA_M: tuple[float, float] = (10_000.0, 10_000.0)
 
 
 # --- building blocks -------------------------------------------------------------------------
@@ -215,38 +257,193 @@ def joins(uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> st.Sea
     return st.builds(Join, uav=st.sampled_from(list(uavs)), at_s=times(duration_s, step_s, min_s=step_s))
 
 
-_BUILDERS: dict[str, Callable[[list[str], float, float], st.SearchStrategy[Fault]]] = {
+def _name(uavs: Sequence[str]) -> st.SearchStrategy[str]:
+    return st.sampled_from(list(uavs))
+
+
+def _short_window(draw: st.DrawFn, duration_s: float, step_s: float, open_ended: bool) -> tuple[float, float]:
+    return draw(windows(duration_s, step_s, open_ended=open_ended))
+
+
+@st.composite
+def pauses(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Pause:
+    """A process pause of one UAV for a finite window (at least one tick) inside the run."""
+    start, end = _short_window(draw, duration_s, step_s, open_ended=False)
+    return Pause(uav=draw(_name(uavs)), start_s=start, end_s=end)
+
+
+@st.composite
+def restarts(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Restart:
+    """A crash at a tick and a rejoin (with an empty memory) at least one tick later and before
+    the end of the run, so the restart can complete: ``at_s + downtime_s < duration_s``."""
+    n = _steps(duration_s, step_s)
+    if n < 3:
+        raise ValueError(f"a restart needs a run of at least 3 ticks, got {duration_s} s at {step_s} s")
+    at = draw(st.integers(0, n - 3))
+    down = draw(st.integers(1, n - 2 - at))
+    return Restart(uav=draw(_name(uavs)), at_s=at * step_s, downtime_s=down * step_s)
+
+
+@st.composite
+def clock_skews(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> ClockSkew:
+    """A clock that is off (whole seconds, either way) and/or drifts (within the +-0.5 s/s
+    bounds); never both zero, so the fault changes something."""
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    offset = draw(st.one_of(st.sampled_from([5.0, -5.0, 30.0, -30.0]), st.integers(-120, 120).map(float)))
+    drift = draw(st.one_of(st.just(0.0), st.sampled_from([0.1, -0.1, 0.5, -0.5]),
+                           st.floats(-0.5, 0.5).map(lambda d: round(d, 3))))
+    if offset == 0.0 and drift == 0.0:
+        offset = 1.0
+    return ClockSkew(uav=draw(_name(uavs)), start_s=start, end_s=end, offset_s=offset, drift=drift)
+
+
+@st.composite
+def nav_errors(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0,
+               max_bias_m: int = 1000, max_noise_m: int = 200) -> NavError:
+    """A navigation bias (whole 10 m) and/or noise (whole metres); never all zero."""
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    k = max_bias_m // 10
+    bx = draw(st.one_of(st.sampled_from([100.0, -100.0, 500.0]), st.integers(-k, k).map(lambda b: b * 10.0)))
+    by = draw(st.one_of(st.just(0.0), st.integers(-k, k).map(lambda b: b * 10.0)))
+    noise = draw(st.one_of(st.just(0.0), st.integers(1, max_noise_m).map(float)))
+    if bx == 0.0 and by == 0.0 and noise == 0.0:
+        bx = 100.0
+    return NavError(uav=draw(_name(uavs)), start_s=start, end_s=end, bias_x_m=bx, bias_y_m=by, noise_m=noise)
+
+
+@st.composite
+def sensors(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Sensor:
+    """Missed detections (``p_detect < 1``, shrinking to 0: blind) and/or false alarms (up to one
+    phantom per UAV-second); never a perfect sensor."""
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    scope = draw(st.one_of(st.just(()), st.lists(_name(uavs), min_size=1, max_size=len(uavs), unique=True)
+                           .map(tuple))) if uavs else ()
+    p = draw(st.one_of(st.just(0.0), probabilities(0.0, 0.95)))
+    far = draw(st.one_of(st.just(0.0), st.sampled_from([0.1, 1.0]), st.floats(0.0, 1.0).map(lambda r: round(r, 3))))
+    return Sensor(uavs=scope, start_s=start, end_s=end, p_detect=p, false_alarm_rate=far)
+
+
+def _point(area: tuple[float, float]) -> st.SearchStrategy[tuple[float, float]]:
+    """A point of the area on a 100 m grid (shrinking to the origin corner)."""
+    w, h = area
+    return st.tuples(st.integers(0, int(w) // 100).map(lambda k: k * 100.0),
+                     st.integers(0, int(h) // 100).map(lambda k: k * 100.0))
+
+
+@st.composite
+def jammers(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0,
+            area: tuple[float, float] = DEFAULT_AREA_M) -> Jammer:
+    """A jamming circle centred inside the area, 100 m up to half the area's larger side (whole
+    100 m), losing at least 5% of the copies to or from a UAV inside."""
+    x, y = draw(_point(area))
+    k_max = max(1, int(max(area) / 2) // 100)
+    radius = draw(st.one_of(st.just(float(k_max * 100)), st.integers(1, k_max).map(lambda k: k * 100.0)))
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    return Jammer(x_m=x, y_m=y, radius_m=radius, rate=draw(probabilities(0.05)), start_s=start, end_s=end)
+
+
+@st.composite
+def bridges(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Bridge:
+    """Jepsen's bridge: a partition of the other UAVs into 2 or 3 disjoint non-empty groups, with
+    the ``bridge`` UAV in none of them (it talks to every side)."""
+    names = list(uavs)
+    if len(names) < 3:
+        raise ValueError("a bridge needs at least 3 UAV names (two sides and the bridge)")
+    bridge = draw(st.sampled_from(names))
+    side = draw(partitions([n for n in names if n != bridge], duration_s, step_s))
+    return Bridge(groups=side.groups, bridge=bridge, start_s=side.start_s, end_s=side.end_s)
+
+
+@st.composite
+def swizzles(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Swizzle:
+    """FoundationDB's swizzle-clog: a finite window (at least 2 ticks: a cutting half and a
+    restoring half), a pool (empty: all) and ``1 <= count <= `` the pool's size."""
+    names = list(uavs)
+    if not names or _steps(duration_s, step_s) < 2:
+        raise ValueError("a swizzle needs a UAV name and a run of at least 2 ticks")
+    pool = draw(st.one_of(st.just(()), st.lists(st.sampled_from(names), min_size=1, max_size=len(names),
+                                                 unique=True).map(tuple)))
+    count = draw(st.integers(1, len(pool) if pool else len(names)))
+    n = _steps(duration_s, step_s)
+    start = draw(st.integers(0, n - 2))
+    length = draw(st.integers(2, n - start))
+    return Swizzle(uavs=pool, count=count, start_s=start * step_s, end_s=(start + length) * step_s)
+
+
+@st.composite
+def liars(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Liar:
+    """A Byzantine member sending fake scans and/or fake tracks (never neither)."""
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    scans = draw(st.one_of(st.just(1.0), st.sampled_from([0.0, 5.0]), st.integers(1, 20).map(lambda k: k / 2)))
+    tracks = draw(st.one_of(st.just(0.0), st.sampled_from([1.0, 0.2]), st.integers(1, 10).map(lambda k: k / 5)))
+    if scans == 0.0 and tracks == 0.0:
+        tracks = 1.0
+    return Liar(uav=draw(_name(uavs)), start_s=start, end_s=end, scans_per_s=scans, tracks_per_s=tracks)
+
+
+@st.composite
+def spoofers(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0,
+             area: tuple[float, float] = DEFAULT_AREA_M) -> Spoofer:
+    """A transmitter inside the area reaching 500 m up to the area's diagonal (whole 100 m),
+    sending 0.5-10 frames a second as a named member or as a random one (``as_uav = ""``)."""
+    x, y = draw(_point(area))
+    k_max = max(5, int(math.hypot(*area)) // 100)
+    reach = draw(st.one_of(st.just(float(k_max * 100)), st.integers(5, k_max).map(lambda k: k * 100.0)))
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    rate = draw(st.one_of(st.just(1.0), st.integers(1, 20).map(lambda k: k / 2)))
+    as_uav = draw(st.one_of(st.just(""), _name(uavs))) if uavs else ""
+    return Spoofer(x_m=x, y_m=y, range_m=reach, start_s=start, end_s=end, rate_per_s=rate, as_uav=as_uav)
+
+
+_Builder = Callable[..., st.SearchStrategy[Fault]]
+_BUILDERS: dict[str, _Builder] = {
     "drop": drops, "delay": delays, "duplicate": duplicates, "corrupt": corrupts, "burst": bursts,
-    "partition": partitions, "crash": crashes, "join": joins,
+    "jammer": jammers, "partition": partitions, "bridge": bridges, "swizzle": swizzles, "crash": crashes,
+    "join": joins, "pause": pauses, "restart": restarts, "sensor": sensors, "nav_error": nav_errors,
+    "clock_skew": clock_skews, "liar": liars, "spoofer": spoofers,
 }
+assert set(_BUILDERS) == set(ALL_KINDS), "one strategy per fault kind"
+_PLACED = ("jammer", "spoofer")  # built with the area
+
+
+def _possible(kind: str, names: Sequence[str], n_steps: int) -> bool:
+    """Whether ``kind`` can be drawn with these UAV names and this many ticks."""
+    need_names = {"partition": 2, "bridge": 3, "swizzle": 1, **{k: 1 for k in NODE_KINDS}}.get(kind, 0)
+    need_steps = {"join": 2, "swizzle": 2, "restart": 3}.get(kind, 1)
+    return len(names) >= need_names and n_steps >= need_steps
 
 
 def faults(uavs: Sequence[str], duration_s: float, *, kinds: Sequence[str] = ALL_KINDS, step_s: float = 1.0,
-           joinable: Sequence[str] | None = None) -> st.SearchStrategy[Fault]:
-    """One fault of any of ``kinds`` (default: all). ``joinable``: the UAVs a ``join`` may name
-    (default: all of ``uavs``)."""
+           joinable: Sequence[str] | None = None, area: tuple[float, float] | None = None) -> st.SearchStrategy[Fault]:
+    """One fault of any of ``kinds`` (default: all) that can be drawn with these names and this
+    run (a partition needs 2 names, a bridge 3, a restart 3 ticks; the others are left out).
+    ``joinable``: the UAVs a ``join`` may name (default: all of ``uavs``); ``area``: ``(width_m,
+    height_m)`` where jammers and spoofers lie (default :data:`DEFAULT_AREA_M`)."""
     return _faults(tuple(uavs), float(duration_s), tuple(kinds), float(step_s),
-                   tuple(joinable) if joinable is not None else None)
+                   tuple(joinable) if joinable is not None else None,
+                   (float(area[0]), float(area[1])) if area is not None else DEFAULT_AREA_M)
 
 
 @functools.lru_cache(maxsize=512)  # strategies are immutable; building one is the costly part
 def _faults(uavs: tuple[str, ...], duration_s: float, kinds: tuple[str, ...], step_s: float,
-            joinable: tuple[str, ...] | None) -> st.SearchStrategy[Fault]:
+            joinable: tuple[str, ...] | None, area: tuple[float, float]) -> st.SearchStrategy[Fault]:
     unknown = [k for k in kinds if k not in _BUILDERS]
     if unknown:
         raise ValueError(f"unknown fault kind(s) {unknown}; known: {', '.join(ALL_KINDS)}")
+    if not (area[0] > 0 and area[1] > 0):
+        raise ValueError(f"area must be (width_m, height_m) > 0, got {area}")
+    n_steps = _steps(duration_s, step_s)
     options: list[st.SearchStrategy[Fault]] = []
     for kind in ALL_KINDS:  # fixed order: the simplest kinds shrink first
         if kind not in kinds:
             continue
-        if kind == "partition" and len(uavs) < 2:
-            continue
         names = list(joinable if joinable is not None else uavs) if kind == "join" else list(uavs)
-        if kind == "join" and (not names or _steps(duration_s, step_s) < 2):
+        if not _possible(kind, names, n_steps):
             continue
-        if kind in NODE_KINDS and not names:
-            continue
-        options.append(_BUILDERS[kind](names, duration_s, step_s))
+        if kind in _PLACED:
+            options.append(_BUILDERS[kind](names, duration_s, step_s, area=area))
+        else:
+            options.append(_BUILDERS[kind](names, duration_s, step_s))
     if not options:
         return st.nothing()
     return st.one_of(options)
@@ -255,14 +452,15 @@ def _faults(uavs: tuple[str, ...], duration_s: float, kinds: tuple[str, ...], st
 @st.composite
 def fault_schedules(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, *, kinds: Sequence[str] = ALL_KINDS,
                     min_faults: int = 0, max_faults: int = 6, step_s: float = 1.0,
-                    joinable: Sequence[str] | None = None) -> FaultSchedule:
+                    joinable: Sequence[str] | None = None, area: tuple[float, float] | None = None) -> FaultSchedule:
     """A :class:`~faults.schedule.FaultSchedule` of ``min_faults..max_faults`` faults naming only
-    ``uavs``, each inside ``[0, duration_s)``. At most one ``join`` per UAV (a scenario can only
-    say once when a UAV enters); ``joinable`` restricts which UAVs may join late (default: all).
-    Shrinks to the empty schedule."""
+    ``uavs``, each inside ``[0, duration_s)`` (and jammers and spoofers inside ``area``, see
+    :func:`faults`). At most one ``join`` per UAV (a scenario can only say once when a UAV
+    enters); ``joinable`` restricts which UAVs may join late (default: all). Shrinks to the
+    empty schedule."""
     if min_faults < 0 or max_faults < min_faults:
         raise ValueError(f"need 0 <= min_faults <= max_faults, got {min_faults}, {max_faults}")
-    one = faults(uavs, duration_s, kinds=kinds, step_s=step_s, joinable=joinable)
+    one = faults(uavs, duration_s, kinds=kinds, step_s=step_s, joinable=joinable, area=area)
     # Only joins must be unique (per UAV); any other fault is keyed by its own identity, so it
     # never collides (two equal drops are a legitimate, if redundant, schedule).
     items = draw(st.lists(one, min_size=min_faults, max_size=max_faults,

@@ -676,6 +676,12 @@ class _LiveChecker(Checker):
         ctx = self.context
         return {u: sim.uav_map(ctx.name(u)) for u in uids}
 
+    def _radio_lossy(self) -> bool:
+        """A radio that loses frames by itself: anti-entropy converges, but in no bounded time."""
+        r = self.context.scenario.radio
+        return (r.loss_base > 0 or r.effective_loss_at_range > 0 or r.model != "disk"
+                or r.bandwidth_bytes_per_s is not None)
+
 
 class MapMonotonicityChecker(_LiveChecker):
     """A UAV's map never forgets: no cell's last-seen time decreases between two ticks."""
@@ -735,11 +741,6 @@ class MapAgreementChecker(_LiveChecker):
         self._reported_window: float | None = None
         self.checks = 0  # how many times agreement was judged (a test can assert it was)
 
-    def _radio_lossy(self) -> bool:
-        r = self.context.scenario.radio
-        return (r.loss_base > 0 or r.effective_loss_at_range > 0 or r.model != "disk"
-                or r.bandwidth_bytes_per_s is not None)
-
     def on_group(self, t, events):
         poses = _poses(events)
         if not poses:
@@ -788,7 +789,8 @@ class JoinerCatchUpChecker(_LiveChecker):
     """Liveness for late joiners: within ``bound_s`` of joining, a UAV knows (last-seen >=) every
     cell its radio neighbours at join time knew then (``tolerance``: fraction allowed to lag).
     Judged only if, all along, it could talk to one of those neighbours and no link fault or
-    partition was active; otherwise the obligation lapses."""
+    partition was active, and on a radio that loses nothing by itself (as map agreement):
+    otherwise the obligation lapses."""
 
     name = "joiner_catch_up"
 
@@ -815,7 +817,8 @@ class JoinerCatchUpChecker(_LiveChecker):
         if not poses:
             return
         for uid, (t_join, target, nbrs) in list(self._pending.items()):
-            if uid not in poses or ctx.link_faults_active(t) or ctx.node_faults_disturb(t) or not any(
+            if uid not in poses or ctx.link_faults_active(t) or ctx.node_faults_disturb(t) or self._radio_lossy()
+                    or not any(
                     ctx.can_talk(uid, n, t, poses) for n in nbrs):
                 if t > t_join + _EPS:  # the join tick itself precedes the joiner's first pose
                     del self._pending[uid]

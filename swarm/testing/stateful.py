@@ -33,7 +33,17 @@ or subclass it to add rules, invariants or checkers::
 
 Partitions and loss are applied as fault windows covering each ``advance`` (a cut stays in
 force, window after window, until a ``heal`` rule removes it), so everything that happened is
-in the simulation's fault schedule and can be written to a scenario file.
+in the simulation's fault schedule and can be written to a scenario file. The node faults of
+issue 16 are added at run time, each with its own finite window: ``pause`` (a window),
+``restart`` (a downtime), ``clock_skew`` (an offset and a drift for a window) and ``liar`` (fake
+scans and tracks for a window).
+
+Liveness mode (``liveness = True``, the default): at the end of every example (in
+:meth:`SwarmMachine.teardown`, unless the example already failed) the machine heals every cut,
+ends the loss, lets every windowed fault end, then runs a quiet period and checks that the maps
+of connected live UAVs agree and that targets whose watcher a node fault took are watched again,
+within bounds stated from the settings (:mod:`swarm.testing.liveness`). The scenario runs
+``liveness_room_s`` longer than ``max_time_s`` to leave room for it.
 
 Needs ``hypothesis`` (the ``test`` extra).
 """
@@ -41,6 +51,7 @@ Needs ``hypothesis`` (the ``test`` extra).
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable
 from typing import Any, ClassVar
 
@@ -48,7 +59,7 @@ from hypothesis import note
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
-from faults.schedule import Crash, Drop, Join, Partition
+from faults.schedule import ClockSkew, Crash, Drop, Fault, Join, Liar, Partition, Pause, Restart
 from swarm.scenario import Scenario, parse_scenario
 from swarm.simulation import Simulation
 from swarm.testing.invariants import (
@@ -66,6 +77,7 @@ from swarm.testing.invariants import (
     SingleWatcherChecker,
     ThreatClearanceChecker,
 )
+from swarm.testing.liveness import LivenessReport, RecoveryWatch, quiesce
 from swarm.testing.strategies import _fault_doc, reproduction, scenarios
 
 __all__ = ["CHECKERS", "SwarmMachine"]
@@ -115,6 +127,12 @@ class SwarmMachine(RuleBasedStateMachine):
     #: not the planner's.
     threat_clearance_m: ClassVar[float] = 3000.0
     uav_clearance_m: ClassVar[float] = 2000.0
+    #: End each example with the liveness phase (see the module docstring).
+    liveness: ClassVar[bool] = True
+    #: The longest window (s) a pause, restart, clock_skew or liar rule gives its fault.
+    max_fault_s: ClassVar[int] = 20
+    #: Simulated time after ``max_time_s`` for the faults to end and the quiet period.
+    liveness_room_s: ClassVar[float] = 150.0
 
     def __init__(self) -> None:
         super().__init__()
@@ -126,14 +144,19 @@ class SwarmMachine(RuleBasedStateMachine):
         self.joiners: list[dict] = []
         self.late_targets: list[str] = []
         self.history: list[str] = []
+        self.faults_end_s = 0.0  # when the last fault a rule added ends
+        self.watch: RecoveryWatch | None = None
+        self.liveness_report: LivenessReport | None = None
 
     # --- what to start from and what to check ---------------------------------------------
 
     def scenario_strategy(self) -> st.SearchStrategy[Scenario]:
-        """Small scenarios without scheduled faults (the rules add them), 2-4 UAVs."""
-        return scenarios(min_uavs=2, max_uavs=4, faults=False, late_joiners=False,
-                         min_duration_s=int(self.max_time_s), max_duration_s=int(self.max_time_s),
-                         area_km=(5, 10))
+        """Small scenarios without scheduled faults (the rules add them), 2-4 UAVs; with
+        liveness, half on a radio that loses nothing by itself (where map agreement has a bound)."""
+        d = int(self.max_time_s + (self.liveness_room_s if self.liveness else 0))
+        return st.booleans().flatmap(lambda lossless: scenarios(
+            min_uavs=2, max_uavs=4, faults=False, late_joiners=False, min_duration_s=d, max_duration_s=d,
+            area_km=(5, 10), lossy_radio=not (lossless and self.liveness)))
 
     def make_checkers(self) -> list[Checker]:
         unknown = [n for n in self.checkers if n not in CHECKERS]
@@ -192,8 +215,23 @@ class SwarmMachine(RuleBasedStateMachine):
         self.scenario = data.draw(self.scenario_strategy(), label="scenario")
         self.sim = Simulation(self.scenario)
         self.monitor = Monitor(self.make_checkers()).attach(self.sim)
+        self.watch = RecoveryWatch(self.sim)
         self.history.append(f"start: {len(self.scenario.uavs)} UAVs, seed {self.scenario.seed}")
         self.on_start()
+
+    def add_fault(self, fault: Fault, until_s: float) -> None:
+        """Add ``fault`` to the run, over by ``until_s`` (the liveness phase waits for it)."""
+        assert self.sim is not None and self.watch is not None  # (rules run after start)
+        self.sim.add_fault(fault)
+        self.watch.fault(fault)
+        self.faults_end_s = max(self.faults_end_s, until_s)
+
+    def _step(self, ticks: int) -> None:
+        assert self.sim is not None and self.monitor is not None and self.watch is not None
+        for _ in range(ticks):
+            self.sim.step(1)
+            self.watch.observe()
+        self.monitor.flush()
 
     def on_start(self) -> None:
         """Hook for subclasses, called once the simulation exists (override this rather than
@@ -210,8 +248,7 @@ class SwarmMachine(RuleBasedStateMachine):
             sim.add_fault(Partition(groups=groups, start_s=t0, end_s=t1, one_way=one_way))
         if self.loss > 0:
             sim.add_fault(Drop(rate=self.loss, start_s=t0, end_s=t1))
-        sim.step(ticks)
-        self.monitor.flush()
+        self._step(ticks)
         self.history.append(f"t={t0:g}: advance {ticks} tick(s)")
 
     @precondition(lambda self: self.sim is not None and self.now < self.max_time_s)
@@ -224,9 +261,54 @@ class SwarmMachine(RuleBasedStateMachine):
     @rule(data=st.data())
     def crash(self, data: Any) -> None:
         name = data.draw(st.sampled_from(self.alive()), label="crash")
-        assert self.sim is not None  # (a UAV is alive: started)
-        self.sim.add_fault(Crash(uav=name, at_s=self.now))
+        self.add_fault(Crash(uav=name, at_s=self.now), self.now)
         self.history.append(f"t={self.now:g}: crash {name}")
+
+    def _window(self, data: Any, label: str) -> tuple[float, float]:
+        assert self.sim is not None
+        ticks = data.draw(st.integers(1, max(1, int(self.max_fault_s / self.sim.dt))), label=label)
+        return self.now, self.now + ticks * self.sim.dt
+
+    @precondition(lambda self: len(self.alive()) >= 1)
+    @rule(data=st.data())
+    def pause(self, data: Any) -> None:
+        """A process pause: the actor sleeps for a window, its airframe flies on."""
+        name = data.draw(st.sampled_from(self.alive()), label="pause")
+        start, end = self._window(data, "pause_ticks")
+        self.add_fault(Pause(uav=name, start_s=start, end_s=end), end)
+        self.history.append(f"t={start:g}: pause {name} until {end:g}")
+
+    @precondition(lambda self: len(self.alive()) >= 1)
+    @rule(data=st.data())
+    def restart(self, data: Any) -> None:
+        """A crash now and a rejoin with an empty memory after a downtime."""
+        name = data.draw(st.sampled_from(self.alive()), label="restart")
+        at, back = self._window(data, "downtime_ticks")
+        self.add_fault(Restart(uav=name, at_s=at, downtime_s=back - at), back + (self.sim.dt if self.sim else 0.0))
+        self.history.append(f"t={at:g}: restart {name}, back at {back:g}")
+
+    @precondition(lambda self: len(self.alive()) >= 1)
+    @rule(data=st.data(), offset=st.sampled_from([5.0, -5.0, 1.0, -1.0, 10.0, -10.0, 0.0]),
+          drift=st.sampled_from([0.0, 0.1, -0.1, 0.5, -0.5]))
+    def clock_skew(self, data: Any, offset: float, drift: float) -> None:
+        """A clock off by ``offset`` s and drifting ``drift`` s per s, for a window."""
+        name = data.draw(st.sampled_from(self.alive()), label="clock_skew")
+        start, end = self._window(data, "skew_ticks")
+        if offset == 0.0 and drift == 0.0:
+            offset = 1.0  # never an inert fault
+        self.add_fault(ClockSkew(uav=name, start_s=start, end_s=end, offset_s=offset, drift=drift), end)
+        self.history.append(f"t={start:g}: clock of {name} off by {offset:g} s, drift {drift:g}, until {end:g}")
+
+    @precondition(lambda self: len(self.alive()) >= 1)
+    @rule(data=st.data(), scans=st.sampled_from([1.0, 5.0, 0.0]), tracks=st.sampled_from([0.0, 1.0]))
+    def liar(self, data: Any, scans: float, tracks: float) -> None:
+        """A Byzantine member sends fake scans and/or fake tracks for a window."""
+        name = data.draw(st.sampled_from(self.alive()), label="liar")
+        start, end = self._window(data, "liar_ticks")
+        if scans == 0.0 and tracks == 0.0:
+            scans = 1.0
+        self.add_fault(Liar(uav=name, start_s=start, end_s=end, scans_per_s=scans, tracks_per_s=tracks), end)
+        self.history.append(f"t={start:g}: {name} lies ({scans:g} scans/s, {tracks:g} tracks/s) until {end:g}")
 
     @precondition(lambda self: self.sim is not None and len(self.sim.world.uavs) < self.max_uavs)
     @rule(data=st.data())
@@ -297,8 +379,41 @@ class SwarmMachine(RuleBasedStateMachine):
             err.add_note(explanation)
             raise err
 
+    def check_liveness(self) -> LivenessReport:
+        """The liveness phase: heal every cut, end the loss, let the faults end, run the quiet
+        period and judge (:func:`swarm.testing.liveness.quiesce`); raises
+        :class:`InvariantViolation` (with the replay note) if the swarm did not recover. The
+        safety invariants stay checked all along."""
+        assert self.sim is not None and self.monitor is not None
+        if self.cuts or self.loss:
+            self.history.append(f"t={self.now:g}: liveness: heal every cut, no loss")
+        self.cuts.clear()
+        self.loss = 0.0
+        t0 = self.now
+
+        def step(n: int) -> None:
+            self._step(n)
+            self.invariants_hold()
+
+        report = quiesce(self.sim, faults_end_s=self.faults_end_s, watch=self.watch, step=step)
+        self.liveness_report = report
+        self.history.append(f"t={t0:g}: liveness: faults over at {report.t0:g} s, quiet {report.quiet_s:g} s; "
+                            f"judged {report.judged}; not judged {report.not_judged}")
+        if report.violations:
+            err = InvariantViolation(report.violations)
+            explanation = self._explain()
+            note(explanation)
+            err.add_note(explanation)
+            raise err
+        return report
+
     def teardown(self) -> None:
-        if self.monitor is not None:
-            self.monitor.detach()
-        if self.sim is not None:
-            self.sim.close()
+        try:
+            # Only after an example that passed: a failure in flight must not be replaced.
+            if self.liveness and self.sim is not None and sys.exc_info()[0] is None:
+                self.check_liveness()
+        finally:
+            if self.monitor is not None:
+                self.monitor.detach()
+            if self.sim is not None:
+                self.sim.close()

@@ -47,6 +47,7 @@ from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_mode
 
 __all__ = [
     "areas",
+    "configurations",
     "fault_schedule_of",
     "fleets",
     "radio_tables",
@@ -56,6 +57,8 @@ __all__ = [
     "scenario_documents",
     "scenario_toml",
     "scenarios",
+    "set_swarm_testing",
+    "swarm_testing_enabled",
     "target_layouts",
     "threat_layouts",
     "uav_type_specs",
@@ -204,16 +207,28 @@ def scenario_documents(
     fault_kinds: Sequence[str] = ALL_KINDS,
     max_faults: int = 5,
     lossy_radio: bool = True,
+    swarm: bool | None = None,
 ) -> dict:
     """A scenario document (a dict, as parsed from TOML) that :func:`parse_scenario` accepts.
-    :func:`scenarios` validates it; the fuzz tests mutate it into wrong documents."""
+    :func:`scenarios` validates it; the fuzz tests mutate it into wrong documents.
+
+    ``swarm`` (default: :func:`swarm_testing_enabled`, on under the ``swarm`` Hypothesis
+    profile): swarm testing, as FoundationDB's simulation does it: each example also draws its
+    configuration (see :func:`configurations`: which UAV types fly, the radio model, the map's
+    tau, the replanning period) and which of ``fault_kinds`` it may use at all, so examples
+    differ in kind and not only in values. Off, those stay at their defaults (disk radio, the
+    scenario's default tau, replanning every 10 s, every kind of ``fault_kinds``)."""
+    swarm = swarm_testing_enabled() if swarm is None else swarm
     duration = draw(st.integers(min_duration_s, max_duration_s))
     area = draw(areas(*area_km))
+    config = draw(configurations(float(duration))) if swarm else {}
     type_specs: dict[str, dict] = {}
     types = ["B", "A"]
     if extra_types and draw(st.booleans()):
         type_specs["C"] = draw(uav_type_specs())
         types.append("C")
+    if swarm:
+        types = draw(_subsets(types), label="types flown")
     uavs = draw(fleets(area, types, min_uavs=min_uavs, max_uavs=max_uavs, duration_s=float(duration),
                        late_joiners=late_joiners, type_specs=type_specs))
     names = [u["name"] for u in uavs]
@@ -227,6 +242,12 @@ def scenario_documents(
         "threats": draw(threat_layouts(area, [(u["x_m"], u["y_m"]) for u in uavs], max_threats=max_threats)),
         "radio": draw(radio_tables(lossy=lossy_radio)),
     }
+    # The log-distance model is lossy by nature: only where loss is wanted (lossy_radio).
+    if config.get("radio_model") == "log_distance" and lossy_radio:
+        doc["radio"].pop("loss_at_range", None)  # the link budget gives the loss over distance
+        doc["radio"]["model"] = "log_distance"
+    if config.get("tau") is not None:
+        doc["map"] = {"tau": config["tau"]}
     if type_specs:
         doc["uav_types"] = type_specs
     planner = draw(st.sampled_from(list(planners)))
@@ -235,13 +256,63 @@ def scenario_documents(
     if planner == "dacmp":
         particles, iterations = draw(st.sampled_from([(10, 5), (20, 10), (40, 25)]))
         doc["planner"]["dacmp"] = {"particles": particles, "iterations": iterations}
+    if "replan_s" in config:
+        doc["planner"]["replan_s"] = config["replan_s"]
     if faults and max_faults > 0:
         # The first UAV flies from the start (someone must); a UAV can only be told once when it joins.
         joinable = [u["name"] for u in uavs[1:] if "join_s" not in u]
-        schedule = draw(fault_schedules(names, float(duration), kinds=fault_kinds, max_faults=max_faults,
-                                        joinable=joinable))
+        kinds = list(fault_kinds)
+        if swarm and kinds:  # swarm testing: this example may only use some kinds
+            kinds = draw(_subsets(kinds), label="fault kinds used")
+        schedule = draw(fault_schedules(names, float(duration), kinds=kinds, max_faults=max_faults,
+                                        joinable=joinable, area=(area["width_m"], area["height_m"])))
         doc["faults"] = [_fault_doc(f) for f in schedule.faults]
     return doc
+
+
+# --- swarm testing ---------------------------------------------------------------------------------
+
+_SWARM_TESTING = False
+
+
+def set_swarm_testing(enabled: bool) -> None:
+    """Turn swarm testing on or off for scenario strategies that do not say (``swarm=None``);
+    ``tests/conftest.py`` turns it on under the ``swarm`` Hypothesis profile. Read when an
+    example is drawn, so it applies to strategies built before the call."""
+    global _SWARM_TESTING
+    _SWARM_TESTING = bool(enabled)
+
+
+def swarm_testing_enabled() -> bool:
+    """Whether scenario strategies draw their configuration (see :func:`set_swarm_testing`)."""
+    return _SWARM_TESTING
+
+
+#: Values a swarm-tested configuration draws from, the scenario defaults first (they shrink there).
+SWARM_RADIO_MODELS: tuple[str, ...] = ("disk", "log_distance")
+SWARM_TAUS: tuple[float | None, ...] = (None, 0.001, 0.005, 0.02, 0.1)
+SWARM_REPLAN_S: tuple[float, ...] = (10.0, 5.0, 2.0, 20.0, 1.0)
+
+
+def _subsets(items: Sequence[str]) -> st.SearchStrategy[list[str]]:
+    """A non-empty subset of ``items`` in their order: all of them (where it shrinks to) or a
+    few. (Swarm testing: most examples leave most features out, so that a feature that masks
+    another, e.g. a partition hiding what a delay would show, is often absent.)"""
+    items = list(items)
+    few = st.lists(st.sampled_from(items), min_size=1, max_size=len(items), unique=True).map(
+        lambda chosen: [k for k in items if k in chosen])
+    return st.one_of(st.just(items), few)
+
+
+@st.composite
+def configurations(draw: st.DrawFn, duration_s: float = 60.0) -> dict[str, Any]:
+    """A swarm-testing configuration: ``radio_model`` (disk or log_distance), ``tau`` (None: the
+    scenario's default, else a memory factor in 1/s) and ``replan_s`` (at most the run's
+    length). Shrinks to the defaults (disk, default tau, 10 s)."""
+    replan = [r for r in SWARM_REPLAN_S if r <= max(duration_s, 1.0)] or [1.0]
+    return {"radio_model": draw(st.sampled_from(SWARM_RADIO_MODELS), label="radio model"),
+            "tau": draw(st.sampled_from(SWARM_TAUS), label="tau"),
+            "replan_s": draw(st.sampled_from(replan), label="replan_s")}
 
 
 def _fault_doc(fault: Fault) -> dict[str, Any]:
