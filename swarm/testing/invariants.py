@@ -817,9 +817,8 @@ class JoinerCatchUpChecker(_LiveChecker):
         if not poses:
             return
         for uid, (t_join, target, nbrs) in list(self._pending.items()):
-            if uid not in poses or ctx.link_faults_active(t) or ctx.node_faults_disturb(t) or self._radio_lossy()
-                    or not any(
-                    ctx.can_talk(uid, n, t, poses) for n in nbrs):
+            if (uid not in poses or ctx.link_faults_active(t) or ctx.node_faults_disturb(t) or self._radio_lossy()
+                    or not any(ctx.can_talk(uid, n, t, poses) for n in nbrs)):
                 if t > t_join + _EPS:  # the join tick itself precedes the joiner's first pose
                     del self._pending[uid]
                 continue
