@@ -192,6 +192,32 @@ def _uav_type(name: str, spec: UavTypeSpec) -> UavType:
                    w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
 
 
+def skewed_stamps(faults: Iterable[Fault], name: str, duration_s: float) -> list[tuple[float, float]]:
+    """The ranges of times UAV ``name``'s skewed clock stamped (each clock skew on it, over its
+    window). Cells holding such a time are not owed to its peers, ever: a record stamped in a
+    receiver's future is ignored, and one stamped in the past usually lands in an (origin, tick)
+    slot of the scan log that the origin's real scan of that tick already holds, so anti-entropy
+    never resends it (agents.maps.scanlog keeps one scan per origin and tick)."""
+    out = []
+    for f in faults:
+        if isinstance(f, ClockSkew) and f.uav == name and (f.offset_s or f.drift):
+            end = min(f.end_s, duration_s)
+            a, b = f.start_s + f.error(f.start_s), end + f.error(end)
+            out.append((min(a, b) - _EPS, max(a, b) + _EPS))
+    return out
+
+
+def owed_map(m: np.ndarray, skewed: Sequence[tuple[float, float]]) -> np.ndarray:
+    """A UAV's map less the cells it need not pass on (times in ``skewed``, from
+    :func:`skewed_stamps`, set to -inf): what 'maps agree' asks its peers to learn."""
+    if not skewed:
+        return m
+    m = m.copy()
+    for lo, hi in skewed:
+        m[(m >= lo) & (m <= hi)] = -np.inf
+    return m
+
+
 class RunContext:
     """What the checkers know about a run besides its events: the scenario's settings, UAV ids,
     names and types (from the ``start`` and ``join`` events, or the live simulation), and the
@@ -340,6 +366,10 @@ class RunContext:
                 if t < f.end_s + max(0.0, lead) + _EPS:
                     return True
         return False
+
+    def owed(self, uid: int, m: np.ndarray) -> np.ndarray:
+        """``uid``'s map less what it need not pass on (see :func:`owed_map`)."""
+        return owed_map(m, skewed_stamps(self.faults, self.name(uid), self.scenario.duration_s))
 
     def link_faults_active(self, t: float) -> bool:
         # Spoofers too: their frames (with auth off) put scans in some maps and not others.
@@ -575,8 +605,9 @@ class RadioChecker(Checker):
         self.max_delay_s = max_delay_s
         self._history: deque[tuple[float, dict[int, tuple]]] = deque()
         # A paused UAV (the pause fault) reads its mailbox when it resumes: frames sent since
-        # its pause began. uid -> pause start; after the resume, uid -> (pause start, resume).
-        self._paused: dict[int, float] = {}
+        # its pause began. uid -> (pause start, pauses open: they may overlap, each logs its own
+        # pause and resume); after the last resume, uid -> (pause start, resume).
+        self._paused: dict[int, tuple[float, int]] = {}
         self._resumed: dict[int, tuple[float, float]] = {}
 
     def on_group(self, t, events):
@@ -584,18 +615,23 @@ class RadioChecker(Checker):
         dt = ctx.dt
         for e in events:
             if e[0] == "pause":
-                self._paused[e[2]] = float(e[1])
-            elif e[0] in ("resume", "crash") and e[2] in self._paused:
-                start = self._paused.pop(e[2])
-                if e[0] == "resume":
+                start, open_ = self._paused.get(e[2], (float(e[1]), 0))
+                self._paused[e[2]] = (start, open_ + 1)
+            elif e[0] == "resume" and e[2] in self._paused:
+                start, open_ = self._paused.pop(e[2])
+                if open_ > 1:
+                    self._paused[e[2]] = (start, open_ - 1)  # another pause still holds it
+                else:
                     self._resumed[e[2]] = (start, float(e[1]))
+            elif e[0] == "crash":
+                self._paused.pop(e[2], None)
         for uid in [u for u, (_, tr) in self._resumed.items() if t > tr + dt + _EPS]:
             del self._resumed[uid]  # it has read what it held (its first tick after the resume)
         poses = _poses(events)
         max_delay = self.max_delay_s if self.max_delay_s is not None else ctx.max_delay_s()
         if poses:
             self._history.append((t, poses))
-            floor = min([t, *self._paused.values(), *(s for s, _ in self._resumed.values())])
+            floor = min([t, *(s for s, _ in self._paused.values()), *(s for s, _ in self._resumed.values())])
             while self._history and self._history[0][0] < floor - dt - max_delay - dt - _EPS:
                 self._history.popleft()
         rx = [e for e in events if e[0] == "rx"]
@@ -767,7 +803,7 @@ class MapAgreementChecker(_LiveChecker):
         if then_t > t - self.lag_s + _EPS:
             return
         self.checks += 1
-        known = np.maximum.reduce([m for u, m in then.items() if u in members]) if then else None
+        known = np.maximum.reduce([ctx.owed(u, m) for u, m in then.items() if u in members]) if then else None
         now = self._history[-1][1]
         if known is None:
             return
@@ -813,7 +849,7 @@ class JoinerCatchUpChecker(_LiveChecker):
                              and ctx.in_range((b.x, b.y), (j.x, j.y)))
                 if nbrs:
                     maps = self._maps(nbrs)
-                    self._pending[uid] = (float(e[1]), np.maximum.reduce(list(maps.values())), nbrs)
+                    self._pending[uid] = (float(e[1]), np.maximum.reduce([ctx.owed(u, m) for u, m in maps.items()]), nbrs)
         if not poses:
             return
         for uid, (t_join, target, nbrs) in list(self._pending.items()):

@@ -55,7 +55,7 @@ import numpy as np
 
 from comms.messages import MODE_NAMES, MODE_SURVEIL
 from faults.schedule import ClockSkew, Crash, Fault, Pause, Restart
-from swarm.testing.invariants import InvariantViolation, Violation
+from swarm.testing.invariants import InvariantViolation, Violation, owed_map, skewed_stamps
 
 __all__ = ["LivenessReport", "RecoveryWatch", "quiesce", "quiet_period_s", "radio_loses_nothing",
            "reassign_bound_s"]
@@ -192,7 +192,9 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
     q = quiet_period_s(sc, len(live), sim.injector.schedule.faults)
     lossless = radio_loses_nothing(sc)
     report = LivenessReport(t0, q)
-    at_t0 = {uid: sim.uav_map(names[uid]) for uid in live}
+    # What each UAV knew at T0 and owes its peers (less the stamps of a skewed clock: never owed).
+    at_t0 = {uid: owed_map(sim.uav_map(names[uid]), skewed_stamps(sim.injector.schedule, names[uid],
+                                                                   sim.scenario.duration_s)) for uid in live}
     # Reassignment obligations, fixed at T0.
     pending: dict[int, float] = {}
     if watch is not None:
