@@ -16,6 +16,19 @@ Only the last ``horizon_s`` seconds are kept and compared: a scan that old carri
 information (``q`` is back near 1 after a few ``1/tau``) and memory stays bounded by
 ``origins x horizon_s / dt`` scans per UAV however long the run. Applying a scan twice changes
 nothing (the map is a max-CRDT), so the log also lets a receiver skip scans it already applied.
+
+Knowledge horizon (``[radio] sync_horizon_m``, default ``inf`` = none). Without one, a UAV's
+log and map converge to every scan of its whole connected swarm: memory and digest size grow
+with the swarm. With a horizon ``H`` a UAV applies to its map, logs (so relays and lists in its
+digests) only the heard scans whose centre lies within ``H`` of where it is when it hears them
+(its own scans always), and answers a digest only with scans within ``H`` of the digest's
+sender (:meth:`ScanLog.missing`'s ``near``). Its log then holds the scans of the UAVs that flew
+within ``H`` of its path over the last ``horizon_s``: it grows with local density, not with the
+swarm. Both are still max-CRDTs: the log's state is a set of scans and its join the union
+(:meth:`ScanLog.merge`), the map's the per-cell max of the applied disks; a filter with a fixed
+centre commutes with both (``keep(A | B) = keep(A) | keep(B)``), so order, loss and duplicates
+still cannot change the result. What "maps agree" then means is stated in
+:class:`swarm.testing.invariants.MapAgreementChecker`.
 """
 
 from __future__ import annotations
@@ -28,6 +41,15 @@ ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
 FORGET_SLACK_TICKS = 64
 
 Bitmaps = tuple[tuple[int, bytes], ...]  # a digest's (origin, bits) pairs (ScanDigest.bitmaps)
+Near = tuple[float, float, float]  # (x, y, H): only scans centred within H of (x, y)
+
+
+def within(x: float, y: float, near: Near | None) -> bool:
+    """Whether a scan centred at ``(x, y)`` lies inside the horizon ``near`` (None: no horizon)."""
+    if near is None:
+        return True
+    dx, dy = x - near[0], y - near[1]
+    return dx * dx + dy * dy <= near[2] * near[2]
 
 
 class ScanLog:
@@ -79,6 +101,19 @@ class ScanLog:
         self.count += 1
         self._version += 1
         return True
+
+    def scans(self) -> Iterator[tuple[int, tuple[float, float, float, float]]]:
+        """Every scan held, as ``(origin, (t, x, y, r))``, by origin then tick."""
+        for origin in sorted(self._scans):
+            byt = self._scans[origin]
+            for k in sorted(byt):
+                yield origin, byt[k]
+
+    def merge(self, other: ScanLog, near: Near | None = None) -> int:
+        """The state-based join: add every scan of ``other`` (inside ``near``, if given) to this
+        log; returns how many were new. The actor does the same one heard scan at a time
+        (:meth:`add`), so a log is the union of what it heard, whatever the order."""
+        return sum(self.add(o, *scan) for o, scan in other.scans() if within(scan[1], scan[2], near))
 
     def forget_before(self, t: float) -> None:
         """Drop scans (and their bits) of ticks well before ``t - horizon_s``: a slack of
@@ -167,11 +202,13 @@ class ScanLog:
         hi = ORIGIN_MAX if i == len(items) else items[i][0] - 1
         return tick0, lo, hi, tuple(out), (i if i < len(items) else 0)
 
-    def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int
-                ) -> Iterator[tuple[int, list[float]]]:
+    def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int,
+                near: Near | None = None) -> Iterator[tuple[int, list[float]]]:
         """The scans this log holds at ticks ``tick0..t_cut`` of origins in ``[lo, hi]`` that
         the digest ``bitmaps`` (relative to ``tick0``) lacks, as ``(origin, [t, x, y, r, ...])``
-        per origin (ascending), at most ``limit`` scans in all, oldest first within an origin."""
+        per origin (ascending), at most ``limit`` scans in all, oldest first within an origin.
+        ``near``: only scans centred inside that horizon (the digest sender's: it would not
+        keep the others, and would be sent them again at every digest)."""
         k_cut = math.floor(t_cut / self.dt)
         if k_cut < 0 or limit <= 0 or not self._bits or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
             return
@@ -192,7 +229,7 @@ class ScanLog:
             while lack and left:
                 low = lack & -lack
                 scan = scans.get(tick0 + low.bit_length() - 1)
-                if scan is not None:
+                if scan is not None and (near is None or within(scan[1], scan[2], near)):
                     flat.extend(scan)
                     left -= 1
                 lack ^= low
@@ -202,4 +239,4 @@ class ScanLog:
                 return
 
 
-__all__ = ["ORIGIN_MAX", "ScanLog"]
+__all__ = ["ORIGIN_MAX", "Near", "ScanLog", "within"]

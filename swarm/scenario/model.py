@@ -83,6 +83,7 @@ __all__ = [
     "PlannerSettings",
     "SafetySettings",
     "MetricsSettings",
+    "RecordingSettings",
     "Scenario",
     "DEFAULT_UAV_TYPES",
 ]
@@ -491,6 +492,13 @@ class RadioSettings(_Model):
     sync_settle_s: Num = _num(2.0, ge=0)
     sync_max_records: Int = _int(4000, ge=0)
     sync_horizon_s: Num = _num(600.0, gt=0, note="seconds; scans older than this are not resent")
+    # The knowledge horizon (agents.maps.scanlog, "Knowledge horizon"): a UAV applies, logs, relays
+    # and compares only scans whose centre lies within sync_horizon_m of itself (its own always), and
+    # answers a digest only with scans within sync_horizon_m of the digest's sender. So its map and
+    # log grow with the area around its path, not with the swarm. inf = no horizon (every heard scan).
+    sync_horizon_m: Annotated[float, Strict(), AllowInfNan(True)] = _num(
+        math.inf, gt=0, note="metres; inf = no horizon"
+    )
     # Authenticated frames (comms.codec): HMAC-SHA256 truncated to 16 bytes, counted in the bytes
     # sent. Off by default (the paper is silent). auth_key is read only with auth = true.
     auth: Bool = Field(default=False, description="true or false")
@@ -736,6 +744,22 @@ class MetricsSettings(_Model):
     sample_s: Num = _num(10.0, gt=0, note=">= dt_s")
 
 
+RECORDING_LEVELS = ("frames", "summary")
+
+
+class RecordingSettings(_Model):
+    """What the event log keeps (swarm.recorder; the README lists each level's events).
+
+    ``"frames"``: every frame copy read (``rx``) or lost (``lost``), one event each, so the log
+    grows with radio density (a UAV hearing 250 neighbours logs 250 ``rx`` a second).
+    ``"summary"``: instead, one ``radio`` event per tick with the tick's totals (frames read and
+    rejected, bytes read, copies and bytes lost per cause): bounded per tick, still deterministic and
+    hashed like every event. Every other event is the same at both levels. The ``radio`` invariant
+    needs ``"frames"`` (it judges each delivery); on a summary log it says it cannot check."""
+
+    level: Literal["frames", "summary"] = Field(default="frames", description=f"one of: {', '.join(RECORDING_LEVELS)}")
+
+
 # --- the scenario --------------------------------------------------------------------------
 # A run has at most this many ticks (duration_s / dt_s): ten million (116 days at dt 1 s).
 MAX_TICKS = 10_000_000
@@ -767,6 +791,7 @@ class Scenario(_Model):
     planner: PlannerSettings = _table(PlannerSettings, "planner")
     safety: SafetySettings = _table(SafetySettings, "safety")
     metrics: MetricsSettings = _table(MetricsSettings, "metrics")
+    recording: RecordingSettings = _table(RecordingSettings, "recording")
 
     @model_validator(mode="before")
     @classmethod

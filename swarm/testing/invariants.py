@@ -35,12 +35,18 @@ The invariants (``name``: class, parameters and their defaults):
 * ``radio``: :class:`RadioChecker`: every ``rx`` has a legal send tick: sender and receiver both
   flying, within range, not separated by an active partition; and the receiver is flying
   when it reads the frame. Send ticks considered: ``dt`` plus up to the largest possible
-  delay (radio latency + jitter + every delay fault) before the ``rx``.
+  delay (radio latency + jitter + every delay fault) before the ``rx``. It needs the
+  per-frame events of ``[recording] level = "frames"``; on a ``"summary"`` log it checks
+  nothing and says so in its ``unchecked`` (and :attr:`Monitor.unchecked`).
 * ``map_monotonic`` (live): :class:`MapMonotonicityChecker`: no cell's last-seen time ever
   decreases in any UAV's map.
 * ``map_agreement`` (live, liveness): :class:`MapAgreementChecker(quiet_s=20, lag_s=10)`: once the
   swarm has been connected, with no active link fault or partition and no crash or join, for
-  ``quiet_s``, every live UAV knows every cell any live UAV knew ``lag_s`` earlier.
+  ``quiet_s``, every live UAV knows every cell any live UAV knew ``lag_s`` earlier. With a
+  knowledge horizon ``H`` (``radio.sync_horizon_m`` finite) "agree" is local: every live UAV
+  knows every cell a UAV it can talk to knew ``lag_s`` earlier, among the cells within
+  ``H - slack`` of both (``slack``: the largest detection radius plus the farthest a UAV flies
+  in ``lag_s``, so the scans of those cells were inside both horizons all along).
 * ``joiner_catch_up`` (live, liveness): :class:`JoinerCatchUpChecker(bound_s=20)`: within
   ``bound_s`` of joining, a late joiner knows everything its radio neighbours knew when it
   joined (judged only while it can talk to one of them with no link fault active).
@@ -177,6 +183,7 @@ class RunContext:
         self._override = list(faults) if faults is not None else None
         self._start_faults: list[Fault] = []
         self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
+        self.recording = scenario.recording.level  # (or the start header's, below)
         for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
             self._learn(i, name, u.type)
         if sim is not None:
@@ -196,6 +203,7 @@ class RunContext:
             for uid, name, type_name in header.get("uavs", []):
                 self._learn(uid, name, type_name)
             self._start_faults = [fault_from_dict(d) for d in header.get("faults", [])]
+            self.recording = str(header.get("recording", self.recording))
         elif kind == "join":
             uid, name = ev[2], ev[3]
             type_name = self.type_name.get(uid)
@@ -291,6 +299,9 @@ class Checker:
         self.violations: list[Violation] = []
         self.ctx: RunContext | None = None
         self.truncated = 0
+        # Why this checker could not judge the run (None: it could): no violations then means
+        # nothing, and Monitor.unchecked says so.
+        self.unchecked: str | None = None
 
     def bind(self, ctx: RunContext) -> None:
         self.ctx = ctx
@@ -463,6 +474,10 @@ class RadioChecker(Checker):
         self._history: deque[tuple[float, dict[int, tuple]]] = deque()
 
     def on_group(self, t, events):
+        if self.context.recording != "frames":
+            self.unchecked = (f'the log has no per-frame events (recording level "{self.context.recording}"); '
+                              'the radio invariant needs [recording] level = "frames"')
+            return
         poses = _poses(events)
         if poses:
             self._history.append((t, poses))
@@ -577,6 +592,8 @@ class MapAgreementChecker(_LiveChecker):
         super().__init__()
         self.quiet_s, self.lag_s, self.tolerance, self.every_s = quiet_s, lag_s, tolerance, every_s
         self.allow_radio_loss = allow_radio_loss
+        self._poses: dict[int, tuple] = {}  # this tick's (for the horizon's centres)
+        self._centres: tuple[np.ndarray, np.ndarray] | None = None  # cell centres (x, y), lazily
         self._quiet_since: float | None = None
         self._members: frozenset[int] = frozenset()
         self._history: deque[tuple[float, dict[int, np.ndarray]]] = deque()
@@ -603,6 +620,7 @@ class MapAgreementChecker(_LiveChecker):
         elif self._quiet_since is None:
             self._quiet_since = t
         self._members = members
+        self._poses = poses
         self._history.append((t, self._maps(members)))
         while self._history and self._history[0][0] < t - self.lag_s - _EPS:
             self._history.popleft()
@@ -615,8 +633,11 @@ class MapAgreementChecker(_LiveChecker):
         if then_t > t - self.lag_s + _EPS:
             return
         self.checks += 1
-        known = np.maximum.reduce([m for u, m in then.items() if u in members]) if then else None
         now = self._history[-1][1]
+        if not math.isinf(ctx.scenario.radio.sync_horizon_m):
+            self._judge_local(t, then_t, then, now, members)
+            return
+        known = np.maximum.reduce([m for u, m in then.items() if u in members]) if then else None
         if known is None:
             return
         for uid in sorted(members):
@@ -629,6 +650,48 @@ class MapAgreementChecker(_LiveChecker):
                                 f"still misses {int(behind.sum())} cell(s) ({frac:.1%}) that "
                                 f"{', '.join(ctx.name(u) for u in who)} knew at {then_t:g} s, e.g. cell "
                                 f"(ix={ix}, iy={iy}): {float(now[uid][iy, ix]):g} < {float(known[iy, ix]):g}",
+                             [uid, *who[:1]], cells=int(behind.sum()), fraction=frac, quiet_since=self._quiet_since)
+                self._reported_window = self._quiet_since
+
+
+    def _judge_local(self, t: float, then_t: float, then: dict[int, np.ndarray], now: dict[int, np.ndarray],
+                     members: frozenset[int]) -> None:
+        """Agreement under a knowledge horizon (see the module docstring): pairs that can talk,
+        cells within ``H - slack`` of both UAVs now."""
+        ctx = self.context
+        sc = ctx.scenario
+        sim = self._sim()
+        if self._centres is None:
+            g = sim.grid
+            xs = (np.arange(g.nx) + 0.5) * g.cell_m
+            ys = (np.arange(g.ny) + 0.5) * g.cell_m
+            self._centres = (xs[None, :], ys[:, None])
+        cx, cy = self._centres
+        slack = (max(s.detect_radius_m for s in sc.uav_types.values())
+                 + max(s.speed_max for s in sc.uav_types.values()) * self.lag_s)
+        reach = sc.radio.sync_horizon_m - slack
+        if reach <= 0:
+            return  # no cell is surely inside both horizons: nothing to judge
+        poses = self._poses
+        since = self._quiet_since if self._quiet_since is not None else t
+        inside = {u: (cx - poses[u][0]) ** 2 + (cy - poses[u][1]) ** 2 <= reach * reach for u in members}
+        for uid in sorted(members):
+            behind = np.zeros(now[uid].shape, dtype=bool)
+            who: list[int] = []
+            for v in sorted(members):
+                if v == uid or v not in then or not ctx.can_talk(uid, v, t, poses):
+                    continue
+                lag = (now[uid] < then[v]) & inside[uid] & inside[v]
+                if lag.any():
+                    who.append(v)
+                    behind |= lag
+            frac = float(behind.mean())
+            if frac > self.tolerance:
+                iy, ix = (int(v[0]) for v in np.nonzero(behind))
+                self.violate(t, f"after {t - since:g} s connected and fault-free, {ctx.name(uid)} "
+                                f"still misses {int(behind.sum())} cell(s) ({frac:.1%}) within its and its "
+                                f"neighbours' horizon ({reach:g} m) that {', '.join(ctx.name(u) for u in who)} "
+                                f"knew at {then_t:g} s, e.g. cell (ix={ix}, iy={iy})",
                              [uid, *who[:1]], cells=int(behind.sum()), fraction=frac, quiet_since=self._quiet_since)
                 self._reported_window = self._quiet_since
 
@@ -936,6 +999,11 @@ class Monitor:
     def raise_if(self) -> None:
         if self.violations:
             raise InvariantViolation(self.violations)
+
+    @property
+    def unchecked(self) -> dict[str, str]:
+        """Checkers that could not judge the run, with why (e.g. ``radio`` on a summary log)."""
+        return {c.name: c.unchecked for c in self.checkers if c.unchecked is not None}
 
     def by_name(self, name: str) -> Checker:
         for c in self.checkers:
