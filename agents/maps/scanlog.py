@@ -53,7 +53,8 @@ def within(x: float, y: float, near: Near | None) -> bool:
 
 
 class ScanLog:
-    __slots__ = ("dt", "horizon_ticks", "_floor", "_bits", "_base", "_scans", "count", "_version", "_cut_cache")
+    __slots__ = ("dt", "horizon_ticks", "_floor", "_bits", "_base", "_scans", "_box", "count", "_version",
+                 "_cut_cache")
 
     def __init__(self, dt: float, horizon_s: float = math.inf):
         self.dt = dt
@@ -63,6 +64,9 @@ class ScanLog:
         self._base: dict[int, int] = {}  # a multiple of 8: bitmaps start on a byte
         self._floor = 0  # ticks before this are forgotten (forget_before)
         self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}
+        # origin -> [x0, y0, x1, y1], a box around its scans' centres (missing()'s horizon test
+        # skips whole origins with it); may be larger than needed, never smaller.
+        self._box: dict[int, list[float]] = {}
         self.count = 0  # scans held
         self._version = 0  # bumped by every change: invalidates _cut_cache
         self._cut_cache: tuple[int, int, int, dict[int, bytes], Bitmaps] | None = None
@@ -81,6 +85,7 @@ class ScanLog:
             bits = self._bits[origin] = bytearray()
             self._base[origin] = tick & ~7
             self._scans[origin] = {}
+            self._box[origin] = [x, y, x, y]
         base = self._base[origin]
         if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
             grow = (base - (tick & ~7)) >> 3
@@ -98,6 +103,15 @@ class ScanLog:
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
         self._scans[origin][tick] = (t, x, y, r)
+        box = self._box[origin]
+        if x < box[0]:
+            box[0] = x
+        elif x > box[2]:
+            box[2] = x
+        if y < box[1]:
+            box[1] = y
+        elif y > box[3]:
+            box[3] = y
         self.count += 1
         self._version += 1
         return True
@@ -135,6 +149,10 @@ class ScanLog:
             for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
                 if scans.pop(k, None) is not None:
                     self.count -= 1
+            if scans:  # shrink the box to the scans left (it followed the origin's whole path)
+                xs = [sc[1] for sc in scans.values()]
+                ys = [sc[2] for sc in scans.values()]
+                self._box[origin] = [min(xs), min(ys), max(xs), max(ys)]
             self._version += 1
 
     def window(self, t_cut: float) -> tuple[int, int]:
@@ -217,19 +235,29 @@ class ScanLog:
             return  # the usual case on a good radio: the same knowledge, nothing to send
         theirs = dict(bitmaps)
         left = limit
+        nx, ny, h2 = (near[0], near[1], near[2] * near[2]) if near is not None else (0.0, 0.0, math.inf)
         for origin, b in mine.items():
             if not lo <= origin <= hi:
                 continue
             other = theirs.get(origin, b"")
             if other == b:
                 continue
+            test = near is not None
+            if test:  # whole origins outside the horizon (the usual case), or inside it
+                x0, y0, x1, y1 = self._box[origin]
+                dx, dy = max(x0 - nx, 0.0, nx - x1), max(y0 - ny, 0.0, ny - y1)
+                if dx * dx + dy * dy > h2:
+                    continue
+                fx, fy = max(nx - x0, x1 - nx), max(ny - y0, y1 - ny)
+                test = fx * fx + fy * fy > h2
             lack = int.from_bytes(b, "little") & ~int.from_bytes(other, "little")
             scans = self._scans[origin]
             flat: list[float] = []
             while lack and left:
                 low = lack & -lack
                 scan = scans.get(tick0 + low.bit_length() - 1)
-                if scan is not None and (near is None or within(scan[1], scan[2], near)):
+                # (= within(scan[1], scan[2], near), inlined)
+                if scan is not None and (not test or (scan[1] - nx) ** 2 + (scan[2] - ny) ** 2 <= h2):
                     flat.extend(scan)
                     left -= 1
                 lack ^= low

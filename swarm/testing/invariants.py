@@ -183,7 +183,7 @@ class RunContext:
         self._override = list(faults) if faults is not None else None
         self._start_faults: list[Fault] = []
         self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
-        self.recording = scenario.recording.level  # (or the start header's, below)
+        self.recording: str = scenario.recording.level  # (or the start header's, below)
         for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
             self._learn(i, name, u.type)
         if sim is not None:
