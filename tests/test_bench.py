@@ -46,10 +46,10 @@ def test_scale_cases_run_their_scenarios_with_anti_entropy_a_horizon_and_summary
         if c.scenario in scale:
             r = sc.radio
             assert r.sync_every_s == RadioSettings().sync_every_s > 0, c.name
-            assert math.isfinite(r.sync_horizon_m) and r.sync_horizon_m == r.range_m, c.name
+            assert math.isfinite(r.horizon_m) and r.horizon_m == r.range_m, c.name
             assert sc.recording.level == "summary", c.name
         else:  # the paper scenarios: as they always were
-            assert math.isinf(sc.radio.sync_horizon_m) and sc.recording.level == "frames"
+            assert math.isinf(sc.radio.horizon_m) and sc.recording.level == "frames"
     by_name = {c.name: c for c in bench.CASES}
     assert by_name["bench-100-dacmp"].duration_s is None  # the full 2000 s
     assert load_scenario("bench-100").duration_s == 2000.0

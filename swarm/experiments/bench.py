@@ -209,7 +209,7 @@ def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict:
     digests = sum(c.digests_sent for c in cs)
     digest_bytes = sum(c.digest_bytes for c in cs)
     logs = [a.scans.count for a in sim.actors.values()] or [0]
-    h = sim.scenario.radio.sync_horizon_m
+    h = sim.scenario.radio.horizon_m
     out: dict[str, Any] = {
         "sync_horizon_m": None if h == float("inf") else h,
         "digest_bytes_mean": round(digest_bytes / digests, 1) if digests else 0.0,

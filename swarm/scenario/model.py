@@ -496,8 +496,9 @@ class RadioSettings(_Model):
     # and compares only scans whose centre lies within sync_horizon_m of itself (its own always), and
     # answers a digest only with scans within sync_horizon_m of the digest's sender. So its map and
     # log grow with the area around its path, not with the swarm. inf = no horizon (every heard scan).
-    sync_horizon_m: Annotated[float, Strict(), AllowInfNan(True)] = _num(
-        math.inf, gt=0, note="metres; inf = no horizon"
+    # (Optional like range_m: a run folder's scenario.json writes inf as null.)
+    sync_horizon_m: Annotated[float, Strict(), AllowInfNan(True)] | None = _num(
+        None, gt=0, note="metres; inf = no horizon", optional=True
     )
     # Authenticated frames (comms.codec): HMAC-SHA256 truncated to 16 bytes, counted in the bytes
     # sent. Off by default (the paper is silent). auth_key is read only with auth = true.
@@ -531,6 +532,11 @@ class RadioSettings(_Model):
         if self.model != "log_distance":
             return None
         return _radio.LogDistance(**self.log_distance.model_dump())
+
+    @property
+    def horizon_m(self) -> float:
+        """The knowledge horizon as a number: ``sync_horizon_m``, math.inf when absent (none)."""
+        return math.inf if self.sync_horizon_m is None else self.sync_horizon_m
 
     @property
     def range_limit_m(self) -> float:

@@ -634,7 +634,7 @@ class MapAgreementChecker(_LiveChecker):
             return
         self.checks += 1
         now = self._history[-1][1]
-        if not math.isinf(ctx.scenario.radio.sync_horizon_m):
+        if not math.isinf(ctx.scenario.radio.horizon_m):
             self._judge_local(t, then_t, then, now, members)
             return
         known = np.maximum.reduce([m for u, m in then.items() if u in members]) if then else None
@@ -669,7 +669,7 @@ class MapAgreementChecker(_LiveChecker):
         cx, cy = self._centres
         slack = (max(s.detect_radius_m for s in sc.uav_types.values())
                  + max(s.speed_max for s in sc.uav_types.values()) * self.lag_s)
-        reach = sc.radio.sync_horizon_m - slack
+        reach = sc.radio.horizon_m - slack
         if reach <= 0:
             return  # no cell is surely inside both horizons: nothing to judge
         poses = self._poses
