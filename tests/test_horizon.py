@@ -93,12 +93,18 @@ def test_missing_answers_only_with_scans_inside_the_senders_horizon():
     (origin, flat), = log.missing(0, 0, 2**31 - 1, (), 30.0, 100, near)
     assert [flat[i + 1] for i in range(0, len(flat), 4)] == [1000.0 * k for k in range(6)]
     assert list(log.missing(0, 0, 2**31 - 1, (), 30.0, 100, (50_000.0, 0.0, 5000.0))) == []  # box test
-    # After forgetting, the box shrinks to the scans left (and stays exact for the test above).
-    short = ScanLog(1.0, horizon_s=1.0)
-    for k in range(200):
-        short.add(1, float(k), 100.0 * k, 0.0, 500.0)
-    short.forget_before(199.0)
-    assert short._box[1][0] >= 100.0 * (199 - 1 - 64 - 8)
+    # Scans along a long track, a horizon around a few of them: exactly those, across chunk
+    # boxes wholly outside, wholly inside and across the horizon; and after forgetting.
+    track = ScanLog(1.0, horizon_s=300.0)
+    for k in range(1000):
+        track.add(2, float(k), 100.0 * k, 0.0, 500.0)
+    for t_now in (999.0, 1500.0):
+        track.forget_before(t_now)
+        kept = {int(s[0]) for _, s in track.scans()}
+        for cx, h in ((50_000.0, 3000.0), (80_000.0, 10_000.0), (0.0, 1e9)):
+            got = [int(flat[i]) for _, flat in track.missing(0, 0, 2**31 - 1, (), t_now, 10_000, (cx, 0.0, h))
+                   for i in range(0, len(flat), 4)]
+            assert got == sorted(k for k in kept if abs(100.0 * k - cx) <= h)
 
 
 # --- the horizon in a run ---------------------------------------------------------------------------

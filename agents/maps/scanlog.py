@@ -39,6 +39,7 @@ from typing import cast
 
 ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
 FORGET_SLACK_TICKS = 64
+CHUNK_SHIFT = 6  # missing()'s horizon test boxes the scans of each 64 ticks of an origin
 
 Bitmaps = tuple[tuple[int, bytes], ...]  # a digest's (origin, bits) pairs (ScanDigest.bitmaps)
 Near = tuple[float, float, float]  # (x, y, H): only scans centred within H of (x, y)
@@ -64,9 +65,10 @@ class ScanLog:
         self._base: dict[int, int] = {}  # a multiple of 8: bitmaps start on a byte
         self._floor = 0  # ticks before this are forgotten (forget_before)
         self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}
-        # origin -> [x0, y0, x1, y1], a box around its scans' centres (missing()'s horizon test
-        # skips whole origins with it); may be larger than needed, never smaller.
-        self._box: dict[int, list[float]] = {}
+        # origin -> chunk (tick >> CHUNK_SHIFT) -> [x0, y0, x1, y1], a box around the centres of
+        # its scans in those ticks: missing()'s horizon test skips (or takes) a chunk's scans
+        # whole when its box is outside (inside) the horizon. Never smaller than the scans'.
+        self._box: dict[int, dict[int, list[float]]] = {}
         self.count = 0  # scans held
         self._version = 0  # bumped by every change: invalidates _cut_cache
         self._cut_cache: tuple[int, int, int, dict[int, bytes], Bitmaps] | None = None
@@ -85,7 +87,7 @@ class ScanLog:
             bits = self._bits[origin] = bytearray()
             self._base[origin] = tick & ~7
             self._scans[origin] = {}
-            self._box[origin] = [x, y, x, y]
+            self._box[origin] = {}
         base = self._base[origin]
         if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
             grow = (base - (tick & ~7)) >> 3
@@ -103,15 +105,19 @@ class ScanLog:
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
         self._scans[origin][tick] = (t, x, y, r)
-        box = self._box[origin]
-        if x < box[0]:
-            box[0] = x
-        elif x > box[2]:
-            box[2] = x
-        if y < box[1]:
-            box[1] = y
-        elif y > box[3]:
-            box[3] = y
+        boxes = self._box[origin]
+        box = boxes.get(tick >> CHUNK_SHIFT)
+        if box is None:
+            boxes[tick >> CHUNK_SHIFT] = [x, y, x, y]
+        else:
+            if x < box[0]:
+                box[0] = x
+            elif x > box[2]:
+                box[2] = x
+            if y < box[1]:
+                box[1] = y
+            elif y > box[3]:
+                box[3] = y
         self.count += 1
         self._version += 1
         return True
@@ -149,10 +155,9 @@ class ScanLog:
             for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
                 if scans.pop(k, None) is not None:
                     self.count -= 1
-            if scans:  # shrink the box to the scans left (it followed the origin's whole path)
-                xs = [sc[1] for sc in scans.values()]
-                ys = [sc[2] for sc in scans.values()]
-                self._box[origin] = [min(xs), min(ys), max(xs), max(ys)]
+            boxes = self._box[origin]
+            for c in [c for c in boxes if (c + 1) << CHUNK_SHIFT <= k_min]:  # chunks now empty
+                del boxes[c]
             self._version += 1
 
     def window(self, t_cut: float) -> tuple[int, int]:
@@ -242,20 +247,27 @@ class ScanLog:
             other = theirs.get(origin, b"")
             if other == b:
                 continue
-            test = near is not None
-            if test:  # whole origins outside the horizon (the usual case), or inside it
-                x0, y0, x1, y1 = self._box[origin]
-                dx, dy = max(x0 - nx, 0.0, nx - x1), max(y0 - ny, 0.0, ny - y1)
-                if dx * dx + dy * dy > h2:
-                    continue
-                fx, fy = max(nx - x0, x1 - nx), max(ny - y0, y1 - ny)
-                test = fx * fx + fy * fy > h2
             lack = int.from_bytes(b, "little") & ~int.from_bytes(other, "little")
             scans = self._scans[origin]
+            boxes = self._box[origin]
             flat: list[float] = []
+            chunk, test = -1, False  # the chunk of the bits being read, and whether to test each scan
             while lack and left:
                 low = lack & -lack
-                scan = scans.get(tick0 + low.bit_length() - 1)
+                k = tick0 + low.bit_length() - 1
+                if near is not None and k >> CHUNK_SHIFT != chunk:
+                    # A new chunk: outside the horizon (skip its bits), inside (take them) or across.
+                    chunk = k >> CHUNK_SHIFT
+                    box = boxes.get(chunk)
+                    if box is not None:
+                        x0, y0, x1, y1 = box
+                        dx, dy = max(x0 - nx, 0.0, nx - x1), max(y0 - ny, 0.0, ny - y1)
+                        if dx * dx + dy * dy > h2:
+                            lack &= -1 << (((chunk + 1) << CHUNK_SHIFT) - tick0)  # the next chunk's bits on
+                            continue
+                        fx, fy = max(nx - x0, x1 - nx), max(ny - y0, y1 - ny)
+                        test = fx * fx + fy * fy > h2
+                scan = scans.get(k)
                 # (= within(scan[1], scan[2], near), inlined)
                 if scan is not None and (not test or (scan[1] - nx) ** 2 + (scan[2] - ny) ** 2 <= h2):
                     flat.extend(scan)
