@@ -233,6 +233,12 @@ def test_a_summary_log_counts_what_a_frames_log_lists_and_is_deterministic():
             c[0] += n
             c[1] += nbytes
     assert total == lost and lost["loss"][0] > 0
+    # A summary log replays (the animation's reader): the same poses, no radio links.
+    from swarm.viz.replay import replay_from_bytes
+
+    doc = _dense(6, "summary")
+    got, want = replay_from_bytes(a.events, doc), replay_from_bytes(runs["frames"][0].events, doc)
+    assert np.array_equal(got.x, want.x, equal_nan=True) and np.array_equal(got.y, want.y, equal_nan=True)
 
 
 def test_the_radio_checker_says_it_cannot_check_a_summary_log():
