@@ -22,7 +22,7 @@ from swarm.experiments import bench
 from swarm.recorder import read_events
 from swarm.scenario import apply_overrides, parse_scenario
 from swarm.simulation import Simulation
-from swarm.testing.invariants import MapAgreementChecker, Monitor, RadioChecker, check_events
+from swarm.testing.invariants import JoinerCatchUpChecker, MapAgreementChecker, Monitor, RadioChecker, check_events
 
 # --- the scan log's join, with and without a horizon ------------------------------------------------
 
@@ -178,6 +178,23 @@ def test_local_map_agreement_catches_a_radio_that_loses_one_uavs_frames():
         mon.finish()
     assert mon.violations and {v.uavs[1] for v in mon.violations} == {"B1"}
     assert all("horizon" in v.message for v in mon.violations)
+
+
+@pytest.mark.slow
+def test_a_late_joiner_under_a_horizon_owes_only_the_cells_within_it():
+    doc = _line(12_000.0)
+    doc["uavs"][0]["join_s"] = 20.0
+    with Simulation(parse_scenario(doc)) as sim:
+        mon = Monitor([JoinerCatchUpChecker()]).attach(sim)
+        sim.step(21)
+        mon.flush()
+        owed = sim.uav_map("B1")  # B1 knows B2's cells, 20 km from B0: beyond B0's horizon
+        while not sim.done:
+            sim.step()
+            mon.flush()
+        mon.finish()
+        assert (sim.uav_map("B0") < owed).sum() > 100  # so the whole map is not owed...
+    assert mon.violations == [] and mon.by_name("joiner_catch_up").checks == 1  # ...and what is, arrived
 
 
 # --- the recording level ----------------------------------------------------------------------------

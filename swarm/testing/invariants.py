@@ -49,7 +49,8 @@ The invariants (``name``: class, parameters and their defaults):
   in ``lag_s``, so the scans of those cells were inside both horizons all along).
 * ``joiner_catch_up`` (live, liveness): :class:`JoinerCatchUpChecker(bound_s=20)`: within
   ``bound_s`` of joining, a late joiner knows everything its radio neighbours knew when it
-  joined (judged only while it can talk to one of them with no link fault active).
+  joined (judged only while it can talk to one of them with no link fault active); with a
+  knowledge horizon, those of them within ``H - slack`` of the joiner (as for ``map_agreement``).
 * ``single_watcher``: :class:`SingleWatcherChecker(settle_s=30)`: two UAVs of one type that can
   talk never both watch one target for longer than ``settle_s`` (after a partition heals the
   duplicate assignment must be resolved within ``settle_s``: targets are reassigned).
@@ -532,6 +533,27 @@ class RadioChecker(Checker):
 
 class _LiveChecker(Checker):
     live_only = True
+    _centres: tuple[np.ndarray, np.ndarray] | None = None  # cell centres (x, y), made on first use
+
+    def _horizon_reach(self, window_s: float) -> float:
+        """With a knowledge horizon ``H``: ``H`` less the largest detection radius and the farthest
+        a UAV flies in ``window_s``; a cell that close to a UAV throughout the window had every
+        scan of it inside the UAV's horizon. ``inf`` without a horizon."""
+        sc = self.context.scenario
+        slack = (max(s.detect_radius_m for s in sc.uav_types.values())
+                 + max(s.speed_max for s in sc.uav_types.values()) * window_s)
+        return sc.radio.horizon_m - slack
+
+    def _near(self, pose: Sequence[float], reach: float) -> np.ndarray:
+        """The cells whose centres lie within ``reach`` of ``pose`` (a boolean (ny, nx) mask)."""
+        if reach <= 0:
+            g = self._sim().grid
+            return np.zeros((g.ny, g.nx), dtype=bool)
+        if self._centres is None:
+            g = self._sim().grid
+            self._centres = (((np.arange(g.nx) + 0.5) * g.cell_m)[None, :], ((np.arange(g.ny) + 0.5) * g.cell_m)[:, None])
+        cx, cy = self._centres
+        return (cx - pose[0]) ** 2 + (cy - pose[1]) ** 2 <= reach * reach
 
     def _sim(self):
         if self.ctx is None or self.ctx.sim is None:
@@ -593,7 +615,6 @@ class MapAgreementChecker(_LiveChecker):
         self.quiet_s, self.lag_s, self.tolerance, self.every_s = quiet_s, lag_s, tolerance, every_s
         self.allow_radio_loss = allow_radio_loss
         self._poses: dict[int, tuple] = {}  # this tick's (for the horizon's centres)
-        self._centres: tuple[np.ndarray, np.ndarray] | None = None  # cell centres (x, y), lazily
         self._quiet_since: float | None = None
         self._members: frozenset[int] = frozenset()
         self._history: deque[tuple[float, dict[int, np.ndarray]]] = deque()
@@ -659,22 +680,12 @@ class MapAgreementChecker(_LiveChecker):
         """Agreement under a knowledge horizon (see the module docstring): pairs that can talk,
         cells within ``H - slack`` of both UAVs now."""
         ctx = self.context
-        sc = ctx.scenario
-        sim = self._sim()
-        if self._centres is None:
-            g = sim.grid
-            xs = (np.arange(g.nx) + 0.5) * g.cell_m
-            ys = (np.arange(g.ny) + 0.5) * g.cell_m
-            self._centres = (xs[None, :], ys[:, None])
-        cx, cy = self._centres
-        slack = (max(s.detect_radius_m for s in sc.uav_types.values())
-                 + max(s.speed_max for s in sc.uav_types.values()) * self.lag_s)
-        reach = sc.radio.horizon_m - slack
+        reach = self._horizon_reach(self.lag_s)
         if reach <= 0:
             return  # no cell is surely inside both horizons: nothing to judge
         poses = self._poses
         since = self._quiet_since if self._quiet_since is not None else t
-        inside = {u: (cx - poses[u][0]) ** 2 + (cy - poses[u][1]) ** 2 <= reach * reach for u in members}
+        inside = {u: self._near(poses[u], reach) for u in members}
         for uid in sorted(members):
             behind = np.zeros(now[uid].shape, dtype=bool)
             who: list[int] = []
@@ -700,7 +711,9 @@ class JoinerCatchUpChecker(_LiveChecker):
     """Liveness for late joiners: within ``bound_s`` of joining, a UAV knows (last-seen >=) every
     cell its radio neighbours at join time knew then (``tolerance``: fraction allowed to lag).
     Judged only if, all along, it could talk to one of those neighbours and no link fault or
-    partition was active; otherwise the obligation lapses."""
+    partition was active; otherwise the obligation lapses. With a knowledge horizon only the
+    cells within ``H - slack`` of the joiner are owed (``slack``: the largest detection radius
+    plus the farthest it flies in ``bound_s``; see MapAgreementChecker)."""
 
     name = "joiner_catch_up"
 
@@ -733,6 +746,8 @@ class JoinerCatchUpChecker(_LiveChecker):
                     del self._pending[uid]
                 continue
             behind = self._maps([uid])[uid] < target
+            if not math.isinf(ctx.scenario.radio.horizon_m):  # only what its horizon holds is owed
+                behind &= self._near(poses[uid], self._horizon_reach(self.bound_s))
             frac = float(behind.mean())
             if frac <= self.tolerance:
                 del self._pending[uid]
