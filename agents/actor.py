@@ -147,6 +147,10 @@ class ActorSettings:
     sync_settle_s: float = 2.0  # the digest covers scans up to this long ago (in flight: not missing)
     sync_max_records: int = 4000  # scans resent in answer to one digest
     sync_horizon_s: float = 600.0  # scans older than this are neither kept nor compared
+    # The knowledge horizon (agents.maps.scanlog): heard scans centred farther than this from the
+    # UAV are neither applied nor logged, and digests are answered with scans within it of the
+    # digest's sender only. inf: no horizon.
+    sync_horizon_m: float = math.inf
     apf: ApfSettings = field(default_factory=ApfSettings)
     # The swarm key ([radio] auth): frames are sent with their MAC and heard frames without the
     # right one are rejected (comms.codec). None: no authentication.
@@ -162,6 +166,10 @@ class ActorCounters:
     plans: int = 0
     scans_resent: int = 0  # scans sent in answer to neighbours' digests
     scans_ignored: int = 0  # heard scan records outside any sane range (time, place, radius)
+    scans_beyond: int = 0  # heard scan records centred beyond the knowledge horizon (not applied)
+    digests_sent: int = 0  # anti-entropy digests (one per sync_every_s, on the beacon)
+    digest_bytes: int = 0  # their bitmaps' bytes, plus 8 per origin listed (ScanLog.digest's measure)
+    resent_bytes: int = 0  # bytes of the frames answering neighbours' digests
     messages_ignored: int = 0  # other heard messages no honest UAV sends (see _drain_inbox)
 
 
@@ -193,6 +201,10 @@ class UavActor:
         self.umap = map_group.new_map() if map_group is not None else UncertaintyMap(grid, tau)
         self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
         self._log_scans = settings.sync_every_s > 0  # without anti-entropy nothing reads the log
+        # Squared knowledge horizon (None: none) and where the UAV is this tick (set by observe).
+        h = settings.sync_horizon_m
+        self._horizon2 = None if math.isinf(h) else h * h
+        self._here = (0.0, 0.0)
         self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
         self._next_digest = -math.inf
         self._digest_start = 0  # where the next digest begins when one frame cannot hold it all
@@ -280,6 +292,7 @@ class UavActor:
         """First half of a tick: merge the inbox, own scan and sightings. Returns the view to
         plan from when a replan is due (time, or waypoint reached), else ``None``."""
         t = r.t
+        self._here = (r.x, r.y)  # the knowledge horizon's centre (_drain_inbox)
         self._received = self._drain_inbox(t)
         radius = self.kind.detect_radius
         d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
@@ -459,7 +472,9 @@ class UavActor:
         # Places may lie up to max_r outside the area, times not after now, ids and speeds in
         # ranges that no arithmetic below can overflow.
         lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
-        delivered = ignored = strange = 0
+        delivered = ignored = strange = beyond = 0
+        horizon2 = self._horizon2
+        here_x, here_y = self._here
         for _arrival, sender, data in frames:
             # Another receiver may have decoded these very bytes already (shared cache).
             frame = lookup(data) if lookup is not None and type(data) is bytes else None
@@ -491,6 +506,8 @@ class UavActor:
                         if not (0.0 <= tr <= t and 0.0 <= rr <= max_r and -max_r <= x <= width + max_r
                                 and -max_r <= y <= height + max_r):  # = not self._plausible(...)
                             ignored += 1
+                        elif horizon2 is not None and (x - here_x) ** 2 + (y - here_y) ** 2 > horizon2:
+                            beyond += 1  # beyond the knowledge horizon (= not scanlog.within(...))
                         elif log_add is None or log_add(origin, tr, x, y, rr):  # new to us (else already applied)
                             # = umap.scan(x, y, r, t_rec); the disk is shared by every map
                             # applying this record (grid memo).
@@ -538,6 +555,7 @@ class UavActor:
                         self._digests.append(m)
         counters.delivered += delivered
         counters.scans_ignored += ignored
+        counters.scans_beyond += beyond
         counters.messages_ignored += strange
         return received
 
@@ -556,13 +574,23 @@ class UavActor:
         budget = self.settings.sync_max_records
         per_frame = self._scans_per_frame
         timeout = self.settings.peer_timeout_s
-        n = sum(1 for p in self.knowledge.peers.values() if t - p.t_pose <= timeout)
+        peers = self.knowledge.peers
+        n = sum(1 for p in peers.values() if t - p.t_pose <= timeout)
+        horizon = self.settings.sync_horizon_m
         for dg in self._digests:
             if n > _ANSWERERS and _answer_hash(self.uid, dg.uav, dg.t_cut) % n >= _ANSWERERS:
                 continue
+            near = None
+            if not math.isinf(horizon):
+                # The sender's horizon, centred where its Hello (on the digest's own beacon) put it.
+                p = peers.get(dg.uav)
+                if p is None or math.isinf(p.t_pose):
+                    continue  # no pose heard: where its horizon lies is unknown
+                near = (p.x, p.y, horizon)
             msgs: list[Message | Packed] = []
             room = per_frame  # scans the current frame can still take
-            for origin, flat in self.scans.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget):
+            for origin, flat in self.scans.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget,
+                                                   near):
                 budget -= len(flat) // 4
                 self.counters.scans_resent += len(flat) // 4
                 while flat:
@@ -577,6 +605,7 @@ class UavActor:
             if budget <= 0:
                 break
         self._digests = []
+        self.counters.resent_bytes += sum(len(f) for _, f in replies)
         return replies
 
     def _frame(self, t: float, messages: Sequence[Message | Packed]) -> bytes:
@@ -607,6 +636,8 @@ class UavActor:
                 self.scans.forget_before(t)
                 tick0, lo, hi, bitmaps, self._digest_start = self.scans.digest(t_cut, self._digest_start, room)
                 msgs.append(ScanDigest(self.uid, t_cut, tick0, lo, hi, bitmaps))
+                self.counters.digests_sent += 1
+                self.counters.digest_bytes += sum(len(b) + 8 for _, b in bitmaps)
                 self._next_digest = t + s.sync_every_s - 1e-9
             frames.append(self._frame(t, msgs))
             self._next_beacon = t + s.beacon_every_s - 1e-9

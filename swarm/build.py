@@ -87,6 +87,7 @@ def actor_settings(sc: Scenario) -> ActorSettings:
         sync_settle_s=r.sync_settle_s,
         sync_max_records=r.sync_max_records,
         sync_horizon_s=r.sync_horizon_s,
+        sync_horizon_m=r.horizon_m,
         frame_max_bytes=r.frame_max_bytes,
         surveillance=p.surveillance,
         loiter_radius_factor=p.loiter_radius_factor,

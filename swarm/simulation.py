@@ -160,6 +160,11 @@ class Simulation:
         self.rng = RngTree(self.seed)
         self.clock = Clock()
         self.log = EventLog()
+        # [recording] level "summary": rx / lost frame copies are counted per tick (_lost, _observe)
+        # and logged as one "radio" event at the end of the tick (_end_tick), not one event each.
+        self._summary = scenario.recording.level == "summary"
+        self._rx_tick = [0, 0, 0]  # frames read, of them rejected, bytes read
+        self._lost_tick: dict[str, list[int]] = {}  # cause -> [copies, bytes]
         self._build_world(scenario)
         self._build_radio(scenario)
         self._build_actors(scenario, batch_planning)
@@ -170,6 +175,8 @@ class Simulation:
             "uavs": [[b.uid, b.name, b.kind.name] for b in self.world.uavs.values()],
             "targets": len(self.targets), "threats": len(self.world.threats),
             "faults": self.injector.schedule.to_list(),
+            # (only when not the default, so a "frames" log is byte for byte what it always was)
+            **({"recording": scenario.recording.level} if self._summary else {}),
         })
 
     # --- building (once, from the scenario) -------------------------------------------------
@@ -437,7 +444,7 @@ class Simulation:
             task.cancel()
         for _arrival, sender, data in self.actors[uid].mailbox.drain():
             self.radio.counters.drop("receiver_down")
-            self.log.emit("lost", self.clock.now, sender, uid, len(data), "receiver_down")
+            self._lost(self.clock.now, sender, uid, len(data), "receiver_down")
         self._plans.pop(uid, None)
         self.log.emit("crash", self.clock.now, uid, b.name)
 
@@ -480,6 +487,17 @@ class Simulation:
                 self.log.emit("resume" if isinstance(fault, Pause) else "fault_off", self.clock.now,
                               *(() if isinstance(fault, Pause) else (fault.kind,)), uid)
 
+    def _lost(self, t: float, src: int, dst: int, nbytes: int, cause: str) -> None:
+        """A frame copy lost: a ``lost`` event, or (recording level "summary") counted."""
+        if self._summary:
+            c = self._lost_tick.get(cause)
+            if c is None:
+                c = self._lost_tick[cause] = [0, 0]
+            c[0] += 1
+            c[1] += nbytes
+        else:
+            self.log.emit("lost", t, src, dst, nbytes, cause)
+
     def _deliver(self, batch: list[Delivery]) -> None:
         uavs = self.world.uavs
         actors = self.actors
@@ -487,10 +505,10 @@ class Simulation:
         for arrival_t, sender, receiver, data in batch:
             if uavs[receiver].state != ALIVE:
                 self.radio.counters.drop("receiver_down")
-                self.log.emit("lost", self.clock.now, sender, receiver, len(data), "receiver_down")
+                self._lost(self.clock.now, sender, receiver, len(data), "receiver_down")
             elif not actors[receiver].mailbox.put(arrival_t, sender, data):
                 self.radio.counters.drop("mailbox_full")
-                self.log.emit("lost", self.clock.now, sender, receiver, len(data), "mailbox_full")
+                self._lost(self.clock.now, sender, receiver, len(data), "mailbox_full")
 
     # --- the tick ---------------------------------------------------------------------------
 
@@ -618,6 +636,7 @@ class Simulation:
         add = events.append
         nf = self.node_faults
         paused, truth = nf.paused, nf.truth
+        summary, rx = self._summary, self._rx_tick
         for uid in alive:
             b = uavs[uid]
             out = outputs[uid]
@@ -638,7 +657,13 @@ class Simulation:
                 sensed[uid] = truth[uid] if truth and uid in truth else [s.target for s in readings[uid].targets]
             add(("pose", t, uid, b.x, b.y, b.v, b.theta, plan.mode, plan.target))
             paths[uid].extend((t, b.x, b.y))
-            events += [("rx", t, sender, uid, nbytes, ok) for sender, nbytes, ok in out.received]
+            if summary:
+                for _sender, nbytes, ok in out.received:
+                    rx[0] += 1
+                    rx[1] += not ok
+                    rx[2] += nbytes
+            else:
+                events += [("rx", t, sender, uid, nbytes, ok) for sender, nbytes, ok in out.received]
         types = {u: uavs[u].kind.name for u in alive}
         events += self.metrics.observe(t, self.dt, plans, sensed, types, self.speed_max_by_type, nf.detected)
         tg = self.targets
@@ -654,7 +679,6 @@ class Simulation:
     def _transmit(self, t: float, alive: list[int], xy: np.ndarray, outputs: dict[int, ActorOutput]) -> None:
         """Radio: topology from positions at ``t``, every frame in UAV-id order through the
         links (and the fault injector), arrivals scheduled on the clock in batches by time."""
-        log = self.log
         self.radio.update_topology(alive, xy, self.dt)
         self.injector.set_positions(alive, xy)  # (jammers: who is inside their circles now)
         deliveries: list[Delivery] = []
@@ -663,9 +687,10 @@ class Simulation:
         # origin and tick, if auth lets it in).
         for fault, n, rng, seq in self.injector.spoofer_due(t, self.dt):
             self._spoof(t, alive, xy, fault, n, rng, seq, deliveries)
+        record_lost = self._lost
 
         def lost(src: int, dst: int, nbytes: int, cause: str) -> None:
-            log.emit("lost", t, src, dst, nbytes, cause)
+            record_lost(t, src, dst, nbytes, cause)
 
         broadcast = self.radio.broadcast
         for uid in alive:
@@ -737,11 +762,23 @@ class Simulation:
 
     def _end_tick(self) -> None:
         """Count the tick, sample the time series when due, flush the log, schedule the next."""
+        if self._summary:
+            self._radio_summary(self.now)
         self._tick_index += 1
         if self._tick_index % self._sample_every == 0 or self._tick_index == self.n_ticks:
             self.metrics.rows.append(self._sample())
         self.log.flush()
         self.clock.schedule(self._tick_index * self.dt, self._tick, TICK)
+
+    def _radio_summary(self, t: float) -> None:
+        """Recording level "summary": the tick's one ``radio`` event, ``[t, read, rejected,
+        bytes_read, {cause: [copies, bytes]}]`` (causes sorted), covering every frame copy read
+        or lost since the previous one; none for a tick with neither."""
+        rx, lost = self._rx_tick, self._lost_tick
+        if rx[0] or lost:
+            self.log.emit("radio", t, rx[0], rx[1], rx[2], {c: lost[c] for c in sorted(lost)})
+            self._rx_tick = [0, 0, 0]
+            self._lost_tick = {}
 
     def _mode_name(self, uid: int) -> str:
         """search / surveil for a flying UAV, else down / pending."""

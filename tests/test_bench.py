@@ -17,7 +17,8 @@ from swarm.simulation import Simulation
 
 FIELDS = {"case", "scenario", "planner", "uavs", "sim_seconds", "wall_seconds", "realtime_factor", "cpu_seconds",
           "peak_rss_mb", "shares", "coverage", "event_log_sha256", "anti_entropy", "uav_steps_per_cpu_s",
-          "radio_bytes_per_uav_s", "event_log_bytes_per_uav_s"}
+          "radio_bytes_per_uav_s", "event_log_bytes_per_uav_s", "sync_horizon_m", "digest_bytes_mean",
+          "anti_entropy_bytes_per_uav_s", "scan_log_max", "scan_log_mean", "map_mb_max", "map_mb_mean"}
 SHARES = {"planning", "map", "radio", "actors", "world"}
 
 
@@ -37,17 +38,24 @@ def test_every_case_names_a_loadable_scenario_and_a_planner():
     assert {u.type for u in load_scenario("bench-100").uavs} == {"A", "B"}
 
 
-def test_bench_1000_dacmp_turns_anti_entropy_on_at_the_model_default():
-    (case,) = [c for c in bench.CASES if c.name == "bench-1000-dacmp"]
-    assert not case.quick and case.planner == "dacmp" and case.scenario == "bench-1000" and case.duration_s == 200.0
-    assert load_scenario("bench-1000").radio.sync_every_s == 0.0  # the file turns it off
-    sc = bench.case_scenario(case)
-    assert sc.radio.sync_every_s == bench.DEFAULT_SYNC_EVERY_S == RadioSettings().sync_every_s > 0
-    assert sc.radio.range_m == load_scenario("bench-1000").radio.range_m and len(sc.uavs) == 1000
-    # The other cases run their scenario as it is.
+def test_scale_cases_run_their_scenarios_with_anti_entropy_a_horizon_and_summary_logs():
+    scale = {"bench-100", "bench-1000", "bench-dense-300"}
     for c in bench.CASES:
-        if c.anti_entropy is None:
-            assert bench.case_scenario(c) == load_scenario(c.scenario)
+        sc = bench.case_scenario(c)
+        assert sc == load_scenario(c.scenario)  # no per-case overrides
+        if c.scenario in scale:
+            r = sc.radio
+            assert r.sync_every_s == RadioSettings().sync_every_s > 0, c.name
+            assert math.isfinite(r.horizon_m) and r.horizon_m == r.range_m, c.name
+            assert sc.recording.level == "summary", c.name
+        else:  # the paper scenarios: as they always were
+            assert math.isinf(sc.radio.horizon_m) and sc.recording.level == "frames"
+    by_name = {c.name: c for c in bench.CASES}
+    assert by_name["bench-100-dacmp"].duration_s is None  # the full 2000 s
+    assert load_scenario("bench-100").duration_s == 2000.0
+    one = by_name["bench-1000-dacmp"]
+    assert (one.scenario, one.planner, one.duration_s, one.quick) == ("bench-1000", "dacmp", None, False)
+    assert load_scenario("bench-1000").duration_s == 200.0
 
 
 @pytest.mark.slow  # whole runs or a subprocess: the full run has it, the quick loop need not
@@ -81,6 +89,9 @@ def test_bench_quick_emits_one_valid_json_line_per_case():
         # 6 UAVs alive in every one of the 60 ticks (cpu_seconds is rounded to ms).
         assert r["uav_steps_per_cpu_s"] == pytest.approx(6 * 60 / r["cpu_seconds"], rel=0.01)
         assert r["radio_bytes_per_uav_s"] > 0 and r["event_log_bytes_per_uav_s"] > 0
+        assert r["sync_horizon_m"] is None and r["digest_bytes_mean"] > 0 and r["scan_log_max"] > 0
+        assert 0 < r["anti_entropy_bytes_per_uav_s"] < r["radio_bytes_per_uav_s"]
+        assert r["map_mb_max"] is None  # paper-fig11's maps share storage (MapGroup)
     assert rows[1]["shares"]["planning"] > rows[0]["shares"]["planning"]  # DACMP plans, greedy barely
 
 

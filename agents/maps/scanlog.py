@@ -16,6 +16,19 @@ Only the last ``horizon_s`` seconds are kept and compared: a scan that old carri
 information (``q`` is back near 1 after a few ``1/tau``) and memory stays bounded by
 ``origins x horizon_s / dt`` scans per UAV however long the run. Applying a scan twice changes
 nothing (the map is a max-CRDT), so the log also lets a receiver skip scans it already applied.
+
+Knowledge horizon (``[radio] sync_horizon_m``, default ``inf`` = none). Without one, a UAV's
+log and map converge to every scan of its whole connected swarm: memory and digest size grow
+with the swarm. With a horizon ``H`` a UAV applies to its map, logs (so relays and lists in its
+digests) only the heard scans whose centre lies within ``H`` of where it is when it hears them
+(its own scans always), and answers a digest only with scans within ``H`` of the digest's
+sender (:meth:`ScanLog.missing`'s ``near``). Its log then holds the scans of the UAVs that flew
+within ``H`` of its path over the last ``horizon_s``: it grows with local density, not with the
+swarm. Both are still max-CRDTs: the log's state is a set of scans and its join the union
+(:meth:`ScanLog.merge`), the map's the per-cell max of the applied disks; a filter with a fixed
+centre commutes with both (``keep(A | B) = keep(A) | keep(B)``), so order, loss and duplicates
+still cannot change the result. What "maps agree" then means is stated in
+:class:`swarm.testing.invariants.MapAgreementChecker`.
 """
 
 from __future__ import annotations
@@ -26,12 +39,23 @@ from typing import cast
 
 ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
 FORGET_SLACK_TICKS = 64
+CHUNK_SHIFT = 6  # missing()'s horizon test boxes the scans of each 64 ticks of an origin
 
 Bitmaps = tuple[tuple[int, bytes], ...]  # a digest's (origin, bits) pairs (ScanDigest.bitmaps)
+Near = tuple[float, float, float]  # (x, y, H): only scans centred within H of (x, y)
+
+
+def within(x: float, y: float, near: Near | None) -> bool:
+    """Whether a scan centred at ``(x, y)`` lies inside the horizon ``near`` (None: no horizon)."""
+    if near is None:
+        return True
+    dx, dy = x - near[0], y - near[1]
+    return dx * dx + dy * dy <= near[2] * near[2]
 
 
 class ScanLog:
-    __slots__ = ("dt", "horizon_ticks", "_floor", "_bits", "_base", "_scans", "count", "_version", "_cut_cache")
+    __slots__ = ("dt", "horizon_ticks", "_floor", "_bits", "_base", "_scans", "_box", "count", "_version",
+                 "_cut_cache")
 
     def __init__(self, dt: float, horizon_s: float = math.inf):
         self.dt = dt
@@ -41,6 +65,10 @@ class ScanLog:
         self._base: dict[int, int] = {}  # a multiple of 8: bitmaps start on a byte
         self._floor = 0  # ticks before this are forgotten (forget_before)
         self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}
+        # origin -> chunk (tick >> CHUNK_SHIFT) -> [x0, y0, x1, y1], a box around the centres of
+        # its scans in those ticks: missing()'s horizon test skips (or takes) a chunk's scans
+        # whole when its box is outside (inside) the horizon. Never smaller than the scans'.
+        self._box: dict[int, dict[int, list[float]]] = {}
         self.count = 0  # scans held
         self._version = 0  # bumped by every change: invalidates _cut_cache
         self._cut_cache: tuple[int, int, int, dict[int, bytes], Bitmaps] | None = None
@@ -59,6 +87,7 @@ class ScanLog:
             bits = self._bits[origin] = bytearray()
             self._base[origin] = tick & ~7
             self._scans[origin] = {}
+            self._box[origin] = {}
         base = self._base[origin]
         if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
             grow = (base - (tick & ~7)) >> 3
@@ -76,9 +105,35 @@ class ScanLog:
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
         self._scans[origin][tick] = (t, x, y, r)
+        boxes = self._box[origin]
+        box = boxes.get(tick >> CHUNK_SHIFT)
+        if box is None:
+            boxes[tick >> CHUNK_SHIFT] = [x, y, x, y]
+        else:
+            if x < box[0]:
+                box[0] = x
+            elif x > box[2]:
+                box[2] = x
+            if y < box[1]:
+                box[1] = y
+            elif y > box[3]:
+                box[3] = y
         self.count += 1
         self._version += 1
         return True
+
+    def scans(self) -> Iterator[tuple[int, tuple[float, float, float, float]]]:
+        """Every scan held, as ``(origin, (t, x, y, r))``, by origin then tick."""
+        for origin in sorted(self._scans):
+            byt = self._scans[origin]
+            for k in sorted(byt):
+                yield origin, byt[k]
+
+    def merge(self, other: ScanLog, near: Near | None = None) -> int:
+        """The state-based join: add every scan of ``other`` (inside ``near``, if given) to this
+        log; returns how many were new. The actor does the same one heard scan at a time
+        (:meth:`add`), so a log is the union of what it heard, whatever the order."""
+        return sum(self.add(o, *scan) for o, scan in other.scans() if within(scan[1], scan[2], near))
 
     def forget_before(self, t: float) -> None:
         """Drop scans (and their bits) of ticks well before ``t - horizon_s``: a slack of
@@ -100,6 +155,9 @@ class ScanLog:
             for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
                 if scans.pop(k, None) is not None:
                     self.count -= 1
+            boxes = self._box[origin]
+            for c in [c for c in boxes if (c + 1) << CHUNK_SHIFT <= k_min]:  # chunks now empty
+                del boxes[c]
             self._version += 1
 
     def window(self, t_cut: float) -> tuple[int, int]:
@@ -167,11 +225,13 @@ class ScanLog:
         hi = ORIGIN_MAX if i == len(items) else items[i][0] - 1
         return tick0, lo, hi, tuple(out), (i if i < len(items) else 0)
 
-    def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int
-                ) -> Iterator[tuple[int, list[float]]]:
+    def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int,
+                near: Near | None = None) -> Iterator[tuple[int, list[float]]]:
         """The scans this log holds at ticks ``tick0..t_cut`` of origins in ``[lo, hi]`` that
         the digest ``bitmaps`` (relative to ``tick0``) lacks, as ``(origin, [t, x, y, r, ...])``
-        per origin (ascending), at most ``limit`` scans in all, oldest first within an origin."""
+        per origin (ascending), at most ``limit`` scans in all, oldest first within an origin.
+        ``near``: only scans centred inside that horizon (the digest sender's: it would not
+        keep the others, and would be sent them again at every digest)."""
         k_cut = math.floor(t_cut / self.dt)
         if k_cut < 0 or limit <= 0 or not self._bits or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
             return
@@ -180,6 +240,7 @@ class ScanLog:
             return  # the usual case on a good radio: the same knowledge, nothing to send
         theirs = dict(bitmaps)
         left = limit
+        nx, ny, h2 = (near[0], near[1], near[2] * near[2]) if near is not None else (0.0, 0.0, math.inf)
         for origin, b in mine.items():
             if not lo <= origin <= hi:
                 continue
@@ -188,11 +249,27 @@ class ScanLog:
                 continue
             lack = int.from_bytes(b, "little") & ~int.from_bytes(other, "little")
             scans = self._scans[origin]
+            boxes = self._box[origin]
             flat: list[float] = []
+            chunk, test = -1, False  # the chunk of the bits being read, and whether to test each scan
             while lack and left:
                 low = lack & -lack
-                scan = scans.get(tick0 + low.bit_length() - 1)
-                if scan is not None:
+                k = tick0 + low.bit_length() - 1
+                if near is not None and k >> CHUNK_SHIFT != chunk:
+                    # A new chunk: outside the horizon (skip its bits), inside (take them) or across.
+                    chunk = k >> CHUNK_SHIFT
+                    box = boxes.get(chunk)
+                    if box is not None:
+                        x0, y0, x1, y1 = box
+                        dx, dy = max(x0 - nx, 0.0, nx - x1), max(y0 - ny, 0.0, ny - y1)
+                        if dx * dx + dy * dy > h2:
+                            lack &= -1 << (((chunk + 1) << CHUNK_SHIFT) - tick0)  # the next chunk's bits on
+                            continue
+                        fx, fy = max(nx - x0, x1 - nx), max(ny - y0, y1 - ny)
+                        test = fx * fx + fy * fy > h2
+                scan = scans.get(k)
+                # (= within(scan[1], scan[2], near), inlined)
+                if scan is not None and (not test or (scan[1] - nx) ** 2 + (scan[2] - ny) ** 2 <= h2):
                     flat.extend(scan)
                     left -= 1
                 lack ^= low
@@ -202,4 +279,4 @@ class ScanLog:
                 return
 
 
-__all__ = ["ORIGIN_MAX", "ScanLog"]
+__all__ = ["ORIGIN_MAX", "Near", "ScanLog", "within"]

@@ -14,6 +14,9 @@ a UAV-second is a UAV-tick times ``dt_s``):
   per UAV-second;
 * ``event_log_bytes_per_uav_s``: the event log's size (``events.msgpack``) per UAV-second;
 
+then what anti-entropy costs and holds (:func:`anti_entropy_figures`: the horizon, the mean
+digest size, anti-entropy bytes per UAV-second, scans and map storage per UAV at the end);
+
 and ``shares``, the fraction of the run spent in:
 
 * ``planning``: the planners' ``plan`` calls (including the map reads they make);
@@ -54,13 +57,8 @@ import agents.maps.umap
 import agents.planners
 import comms.radio
 from swarm.results import RunResult
-from swarm.scenario import Scenario, apply_overrides, load_scenario
-from swarm.scenario.model import RadioSettings
+from swarm.scenario import Scenario, load_scenario
 from swarm.simulation import Simulation
-
-# The model's default period of anti-entropy (a case that asks for it on a scenario that turns it
-# off gets this one).
-DEFAULT_SYNC_EVERY_S = float(RadioSettings.model_fields["sync_every_s"].default)
 
 
 @dataclass(frozen=True)
@@ -70,24 +68,20 @@ class Case:
     planner: str
     duration_s: float | None = None  # None: the scenario's
     quick: bool = False  # part of `swarm bench --quick` (CI)
-    # True: anti-entropy on, at the model's default period if the scenario turns it off (its own
-    # period if it has one); None: as the scenario has it.
-    anti_entropy: bool | None = None
 
 
 CASES = [
     Case("paper-fig11-greedy", "paper-fig11", "greedy", quick=True),
     Case("paper-fig11-dacmp", "paper-fig11", "dacmp", quick=True),
     Case("paper-case2-dacmp", "paper-case2", "dacmp"),
-    # DACMP reads the whole map (4 M cells here) every replanning: 200 s until it reads a
-    # window around the UAV (then the full 2000 s, like greedy).
-    Case("bench-100-dacmp", "bench-100", "dacmp", duration_s=200.0),
+    # The scale scenarios run with anti-entropy on, a knowledge horizon and recording level
+    # "summary" (their tomls). The full 2000 s.
+    Case("bench-100-dacmp", "bench-100", "dacmp"),
     Case("bench-100-greedy", "bench-100", "greedy"),
     # 42 M cells, 200 s.
     Case("bench-1000-greedy", "bench-1000", "greedy"),
-    # The same with DACMP (a whole-map read, 42 M cells, per replanning) and anti-entropy on (the
-    # scenario turns it off): heavy, run it on its own (--case).
-    Case("bench-1000-dacmp", "bench-1000", "dacmp", duration_s=200.0, anti_entropy=True),
+    # The same with DACMP: heavy, run it on its own (--case).
+    Case("bench-1000-dacmp", "bench-1000", "dacmp"),
     # ~75 000 link copies per simulated second: 30 s.
     Case("bench-dense-300-dacmp", "bench-dense-300", "dacmp", duration_s=30.0),
 ]
@@ -158,12 +152,9 @@ class _Sampler:
 
 
 def case_scenario(case: Case) -> Scenario:
-    """The scenario a case runs (before its planner and duration are applied): the named one,
-    with anti-entropy turned on if the case asks for it and the scenario has it off."""
-    sc = load_scenario(case.scenario)
-    if case.anti_entropy is not None and case.anti_entropy != (sc.radio.sync_every_s > 0):
-        sc = apply_overrides(sc, {"radio.sync_every_s": DEFAULT_SYNC_EVERY_S if case.anti_entropy else 0.0})
-    return sc
+    """The scenario a case runs (before its planner and duration are applied): the named one, as
+    it is (every case runs with its scenario's anti-entropy, horizon and recording level)."""
+    return load_scenario(case.scenario)
 
 
 def uav_ticks(result: RunResult) -> int:
@@ -203,7 +194,36 @@ def run_case(case: Case) -> dict:
         "uav_steps_per_cpu_s": round(ticks / cpu, 1) if cpu > 0 else 0.0,
         "radio_bytes_per_uav_s": round(m["radio"]["bytes_sent"] / uav_s, 1) if uav_s else 0.0,
         "event_log_bytes_per_uav_s": round(len(result.events) / uav_s, 1) if uav_s else 0.0,
+        **anti_entropy_figures(sim, uav_s),
     }
+
+
+def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict:
+    """What anti-entropy costs and holds, per UAV: ``sync_horizon_m`` (the knowledge horizon, None
+    = none), ``digest_bytes_mean`` (a digest's bitmaps, 8 bytes per origin listed included),
+    ``anti_entropy_bytes_per_uav_s`` (digests plus the frames answering them, per UAV-second),
+    ``scan_log_max`` / ``scan_log_mean`` (scans held in a UAV's log at the end) and
+    ``map_mb_max`` / ``map_mb_mean`` (a UAV's map storage at the end; None for maps in a
+    :class:`~agents.maps.mapgroup.MapGroup`, which share it)."""
+    cs = [a.counters for a in sim.actors.values()]
+    digests = sum(c.digests_sent for c in cs)
+    digest_bytes = sum(c.digest_bytes for c in cs)
+    logs = [a.scans.count for a in sim.actors.values()] or [0]
+    h = sim.scenario.radio.horizon_m
+    out: dict[str, Any] = {
+        "sync_horizon_m": None if h == float("inf") else h,
+        "digest_bytes_mean": round(digest_bytes / digests, 1) if digests else 0.0,
+        "anti_entropy_bytes_per_uav_s": round((digest_bytes + sum(c.resent_bytes for c in cs)) / uav_s, 1)
+        if uav_s else 0.0,
+        "scan_log_max": max(logs),
+        "scan_log_mean": round(sum(logs) / len(logs), 1),
+    }
+    out["map_mb_max"] = out["map_mb_mean"] = None  # group maps share storage: no per-UAV figure
+    if sim._map_group is None:
+        mb = [a.umap.nbytes / 1e6 for a in sim.actors.values()] or [0.0]
+        out["map_mb_max"] = round(max(mb), 2)
+        out["map_mb_mean"] = round(sum(mb) / len(mb), 2)
+    return out
 
 
 def main(quick: bool = False, only: list[str] | None = None, out=sys.stdout, duration_s: float | None = None,

@@ -83,6 +83,7 @@ __all__ = [
     "PlannerSettings",
     "SafetySettings",
     "MetricsSettings",
+    "RecordingSettings",
     "Scenario",
     "DEFAULT_UAV_TYPES",
 ]
@@ -491,6 +492,14 @@ class RadioSettings(_Model):
     sync_settle_s: Num = _num(2.0, ge=0)
     sync_max_records: Int = _int(4000, ge=0)
     sync_horizon_s: Num = _num(600.0, gt=0, note="seconds; scans older than this are not resent")
+    # The knowledge horizon (agents.maps.scanlog, "Knowledge horizon"): a UAV applies, logs, relays
+    # and compares only scans whose centre lies within sync_horizon_m of itself (its own always), and
+    # answers a digest only with scans within sync_horizon_m of the digest's sender. So its map and
+    # log grow with the area around its path, not with the swarm. inf = no horizon (every heard scan).
+    # (Optional like range_m: a run folder's scenario.json writes inf as null.)
+    sync_horizon_m: Annotated[float, Strict(), AllowInfNan(True)] | None = _num(
+        None, gt=0, note="metres; inf = no horizon", optional=True
+    )
     # Authenticated frames (comms.codec): HMAC-SHA256 truncated to 16 bytes, counted in the bytes
     # sent. Off by default (the paper is silent). auth_key is read only with auth = true.
     auth: Bool = Field(default=False, description="true or false")
@@ -523,6 +532,11 @@ class RadioSettings(_Model):
         if self.model != "log_distance":
             return None
         return _radio.LogDistance(**self.log_distance.model_dump())
+
+    @property
+    def horizon_m(self) -> float:
+        """The knowledge horizon as a number: ``sync_horizon_m``, math.inf when absent (none)."""
+        return math.inf if self.sync_horizon_m is None else self.sync_horizon_m
 
     @property
     def range_limit_m(self) -> float:
@@ -736,6 +750,22 @@ class MetricsSettings(_Model):
     sample_s: Num = _num(10.0, gt=0, note=">= dt_s")
 
 
+RECORDING_LEVELS = ("frames", "summary")
+
+
+class RecordingSettings(_Model):
+    """What the event log keeps (swarm.recorder; the README lists each level's events).
+
+    ``"frames"``: every frame copy read (``rx``) or lost (``lost``), one event each, so the log
+    grows with radio density (a UAV hearing 250 neighbours logs 250 ``rx`` a second).
+    ``"summary"``: instead, one ``radio`` event per tick with the tick's totals (frames read and
+    rejected, bytes read, copies and bytes lost per cause): bounded per tick, still deterministic and
+    hashed like every event. Every other event is the same at both levels. The ``radio`` invariant
+    needs ``"frames"`` (it judges each delivery); on a summary log it says it cannot check."""
+
+    level: Literal["frames", "summary"] = Field(default="frames", description=f"one of: {', '.join(RECORDING_LEVELS)}")
+
+
 # --- the scenario --------------------------------------------------------------------------
 # A run has at most this many ticks (duration_s / dt_s): ten million (116 days at dt 1 s).
 MAX_TICKS = 10_000_000
@@ -767,6 +797,7 @@ class Scenario(_Model):
     planner: PlannerSettings = _table(PlannerSettings, "planner")
     safety: SafetySettings = _table(SafetySettings, "safety")
     metrics: MetricsSettings = _table(MetricsSettings, "metrics")
+    recording: RecordingSettings = _table(RecordingSettings, "recording")
 
     @model_validator(mode="before")
     @classmethod

@@ -38,15 +38,22 @@ The invariants (``name``: class, parameters and their defaults):
   frame. A frame from sender -1 (a spoofer's) is legal only within an active spoofer's
   ``range_m``. A jammer's losses are losses: nothing to check on an ``rx``. Send ticks
   considered: ``dt`` plus up to the largest possible delay (radio latency + jitter + every
-  delay fault) before the ``rx``.
+  delay fault) before the ``rx``. It needs the per-frame events of ``[recording] level =
+  "frames"``; on a ``"summary"`` log it checks nothing and says so in its ``unchecked`` (and
+  :attr:`Monitor.unchecked`).
 * ``map_monotonic`` (live): :class:`MapMonotonicityChecker`: no cell's last-seen time ever
   decreases in any UAV's map.
 * ``map_agreement`` (live, liveness): :class:`MapAgreementChecker(quiet_s=20, lag_s=10)`: once the
   swarm has been connected, with no active link fault or partition and no crash or join, for
-  ``quiet_s``, every live UAV knows every cell any live UAV knew ``lag_s`` earlier.
+  ``quiet_s``, every live UAV knows every cell any live UAV knew ``lag_s`` earlier. With a
+  knowledge horizon ``H`` (``radio.sync_horizon_m`` finite) "agree" is local: every live UAV
+  knows every cell a UAV it can talk to knew ``lag_s`` earlier, among the cells within
+  ``H - slack`` of both (``slack``: the largest detection radius plus the farthest a UAV flies
+  in ``lag_s``, so the scans of those cells were inside both horizons all along).
 * ``joiner_catch_up`` (live, liveness): :class:`JoinerCatchUpChecker(bound_s=20)`: within
   ``bound_s`` of joining, a late joiner knows everything its radio neighbours knew when it
-  joined (judged only while it can talk to one of them with no link fault active).
+  joined (judged only while it can talk to one of them with no link fault active); with a
+  knowledge horizon, those of them within ``H - slack`` of the joiner (as for ``map_agreement``).
 * ``single_watcher``: :class:`SingleWatcherChecker(settle_s=30)`: two UAVs of one type that can
   talk never both watch one target for longer than ``settle_s`` (after a partition heals the
   duplicate assignment must be resolved within ``settle_s``: targets are reassigned).
@@ -239,6 +246,7 @@ class RunContext:
         self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
         self.seed = scenario.seed  # (the start event's, if it says otherwise: a swizzle's stream)
         self._swizzle_plans: dict[int, dict[int, tuple[float, float]]] = {}  # id(fault) -> plan
+        self.recording: str = scenario.recording.level  # (or the start header's, below)
         for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
             self._learn(i, name, u.type)
         if sim is not None:
@@ -260,6 +268,7 @@ class RunContext:
             self._start_faults = [fault_from_dict(d) for d in header.get("faults", [])]
             if isinstance(header.get("seed"), int):
                 self.seed = header["seed"]
+            self.recording = str(header.get("recording", self.recording))
         elif kind in ("join", "restart"):
             uid, name = ev[2], ev[3]
             type_name = self.type_name.get(uid)
@@ -430,6 +439,9 @@ class Checker:
         self.violations: list[Violation] = []
         self.ctx: RunContext | None = None
         self.truncated = 0
+        # Why this checker could not judge the run (None: it could): no violations then means
+        # nothing, and Monitor.unchecked says so.
+        self.unchecked: str | None = None
 
     def bind(self, ctx: RunContext) -> None:
         self.ctx = ctx
@@ -611,6 +623,10 @@ class RadioChecker(Checker):
         self._resumed: dict[int, tuple[float, float]] = {}
 
     def on_group(self, t, events):
+        if self.context.recording != "frames":
+            self.unchecked = (f'the log has no per-frame events (recording level "{self.context.recording}"); '
+                              'the radio invariant needs [recording] level = "frames"')
+            return
         ctx = self.context
         dt = ctx.dt
         for e in events:
@@ -700,6 +716,27 @@ class RadioChecker(Checker):
 
 class _LiveChecker(Checker):
     live_only = True
+    _centres: tuple[np.ndarray, np.ndarray] | None = None  # cell centres (x, y), made on first use
+
+    def _horizon_reach(self, window_s: float) -> float:
+        """With a knowledge horizon ``H``: ``H`` less the largest detection radius and the farthest
+        a UAV flies in ``window_s``; a cell that close to a UAV throughout the window had every
+        scan of it inside the UAV's horizon. ``inf`` without a horizon."""
+        sc = self.context.scenario
+        slack = (max(s.detect_radius_m for s in sc.uav_types.values())
+                 + max(s.speed_max for s in sc.uav_types.values()) * window_s)
+        return sc.radio.horizon_m - slack
+
+    def _near(self, pose: Sequence[float], reach: float) -> np.ndarray:
+        """The cells whose centres lie within ``reach`` of ``pose`` (a boolean (ny, nx) mask)."""
+        if reach <= 0:
+            g = self._sim().grid
+            return np.zeros((g.ny, g.nx), dtype=bool)
+        if self._centres is None:
+            g = self._sim().grid
+            self._centres = (((np.arange(g.nx) + 0.5) * g.cell_m)[None, :], ((np.arange(g.ny) + 0.5) * g.cell_m)[:, None])
+        cx, cy = self._centres
+        return (cx - pose[0]) ** 2 + (cy - pose[1]) ** 2 <= reach * reach
 
     def _sim(self):
         if self.ctx is None or self.ctx.sim is None:
@@ -770,6 +807,7 @@ class MapAgreementChecker(_LiveChecker):
         super().__init__()
         self.quiet_s, self.lag_s, self.tolerance, self.every_s = quiet_s, lag_s, tolerance, every_s
         self.allow_radio_loss = allow_radio_loss
+        self._poses: dict[int, tuple] = {}  # this tick's (for the horizon's centres)
         self._quiet_since: float | None = None
         self._members: frozenset[int] = frozenset()
         self._history: deque[tuple[float, dict[int, np.ndarray]]] = deque()
@@ -791,6 +829,7 @@ class MapAgreementChecker(_LiveChecker):
         elif self._quiet_since is None:
             self._quiet_since = t
         self._members = members
+        self._poses = poses
         self._history.append((t, self._maps(members)))
         while self._history and self._history[0][0] < t - self.lag_s - _EPS:
             self._history.popleft()
@@ -803,8 +842,11 @@ class MapAgreementChecker(_LiveChecker):
         if then_t > t - self.lag_s + _EPS:
             return
         self.checks += 1
-        known = np.maximum.reduce([ctx.owed(u, m) for u, m in then.items() if u in members]) if then else None
         now = self._history[-1][1]
+        if not math.isinf(ctx.scenario.radio.horizon_m):
+            self._judge_local(t, then_t, then, now, members)
+            return
+        known = np.maximum.reduce([ctx.owed(u, m) for u, m in then.items() if u in members]) if then else None
         if known is None:
             return
         for uid in sorted(members):
@@ -821,12 +863,46 @@ class MapAgreementChecker(_LiveChecker):
                 self._reported_window = self._quiet_since
 
 
+    def _judge_local(self, t: float, then_t: float, then: dict[int, np.ndarray], now: dict[int, np.ndarray],
+                     members: frozenset[int]) -> None:
+        """Agreement under a knowledge horizon (see the module docstring): pairs that can talk,
+        cells within ``H - slack`` of both UAVs now."""
+        ctx = self.context
+        reach = self._horizon_reach(self.lag_s)
+        if reach <= 0:
+            return  # no cell is surely inside both horizons: nothing to judge
+        poses = self._poses
+        since = self._quiet_since if self._quiet_since is not None else t
+        inside = {u: self._near(poses[u], reach) for u in members}
+        for uid in sorted(members):
+            behind = np.zeros(now[uid].shape, dtype=bool)
+            who: list[int] = []
+            for v in sorted(members):
+                if v == uid or v not in then or not ctx.can_talk(uid, v, t, poses):
+                    continue
+                lag = (now[uid] < then[v]) & inside[uid] & inside[v]
+                if lag.any():
+                    who.append(v)
+                    behind |= lag
+            frac = float(behind.mean())
+            if frac > self.tolerance:
+                iy, ix = (int(v[0]) for v in np.nonzero(behind))
+                self.violate(t, f"after {t - since:g} s connected and fault-free, {ctx.name(uid)} "
+                                f"still misses {int(behind.sum())} cell(s) ({frac:.1%}) within its and its "
+                                f"neighbours' horizon ({reach:g} m) that {', '.join(ctx.name(u) for u in who)} "
+                                f"knew at {then_t:g} s, e.g. cell (ix={ix}, iy={iy})",
+                             [uid, *who[:1]], cells=int(behind.sum()), fraction=frac, quiet_since=self._quiet_since)
+                self._reported_window = self._quiet_since
+
+
 class JoinerCatchUpChecker(_LiveChecker):
     """Liveness for late joiners: within ``bound_s`` of joining, a UAV knows (last-seen >=) every
     cell its radio neighbours at join time knew then (``tolerance``: fraction allowed to lag).
     Judged only if, all along, it could talk to one of those neighbours and no link fault or
     partition was active, and on a radio that loses nothing by itself (as map agreement):
-    otherwise the obligation lapses."""
+    otherwise the obligation lapses. With a knowledge horizon only the cells within ``H - slack``
+    of the joiner are owed (``slack``: the largest detection radius plus the farthest it flies in
+    ``bound_s``; see MapAgreementChecker)."""
 
     name = "joiner_catch_up"
 
@@ -859,6 +935,8 @@ class JoinerCatchUpChecker(_LiveChecker):
                     del self._pending[uid]
                 continue
             behind = self._maps([uid])[uid] < target
+            if not math.isinf(ctx.scenario.radio.horizon_m):  # only what its horizon holds is owed
+                behind &= self._near(poses[uid], self._horizon_reach(self.bound_s))
             frac = float(behind.mean())
             if frac <= self.tolerance:
                 del self._pending[uid]
@@ -1139,6 +1217,11 @@ class Monitor:
     def raise_if(self) -> None:
         if self.violations:
             raise InvariantViolation(self.violations)
+
+    @property
+    def unchecked(self) -> dict[str, str]:
+        """Checkers that could not judge the run, with why (e.g. ``radio`` on a summary log)."""
+        return {c.name: c.unchecked for c in self.checkers if c.unchecked is not None}
 
     def by_name(self, name: str) -> Checker:
         for c in self.checkers:
