@@ -15,9 +15,10 @@ The estimate is an upper bound of the big arrays, not of Python's overhead:
   UAV's own swath over the run plus the swaths of the UAVs it can hear (within radio range),
   at most the whole grid, rounded up to whole tiles;
 * DACMP's maintained pyramids (:mod:`agents.planners.dacmp.maintained`), one per UAV map:
-  float32 ``E`` and levels 1..L, dense on dense grids (4 + 4/3 bytes a cell per UAV), else in
-  tiles near what the map has seen: about :data:`PYRAMID_PER_MAP_BYTE` bytes per byte of the
-  UAV's map tiles (measured: 1.4 on bench-100), plus the particles' windows of one batch
+  float32 ``E`` and levels 1..L, dense on dense grids (4 + 4/3 bytes a cell per UAV), else
+  levels only (``E`` is read from the map), in tiles near what the map has seen: at most
+  :data:`PYRAMID_PER_MAP_BYTE` bytes per byte of the UAV's map tiles (measured: 0.38 on
+  bench-100), plus the particles' windows of one batch
   (every UAV's levels within ``ring_max_factor`` detection radii of it, float32);
 * per UAV, a mailbox of the frames of one tick (one from each UAV it hears, at most
   ``radio.mailbox_capacity``, of a typical size).
@@ -38,10 +39,10 @@ __all__ = ["MemoryEstimate", "MemoryLimitError", "check_memory", "default_limit_
 
 _GB = 1024**3
 _TYPICAL_FRAME_BYTES = 512  # a beacon (hello, intent, a few scans) is 150-400 bytes
-# Bytes of a tiled map's maintained DACMP pyramid per byte of the map's tiles: E has the map's
-# tiles, the levels a third of that or more (their tiles reach one cell past the seen ones).
-# Counted generously (bench-100 measures 1.37 after 200 s).
-PYRAMID_PER_MAP_BYTE = 2.0
+# Bytes of a tiled map's maintained DACMP pyramid per byte of the map's tiles: its levels (E is
+# not stored), a third of the map's cells or more (their tiles reach one cell past the seen
+# ones). Counted generously (bench-100 measures 0.38 after 200 s).
+PYRAMID_PER_MAP_BYTE = 0.75
 
 
 class MemoryLimitError(SwarmError, MemoryError):

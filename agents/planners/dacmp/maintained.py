@@ -35,15 +35,23 @@ differ by float rounding only: ``tests/test_maintained_pyramid.py`` checks ``|di
 2e-6`` (q and its levels lie in [0, 1]; float32 rounding is 6e-8 per operation).
 
 Guide point (eq. 20). A sub-area's mean ``q`` is ``1 - s * sum(E) / cells``. The sums of ``E``
-are kept per *chunk*: the grid is cut along the sub-area edges and every 64 cells (the map's
-tile edges when tiled), and a changed chunk's float64 sum is recomputed from ``E`` (so sums are
-exact functions of ``E`` too, not drifting running totals). A never-seen sub-area sums to 0 and
-has mean exactly 1: exact ties stay ties.
+are kept per *chunk*: the sub-areas of a dense map, the pieces of the sub-areas cut at the tile
+edges of a tiled one (only chunks with seen cells are listed). A changed chunk's sum is
+recomputed from ``E`` (numpy's pairwise float32 sum: relative error about 1e-7), and its
+sub-area's sum is the exactly rounded sum of its chunks' (``math.fsum``), so the sums are
+exact functions of ``E`` too, not drifting running totals. A never-seen sub-area sums to 0
+and has mean exactly 1: exact ties stay ties.
 
-Storage. Each level is a :class:`Plane`: one dense float32 array for a dense map, else lazily
-allocated tiles (absent = 0: never seen near there), so a tiled map's pyramid costs memory in
-proportion to the tiles it has allocated (``E``: the map's tiles; level ``l``: tiles of
-``max(16, 64 >> l)`` cells a side, about a third more in all), not to the area.
+Storage. Each level is a :class:`Plane`: one dense float32 array for a dense map (``E`` too:
+16/3 bytes a cell in all), else lazily allocated tiles of ``max(16, 64 >> l)`` cells a side
+(absent = 0: never seen near there), and ``E`` of a tiled map is not stored but computed from
+the map's last-seen times where a level update reads it (:class:`SeenPlane`). So a tiled map's
+pyramid costs memory in proportion to the tiles the map has allocated (about 0.4 times them),
+not to the area.
+
+The planner reads the levels only in a window around each UAV
+(:class:`agents.planners.dacmp.planner._Layers`): eq. 19 is ``sum(lambda) - s sum_l lambda_l
+P_l`` at the particles' cells.
 """
 
 from __future__ import annotations
@@ -162,6 +170,32 @@ class Plane:
             tile[a - y0 : b - y0, c - x0 : e - x0] = piece
 
 
+class SeenPlane(Plane):
+    """``E`` of a tiled map, not stored: read from the map's last-seen times as needed (it is
+    element-wise in them), so a huge map's pyramid stores only its levels."""
+
+    __slots__ = ("umap", "t0")
+
+    def __init__(self, umap: UncertaintyMap):
+        super().__init__(umap.grid.shape, umap.tile_shape)
+        self.umap = umap
+        self.t0 = 0.0
+
+    @property
+    def nbytes(self) -> int:
+        return 0
+
+    def read(self, r0: int, r1: int, c0: int, c1: int, out: np.ndarray | None = None) -> np.ndarray:
+        e = e_of(self.umap.region(slice(r0, r1), slice(c0, c1)), self.umap.tau, self.t0)
+        if out is None:
+            return e
+        out[...] = e
+        return out
+
+    def write(self, r0: int, c0: int, values: np.ndarray) -> None:
+        raise TypeError("E of a tiled map is read from the map, not written")
+
+
 @functools.lru_cache(maxsize=256)
 def _reflected(lo: int, hi: int, n: int) -> tuple[np.ndarray, int, int]:
     """Indices ``lo..hi-1`` reflected into ``0..n-1`` (scipy.ndimage 'reflect', period 2n),
@@ -247,9 +281,8 @@ Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
 
 def _merged(rects: list[Rect]) -> list[Rect]:
     """The rectangles with overlapping ones merged into their bounding box (when that box is
-    not much larger than the two: an L-shaped swath stays two boxes), in one pass against the
-    boxes kept so far, then again until none merge. A cell in two boxes is computed twice, to
-    the same value: merging only saves work."""
+    not much larger than what it merges: an L-shaped swath stays two boxes). A cell in two
+    boxes is computed twice, to the same value: merging only saves work."""
     out: list[list[int]] = []
     for r0, r1, c0, c1 in rects:
         for box in out:
@@ -276,7 +309,8 @@ class MaintainedPyramid:
     :meth:`update` brings it to a planning time and returns ``s``."""
 
     __slots__ = ("umap", "levels", "shapes", "planes", "t0", "s", "regions", "row_edges", "col_edges",
-                 "_chunk_rows", "_chunk_cols", "_chunk_sums", "_block_rows", "_block_cols", "_block_cells")
+                 "_chunk_rows", "_chunk_cols", "_chunk_sums", "_chunk_block_row", "_chunk_block_col", "_block_rows",
+                 "_block_cols", "_block_sums", "_block_cells")
 
     def __init__(self, umap: UncertaintyMap, levels: int):
         self.umap = umap
@@ -288,9 +322,11 @@ class MaintainedPyramid:
             th, tw = h, w  # guide sums per sub-area (no finer chunks: one sum per changed sub-area)
         else:
             th, tw = umap.tile_shape
-            tiles = [(th, tw)] + [(max(_MIN_LEVEL_TILE, th >> l), max(_MIN_LEVEL_TILE, tw >> l))
-                                  for l in range(1, len(self.shapes))]
+            tiles = [(th, tw)]
+            tiles += [(max(_MIN_LEVEL_TILE, th >> l), max(_MIN_LEVEL_TILE, tw >> l)) for l in range(1, len(self.shapes))]
         self.planes = [Plane(shape, tile) for shape, tile in zip(self.shapes, tiles)]
+        if not umap.dense:
+            self.planes[0] = SeenPlane(umap)
         self.t0: float | None = None
         self.s = 1.0
         # The guide's sub-areas: the coarsest level with >= 4 x 4 cells (eq. 20).
@@ -300,9 +336,14 @@ class MaintainedPyramid:
         self.col_edges = tuple(np.linspace(0, w, nx + 1).round().astype(np.intp).tolist())
         self._chunk_rows = _edges(h, th, self.row_edges)
         self._chunk_cols = _edges(w, tw, self.col_edges)
-        self._chunk_sums = np.zeros((len(self._chunk_rows) - 1, len(self._chunk_cols) - 1))
-        self._block_rows = [self._chunk_rows.index(r) for r in self.row_edges[:-1]]
-        self._block_cols = [self._chunk_cols.index(c) for c in self.col_edges[:-1]]
+        # Sums of E: per chunk (only chunks with seen cells are listed), and per sub-area the
+        # exactly rounded sum of its chunks' (math.fsum: independent of order).
+        self._chunk_sums: dict[tuple[int, int], float] = {}
+        self._block_rows = [self._chunk_rows.index(r) for r in self.row_edges]  # chunk row of each sub-area edge
+        self._block_cols = [self._chunk_cols.index(c) for c in self.col_edges]
+        self._chunk_block_row = [bisect.bisect_right(self._block_rows, i) - 1 for i in range(len(self._chunk_rows) - 1)]
+        self._chunk_block_col = [bisect.bisect_right(self._block_cols, j) - 1 for j in range(len(self._chunk_cols) - 1)]
+        self._block_sums = np.zeros((ny, nx))
         self._block_cells = np.outer(np.diff(self.row_edges), np.diff(self.col_edges)).astype(np.float64)
 
     @classmethod
@@ -318,7 +359,8 @@ class MaintainedPyramid:
 
     @property
     def nbytes(self) -> int:
-        return sum(p.nbytes for p in self.planes) + self._chunk_sums.nbytes
+        # (the chunk dict: about 100 bytes an entry)
+        return sum(p.nbytes for p in self.planes) + self._block_sums.nbytes + 100 * len(self._chunk_sums)
 
     def update(self, t: float) -> float:
         """Bring ``E`` and the levels up to date with the map for a plan at ``t``; returns
@@ -330,7 +372,8 @@ class MaintainedPyramid:
             self.t0 = t0
             for p in self.planes:
                 p.clear()
-            self._chunk_sums.fill(0.0)
+            self._chunk_sums.clear()
+            self._block_sums.fill(0.0)
             self._apply(self.umap.written_boxes(), whole=self.umap.dense)
         elif changes:
             self._apply(changes, whole=False)
@@ -349,19 +392,33 @@ class MaintainedPyramid:
             return
         chunks: set[tuple[int, int]] = set()
         cr, ccl = self._chunk_rows, self._chunk_cols
-        # E of all boxes in one go (their last-seen times side by side in one flat array).
-        seen = [umap.region(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in boxes]
-        flat = e_of(np.concatenate([a.ravel() for a in seen]) if len(seen) > 1 else seen[0], tau, t0).ravel()
-        at = 0
-        for (r0, r1, c0, c1), a in zip(boxes, seen):
-            planes[0].write(r0, c0, flat[at : at + a.size].reshape(a.shape))
-            at += a.size
+        e = planes[0]
+        if isinstance(e, SeenPlane):
+            e.t0 = t0  # (read from the map as needed)
+        else:
+            # E of all boxes in one go (their last-seen times side by side in one flat array).
+            seen = [umap.region(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in boxes]
+            flat = e_of(np.concatenate([a.ravel() for a in seen]) if len(seen) > 1 else seen[0], tau, t0).ravel()
+            at = 0
+            for (r0, _, c0, _), a in zip(boxes, seen):
+                e.write(r0, c0, flat[at : at + a.size].reshape(a.shape))
+                at += a.size
+        for r0, r1, c0, c1 in boxes:
             for i in range(bisect.bisect_right(cr, r0) - 1, bisect.bisect_left(cr, r1)):
                 for j in range(bisect.bisect_right(ccl, c0) - 1, bisect.bisect_left(ccl, c1)):
                     chunks.add((i, j))
-        e = planes[0]
+        sums, blocks = self._chunk_sums, set()
         for i, j in chunks:
-            self._chunk_sums[i, j] = e.read(cr[i], cr[i + 1], ccl[j], ccl[j + 1]).sum(dtype=np.float64)
+            v = float(e.read(cr[i], cr[i + 1], ccl[j], ccl[j + 1]).sum())  # (float32, pairwise: error ~1e-7)
+            if v:
+                sums[i, j] = v
+            else:
+                sums.pop((i, j), None)
+            blocks.add((self._chunk_block_row[i], self._chunk_block_col[j]))
+        br, bc = self._block_rows, self._block_cols
+        for bi, bj in blocks:
+            self._block_sums[bi, bj] = math.fsum(sums.get((i, j), 0.0) for i in range(br[bi], br[bi + 1])
+                                                 for j in range(bc[bj], bc[bj + 1]))
         dense = umap.dense
         for l in range(1, len(self.shapes)):
             m, mw = self.shapes[l]
@@ -393,5 +450,4 @@ class MaintainedPyramid:
     def block_means(self) -> np.ndarray:
         """Mean ``q`` over each of the guide's sub-areas, ``(ny, nx)`` float64:
         ``1 - s sum(E) / cells``."""
-        sums = np.add.reduceat(np.add.reduceat(self._chunk_sums, self._block_rows, axis=0), self._block_cols, axis=1)
-        return 1.0 - self.s * (sums / self._block_cells)
+        return 1.0 - self.s * (self._block_sums / self._block_cells)
