@@ -14,9 +14,12 @@ The estimate is an upper bound of the big arrays, not of Python's overhead:
   per UAV); on larger grids, 64 x 64-cell float32 tiles allocated where a map was written: a
   UAV's own swath over the run plus the swaths of the UAVs it can hear (within radio range),
   at most the whole grid, rounded up to whole tiles;
-* DACMP's whole-map reads: q and the pyramid of a map (float32 q and float64 levels: about 16
-  bytes a cell), and the float32 pyramid levels of every UAV that replans in one batch (all of
-  them at t = 0: 4/3 bytes a cell each);
+* DACMP's maintained pyramids (:mod:`agents.planners.dacmp.maintained`), one per UAV map:
+  float32 ``E`` and levels 1..L, dense on dense grids (4 + 4/3 bytes a cell per UAV), else
+  levels only (``E`` is read from the map), in tiles near what the map has seen: at most
+  :data:`PYRAMID_PER_MAP_BYTE` bytes per byte of the UAV's map tiles (measured: 0.38 on
+  bench-100), plus the particles' windows of one batch
+  (every UAV's levels within ``ring_max_factor`` detection radii of it, float32);
 * per UAV, a mailbox of the frames of one tick (one from each UAV it hears, at most
   ``radio.mailbox_capacity``, of a typical size).
 """
@@ -36,6 +39,10 @@ __all__ = ["MemoryEstimate", "MemoryLimitError", "check_memory", "default_limit_
 
 _GB = 1024**3
 _TYPICAL_FRAME_BYTES = 512  # a beacon (hello, intent, a few scans) is 150-400 bytes
+# Bytes of a tiled map's maintained DACMP pyramid per byte of the map's tiles: its levels (E is
+# not stored), a third of the map's cells or more (their tiles reach one cell past the seen
+# ones). Counted generously (bench-100 measures 0.38 after 200 s).
+PYRAMID_PER_MAP_BYTE = 0.75
 
 
 class MemoryLimitError(SwarmError, MemoryError):
@@ -80,10 +87,18 @@ def estimate_memory(sc: Scenario) -> MemoryEstimate:
             total += min(float(tiles_total), own_tiles * heard) * tile_cells * 4.0
         parts["UAV maps (tiles)"] = total
     if sc.planner.name == "dacmp":
-        parts["DACMP map reads (16 B a cell)"] = 16.0 * cells
-        # Every UAV replans at t = 0, in one batch: the float32 pyramid levels 1..L of every
-        # map at once (a third of the cells each: 1/4 + 1/16 + ...).
-        parts["DACMP pyramid levels of one batch"] = n * 4.0 * cells / 3.0
+        if cells <= _DENSE_MAX_CELLS:
+            parts["DACMP pyramids (dense, 16/3 B a cell per UAV)"] = n * cells * 16.0 / 3.0
+        else:
+            parts["DACMP pyramids (tiles)"] = PYRAMID_PER_MAP_BYTE * parts["UAV maps (tiles)"]
+        # Every UAV replans at t = 0, in one batch: its levels in a window of side 2 r_max + a
+        # margin (level l: that over 2**l cells a side, at least a few cells).
+        ring = float(sc.planner.dacmp.ring_max_factor)
+        window = 0.0
+        for u in sc.uavs:
+            side = 2 * ring * sc.uav_types[u.type].detect_radius_m / sc.area.cell_m + 4
+            window += sum(4.0 * (side / 2**l + 3) ** 2 for l in range(1, sc.map.levels + 1))
+        parts["DACMP particle windows of one batch"] = window
     # Mailboxes are drained every tick: at most a frame from each other UAV, of a typical size.
     parts["mailboxes"] = float(n * min(sc.radio.mailbox_capacity, n) * _TYPICAL_FRAME_BYTES)
     return MemoryEstimate(cells, parts)

@@ -8,7 +8,6 @@ float comparisons, so "close" is not enough: every comparison here is on the raw
 from __future__ import annotations
 
 import math
-import types
 
 import numpy as np
 import pytest
@@ -17,11 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.lib.stride_tricks import as_strided
 
-from agents.maps.grid import Grid
-from agents.maps.umap import UncertaintyMap
-from agents.planners.dacmp import planner as dacmp
 from agents.planners.dacmp.dubins import DubinsPoses, dubins_length
-from agents.planners.dacmp.planner import DacmpPlanner, _Layers
+from agents.planners.dacmp.planner import DacmpPlanner
 from agents.planners.dacmp.pyramid import Scratch, gaussian_pyramid, level_index, level_shapes, pyr_down, pyr_down_stack
 
 
@@ -200,50 +196,7 @@ def test_scratch_reuses_and_grows():
     assert c.shape == (100,)
 
 
-# --- the planner's map work ------------------------------------------------------------------
-
-def _views(rng, grid, n, t=900.0):
-    views = []
-    for i in range(n):
-        seen = rng.uniform(0.0, t, grid.shape).astype(np.float32)
-        seen[rng.random(grid.shape) < 0.3] = -np.inf
-        seen[rng.random(grid.shape) < 0.02] = t
-        views.append(types.SimpleNamespace(
-            grid=grid, umap=UncertaintyMap(grid, 1 / 600, seen), t=t, x=float(rng.uniform(0, grid.width_m)),
-            y=float(rng.uniform(0, grid.height_m)), theta=float(rng.uniform(-4, 4)), rng=np.random.default_rng(i)))
-    return views
-
-
-@settings(max_examples=examples(40), deadline=None)
-@given(nx=st.integers(1, 90), ny=st.integers(1, 90), n=st.integers(1, 4), levels=st.integers(0, 8),
-       weights=st.booleans(), seed=st.integers(0, 2**32 - 1), one_at_a_time=st.booleans())
-def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weights, seed, one_at_a_time):
-    rng = np.random.default_rng(seed)
-    grid = Grid(nx * 100.0, ny * 100.0, 100.0)
-    planner = DacmpPlanner(levels=levels, level_weights=tuple(rng.uniform(0.1, 3.0, 9)) if weights else None)
-    _Layers(planner, _views(rng, grid, 3))  # leaves other numbers in the planner's buffers
-    views = _views(rng, grid, n)
-    stack_cells = dacmp._STACK_CELLS
-    if one_at_a_time:  # levels reduced one UAV at a time, as on huge grids
-        dacmp._STACK_CELLS = 1
-    try:
-        layers = _Layers(planner, views)
-    finally:
-        dacmp._STACK_CELLS = stack_cells
-    pts = rng.uniform(-300.0, max(nx, ny) * 100.0 + 300.0, (2, n, 17))
-    ix, iy = grid.cells_of(pts[0], pts[1])
-    base, lam = layers.operands(list(range(n)), 17)
-    got = layers.level_sum(base, lam, (pts[0] // grid.cell_m).astype(np.int64), (pts[1] // grid.cell_m).astype(np.int64))
-    shapes = level_shapes(grid.shape, levels + 1)
-    regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
-    for i, v in enumerate(views):
-        q = v.umap.uncertainty(v.t)
-        pyr = gaussian_pyramid(q, levels + 1)
-        search = list(enumerate(pyr))[1:] or [(0, pyr[0])]
-        assert same(got[i], ref_level_sum(search, planner._weights(len(search)), iy[i], ix[i]))
-        tie_key = np.random.default_rng(i).random(9)
-        assert layers.guides[i] == ref_guide_point(q, regions, grid.cell_m, v.x, v.y, v.theta, tie_key=tie_key)
-
+# --- the planner's guide point (its layers: tests/test_maintained_pyramid.py) ------------------
 
 @settings(max_examples=examples(300), deadline=None)
 @given(h=st.integers(1, 60), w=st.integers(1, 60), ny=st.integers(1, 6), nx=st.integers(1, 6),

@@ -21,8 +21,9 @@ A map made after the base holds a scan starts on its own (it lacks what the base
 
 Reading a member's cells builds them from the base and its extra scans: whole maps into a
 buffer the map keeps (rebuilt only after it changed), a few cells (``q_at``) or a region
-(:meth:`UncertaintyMap.region`) directly. :mod:`agents.planners.dacmp.pyramid_reuse` plans from the base:
-members differ from it only inside their extra scans' disks.
+(:meth:`UncertaintyMap.region`) directly. A member's content changes only when it stamps a
+scan (moving a scan into the base changes no member's cells), so the boxes it records for
+:meth:`UncertaintyMap.take_changes` are its own stamps' disks, as for an ordinary map.
 """
 
 from __future__ import annotations
@@ -176,6 +177,8 @@ class GroupMap(UncertaintyMap):
         self.tile_shape, self.dense = base.tile_shape, True
         self._nty = self._ntx = 1
         self._tiles = {}  # the built cells (a buffer), or the map's own array once it left
+        self._changes = None  # UncertaintyMap.track_changes
+        self.derived = None
         self._writes = 0  # stamps while a member: the built cells are current while it is unchanged
         self._group = group
         self._extra: Extra | None = {}  # key -> (disk, t); None: left
@@ -197,6 +200,8 @@ class GroupMap(UncertaintyMap):
         if self._extra is None or d.key is None:
             self._leave()
             return super().stamp(d, t)
+        if self._changes is not None:
+            self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         self._writes += 1
         self._group._add(self._extra, (d.key, t), d, t)
 

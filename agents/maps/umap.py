@@ -33,6 +33,12 @@ DEFAULT_TILE = 64
 DENSE_MAX_CELLS = 1 << 20
 
 
+# Writes recorded for take_changes() beyond this many stand for "everything" (a map written that
+# often between two reads is reread from its storage).
+MAX_CHANGES = 4096
+_TOO_MANY: list[tuple[int, int, int, int]] = []  # (identity only: never appended to)
+
+
 # The ``tile`` argument of UncertaintyMap: None, "dense", a size, or (rows, cols).
 TileSpec = None | str | int | np.integer | tuple[int, int]
 
@@ -66,7 +72,7 @@ class UncertaintyMap:
     ``(ny, nx)`` array to start from (copied).
     """
 
-    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles")
+    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles", "_changes", "derived")
 
     def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None, *, tile: TileSpec = None):
         self.grid = grid
@@ -84,6 +90,8 @@ class UncertaintyMap:
         # tile key ty * ntx + tx -> float32 cells (dense: the (ny, nx) grid; tiled: th * tw flat,
         # row-major); an absent tile is all -inf.
         self._tiles: dict[int, np.ndarray] = {}
+        self._changes: list[tuple[int, int, int, int]] | None = None  # track_changes()
+        self.derived: object = None  # what a consumer of take_changes() keeps with the map
         if dense:
             if last_seen is not None:
                 self._tiles[0] = np.array(last_seen, dtype=np.float32)
@@ -116,6 +124,48 @@ class UncertaintyMap:
         self._materialize()
         return sum(a.nbytes for a in self._tiles.values())
 
+    # --- change tracking --------------------------------------------------------------------
+
+    def track_changes(self) -> None:
+        """From now on, record the boxes of cells every write may have changed, for
+        :meth:`take_changes` (one consumer: :mod:`agents.planners.dacmp.maintained` keeps a
+        pyramid updated from them in :attr:`derived`)."""
+        self._changes = []
+
+    def take_changes(self) -> list[tuple[int, int, int, int]] | None:
+        """The boxes ``(r0, r1, c0, c1)`` (rows ``r0:r1``, columns ``c0:c1``) written since the
+        last call (or :meth:`track_changes`), and start afresh; None when they are not known
+        (not tracking, or more than :data:`MAX_CHANGES` writes: reread everything)."""
+        changes = self._changes
+        if changes is None:
+            return None
+        self._changes = []
+        return None if changes is _TOO_MANY else changes
+
+    def _changed(self, r0: int, r1: int, c0: int, c1: int) -> None:
+        """Record a write of cells ``[r0:r1, c0:c1]`` (called only while tracking)."""
+        changes = self._changes
+        if changes is _TOO_MANY:
+            return
+        if len(changes) < MAX_CHANGES:  # type: ignore[arg-type]
+            changes.append((r0, r1, c0, c1))  # type: ignore[union-attr]
+        else:
+            self._changes = _TOO_MANY
+
+    def written_boxes(self) -> list[tuple[int, int, int, int]]:
+        """Boxes covering every cell ever written: the whole grid of a dense map, else the
+        allocated tiles (clipped to the grid)."""
+        self._materialize()
+        ny, nx = self.grid.shape
+        if self.dense:
+            return [(0, ny, 0, nx)]
+        th, tw = self.tile_shape
+        out = []
+        for key in sorted(self._tiles):
+            ty, tx = divmod(key, self._ntx)
+            out.append((ty * th, min(ny, (ty + 1) * th), tx * tw, min(nx, (tx + 1) * tw)))
+        return out
+
     # --- writes -----------------------------------------------------------------------------
 
     def scan(self, x: float, y: float, radius: float, t: float) -> int:
@@ -128,6 +178,8 @@ class UncertaintyMap:
     def scan_disk(self, d: Disk, t: float) -> int:
         """Apply a scan whose disk is ``d`` (from ``grid.disk_stamp``) at ``t``; returns cells changed."""
         t32 = np.float32(t)
+        if self._changes is not None:
+            self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
             newer = d.mask & (view < t32)
@@ -149,6 +201,8 @@ class UncertaintyMap:
     def stamp(self, d: Disk, t: float) -> None:
         """:meth:`scan_disk` without the count: one ``maximum`` with the disk's shared
         ``where(mask, t, -inf)`` per tile piece (the fast path for heard scan records)."""
+        if self._changes is not None:
+            self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
             memo = d._vmemo  # Disk.values() memo, inlined (the per-receiver hot path)
@@ -167,6 +221,8 @@ class UncertaintyMap:
 
     def cover(self, d: Disk, t: float) -> int:
         """Like :meth:`stamp`, but returns how many of the disk's cells had never been seen."""
+        if self._changes is not None:
+            self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
             new = int(np.count_nonzero(d.mask & (view == NEVER)))
@@ -192,6 +248,9 @@ class UncertaintyMap:
             if other.grid.shape != self.grid.shape:
                 raise ValueError(f"cannot merge a {other.grid.shape} map into a {self.grid.shape} map")
             if other.tile_shape == self.tile_shape and other.dense == self.dense:
+                if self._changes is not None:
+                    for box in other.written_boxes():
+                        self._changed(*box)
                 for key, theirs in list(other._tiles.items()):
                     mine = self._tiles.get(key)
                     if mine is None:
@@ -202,6 +261,8 @@ class UncertaintyMap:
             theirs = other.to_dense()
         else:
             theirs = np.broadcast_to(np.asarray(other), self.grid.shape)
+        if self._changes is not None:
+            self._changes = _TOO_MANY  # any cell may have changed
         if self.dense:
             mine = self._tiles[0]
             np.maximum(mine, theirs, out=mine)
@@ -232,6 +293,8 @@ class UncertaintyMap:
         new.dense = self.dense
         new._nty, new._ntx = self._nty, self._ntx
         new._tiles = {k: v.copy() for k, v in self._tiles.items()}
+        new._changes = None  # (a new map: nobody tracks it yet)
+        new.derived = None
         return new
 
     # --- reads ------------------------------------------------------------------------------

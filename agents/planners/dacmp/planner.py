@@ -42,8 +42,8 @@ import numpy as np
 
 from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses
-from agents.planners.dacmp.pyramid import Scratch, level_index, level_shapes, pyr_down_stack
-from agents.planners.dacmp.pyramid_reuse import FirstLevels
+from agents.planners.dacmp.maintained import MaintainedPyramid
+from agents.planners.dacmp.pyramid import Scratch, level_index, level_shapes
 from agents.planners.dacmp.settings import DacmpSettings
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
@@ -52,8 +52,6 @@ if TYPE_CHECKING:
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0
-# Pyramid levels of several UAVs are reduced together up to this many cells of input at a time.
-_STACK_CELLS = 1 << 21
 
 
 @dataclass(frozen=True)
@@ -69,7 +67,6 @@ class DacmpPlanner(DacmpSettings):
     name: str = "dacmp"
     # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
     _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
-    _first_levels: FirstLevels = field(default_factory=FirstLevels, init=False, repr=False, compare=False)
 
     @classmethod
     def from_context(cls, context: PlannerContext) -> DacmpPlanner:
@@ -132,6 +129,22 @@ class DacmpPlanner(DacmpSettings):
         c0, c1 = cols[x0], cols[x1]
         strips = np.stack([q[rows[i] : rows[i + 1], c0:c1].sum(axis=0, dtype=np.float64) for i in range(y0, y1)])
         sums = np.add.reduceat(strips, [c - c0 for c in cols[x0:x1]], axis=1)
+        sizes = np.outer(np.diff(rows[y0 : y1 + 1]), np.diff(cols[x0 : x1 + 1]))
+        means = np.zeros((ny, nx))
+        means[y0:y1, x0:x1] = sums / sizes
+        return DacmpPlanner.pick_guide(means, rows, cols, cell_m, x, y, theta, tie_tol, tie_key)
+
+    @staticmethod
+    def pick_guide(means: np.ndarray, rows: tuple[int, ...], cols: tuple[int, ...], cell_m: float, x: float, y: float,
+                   theta: float, tie_tol: float = 0.0, tie_key: np.ndarray | None = None) -> tuple[float, float] | None:
+        """The choice of :meth:`guide_point` from the sub-areas' mean ``q`` (``means``, ``(ny,
+        nx)``; only the UAV's sub-area's neighbours are read) and their row and column edges in
+        cells."""
+        ny, nx = means.shape
+        if ny < 2 and nx < 2:
+            return None
+        ry, _, _ = _neighbour_blocks(rows, ny, y / cell_m)
+        rx, _, _ = _neighbour_blocks(cols, nx, x / cell_m)
         cands = []
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
@@ -143,8 +156,7 @@ class DacmpPlanner(DacmpSettings):
                         key = abs(math.remainder(math.atan2(cy - y, cx - x) - theta, 2 * math.pi))
                     else:
                         key = float(tie_key[(dy + 1) * 3 + dx + 1])
-                    mean = float(sums[yy - y0, xx - x0]) / ((rows[yy + 1] - rows[yy]) * (cols[xx + 1] - cols[xx]))
-                    cands.append((mean, key, cx, cy))
+                    cands.append((float(means[yy, xx]), key, cx, cy))
         if not cands:
             return None
         best = max(c[0] for c in cands)
@@ -249,8 +261,8 @@ class DacmpPlanner(DacmpSettings):
         if type(self).plan is not DacmpPlanner.plan:  # a subclass with its own plan(): honour it
             return [self.plan(v) for v in views]
         g = views[0].grid
-        layers = _Layers(self, views)
-        uavs = [_UavSearch.build(self, v, slot, guide) for slot, (v, guide) in enumerate(zip(views, layers.guides))]
+        uavs = [_UavSearch.build(self, v, slot) for slot, v in enumerate(views)]
+        layers = _Layers(self, uavs)  # (sets every UAV's guide point)
         plans: list[Plan | None] = [None] * len(uavs)
         for i, u in enumerate(uavs):
             plans[i] = self._keep(u, g, layers)
@@ -345,7 +357,7 @@ class _Batch:
         self.area = np.stack([np.full(shape, grid.width_m), np.full(shape, grid.height_m)])
         self.R = column([u.R for u in uavs])
         self.r_max = column([u.r_max for u in uavs])
-        self.layer_base, self.layer_weights = layers.operands([u.slot for u in uavs], points)
+        self.layer_base, self.layer_weights, self.layer_scale = layers.operands([u.slot for u in uavs], points)
         self.guided = [i for i, u in enumerate(uavs) if u.guide is not None]
         gax = column([u.guide[0] - u.view.x if u.guide is not None else 0.0 for u in uavs])
         gay = column([u.guide[1] - u.view.y if u.guide is not None else 0.0 for u in uavs])
@@ -365,7 +377,7 @@ class _Batch:
         planner, g = self.planner, self.grid
         # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers).
         cells = (z // g.cell_m).astype(np.int64)
-        p_sum = self.layers.level_sum(self.layer_base, self.layer_weights, cells[0], cells[1])
+        p_sum = self.layers.level_sum(self.layer_base, self.layer_weights, self.layer_scale, cells[0], cells[1])
         d = z - self.p0  # from the UAV
         dub = self.dubins.lengths(d)
         R = self.R
@@ -430,17 +442,16 @@ class _UavSearch:
     D: float
     v_i: float
     slot: int  # the UAV's index in the _Layers of the plan_many call (its map's pyramid)
-    guide: tuple[float, float] | None
     targets: list[tuple[int, float, float, float]]
     rivals: list[tuple[float, float, float, tuple[int, ...], int]]  # DacmpPlanner.rivals
     threats: list
+    guide: tuple[float, float] | None = None  # set by _Layers
     ring_radius: np.ndarray | None = None  # draw(): only a UAV that runs PSO draws these
     ring_angle: np.ndarray | None = None
     pso_draws: np.ndarray | None = None  # (iterations, 3, particles): r1, r2 and Q of eq. 15
 
     @classmethod
-    def build(cls, planner: DacmpPlanner, view: PlanView, slot: int,
-              guide: tuple[float, float] | None) -> _UavSearch:
+    def build(cls, planner: DacmpPlanner, view: PlanView, slot: int) -> _UavSearch:
         """Everything but the map work (done for the whole batch by :class:`_Layers`)."""
         k = view.kind
         R = k.detect_radius
@@ -457,7 +468,7 @@ class _UavSearch:
                     targets.append((tid, tx, ty, tr.value))
         rivals = planner.rivals(view, targets, k.influence_radius)
         return cls(view, R, r_max, k.r_min(view.v), k.influence_radius, k.speed_max / planner.field_unit_m,
-                   slot, guide, targets, rivals, list(view.knowledge.threats.values()))
+                   slot, targets, rivals, list(view.knowledge.threats.values()))
 
     def draw(self, planner: DacmpPlanner) -> None:
         """The rest of the UAV's draws, in the one-UAV order: ring radii, ring angles, then per
@@ -514,10 +525,11 @@ def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, 
     return i, max(i - 1, 0), min(i + 2, n)
 
 
-@functools.lru_cache(maxsize=16)
-def _cell_parts(ny: int, nx: int, search: tuple[int, ...], shapes: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray]:
-    """``_Layers.row_part`` and ``col_part`` of a grid (the same for every call on it; read-only)."""
-    row_part = np.stack([np.minimum(level_index(np.arange(ny), l), shapes[l][0] - 1) * shapes[l][1] for l in search])
+@functools.lru_cache(maxsize=64)
+def _cell_parts(ny: int, nx: int, search: tuple[int, ...], shapes: tuple[tuple[int, int], ...],
+                widths: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``_Layers.row_part`` and ``col_part`` of a grid and window widths (read-only)."""
+    row_part = np.stack([np.minimum(level_index(np.arange(ny), l), shapes[l][0] - 1) * wd for l, wd in zip(search, widths)])
     col_part = np.stack([np.minimum(level_index(np.arange(nx), l), shapes[l][1] - 1) for l in search])
     row_part.flags.writeable = False
     col_part.flags.writeable = False
@@ -533,90 +545,90 @@ def _sub_areas(h: int, w: int, ny: int, nx: int) -> tuple[tuple[int, ...], tuple
 
 
 class _Layers:
-    """The map work of one :meth:`DacmpPlanner.plan_many` call: every UAV's uncertainty map,
-    global guide point and eq. 19 layers.
+    """The map work of one :meth:`DacmpPlanner.plan_many` call: every UAV's global guide point
+    and the eq. 19 layers its particles can reach.
 
-    Eq. 19 sums layers 1..L (a map too small for even one layer falls back on G_0). They are
-    kept for all UAVs in one flat float32 buffer, level by level and UAV by UAV within a level,
-    so that the level sums of all particles of all UAVs are one gather (:meth:`level_sum`),
-    without ever forming a whole map of sums. Each UAV's map is computed and reduced to G_1
-    while it is still in cache; the smaller levels are built for several UAVs together. All in
-    buffers the planner keeps between calls; each UAV gets exactly the numbers of its own map
-    alone.
+    Each UAV's map keeps its pyramid up to date itself (:class:`MaintainedPyramid`: ``G_l = 1 -
+    s P_l``, recomputed only where the map changed since its last plan). Eq. 19 sums layers
+    1..L (a map too small for even one layer falls back on G_0). For the particles, each UAV's
+    ``P_l`` are copied, only in a window around the UAV (every cell within ``r_max`` of it, one
+    cell of margin, and the cells of its targets, which :meth:`DacmpPlanner._keep` scores), into
+    one flat float32 buffer, level by level and UAV by UAV within a level, so that the level
+    sums of all particles of all UAVs are one gather (:meth:`level_sum`). The buffer is bounded
+    by the windows, not by the map: a 42 M-cell map costs what a small one does.
     """
 
-    def __init__(self, planner: DacmpPlanner, views: list[PlanView]):
+    def __init__(self, planner: DacmpPlanner, uavs: list[_UavSearch]):
+        views = [u.view for u in uavs]
         g = views[0].grid
-        scratch = planner._scratch
         n = self.count = len(views)
         shapes = level_shapes(g.shape, planner.levels + 1)  # G_0 .. G_L
-        self.search = list(range(1, len(shapes))) or [0]
-        self.lam = planner._weights(len(self.search))[:, None, None]
-        sizes = [shapes[l][0] * shapes[l][1] for l in self.search]
-        offsets = np.cumsum([0] + [n * s for s in sizes])
-        self.flat = scratch.get("layers", (int(offsets[-1]),))
-        # Flat index of UAV slot s on search level j: level_start[j] + s * sizes[j] + (cell).
-        self.level_start = offsets[:-1, None]
-        self.level_size = np.array(sizes)[:, None]
-        # Per-axis cell offsets on each search level: row part (times the level's width) and
-        # column part of the nearest coarse cell of every level-0 row / column (rounded to the
-        # nearest centre, clipped to the level: agents.planners.dacmp.pyramid.level_index).
-        self.row_part, self.col_part = _cell_parts(g.ny, g.nx, tuple(self.search), tuple(shapes))
-        # The coarsest layer with >= 4 x 4 cells sets the guide's sub-areas (eq. 20).
-        regions = next((s for s in reversed(shapes) if min(s) >= 4), shapes[0])
-        self.guides: list[tuple[float, float] | None] = []
-        first = self._level(0, shapes[self.search[0]])  # G_1 (G_0 if it is the only level)
-        maps = planner._first_levels  # q, G_1, G_2 patched from the UAVs' MapGroup base (agents.planners.dacmp.pyramid_reuse)
-        maps.start()
-        for i, view in enumerate(views):
+        self.search = search = list(range(1, len(shapes))) or [0]
+        lam = planner._weights(len(search))
+        self.lam = lam[:, None, None]
+        self.lam_total = float(np.add.reduce(lam, initial=0.0))
+        pyramids = [MaintainedPyramid.of(v.umap, planner.levels) for v in views]
+        self.scale = np.empty(n)  # s of each UAV's map
+        # Window of each UAV on each search level: rows lo..hi, columns lo..hi (inclusive).
+        win = np.empty((len(search), n, 4), np.int64)
+        for i, (u, pyr) in enumerate(zip(uavs, pyramids)):
+            view = u.view
             # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
             # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
             # formation.
             tie_key = view.rng.random(9)
+            self.scale[i] = pyr.update(view.t)
+            u.guide = planner.pick_guide(pyr.block_means(), pyr.row_edges, pyr.col_edges, g.cell_m, view.x, view.y,
+                                         view.theta, tie_key=tie_key)
+            xs = [view.x - u.r_max, view.x + u.r_max] + [tx for _, tx, _, _ in u.targets]
+            ys = [view.y - u.r_max, view.y + u.r_max] + [ty for _, _, ty, _ in u.targets]
+            cx0, cx1 = (min(max(int(math.floor(v / g.cell_m)) + d, 0), g.nx - 1) for v, d in ((min(xs), -1), (max(xs), 1)))
+            cy0, cy1 = (min(max(int(math.floor(v / g.cell_m)) + d, 0), g.ny - 1) for v, d in ((min(ys), -1), (max(ys), 1)))
+            for j, l in enumerate(search):
+                h, w = shapes[l]
+                win[j, i] = (min(level_index(cy0, l), h - 1), min(level_index(cy1, l), h - 1),
+                             min(level_index(cx0, l), w - 1), min(level_index(cx1, l), w - 1))
+        heights = win[:, :, 1] - win[:, :, 0] + 1
+        widths = (win[:, :, 3] - win[:, :, 2] + 1).max(axis=1)  # one width per level: one row table
+        sizes = heights * widths[:, None]
+        starts = np.cumsum(np.concatenate([[0], sizes.ravel()]))[:-1].reshape(sizes.shape)
+        self.flat = planner._scratch.get("layers", (int(sizes.sum()),))
+        for j, l in enumerate(search):
+            wd = int(widths[j])
+            for i, pyr in enumerate(pyramids):
+                r0, r1, c0, c1 = (int(v) for v in win[j, i])
+                block = self.flat[starts[j, i] : starts[j, i] + sizes[j, i]].reshape(r1 - r0 + 1, wd)
+                pyr.read_window(l, r0, r1 + 1, c0, c1 + 1, block[:, : c1 - c0 + 1])
+        # Flat index of a level-l cell (r, c) of UAV i's window on search level j:
+        # offset[j, i] + r * widths[j] + c.
+        self.offset = starts - win[:, :, 0] * widths[:, None] - win[:, :, 2]
+        # Per-axis parts of it: row part (times the window width) and column part of the
+        # nearest coarse cell of every level-0 row / column (rounded to the nearest centre,
+        # clipped to the level: agents.planners.dacmp.pyramid.level_index).
+        self.row_part, self.col_part = _cell_parts(g.ny, g.nx, tuple(search), tuple(shapes), tuple(widths.tolist()))
 
-            def guide(q: np.ndarray, view: PlanView = view, tie_key: np.ndarray = tie_key):
-                return planner.guide_point(q, regions, g.cell_m, view.x, view.y, view.theta, tie_key=tie_key)
-
-            if self.search[0] == 0:
-                q = scratch.get("q", (g.ny, g.nx))
-                view.umap.uncertainty(view.t, out=q)
-                np.copyto(first[i], q)
-                self.guides.append(guide(q))
-            else:
-                self.guides.append(maps.compute(view.umap, view.t, first[i], guide))
-        maps.finish()
-        # The smaller levels for several UAVs at a time (all of them on the paper's grid; few on
-        # a huge one, where one UAV's G_1 alone is megabytes and stacking saves nothing).
-        step = max(1, _STACK_CELLS // first[0].size)
-        for j in range(1, len(self.search)):
-            lower, upper = self._level(j - 1, shapes[j]), self._level(j, shapes[j + 1])
-            if j == 1 and self.search[0] == 1 and maps.reduce_g1(lower, upper, scratch):
-                continue  # G_2 patched like G_1 where the maps agree
-            for s0 in range(0, n, step):
-                pyr_down_stack(lower[s0 : s0 + step], upper[s0 : s0 + step], scratch)
-
-    def _level(self, j: int, shape: tuple[int, int]) -> np.ndarray:
-        """Search level ``j`` (of shape ``shape``) of every UAV: a ``(UAVs, h, w)`` view."""
-        start, size = int(self.level_start[j, 0]), int(self.level_size[j, 0])
-        return self.flat[start : start + size * self.count].reshape(self.count, *shape)
-
-    def operands(self, slots: list[int], points: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(base, lam)`` for :meth:`level_sum` on ``(UAVs, points)`` arrays of the UAVs in these
-        slots: the flat start of each of their search levels and the levels' weights, both
-        ``(levels, UAVs, points)`` (full size: same-shape operands keep numpy on its fast path)."""
+    def operands(self, slots: list[int], points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(base, lam, s)`` for :meth:`level_sum` on ``(UAVs, points)`` arrays of the UAVs in
+        these slots: the flat offset of each of their search levels and the levels' weights,
+        both ``(levels, UAVs, points)``, and each UAV's ``s``, ``(UAVs, points)`` (full size:
+        same-shape operands keep numpy on its fast path)."""
         shape = (len(self.search), len(slots), points)
-        base = (self.level_start + np.array(slots) * self.level_size)[:, :, None]
-        return np.ascontiguousarray(np.broadcast_to(base, shape)), np.ascontiguousarray(np.broadcast_to(self.lam, shape))
+        base = self.offset[:, slots][:, :, None]
+        s = np.repeat(self.scale[slots][:, None], points, axis=1)
+        return (np.ascontiguousarray(np.broadcast_to(base, shape)), np.ascontiguousarray(np.broadcast_to(self.lam, shape)), s)
 
-    def level_sum(self, base: np.ndarray, lam: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
-        """``sum_l lambda_l G_l`` read at the coarse cells nearest level-0 cells ``(iy, ix)``
-        (``(UAVs, points)`` int arrays; ``base``, ``lam`` from :meth:`operands`), accumulated
-        level by level from 0 in float64: the numerator of eq. 19."""
+    def level_sum(self, base: np.ndarray, lam: np.ndarray, s: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+        """``sum_l lambda_l G_l = sum_l lambda_l - s sum_l lambda_l P_l`` read at the coarse
+        cells nearest level-0 cells ``(iy, ix)`` (``(UAVs, points)`` int arrays; ``base``,
+        ``lam``, ``s`` from :meth:`operands`), ``P_l`` terms accumulated level by level from 0
+        in float64: the numerator of eq. 19."""
         # mode="clip": cells outside the grid read its border cells (as Grid.cells_of clips).
         # (ndarray.take: np.take's Python wrapper costs more than the gather here.)
         idx = self.row_part.take(iy, axis=1, mode="clip")  # (levels, UAVs, points)
         idx += self.col_part.take(ix, axis=1, mode="clip")
         idx += base
-        terms = self.flat.take(idx).astype(np.float64) * lam  # lambda_l * G_l (float64: same-type multiply)
+        terms = self.flat.take(idx).astype(np.float64) * lam  # lambda_l * P_l (float64: same-type multiply)
         # A reduction over the first axis adds whole rows, one level after the other.
-        return np.add.reduce(terms, axis=0, initial=0.0)
+        p = np.add.reduce(terms, axis=0, initial=0.0)
+        p *= s
+        return np.subtract(self.lam_total, p, out=p)

@@ -25,6 +25,10 @@ deterministic for a given machine and library build.
 of them, the same BLAS call per row as for one map, so each map gets exactly its own numbers),
 with its intermediates in a :class:`Scratch` that a caller keeps between calls.
 
+The planner itself does not recompute pyramids: :mod:`agents.planners.dacmp.maintained` keeps
+each map's pyramid of ``1 - q`` (times a scalar) up to date where the map changed, with the same
+REDUCE; this module is the definition it is tested against.
+
 Stopping rule of :func:`gaussian_pyramid`: ``ceil(n/2) >= 1``, so no level can ever become
 smaller than 1x1; once a level is 1x1 every further level would be the same single value again
 (carrying no information), so the pyramid stops after the first 1x1 level and the returned list
@@ -74,7 +78,7 @@ def reduce_rows(a: np.ndarray, out: np.ndarray, n: int | None = None, row0: int 
     strided view ``V[s, i, c, k] = a[s, 2i + k, c]`` (no copy: BLAS gemv does the five-term sums,
     the same call for every row whatever ``k``); the one or two border rows use reflected indices.
 
-    Part of a reduce (:mod:`agents.planners.dacmp.pyramid_reuse`): ``a`` may hold only input rows ``row0 ..
+    Part of a reduce: ``a`` may hold only input rows ``row0 ..
     row0 + rows - 1`` of an ``n``-row input (default: all of it, ``n = rows``), and only output
     rows ``lo .. hi`` (default: all) are computed, into ``out[:, : hi - lo + 1]``; ``a`` must hold
     every input row they read (``2i - 2 .. 2i + 2``, clipped to the input). Each output row gets
@@ -133,8 +137,7 @@ def pyr_down_stack(a: np.ndarray, out: np.ndarray, scratch: Scratch | None = Non
     into ``out`` ``(k, ceil(h/2), ceil(w/2))`` (same dtype).  Each map gets exactly the numbers
     :func:`pyr_down` gives it alone.  ``scratch`` supplies the intermediates (fresh arrays
     without it); they stay there until its next use: ``"pyr_rows"`` the row pass ``(k, m, w)``,
-    ``"pyr_rows_t"`` its transpose ``(k, w, m)`` (:mod:`agents.planners.dacmp.pyramid_reuse` patches from it),
-    ``"pyr_cols_t"`` the column pass, transposed."""
+    ``"pyr_rows_t"`` its transpose ``(k, w, m)``, ``"pyr_cols_t"`` the column pass, transposed."""
     k, h, w = a.shape
     m, mw = (h + 1) // 2, (w + 1) // 2
     work = scratch if scratch is not None else Scratch()

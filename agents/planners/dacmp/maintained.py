@@ -1,0 +1,453 @@
+"""DACMP's map pyramid, updated where the map changed instead of recomputed (issue 15, point 1).
+
+The planner reads ``q = 1 - exp(-tau (t - last_seen))`` and its Gaussian pyramid ``G_1..G_L``
+(:mod:`agents.planners.dacmp.pyramid`). Their time dependence factors out::
+
+    1 - q(t) = exp(-tau (t - t0)) * exp(-tau (t0 - last_seen)) = s(t) * E
+
+and REDUCE is linear and keeps constants (its weights sum to one, the reflect border repeats
+edge samples), so ``G_l(t) = 1 - s(t) * P_l`` with ``P_0 = E`` and ``P_l = REDUCE(P_{l-1})``.
+``E`` changes only where cells were rescanned: :class:`MaintainedPyramid` keeps ``E`` and
+``P_1..P_L`` of one UAV's map and, at each replanning, recomputes only what the map's writes
+since the last one touched (the map records the boxes it wrote:
+:meth:`agents.maps.umap.UncertaintyMap.take_changes`). A changed box of level ``l`` changes
+the output rows ``(r0 - 1) // 2 .. (r1 + 1) // 2`` of level ``l + 1`` (each output reads five
+inputs), and likewise for columns, so the work halves per level.
+
+Base time and range. ``t0`` is a multiple of ``SPAN / tau`` (:func:`base_time`: the largest at
+or below the planning time), so ``0 <= tau (t - t0) < SPAN`` and ``s >= exp(-SPAN)``. When a
+plan's ``t`` falls in another span, the state is rebuilt for the new ``t0`` (from the map's
+allocated storage: every ``SPAN / tau`` seconds of simulated time). ``E``'s exponent is clipped
+to ``[-EXP_MIN, EXP_MIN]``: ``E <= exp(40)`` stays far from float32's 3.4e38 and every nonzero
+level value stays a normal float32 (a level value is at least 1/256 of a nonzero input:
+``exp(-40) / 256**12 > 1.2e-38``, so no slow denormals); a cell seen more than ``40 / tau``
+before ``t0`` reads ``q = 1 - s exp(-40)`` instead of ``1 - s exp(-tau (t0 - last_seen))``, a
+difference below ``4.3e-18``. Never-seen cells have ``E = 0`` exactly, so ``q`` (and a level
+over never-seen cells only) is exactly ``1``, as before.
+
+Exactness. Every level value is computed by one formula of its 25 inputs
+(``(a0 + a4) + 4 (a1 + a3) + 6 a2`` per axis, numpy element-wise float32 operations, then the
+exact ``1/256``), whatever box it is computed in, and ``E`` is element-wise in ``last_seen``
+and ``t0``; so the maintained state is bit for bit the state computed from scratch from the
+map at ``t0``: a plan depends on the map and ``t``, not on when or in what pieces the map was
+updated. Against the old pipeline (q in float32, then BLAS reduces) the levels ``1 - s P_l``
+differ by float rounding only: ``tests/test_maintained_pyramid.py`` checks ``|difference| <=
+2e-6`` (q and its levels lie in [0, 1]; float32 rounding is 6e-8 per operation).
+
+Guide point (eq. 20). A sub-area's mean ``q`` is ``1 - s * sum(E) / cells``. The sums of ``E``
+are kept per *chunk*: the sub-areas of a dense map, the pieces of the sub-areas cut at the tile
+edges of a tiled one (only chunks with seen cells are listed). A changed chunk's sum is
+recomputed from ``E`` (numpy's pairwise float32 sum: relative error about 1e-7), and its
+sub-area's sum is the exactly rounded sum of its chunks' (``math.fsum``), so the sums are
+exact functions of ``E`` too, not drifting running totals. A never-seen sub-area sums to 0
+and has mean exactly 1: exact ties stay ties.
+
+Storage. Each level is a :class:`Plane`: one dense float32 array for a dense map (``E`` too:
+16/3 bytes a cell in all), else lazily allocated tiles of ``max(16, 64 >> l)`` cells a side
+(absent = 0: never seen near there), and ``E`` of a tiled map is not stored but computed from
+the map's last-seen times where a level update reads it (:class:`SeenPlane`). So a tiled map's
+pyramid costs memory in proportion to the tiles the map has allocated (about 0.4 times them),
+not to the area.
+
+The planner reads the levels only in a window around each UAV
+(:class:`agents.planners.dacmp.planner._Layers`): eq. 19 is ``sum(lambda) - s sum_l lambda_l
+P_l`` at the particles' cells.
+"""
+
+from __future__ import annotations
+
+import bisect
+import functools
+import math
+from typing import cast
+
+import numpy as np
+
+from agents.maps.umap import UncertaintyMap
+from agents.planners.dacmp.pyramid import SCALE, level_shapes
+
+__all__ = ["EXP_MIN", "SPAN", "MaintainedPyramid", "Plane", "base_time", "e_of", "reduce_boxes"]
+
+SPAN = 16.0  # tau (t - t0) stays below this: s >= exp(-16)
+EXP_MIN = 40.0  # E's exponent is clipped to [-EXP_MIN, EXP_MIN]
+_MIN_LEVEL_TILE = 16
+# Levels of a dense map with at most this many cells are recomputed whole (reduce_whole):
+# cheaper than working out which of their cells changed.
+WHOLE_CELLS = 1 << 12
+
+
+def base_time(t: float, tau: float) -> float:
+    """``t0`` for a plan at ``t``: the largest multiple of ``SPAN / tau`` at or below ``t``."""
+    span = SPAN / tau
+    if not math.isfinite(span) or span <= 0.0:
+        return 0.0
+    return math.floor(t / span) * span
+
+
+def e_of(last_seen: np.ndarray, tau: float, t0: float) -> np.ndarray:
+    """``E = exp(clip(tau (last_seen - t0), -EXP_MIN, EXP_MIN))`` (float32, computed in float32
+    like the map's own q), exactly 0 where never seen (``last_seen = -inf``)."""
+    arg = np.subtract(last_seen, np.float32(t0), dtype=np.float32)
+    arg *= np.float32(tau)
+    np.clip(arg, np.float32(-EXP_MIN), np.float32(EXP_MIN), out=arg)
+    e = np.exp(arg, out=arg)
+    np.copyto(e, np.float32(0.0), where=np.isneginf(last_seen))
+    return e
+
+
+class Plane:
+    """A float32 ``shape`` array, dense or in tiles allocated on the first nonzero write (an
+    absent tile reads as 0)."""
+
+    __slots__ = ("shape", "tile", "dense", "_ntx", "_a", "_tiles")
+
+    def __init__(self, shape: tuple[int, int], tile: tuple[int, int] | None):
+        self.shape = shape
+        self.dense = tile is None
+        h, w = shape
+        self.tile = (h, w) if tile is None else (min(tile[0], h), min(tile[1], w))
+        self._ntx = -(-w // self.tile[1])
+        self._a = np.zeros(shape, np.float32) if tile is None else None
+        self._tiles: dict[int, np.ndarray] = {}
+
+    @property
+    def dense_array(self) -> np.ndarray | None:
+        """The array of a dense plane (live), else None."""
+        return self._a
+
+    @property
+    def nbytes(self) -> int:
+        if self._a is not None:
+            return self._a.nbytes
+        return sum(t.nbytes for t in self._tiles.values())
+
+    def clear(self) -> None:
+        if self._a is not None:
+            self._a.fill(0.0)
+        self._tiles = {}
+
+    def _pieces(self, r0: int, r1: int, c0: int, c1: int):
+        th, tw = self.tile
+        for ty in range(r0 // th, (r1 - 1) // th + 1):
+            a, b = max(r0, ty * th), min(r1, (ty + 1) * th)
+            for tx in range(c0 // tw, (c1 - 1) // tw + 1):
+                c, e = max(c0, tx * tw), min(c1, (tx + 1) * tw)
+                yield ty * self._ntx + tx, a, b, c, e, ty * th, tx * tw
+
+    def read(self, r0: int, r1: int, c0: int, c1: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Cells ``[r0:r1, c0:c1]``: into ``out`` if given, else a view (dense) or a new array."""
+        if self._a is not None:
+            if out is None:
+                return self._a[r0:r1, c0:c1]
+            out[...] = self._a[r0:r1, c0:c1]
+            return out
+        if out is None:
+            out = np.empty((r1 - r0, c1 - c0), np.float32)
+        tiles = self._tiles
+        for key, a, b, c, e, y0, x0 in self._pieces(r0, r1, c0, c1):
+            tile = tiles.get(key)
+            dst = out[a - r0 : b - r0, c - c0 : e - c0]
+            if tile is None:
+                dst.fill(0.0)
+            else:
+                dst[...] = tile[a - y0 : b - y0, c - x0 : e - x0]
+        return out
+
+    def write(self, r0: int, c0: int, values: np.ndarray) -> None:
+        """Set cells ``[r0:r0 + h, c0:c0 + w]`` to ``values`` (``(h, w)``)."""
+        h, w = values.shape
+        if self._a is not None:
+            self._a[r0 : r0 + h, c0 : c0 + w] = values
+            return
+        tiles = self._tiles
+        for key, a, b, c, e, y0, x0 in self._pieces(r0, r0 + h, c0, c0 + w):
+            piece = values[a - r0 : b - r0, c - c0 : e - c0]
+            tile = tiles.get(key)
+            if tile is None:
+                if not piece.any():
+                    continue  # zeros where the plane is implicitly zero
+                tile = tiles[key] = np.zeros(self.tile, np.float32)
+            tile[a - y0 : b - y0, c - x0 : e - x0] = piece
+
+
+class SeenPlane(Plane):
+    """``E`` of a tiled map, not stored: read from the map's last-seen times as needed (it is
+    element-wise in them), so a huge map's pyramid stores only its levels."""
+
+    __slots__ = ("umap", "t0")
+
+    def __init__(self, umap: UncertaintyMap):
+        super().__init__(umap.grid.shape, umap.tile_shape)
+        self.umap = umap
+        self.t0 = 0.0
+
+    @property
+    def nbytes(self) -> int:
+        return 0
+
+    def read(self, r0: int, r1: int, c0: int, c1: int, out: np.ndarray | None = None) -> np.ndarray:
+        e = e_of(self.umap.region(slice(r0, r1), slice(c0, c1)), self.umap.tau, self.t0)
+        if out is None:
+            return e
+        out[...] = e
+        return out
+
+    def write(self, r0: int, c0: int, values: np.ndarray) -> None:
+        raise TypeError("E of a tiled map is read from the map, not written")
+
+
+@functools.lru_cache(maxsize=256)
+def _reflected(lo: int, hi: int, n: int) -> tuple[np.ndarray, int, int]:
+    """Indices ``lo..hi-1`` reflected into ``0..n-1`` (scipy.ndimage 'reflect', period 2n),
+    less their minimum, the minimum and one past the maximum (read-only: shared)."""
+    j = np.arange(lo, hi) % (2 * n)
+    j = np.where(j >= n, 2 * n - 1 - j, j)
+    a, b = int(j.min()), int(j.max()) + 1
+    j -= a
+    j.flags.writeable = False
+    return j, a, b
+
+
+@functools.lru_cache(maxsize=64)
+def _reduce_matrix(n: int) -> np.ndarray:
+    """REDUCE along one axis of ``n`` samples as a ``(ceil(n/2), n)`` float32 matrix (weights
+    ``[1, 4, 6, 4, 1] / 16`` folded at the reflect border; exact in float32). Read-only."""
+    m = (n + 1) // 2
+    a = np.zeros((m, n), np.float64)
+    for i in range(m):
+        for k, wk in enumerate((1.0, 4.0, 6.0, 4.0, 1.0)):
+            j = (2 * i + k - 2) % (2 * n)
+            a[i, 2 * n - 1 - j if j >= n else j] += wk / 16.0
+    out = a.astype(np.float32)
+    out.flags.writeable = False
+    return out
+
+
+def reduce_whole(src: np.ndarray, dst: np.ndarray) -> None:
+    """All of ``REDUCE(src)`` into ``dst`` (dense arrays), as ``A src B^T`` with the
+    :func:`_reduce_matrix` of each axis: two BLAS calls, for the small levels of a dense map
+    (always computed whole: a level is computed one way only, so the state stays a function of
+    the map)."""
+    n, w = src.shape
+    np.matmul(np.matmul(_reduce_matrix(n), src), _reduce_matrix(w).T, out=dst)
+
+
+def reduce_boxes(src: Plane, dst: Plane, boxes: list[tuple[int, int, int, int]]) -> None:
+    """Output rows ``i0:i1``, columns ``j0:j1`` of ``REDUCE(src)`` (the next level) for each box
+    ``(i0, i1, j0, j1)``, written into ``dst``. Each output is ``(a0 + a4) + 4 (a1 + a3) + 6 a2``
+    over rows, then over columns, of its 5 x 5 inputs (reflected at the border), times 1/256:
+    float32 element-wise operations, so an output's value does not depend on the box it is
+    computed in. The boxes' inputs are stacked (padded with zeros to a common shape) and
+    reduced together: one set of array operations for all of them."""
+    n, w = src.shape
+    if len(boxes) == 1:
+        i0, i1, j0, j1 = boxes[0]
+        if i0 >= 1 and 2 * i1 + 1 <= n and j0 >= 1 and 2 * j1 + 1 <= w:  # interior: no copy, no padding
+            _reduce_stack(src.read(2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1)[None], dst, boxes)
+            return
+    hh = max(2 * (i1 - i0) + 3 for i0, i1, _, _ in boxes)
+    ww = max(2 * (j1 - j0) + 3 for _, _, j0, j1 in boxes)
+    x = np.zeros((len(boxes), hh, ww), np.float32)
+    for k, (i0, i1, j0, j1) in enumerate(boxes):
+        rlo, rhi, clo, chi = 2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1
+        rr, a, b = _reflected(rlo, rhi, n) if rlo < 0 or rhi > n else (None, rlo, rhi)
+        cc, c, e = _reflected(clo, chi, w) if clo < 0 or chi > w else (None, clo, chi)
+        piece = src.read(a, b, c, e)
+        if rr is not None:
+            piece = piece[rr]
+        if cc is not None:
+            piece = piece[:, cc]
+        x[k, : rhi - rlo, : chi - clo] = piece
+    _reduce_stack(x, dst, boxes)
+
+
+def _reduce_stack(x: np.ndarray, dst: Plane, boxes: list[tuple[int, int, int, int]]) -> None:
+    """The reduce of :func:`reduce_boxes` on the stacked inputs ``x`` ``(boxes, 2h + 3, 2w + 3)``."""
+    hh, ww = x.shape[1:]
+    ni, nj = (hh - 3) // 2, (ww - 3) // 2
+    r = x[:, 0 : 2 * ni - 1 : 2] + x[:, 4 : 2 * ni + 3 : 2]
+    r += 4 * (x[:, 1 : 2 * ni : 2] + x[:, 3 : 2 * ni + 2 : 2])
+    r += 6 * x[:, 2 : 2 * ni + 1 : 2]
+    out = r[:, :, 0 : 2 * nj - 1 : 2] + r[:, :, 4 : 2 * nj + 3 : 2]
+    out += 4 * (r[:, :, 1 : 2 * nj : 2] + r[:, :, 3 : 2 * nj + 2 : 2])
+    out += 6 * r[:, :, 2 : 2 * nj + 1 : 2]
+    out *= np.float32(SCALE)
+    for k, (i0, i1, j0, j1) in enumerate(boxes):
+        dst.write(i0, j0, out[k, : i1 - i0, : j1 - j0])
+
+
+Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
+
+
+def _merged(rects: list[Rect]) -> list[Rect]:
+    """The rectangles with overlapping ones merged into their bounding box (when that box is
+    not much larger than what it merges: an L-shaped swath stays two boxes). A cell in two
+    boxes is computed twice, to the same value: merging only saves work."""
+    out: list[list[int]] = []
+    for r0, r1, c0, c1 in rects:
+        for box in out:
+            a, b, c, e = box
+            if r0 <= b and a <= r1 and c0 <= e and c <= c1:
+                na, nb, nc, ne = min(a, r0), max(b, r1), min(c, c0), max(e, c1)
+                if (nb - na) * (ne - nc) <= 2 * ((b - a) * (e - c) + (r1 - r0) * (c1 - c0)):
+                    box[0], box[1], box[2], box[3] = na, nb, nc, ne
+                    break
+        else:
+            out.append([r0, r1, c0, c1])
+    result = [(a, b, c, e) for a, b, c, e in out]
+    return result if len(result) == len(rects) or len(result) <= 1 else _merged(result)
+
+
+def _edges(n: int, step: int, cuts: tuple[int, ...]) -> list[int]:
+    """``0, ..., n``: the multiples of ``step`` and the ``cuts``, sorted."""
+    return sorted(set(range(0, n, step)) | set(cuts) | {0, n})
+
+
+class MaintainedPyramid:
+    """``E`` and ``P_1..P_L`` of one map, and the chunk sums of ``E`` for the guide point (see
+    the module docstring). :meth:`of` gets a map's (made and attached on first use);
+    :meth:`update` brings it to a planning time and returns ``s``."""
+
+    __slots__ = ("umap", "levels", "shapes", "planes", "t0", "s", "regions", "row_edges", "col_edges",
+                 "_chunk_rows", "_chunk_cols", "_chunk_sums", "_chunk_block_row", "_chunk_block_col", "_block_rows",
+                 "_block_cols", "_block_sums", "_block_cells")
+
+    def __init__(self, umap: UncertaintyMap, levels: int):
+        self.umap = umap
+        self.levels = levels
+        self.shapes = level_shapes(umap.grid.shape, levels + 1)  # P_0 (= E) .. P_L
+        h, w = umap.grid.shape
+        if umap.dense:
+            tiles: list[tuple[int, int] | None] = [None] * len(self.shapes)
+            th, tw = h, w  # guide sums per sub-area (no finer chunks: one sum per changed sub-area)
+        else:
+            th, tw = umap.tile_shape
+            tiles = [(th, tw)]
+            tiles += [(max(_MIN_LEVEL_TILE, th >> l), max(_MIN_LEVEL_TILE, tw >> l)) for l in range(1, len(self.shapes))]
+        self.planes = [Plane(shape, tile) for shape, tile in zip(self.shapes, tiles)]
+        if not umap.dense:
+            self.planes[0] = SeenPlane(umap)
+        self.t0: float | None = None
+        self.s = 1.0
+        # The guide's sub-areas: the coarsest level with >= 4 x 4 cells (eq. 20).
+        self.regions = next((s for s in reversed(self.shapes) if min(s) >= 4), self.shapes[0])
+        ny, nx = self.regions
+        self.row_edges = tuple(np.linspace(0, h, ny + 1).round().astype(np.intp).tolist())
+        self.col_edges = tuple(np.linspace(0, w, nx + 1).round().astype(np.intp).tolist())
+        self._chunk_rows = _edges(h, th, self.row_edges)
+        self._chunk_cols = _edges(w, tw, self.col_edges)
+        # Sums of E: per chunk (only chunks with seen cells are listed), and per sub-area the
+        # exactly rounded sum of its chunks' (math.fsum: independent of order).
+        self._chunk_sums: dict[tuple[int, int], float] = {}
+        self._block_rows = [self._chunk_rows.index(r) for r in self.row_edges]  # chunk row of each sub-area edge
+        self._block_cols = [self._chunk_cols.index(c) for c in self.col_edges]
+        self._chunk_block_row = [bisect.bisect_right(self._block_rows, i) - 1 for i in range(len(self._chunk_rows) - 1)]
+        self._chunk_block_col = [bisect.bisect_right(self._block_cols, j) - 1 for j in range(len(self._chunk_cols) - 1)]
+        self._block_sums = np.zeros((ny, nx))
+        self._block_cells = np.outer(np.diff(self.row_edges), np.diff(self.col_edges)).astype(np.float64)
+
+    @classmethod
+    def of(cls, umap: UncertaintyMap, levels: int) -> MaintainedPyramid:
+        """The map's maintained pyramid of ``levels`` levels above ``G_0`` (made on first use;
+        from then on the map records its writes for it)."""
+        pyr = umap.derived
+        if not isinstance(pyr, cls) or pyr.levels != levels:
+            pyr = cls(umap, levels)
+            umap.derived = pyr
+            umap.track_changes()  # (drops what was recorded for another consumer: we rebuild)
+        return pyr
+
+    @property
+    def nbytes(self) -> int:
+        # (the chunk dict: about 100 bytes an entry)
+        return sum(p.nbytes for p in self.planes) + self._block_sums.nbytes + 100 * len(self._chunk_sums)
+
+    def update(self, t: float) -> float:
+        """Bring ``E`` and the levels up to date with the map for a plan at ``t``; returns
+        ``s = exp(-tau (t - t0))``."""
+        tau = self.umap.tau
+        t0 = base_time(t, tau)
+        changes = self.umap.take_changes()
+        if t0 != self.t0 or changes is None:
+            self.t0 = t0
+            for p in self.planes:
+                p.clear()
+            self._chunk_sums.clear()
+            self._block_sums.fill(0.0)
+            self._apply(self.umap.written_boxes(), whole=self.umap.dense)
+        elif changes:
+            self._apply(changes, whole=False)
+        self.s = math.exp(-tau * (t - t0))
+        return self.s
+
+    def _apply(self, rects: list[Rect], whole: bool) -> None:
+        """Recompute ``E`` on these boxes of the map, then every level output they reach. A
+        level is computed whole (one box) when it is small (at most :data:`WHOLE_CELLS` cells)
+        or the boxes cover a quarter of it, or everywhere with ``whole``."""
+        umap, planes, tau, t0 = self.umap, self.planes, self.umap.tau, self.t0
+        assert t0 is not None
+        h0, w0 = self.shapes[0]
+        boxes = [(0, h0, 0, w0)] if whole else _merged(rects)
+        if not boxes:
+            return
+        chunks: set[tuple[int, int]] = set()
+        cr, ccl = self._chunk_rows, self._chunk_cols
+        e = planes[0]
+        if isinstance(e, SeenPlane):
+            e.t0 = t0  # (read from the map as needed)
+        else:
+            # E of all boxes in one go (their last-seen times side by side in one flat array).
+            seen = [umap.region(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in boxes]
+            flat = e_of(np.concatenate([a.ravel() for a in seen]) if len(seen) > 1 else seen[0], tau, t0).ravel()
+            at = 0
+            for (r0, _, c0, _), a in zip(boxes, seen):
+                e.write(r0, c0, flat[at : at + a.size].reshape(a.shape))
+                at += a.size
+        for r0, r1, c0, c1 in boxes:
+            for i in range(bisect.bisect_right(cr, r0) - 1, bisect.bisect_left(cr, r1)):
+                for j in range(bisect.bisect_right(ccl, c0) - 1, bisect.bisect_left(ccl, c1)):
+                    chunks.add((i, j))
+        sums, blocks = self._chunk_sums, set()
+        for i, j in chunks:
+            v = float(e.read(cr[i], cr[i + 1], ccl[j], ccl[j + 1]).sum())  # (float32, pairwise: error ~1e-7)
+            if v:
+                sums[i, j] = v
+            else:
+                sums.pop((i, j), None)
+            blocks.add((self._chunk_block_row[i], self._chunk_block_col[j]))
+        br, bc = self._block_rows, self._block_cols
+        for bi, bj in blocks:
+            self._block_sums[bi, bj] = math.fsum(sums.get((i, j), 0.0) for i in range(br[bi], br[bi + 1])
+                                                 for j in range(bc[bj], bc[bj + 1]))
+        dense = umap.dense
+        for l in range(1, len(self.shapes)):
+            m, mw = self.shapes[l]
+            if dense and m * mw <= WHOLE_CELLS:  # this level and all above: whole, by BLAS
+                for k in range(l, len(self.shapes)):
+                    reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
+                return
+            if whole:
+                boxes = [(0, m, 0, mw)]
+            else:
+                boxes = _merged([(max(0, (r0 - 1) // 2), min(m, (r1 + 1) // 2 + 1),
+                                  max(0, (c0 - 1) // 2), min(mw, (c1 + 1) // 2 + 1)) for r0, r1, c0, c1 in boxes])
+                if dense and 4 * sum((b - a) * (d - c) for a, b, c, d in boxes) >= m * mw:
+                    boxes, whole = [(0, m, 0, mw)], True  # (and every level above it)
+            reduce_boxes(planes[l - 1], planes[l], boxes)
+
+    # --- reads ------------------------------------------------------------------------------
+
+    def level(self, l: int) -> np.ndarray:
+        """``G_l = 1 - s P_l`` of the whole level, float64 (for tests and tools: planning reads
+        windows, :meth:`read_window`)."""
+        h, w = self.shapes[l]
+        return 1.0 - self.s * self.planes[l].read(0, h, 0, w).astype(np.float64)
+
+    def read_window(self, l: int, r0: int, r1: int, c0: int, c1: int, out: np.ndarray) -> None:
+        """``P_l`` on rows ``r0:r1``, columns ``c0:c1``, into ``out``."""
+        self.planes[l].read(r0, r1, c0, c1, out=out)
+
+    def block_means(self) -> np.ndarray:
+        """Mean ``q`` over each of the guide's sub-areas, ``(ny, nx)`` float64:
+        ``1 - s sum(E) / cells``."""
+        return 1.0 - self.s * (self._block_sums / self._block_cells)
