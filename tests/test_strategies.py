@@ -159,7 +159,11 @@ def test_schedules_shrink_to_simple_cases():
     one = find(fault_schedules(NAMES, 60.0), lambda s: len(s.faults) >= 1).faults
     assert one == [Drop(start_s=0.0, end_s=math.inf, rate=1.0)]  # simplest kind, whole run, all links
     crash = find(fault_schedules(NAMES, 60.0), lambda s: any(isinstance(f, Crash) for f in s.faults)).faults
-    assert crash == [Crash(uav="B1", at_s=0.0)]
+    # The crash itself shrinks to the simplest one; with 18 kinds to choose from the shrinker
+    # does not always delete a list element before it (under the ci profile it keeps one drop,
+    # itself the simplest fault): anything left beside the crash must be simplest too.
+    assert [f for f in crash if isinstance(f, Crash)] == [Crash(uav="B1", at_s=0.0)]
+    assert all(f == one[0] for f in crash if not isinstance(f, Crash)) and len(crash) <= 2
     late = find(windows(100.0), lambda w: w[0] >= 30)
     assert late == (30.0, math.inf)
     assert find(probabilities(0.05), lambda p: True) == 1.0

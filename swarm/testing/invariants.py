@@ -88,7 +88,9 @@ unwatched for one replan, 10 s). Maps: a neighbour's scans arrive with its next 
 everything else (lost, from beyond one hop, from before a heal or a join) comes back through
 anti-entropy (:mod:`agents.maps.scanlog`): a digest every ``radio.sync_every_s`` (5 s) covering scans
 up to ``radio.sync_settle_s`` (2 s) old, answered the next tick. A scan can therefore reach a UAV
-two hops away up to about 5 + 2 + 1 s late: ``lag_s = 10``; 20 s of quiet lets that settle.
+two hops away up to about 5 + 2 + 1 s late: ``lag_s = 10``; 20 s of quiet lets that settle. Each
+further hop is one more round: ``map_agreement`` allows :meth:`RunContext.relay_lag_s` of the
+radio graph's diameter when that is more (and waits that much longer).
 
 Known breaks of the current simulator (pinned as xfails in ``tests/test_invariants.py``):
 ``separation`` whenever UAVs cannot hear each other (they learn of each other only over the
@@ -417,6 +419,38 @@ class RunContext:
                     seen.add(b)
                     todo.append(b)
         return len(seen) == len(ids)
+
+    def hops(self, poses: Mapping[int, Sequence[float]]) -> int:
+        """The diameter of the radio graph of the flying UAVs in hops (ranges only; 1 with an
+        unlimited range, 0 with one UAV); the largest component's if it is not connected."""
+        ids = sorted(poses)
+        if len(ids) <= 1:
+            return 0
+        if not math.isfinite(self.range_m):
+            return 1
+        nbrs = {a: [b for b in ids if b != a and self.in_range(poses[a], poses[b])] for a in ids}
+        longest = 0
+        for a in ids:  # breadth-first from each (tests fly tens of UAVs)
+            depth = {a: 0}
+            frontier = [a]
+            while frontier:
+                nxt = []
+                for u in frontier:
+                    for v in nbrs[u]:
+                        if v not in depth:
+                            depth[v] = depth[u] + 1
+                            nxt.append(v)
+                frontier = nxt
+            longest = max(longest, max(depth.values()))
+        return longest
+
+    def relay_lag_s(self, hops: int) -> float:
+        """How late a scan may reach a UAV ``hops`` hops from where it was made: the first hop
+        with the next beacon, each further hop one anti-entropy round (a digest every
+        ``sync_every_s`` covering scans ``sync_settle_s`` old, answered the next tick)."""
+        r = self.scenario.radio
+        return (r.beacon_every_s + self.dt + r.sync_settle_s
+                + max(0, hops - 1) * (r.sync_every_s + 2 * self.dt + self.max_delay_s()))
 
 
 # --- checkers ------------------------------------------------------------------------------------
@@ -813,6 +847,7 @@ class MapAgreementChecker(_LiveChecker):
         self._history: deque[tuple[float, dict[int, np.ndarray]]] = deque()
         self._last_check = -math.inf
         self._reported_window: float | None = None
+        self._hops = 0  # the radio graph's largest diameter (hops) since the quiet began
         self.checks = 0  # how many times agreement was judged (a test can assert it was)
 
     def on_group(self, t, events):
@@ -830,16 +865,22 @@ class MapAgreementChecker(_LiveChecker):
             self._quiet_since = t
         self._members = members
         self._poses = poses
+        # Scans from several hops away come round by anti-entropy, one round a hop: the lag
+        # allowed grows with the radio graph's diameter over the quiet window.
+        if self._quiet_since is None or self._quiet_since == t:
+            self._hops = 0
+        self._hops = max(self._hops, ctx.hops(poses))
+        lag = max(self.lag_s, ctx.relay_lag_s(self._hops))
         self._history.append((t, self._maps(members)))
-        while self._history and self._history[0][0] < t - self.lag_s - _EPS:
+        while self._history and self._history[0][0] < t - lag - _EPS:
             self._history.popleft()
-        if self._quiet_since is None or t - self._quiet_since < self.quiet_s - _EPS:
+        if self._quiet_since is None or t - self._quiet_since < self.quiet_s + (lag - self.lag_s) - _EPS:
             return
         if t - self._last_check < self.every_s - _EPS or self._reported_window == self._quiet_since:
             return
         self._last_check = t
         then_t, then = self._history[0]
-        if then_t > t - self.lag_s + _EPS:
+        if then_t > t - lag + _EPS:
             return
         self.checks += 1
         now = self._history[-1][1]
