@@ -506,7 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      "liar", "all"],
                     help="loss (i.i.d. loss 0..1), burst (Gilbert-Elliott bursts at 30%% mean loss), range "
                          "(2..20 km, unlimited), crash (0..5 UAVs crash), pause (3 UAVs pause 0..1200 s), restart "
-                         "(0..5 UAVs restart), skew (3 clocks 0..600 s ahead), detect (detection probability 1..0.2), "
+                         "(0..5 UAVs restart), skew (3 clocks 0..600 s ahead), detect (detection probability per tick 1..0.003), "
                          "jammer (radius 0..25 km at the centre), liar (0..3 lying UAVs), or all of them")
     # An option, not a positional: it has a default (a required scenario is positional).
     rs.add_argument("--scenario", default="paper-fig11", help="built-in name or .toml file (default paper-fig11)")
