@@ -201,24 +201,34 @@ def _uav_type(name: str, spec: UavTypeSpec) -> UavType:
                    w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
 
 
-def skewed_stamps(faults: Iterable[Fault], name: str, duration_s: float) -> list[tuple[float, float]]:
-    """The ranges of times UAV ``name``'s skewed clock stamped (each clock skew on it, over its
-    window). Cells holding such a time are not owed to its peers, ever: a record stamped in a
-    receiver's future is ignored, and one stamped in the past usually lands in an (origin, tick)
-    slot of the scan log that the origin's real scan of that tick already holds, so anti-entropy
-    never resends it (agents.maps.scanlog keeps one scan per origin and tick)."""
-    out = []
+def skewed_stamps(faults: Iterable[Fault], duration_s: float) -> list[tuple[float, float]]:
+    """The ranges of times skewed clocks stamped (every clock skew, over its window; skews that
+    overlap on one UAV add up). Cells holding such a time are not owed to anyone, ever, by the
+    UAV that stamped them or by one that heard it: a record stamped in a receiver's future is
+    ignored, and one stamped in the past usually lands in an (origin, tick) slot of the scan log
+    that the origin's real scan of that tick already holds, so anti-entropy never resends it
+    (agents.maps.scanlog keeps one scan per origin and tick)."""
+    by_uav: dict[str, list[ClockSkew]] = {}
     for f in faults:
-        if isinstance(f, ClockSkew) and f.uav == name and (f.offset_s or f.drift):
-            end = min(f.end_s, duration_s)
-            a, b = f.start_s + f.error(f.start_s), end + f.error(end)
-            out.append((min(a, b) - _EPS, max(a, b) + _EPS))
+        if isinstance(f, ClockSkew) and (f.offset_s or f.drift):
+            by_uav.setdefault(f.uav, []).append(f)
+    out = []
+    for skews in by_uav.values():
+        # Between two breakpoints the clock's error is linear (a sum of the active skews' lines),
+        # so the stamps made there span the values at the two ends.
+        cuts = sorted({min(t, duration_s) for f in skews for t in (f.start_s, f.end_s)})
+        for lo, hi in zip(cuts, cuts[1:]):
+            active = [f for f in skews if f.start_s <= lo and hi <= f.end_s]
+            if not active:
+                continue
+            a_, b_ = lo + sum(f.error(lo) for f in active), hi + sum(f.error(hi) for f in active)
+            out.append((min(a_, b_) - _EPS, max(a_, b_) + _EPS))
     return out
 
 
 def owed_map(m: np.ndarray, skewed: Sequence[tuple[float, float]]) -> np.ndarray:
     """A UAV's map less the cells it need not pass on (times in ``skewed``, from
-    :func:`skewed_stamps`, set to -inf): what 'maps agree' asks its peers to learn."""
+    :func:`skewed_stamps`, set to -inf): what 'maps agree' asks the others to learn."""
     if not skewed:
         return m
     m = m.copy()
@@ -380,7 +390,7 @@ class RunContext:
 
     def owed(self, uid: int, m: np.ndarray) -> np.ndarray:
         """``uid``'s map less what it need not pass on (see :func:`owed_map`)."""
-        return owed_map(m, skewed_stamps(self.faults, self.name(uid), self.scenario.duration_s))
+        return owed_map(m, skewed_stamps(self.faults, self.scenario.duration_s))
 
     def link_faults_active(self, t: float) -> bool:
         # Spoofers too: their frames (with auth off) put scans in some maps and not others.

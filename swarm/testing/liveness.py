@@ -193,8 +193,8 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
     lossless = radio_loses_nothing(sc)
     report = LivenessReport(t0, q)
     # What each UAV knew at T0 and owes its peers (less the stamps of a skewed clock: never owed).
-    at_t0 = {uid: owed_map(sim.uav_map(names[uid]), skewed_stamps(sim.injector.schedule, names[uid],
-                                                                   sim.scenario.duration_s)) for uid in live}
+    skewed = skewed_stamps(sim.injector.schedule, sim.scenario.duration_s)
+    at_t0 = {uid: owed_map(sim.uav_map(names[uid]), skewed) for uid in live}
     # Reassignment obligations, fixed at T0.
     pending: dict[int, float] = {}
     if watch is not None:
