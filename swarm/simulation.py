@@ -216,8 +216,12 @@ class Simulation:
         """Shared actor settings, map storage and plan batching; the actors come with their UAVs."""
         self._actor_settings = build.actor_settings(sc)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
-        # agents.maps.mapgroup): on areas small enough for dense maps.
-        self._map_group = MapGroup(self.grid, self.tau, self.dt) if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS else None
+        # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon
+        # shorter than the area's diagonal keeps scans from ever reaching every map (then the
+        # members only pay for the group, and leave it within LAG_TICKS ticks).
+        self._map_group = (MapGroup(self.grid, self.tau, self.dt)
+                           if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS
+                           and sc.radio.horizon_m >= math.hypot(self.grid.width_m, self.grid.height_m) else None)
         self.actors: dict[int, UavActor] = {}
         self._tasks: dict[int, asyncio.Task] = {}
         self._plans: dict[int, Plan] = {}
