@@ -464,10 +464,11 @@ class UavActor:
         horizon2 = self._horizon2
         here_x, here_y = self._here
         for _arrival, sender, data in frames:
-            heard = frame = None
+            heard: Heard | None = None
+            frame = None
             # Another receiver may have decoded (and checked) these very bytes already (shared cache).
             if derived is not None and type(data) is bytes:
-                heard = cast("Heard | None", derived(data))
+                heard = derived(data)  # type: ignore[assignment]  # (a Heard: only actors keep values)
                 if heard is None or heard.t != t or heard.grid is not grid or heard.bounds != bounds:
                     heard = None
                     frame = cache.lookup(data)  # type: ignore[union-attr]  # (derived: cache is not None)
