@@ -27,6 +27,7 @@ import numpy as np
 from agents.apf import ApfSettings, apf_command
 from agents.inbox import Heard, check_frame
 from agents.knowledge import Knowledge, KnownThreat, Track
+from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
@@ -450,6 +451,8 @@ class UavActor:
         peers = k.peers
         me = self.uid
         stamp = self.umap.stamp
+        disk_stamp = self.grid.disk_stamp
+        known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
         decode_frame = self._decode
         cache = self._cache
         counters = self.counters
@@ -492,11 +495,17 @@ class UavActor:
             append((sender, len(data), True))
             ignored += heard.ignored
             strange += heard.strange
-            for origin, tick, scan, d in heard.scans:
+            for origin, tick, scan, key in heard.scans:
                 if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
                     beyond += 1  # beyond the knowledge horizon (= not scanlog.within(...))
-                elif (log_add is None or log_add(origin, tick, scan)) and d is not None:
-                    stamp(d, scan[0])  # new to us (else already applied); = umap.scan(x, y, r, t_rec)
+                elif log_add is None or log_add(origin, tick, scan):  # new to us (else already applied)
+                    # = umap.scan(x, y, r, t_rec); the disk is shared by every map applying
+                    # this record (grid memo).
+                    d = known_disk(key, _MISSING)
+                    if d is _MISSING:
+                        d = disk_stamp(*key)
+                    if d is not None:
+                        stamp(d, scan[0])
             ft = heard.t_frame
             for m in heard.hellos:
                 if m.uav != me:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from agents.maps.grid import Disk, Grid
+from agents.maps.grid import DiskKey, Grid
 from comms.codec import Frame
 from comms.messages import Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
 
@@ -27,8 +27,10 @@ MAX_ANGLE = 1.0e3
 MAX_VALUE = 1.0e12
 MAX_TIME = 1.0e9
 
-# A plausible scan of a frame: (origin, tick, (t, x, y, r), disk or None when off the grid).
-HeardScan = tuple[int, int, tuple[float, float, float, float], Disk | None]
+# A plausible scan of a frame: (origin, tick, (t, x, y, r), (x, y, r)), the last its disk's key
+# in the grid's memo (Grid.disk_lookup). Not the disk itself: kept with the frame, disks would
+# outlive the grid's bounded memo (a resent frame can carry hundreds of scans).
+HeardScan = tuple[int, int, tuple[float, float, float, float], DiskKey]
 Bounds = tuple[float, float, float, float]  # (max scan radius, width, height, dt): see check_frame
 
 
@@ -55,7 +57,8 @@ def check_frame(frame: Frame, t: float, bounds: Bounds, grid: Grid) -> Heard:
     height, dt)``: places may lie up to ``max_r`` outside the ``width x height`` area, scan radii
     up to ``max_r``; times not after ``t``; ids and speeds in ranges no arithmetic can overflow.
     A frame stamped in the future (or before the run) is ignored whole. Each plausible scan
-    comes with its tick (``round(t / dt)``, the scan log's) and its disk (``grid.disk_stamp``)."""
+    comes with its tick (``round(t / dt)``, the scan log's) and its disk's key. ``grid``: whose
+    disks the receivers look up (a Heard is only reused by receivers of the same grid)."""
     max_r, width, height, dt = bounds
     ft = frame.t
     if not 0.0 <= ft <= t:
@@ -68,7 +71,6 @@ def check_frame(frame: Frame, t: float, bounds: Bounds, grid: Grid) -> Heard:
     threats: list[tuple[int, float, float, float, float]] = []
     digests: list[ScanDigest] = []
     ignored = strange = 0
-    disk_stamp = grid.disk_stamp
     for m in frame.messages:
         if type(m) is ScanRecords:
             origin = m.uav
@@ -76,7 +78,7 @@ def check_frame(frame: Frame, t: float, bounds: Bounds, grid: Grid) -> Heard:
             for tr, x, y, rr in zip(it, it, it, it):
                 # A scan from the future would pin cells at q=0: only accept the past.
                 if 0.0 <= tr <= t and 0.0 <= rr <= max_r and lo_x <= x <= hi_x and lo_y <= y <= hi_y:
-                    scans.append((origin, round(tr / dt), (tr, x, y, rr), disk_stamp(x, y, rr)))
+                    scans.append((origin, round(tr / dt), (tr, x, y, rr), (x, y, rr)))
                 else:
                     ignored += 1
         elif type(m) is Hello:
