@@ -38,8 +38,7 @@ import numpy as np
 
 from agents.actor import ActorOutput, SensorReading, UavActor
 from agents.maps.grid import PREFETCH_MIN, Grid
-from agents.maps.mapgroup import MapGroup
-from agents.maps.umap import DENSE_MAX_CELLS
+from agents.maps.mapgroup import MapGroup, maps_share
 from agents.planners import Planner, PlannerContext, PlannerError, build_planner
 from agents.planners.base import Plan, PlanView
 from agents.planners.batching import PlanBatcher
@@ -217,11 +216,10 @@ class Simulation:
         self._actor_settings = build.actor_settings(sc)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
         # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon
-        # shorter than the area's diagonal keeps scans from ever reaching every map (then the
-        # members only pay for the group, and leave it within LAG_TICKS ticks).
+        # keeps scans from ever reaching every map (maps_share).
         self._map_group = (MapGroup(self.grid, self.tau, self.dt)
-                           if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS
-                           and sc.radio.horizon_m >= math.hypot(self.grid.width_m, self.grid.height_m) else None)
+                           if maps_share(self.grid.nx * self.grid.ny, self.grid.width_m, self.grid.height_m,
+                                         sc.radio.horizon_m) else None)
         self.actors: dict[int, UavActor] = {}
         self._tasks: dict[int, asyncio.Task] = {}
         self._plans: dict[int, Plan] = {}
