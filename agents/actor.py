@@ -25,6 +25,7 @@ from typing import cast
 import numpy as np
 
 from agents.apf import ApfSettings, apf_command
+from agents.inbox import Heard, check_frame
 from agents.knowledge import Knowledge, KnownThreat, Track
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import Grid
@@ -39,29 +40,18 @@ from comms.mailbox import Mailbox
 from comms.messages import (
     MODE_SURVEIL,
     NO_TARGET,
-    Hello,
-    Intent,
     Message,
     ScanDigest,
     ScanRecords,
     ThreatItem,
     Threats,
     TrackItem,
-    Tracks,
 )
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
 _TRACKS_PER_FRAME = 400
 # Neighbours expected to answer one digest (see UavActor._answer_digests).
 _ANSWERERS = 2
-# What a receiver accepts of heard numbers (UavActor._drain_inbox): ids below 2**31, speeds
-# and velocities within 10 km/s, headings within 1000 rad, track values within 1e12, digest
-# cuts no earlier than 1e9 s before the start. Far beyond anything honest, far below overflow.
-_MAX_ID = 2**31
-_MAX_SPEED = 1.0e4
-_MAX_ANGLE = 1.0e3
-_MAX_VALUE = 1.0e12
-_MAX_TIME = 1.0e9
 
 
 def _planner_name(planner: object) -> str:
@@ -218,7 +208,8 @@ class UavActor:
         # (A shared decoder decodes with the swarm's key, as settings.auth_key.)
         self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes,
                                                                           key=settings.auth_key)
-        self._lookup = decoder.lookup if decoder is not None else None
+        self._cache = decoder
+        self._bounds = (self._max_scan_r, grid.width_m, grid.height_m, settings.dt)  # agents.inbox.check_frame's
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
         self.counters = ActorCounters()
@@ -463,96 +454,76 @@ class UavActor:
         disk_stamp = self.grid.disk_stamp
         known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
         decode_frame = self._decode
-        lookup = self._lookup
+        cache = self._cache
         counters = self.counters
-        log_add = self.scans.add if self._log_scans else None
-        max_r, width, height = self._max_scan_r, self.grid.width_m, self.grid.height_m
+        log_add = self.scans.add_tick if self._log_scans else None
         # A frame that decodes can still carry numbers no honest UAV sends (a time of 1e308 s,
         # a threat with no influence ring): the receiver ignores and counts such messages.
-        # Places may lie up to max_r outside the area, times not after now, ids and speeds in
-        # ranges that no arithmetic below can overflow.
-        lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
+        # What it accepts of a frame (agents.inbox.check_frame) is the same for every receiver
+        # at this tick: checked once, kept beside the shared decoded frame.
+        bounds, grid = self._bounds, self.grid
+        derived = cache._derived.get if cache is not None else None  # = cache.derived, without the call
         delivered = ignored = strange = beyond = 0
         horizon2 = self._horizon2
         here_x, here_y = self._here
         for _arrival, sender, data in frames:
-            # Another receiver may have decoded these very bytes already (shared cache).
-            frame = lookup(data) if lookup is not None and type(data) is bytes else None
-            if frame is None:
-                try:
-                    frame = decode_frame(data)
-                except AuthError:  # (a FrameError too)
-                    counters.rejected += 1
-                    counters.rejected_auth += 1
-                    append((sender, len(data), False))
-                    continue
-                except FrameError:
-                    counters.rejected += 1
-                    append((sender, len(data), False))
-                    continue
+            heard: Heard | None = None
+            frame = None
+            # Another receiver may have decoded (and checked) these very bytes already (shared cache).
+            if derived is not None and type(data) is bytes:
+                heard = derived(data)  # type: ignore[assignment]  # (a Heard: only actors keep values)
+                if heard is None or heard.t != t or heard.grid is not grid or heard.bounds != bounds:
+                    heard = None
+                    frame = cache.lookup(data)  # type: ignore[union-attr]  # (derived: cache is not None)
+            if heard is None:
+                if frame is None:
+                    try:
+                        frame = decode_frame(data)
+                    except AuthError:  # (a FrameError too)
+                        counters.rejected += 1
+                        counters.rejected_auth += 1
+                        append((sender, len(data), False))
+                        continue
+                    except FrameError:
+                        counters.rejected += 1
+                        append((sender, len(data), False))
+                        continue
+                heard = check_frame(frame, t, bounds, grid)
+                if cache is not None and type(data) is bytes:
+                    cache.keep(data, heard)
             delivered += 1
             append((sender, len(data), True))
-            ft = frame.t
-            if not 0.0 <= ft <= t:  # a frame stamped in the future (or before the run)
-                strange += len(frame.messages)
-                continue
-            for m in frame.messages:
-                # (type(m) in each test, not once in a variable: mypy narrows m only on the call)
-                if type(m) is ScanRecords:
-                    origin = m.uav
-                    it = iter(m.records)
-                    for tr, x, y, rr in zip(it, it, it, it):
-                        # A scan from the future would pin cells at q=0: only accept the past.
-                        if not (0.0 <= tr <= t and 0.0 <= rr <= max_r and -max_r <= x <= width + max_r
-                                and -max_r <= y <= height + max_r):  # = not self._plausible(...)
-                            ignored += 1
-                        elif horizon2 is not None and (x - here_x) ** 2 + (y - here_y) ** 2 > horizon2:
-                            beyond += 1  # beyond the knowledge horizon (= not scanlog.within(...))
-                        elif log_add is None or log_add(origin, tr, x, y, rr):  # new to us (else already applied)
-                            # = umap.scan(x, y, r, t_rec); the disk is shared by every map
-                            # applying this record (grid memo).
-                            d = known_disk((x, y, rr), _MISSING)
-                            if d is _MISSING:
-                                d = disk_stamp(x, y, rr)
-                            if d is not None:
-                                stamp(d, tr)
-                elif type(m) is Hello:
-                    if not (0 <= m.uav < _MAX_ID and lo_x <= m.x <= hi_x and lo_y <= m.y <= hi_y
-                            and 0.0 <= m.v <= _MAX_SPEED and -_MAX_ANGLE <= m.theta <= _MAX_ANGLE):
-                        strange += 1
-                    elif m.uav != me:
-                        p = peers.get(m.uav) or k.peer(m.uav)
-                        if ft >= p.t_pose:
-                            p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
-                elif type(m) is Intent:
-                    if not (0 <= m.uav < _MAX_ID and lo_x <= m.wx <= hi_x and lo_y <= m.wy <= hi_y
-                            and -1 <= m.target < _MAX_ID):
-                        strange += 1
-                    elif m.uav != me:
-                        p = peers.get(m.uav) or k.peer(m.uav)
-                        if ft >= p.t_intent:
-                            p.wx, p.wy, p.mode, p.target, p.t_intent = m.wx, m.wy, m.mode, m.target, ft
-                elif type(m) is Tracks:
-                    items = m.items
-                    sane = [it for it in items
-                            if 0 <= it.target < _MAX_ID and lo_x <= it.x <= hi_x and lo_y <= it.y <= hi_y
-                            and -_MAX_SPEED <= it.vx <= _MAX_SPEED and -_MAX_SPEED <= it.vy <= _MAX_SPEED
-                            and 0.0 <= it.t <= t and -_MAX_VALUE <= it.value <= _MAX_VALUE]
-                    if len(sane) != len(items):
-                        strange += len(items) - len(sane)
-                    k.merge_tracks(sane)
-                elif type(m) is Threats:
-                    for th in m.items:
-                        if (0 <= th.threat < _MAX_ID and lo_x <= th.x <= hi_x and lo_y <= th.y <= hi_y
-                                and 0.0 < th.radius < th.d_max <= 2 * max_r):
-                            k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
-                        else:
-                            strange += 1
-                elif type(m) is ScanDigest:
-                    if not (0 <= m.uav < _MAX_ID and -_MAX_TIME <= m.t_cut <= t):
-                        strange += 1
-                    elif m.uav != me:
-                        self._digests.append(m)
+            ignored += heard.ignored
+            strange += heard.strange
+            for origin, tick, scan, key in heard.scans:
+                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
+                    beyond += 1  # beyond the knowledge horizon (= not scanlog.within(...))
+                elif log_add is None or log_add(origin, tick, scan):  # new to us (else already applied)
+                    # = umap.scan(x, y, r, t_rec); the disk is shared by every map applying
+                    # this record (grid memo).
+                    d = known_disk(key, _MISSING)
+                    if d is _MISSING:
+                        d = disk_stamp(*key)
+                    if d is not None:
+                        stamp(d, scan[0])
+            ft = heard.t_frame
+            for m in heard.hellos:
+                if m.uav != me:
+                    p = peers.get(m.uav) or k.peer(m.uav)
+                    if ft >= p.t_pose:
+                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
+            for i in heard.intents:
+                if i.uav != me:
+                    p = peers.get(i.uav) or k.peer(i.uav)
+                    if ft >= p.t_intent:
+                        p.wx, p.wy, p.mode, p.target, p.t_intent = i.wx, i.wy, i.mode, i.target, ft
+            if heard.tracks:
+                k.merge_tracks(heard.tracks)
+            for th in heard.threats:
+                k.add_threat(*th)
+            for dg in heard.digests:
+                if dg.uav != me:
+                    self._digests.append(dg)
         counters.delivered += delivered
         counters.scans_ignored += ignored
         counters.scans_beyond += beyond

@@ -13,6 +13,11 @@ Failures are not remembered: a frame that does not decode is rejected by each re
 gets it, each time (a corrupted copy is almost always unique to one link anyway). The cache
 only changes how often the codec runs, never what a receiver gets: a hit returns the frame
 decoding those bytes would give, a miss decodes them.
+
+Beside each frame the cache keeps one value derived from it by its receivers
+(:meth:`DecodeCache.keep`, :meth:`DecodeCache.derived`; the actors keep what they accept of the
+frame at the tick's time, :func:`agents.inbox.check_frame`): also a pure memo, dropped with its
+frame.
 """
 
 from __future__ import annotations
@@ -25,13 +30,14 @@ DECODE_CACHE_SIZE = 8192
 
 
 class DecodeCache:
-    __slots__ = ("max_bytes", "key", "size", "_frames", "decoded", "lookup")
+    __slots__ = ("max_bytes", "key", "size", "_frames", "_derived", "decoded", "lookup")
 
     def __init__(self, max_bytes: int = DEFAULT_MAX_BYTES, size: int = DECODE_CACHE_SIZE, key: bytes | None = None):
         self.max_bytes = max_bytes
         self.key = key
         self.size = max(1, size)
         self._frames: dict[bytes, Frame] = {}
+        self._derived: dict[bytes, object] = {}  # bytes -> a value derived from the frame: see keep()
         self.decoded = 0  # frames actually run through the codec
         # lookup(data) -> the cached Frame or None, without decoding (``data`` must be bytes):
         # the receivers' fast path, a plain dict lookup.
@@ -48,10 +54,24 @@ class DecodeCache:
         frame = decode(data, self.max_bytes, self.key)  # raises FrameError: not cached
         if type(data) is bytes:
             if len(frames) >= self.size:
+                derived = self._derived
                 for k in list(islice(frames, max(1, self.size // 4))):  # oldest first
                     del frames[k]
+                    derived.pop(k, None)
             frames[data] = frame
         return frame
+
+    def derived(self, data: bytes) -> object | None:
+        """The value kept for the frame of ``data`` (:meth:`keep`), or None."""
+        return self._derived.get(data)
+
+    def keep(self, data: bytes, value: object) -> None:
+        """Keep ``value``, derived from the frame of ``data`` (a cached frame), in place of any
+        value kept for it before. The value must say what it was derived for (the receivers'
+        clock, say) and be a pure function of the frame and that, so that using it where that
+        matches is the same as deriving it again."""
+        if data in self._frames:
+            self._derived[data] = value
 
     def __len__(self) -> int:
         return len(self._frames)

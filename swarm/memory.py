@@ -11,7 +11,8 @@ The estimate is an upper bound of the big arrays, not of Python's overhead:
 * the ground truth: one dense float32 last-seen map of every cell, and (on large grids) one
   float32 buffer of q for certainty (eq. 8): 8 bytes a cell;
 * the UAVs' own maps: shared storage on dense grids (up to 2**20 cells: one base plus a little
-  per UAV); on larger grids, 64 x 64-cell float32 tiles allocated where a map was written: a
+  per UAV; a dense map each when a knowledge horizon keeps them apart:
+  :func:`agents.maps.mapgroup.maps_share`); on larger grids, 64 x 64-cell float32 tiles allocated where a map was written: a
   UAV's own swath over the run plus the swaths of the UAVs it can hear (within radio range),
   at most the whole grid, rounded up to whole tiles;
 * DACMP's maintained pyramids (:mod:`agents.planners.dacmp.maintained`), one per UAV map:
@@ -30,6 +31,7 @@ import math
 import os
 from dataclasses import dataclass
 
+from agents.maps.mapgroup import maps_share
 from agents.maps.umap import DEFAULT_TILE as _TILE
 from agents.maps.umap import DENSE_MAX_CELLS as _DENSE_MAX_CELLS
 from swarm.errors import SwarmError
@@ -66,9 +68,11 @@ def estimate_memory(sc: Scenario) -> MemoryEstimate:
     cells = nx * ny
     n = len(sc.uavs)
     parts: dict[str, float] = {"ground truth (8 B a cell)": 8.0 * cells}
-    if cells <= _DENSE_MAX_CELLS:
+    if maps_share(cells, sc.area.width_m, sc.area.height_m, sc.radio.horizon_m):
         # MapGroup: one shared base; members differ by a few scans each (counted generously).
         parts["UAV maps (shared storage)"] = 4.0 * cells * (1 + 0.05 * n)
+    elif cells <= _DENSE_MAX_CELLS:
+        parts["UAV maps (dense, one each)"] = 4.0 * cells * n
     else:
         area = sc.area.width_m * sc.area.height_m
         range_m = sc.radio.range_limit_m

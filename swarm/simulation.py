@@ -38,8 +38,7 @@ import numpy as np
 
 from agents.actor import ActorOutput, SensorReading, UavActor
 from agents.maps.grid import PREFETCH_MIN, Grid
-from agents.maps.mapgroup import MapGroup
-from agents.maps.umap import DENSE_MAX_CELLS
+from agents.maps.mapgroup import MapGroup, maps_share
 from agents.planners import Planner, PlannerContext, PlannerError, build_planner
 from agents.planners.base import Plan, PlanView
 from agents.planners.batching import PlanBatcher
@@ -216,8 +215,11 @@ class Simulation:
         """Shared actor settings, map storage and plan batching; the actors come with their UAVs."""
         self._actor_settings = build.actor_settings(sc)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
-        # agents.maps.mapgroup): on areas small enough for dense maps.
-        self._map_group = MapGroup(self.grid, self.tau, self.dt) if self.grid.nx * self.grid.ny <= DENSE_MAX_CELLS else None
+        # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon
+        # keeps scans from ever reaching every map (maps_share).
+        self._map_group = (MapGroup(self.grid, self.tau, self.dt)
+                           if maps_share(self.grid.nx * self.grid.ny, self.grid.width_m, self.grid.height_m,
+                                         sc.radio.horizon_m) else None)
         self.actors: dict[int, UavActor] = {}
         self._tasks: dict[int, asyncio.Task] = {}
         self._plans: dict[int, Plan] = {}

@@ -75,3 +75,37 @@ def test_receivers_sharing_a_cache_count_their_own_rejections():
     assert (actors[1].counters.rejected, actors[1].counters.delivered) == (0, 1)
     assert 3 in actors[1].knowledge.peers and 3 not in actors[0].knowledge.peers
     assert np.isfinite(actors[1].umap.to_dense()).any() and not np.isfinite(actors[0].umap.to_dense()).any()
+
+
+def test_a_checked_frame_is_reused_only_at_the_clock_it_was_checked_for():
+    """agents.inbox: what a receiver accepts of a frame is kept beside it for the tick's time;
+    a receiver at another time checks again (a scan from after the first clock is ignored then,
+    accepted later), and the kept value goes with its frame."""
+    import numpy as np
+
+    from agents.actor import ActorSettings, UavActor
+    from agents.maps.grid import Grid
+    from agents.planners.greedy import GreedyPlanner
+    from agents.types import UavType
+    from comms.mailbox import Mailbox
+
+    kind = UavType("B", 60.0, 90.0, 0.6, 0.35, 2000.0, 2.0, 2.1, 4000.0)
+    grid = Grid(50_000.0, 50_000.0, 100.0)
+    cache = DecodeCache(size=1)
+    actors = [UavActor(u, f"B{u}", kind, grid, 0.005, GreedyPlanner(), np.random.default_rng(u), ActorSettings(),
+                       Mailbox(16), decoder=cache) for u in (1, 2, 4)]
+    # Sent at t = 1 with a scan stamped 1.5 (from the future at t = 1, from the past at t = 2).
+    data = encode(3, 1, 1.0, [Hello(3, "B", 1.0, 2.0, 80.0, 0.1), ScanRecords(3, (1.5, 10.0, 20.0, 2000.0))])
+    for a in actors:
+        a.mailbox.put(1.0, 3, data)
+    actors[0]._drain_inbox(1.0)
+    actors[1]._drain_inbox(2.0)
+    actors[2]._drain_inbox(1.0)
+    assert [a.counters.scans_ignored for a in actors] == [1, 0, 1]
+    assert [int(np.isfinite(a.umap.to_dense()).any()) for a in actors] == [0, 1, 0]
+    assert all(a.knowledge.peers[3].t_pose == 1.0 for a in actors)
+    assert cache.decoded == 1 and cache.derived(data) is not None
+    cache.decode(frame(9))  # evicts the frame (size 1), and what was kept with it
+    assert cache.lookup(data) is None and cache.derived(data) is None
+    cache.keep(data, "x")  # nothing is kept for a frame the cache does not hold
+    assert cache.derived(data) is None

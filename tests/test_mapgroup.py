@@ -3,14 +3,16 @@ is sent, in whatever order, and whoever falls behind or leaves."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from agents.maps.grid import Grid
-from agents.maps.mapgroup import LAG_TICKS, MapGroup
-from agents.maps.umap import UncertaintyMap
+from agents.maps.mapgroup import LAG_TICKS, MapGroup, maps_share
+from agents.maps.umap import DENSE_MAX_CELLS, UncertaintyMap
 
 GRID = Grid(3000.0, 2500.0, 100.0)
 TAU = 1 / 600
@@ -152,3 +154,29 @@ def test_a_scan_only_a_few_members_have_makes_those_few_leave():
     assert maps[3] not in group.members and len(group.members) == 3
     for m, twin in zip(maps, twins):
         assert same(m.to_dense(), twin.to_dense())
+
+
+def test_maps_share_only_where_every_scan_can_reach_every_map():
+    # A dense grid without a horizon, or with one covering the area's diagonal: a group.
+    assert maps_share(250_000, 50_000.0, 50_000.0, math.inf)
+    assert maps_share(250_000, 30_000.0, 40_000.0, 50_000.0)
+    # A horizon shorter than the diagonal (bench-dense-300: 20 km in a 30 km square), or a
+    # grid too large for dense maps: every map on its own.
+    assert not maps_share(90_000, 30_000.0, 30_000.0, 20_000.0)
+    assert not maps_share(DENSE_MAX_CELLS + 1, 50_000.0, 50_000.0, math.inf)
+
+
+def test_the_simulation_and_the_memory_estimate_follow_maps_share():
+    from swarm.memory import estimate_memory
+    from swarm.scenario import load_scenario
+    from swarm.simulation import Simulation
+
+    for name, shared in (("paper-fig11", True), ("bench-dense-300", False)):
+        sim = Simulation(name, duration_s=1.0)
+        try:
+            assert (sim._map_group is not None) == shared, name
+        finally:
+            sim.close()
+        parts = estimate_memory(load_scenario(name)).parts
+        assert ("UAV maps (shared storage)" in parts) == shared, name
+        assert ("UAV maps (dense, one each)" in parts) == (not shared), name

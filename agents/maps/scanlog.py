@@ -80,6 +80,12 @@ class ScanLog:
         tick = round(t / self.dt)
         if tick < 0:
             return False
+        return self.add_tick(origin, tick, (t, x, y, r))
+
+    def add_tick(self, origin: int, tick: int, scan: tuple[float, float, float, float]) -> bool:
+        """:meth:`add` of ``scan = (t, x, y, r)`` whose tick ``round(t / dt) >= 0`` the caller
+        knows already (a heard frame's scans are checked once for all receivers:
+        :func:`agents.inbox.check_frame`); the tuple is stored as it is (shared, immutable)."""
         if tick < self._floor:
             return True
         bits = self._bits.get(origin)
@@ -104,7 +110,8 @@ class ScanLog:
         else:
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
-        self._scans[origin][tick] = (t, x, y, r)
+        self._scans[origin][tick] = scan
+        x, y = scan[1], scan[2]
         boxes = self._box[origin]
         box = boxes.get(tick >> CHUNK_SHIFT)
         if box is None:

@@ -201,8 +201,12 @@ class UncertaintyMap:
     def stamp(self, d: Disk, t: float) -> None:
         """:meth:`scan_disk` without the count: one ``maximum`` with the disk's shared
         ``where(mask, t, -inf)`` per tile piece (the fast path for heard scan records)."""
-        if self._changes is not None:
-            self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
+        changes = self._changes
+        if changes is not None:
+            if changes is not _TOO_MANY and len(changes) < MAX_CHANGES:  # = self._changed(...), inlined
+                changes.append((d.iy0, d.iy1, d.ix0, d.ix1))
+            else:
+                self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
             memo = d._vmemo  # Disk.values() memo, inlined (the per-receiver hot path)
