@@ -705,6 +705,16 @@ KNOWN_FAILURES = {
                   {"name": "A1", "type": "A", "x_m": 4500.0, "y_m": 2500.0, "heading_deg": 0.0}],
          "planner": {"name": "greedy"}, "faults": [{"kind": "drop", "rate": 1.0}]},
         lambda: [SeparationChecker()]),
+    # A paused UAV flies its last command blind (issue 16's pause): it cannot turn away from a
+    # no-fly zone ahead. The threat checker excuses a UAV while a node fault acts on it; judged
+    # without that excuse, the break shows.
+    "threat_while_paused": (
+        {"name": "paused-into-threat", "seed": 0, "duration_s": 90.0,
+         "area": {"width_m": 12000.0, "height_m": 5000.0, "cell_m": 100.0},
+         "uavs": [{"name": "B1", "type": "B", "x_m": 1000.0, "y_m": 2500.0, "heading_deg": 0.0}],
+         "threats": [{"x_m": 7000.0, "y_m": 2500.0, "radius_m": 1000.0}],
+         "planner": {"name": "greedy"}, "faults": [{"kind": "pause", "uav": "B1", "start_s": 2.0, "end_s": 80.0}]},
+        lambda: [ThreatClearanceChecker(excuse_node_faults=False)]),
 }
 
 

@@ -527,9 +527,10 @@ class SeparationChecker(Checker):
 
     name = "separation"
 
-    def __init__(self, min_separation_m: float | None = None):
+    def __init__(self, min_separation_m: float | None = None, excuse_node_faults: bool = True):
         super().__init__()
         self.min_separation_m = min_separation_m
+        self.excuse_node_faults = excuse_node_faults  # False: judge impaired UAVs too (known failures)
         self._prev: set[int] = set()
         self._active: set[tuple[int, int]] = set()
         self._excused: set[tuple[int, int]] = set()
@@ -553,7 +554,8 @@ class SeparationChecker(Checker):
                     self._excused.add(pair)  # too close from the moment they were both flying
                     continue
                 ctx = self.context
-                if ctx.impaired(pair[0], t, _SAFETY_EXCUSED, RECOVER_S) or ctx.impaired(pair[1], t, _SAFETY_EXCUSED, RECOVER_S):
+                if self.excuse_node_faults and (ctx.impaired(pair[0], t, _SAFETY_EXCUSED, RECOVER_S)
+                                                or ctx.impaired(pair[1], t, _SAFETY_EXCUSED, RECOVER_S)):
                     self._excused.add(pair)  # a node fault's doing (until they are apart again)
                     continue
                 self._active.add(pair)
@@ -571,8 +573,9 @@ class ThreatClearanceChecker(Checker):
 
     name = "threat"
 
-    def __init__(self) -> None:
+    def __init__(self, excuse_node_faults: bool = True) -> None:
         super().__init__()
+        self.excuse_node_faults = excuse_node_faults  # False: judge impaired UAVs too (known failures)
         self._prev: set[int] = set()
         self._active: set[tuple[int, int]] = set()
         self._excused: set[tuple[int, int]] = set()
@@ -592,7 +595,7 @@ class ThreatClearanceChecker(Checker):
                 inside.add(key)
                 if key in self._active or key in self._excused:
                     continue
-                if uid not in self._prev or ctx.impaired(uid, t, _SAFETY_EXCUSED, RECOVER_S):
+                if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, _SAFETY_EXCUSED, RECOVER_S)):
                     self._excused.add(key)  # (a node fault's doing: excused until it is out)
                     continue
                 self._active.add(key)
