@@ -26,8 +26,19 @@ _START = {"ge": 0}
 _END = {"gt": 0, "note": "> start_s; absent = until the end"}  # math.inf: absent from a scenario
 
 
+class Windowed:
+    """A fault that lasts over the half-open window ``[start_s, end_s)`` (the subclasses'
+    fields: each declares its own defaults and bounds)."""
+
+    start_s: float
+    end_s: float
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
 @dataclass(frozen=True, kw_only=True)
-class LinkFault:
+class LinkFault(Windowed):
     """A fault on frame copies while ``start_s <= t < end_s``, on every link or on those from or
     to ``uavs`` (empty: all) and on the directed ``links`` (empty: all)."""
 
@@ -39,9 +50,6 @@ class LinkFault:
     )
     # Each kind's tag: a class variable, not a field (the subclasses give the value).
     kind: ClassVar[str]
-
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
 
 
 _PROBABILITY = {"ge": 0, "le": 1}
@@ -93,7 +101,7 @@ class Corrupt(LinkFault):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Partition:
+class Partition(Windowed):
     """Cut the links between groups from ``start_s`` until ``end_s`` (the heal time).
 
     ``one_way``: only frames from an earlier-listed group to a later-listed one are blocked.
@@ -107,9 +115,6 @@ class Partition:
     end_s: float = field(default=math.inf, metadata=_END)
     one_way: bool = False
     kind: ClassVar[Literal["partition"]] = "partition"
-
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
 
     def separates(self, group_of_src: int | None, group_of_dst: int | None) -> bool:
         """Whether this partition, while active, blocks a frame from a UAV of group
@@ -142,7 +147,7 @@ class Join:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Pause:
+class Pause(Windowed):
     """The UAV's actor stops: no inbox, no planning, no sending, from ``start_s`` until ``end_s``.
 
     Its airframe keeps flying its last command, and its mailbox fills and overflows (frames
@@ -155,9 +160,6 @@ class Pause:
     start_s: float = field(default=0.0, metadata=_START)
     end_s: float = field(metadata={"gt": 0, "note": "> start_s: when the actor resumes"})
     kind: ClassVar[Literal["pause"]] = "pause"
-
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -174,7 +176,7 @@ class Restart:
 
 
 @dataclass(frozen=True, kw_only=True)
-class ClockSkew:
+class ClockSkew(Windowed):
     """While active the UAV's clock reads ``t + offset_s + drift * (t - start_s)``: every time
     it stamps (its scans, its frames, the tracks it sees) is skewed. Receivers ignore what is
     stamped later than their own clock (a max-CRDT would keep such cells fresh forever)."""
@@ -186,16 +188,13 @@ class ClockSkew:
     drift: float = field(default=0.0, metadata={"ge": -0.5, "le": 0.5, "note": "s of error per s"})
     kind: ClassVar[Literal["clock_skew"]] = "clock_skew"
 
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
-
     def error(self, t: float) -> float:
         """The clock's error at true time ``t`` (while active)."""
         return self.offset_s + self.drift * (t - self.start_s)
 
 
 @dataclass(frozen=True, kw_only=True)
-class NavError:
+class NavError(Windowed):
     """The UAV believes it is at its true position plus ``(bias_x_m, bias_y_m)`` plus Gaussian
     noise of ``noise_m`` per axis (drawn each tick): it plans, flies and stamps its scans there,
     while the ground truth senses where it really is."""
@@ -208,16 +207,13 @@ class NavError:
     noise_m: float = field(default=0.0, metadata={"ge": 0, "le": 1.0e6, "note": "m, standard deviation per axis"})
     kind: ClassVar[Literal["nav_error"]] = "nav_error"
 
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
-
 
 # Ids of phantom targets (false alarms, liars' tracks): far above any real target's.
 PHANTOM_TARGET_ID = 1_000_000_000
 
 
 @dataclass(frozen=True, kw_only=True)
-class Sensor:
+class Sensor(Windowed):
     """Detection faults of ``uavs`` (empty: all): each target inside the detection radius is
     seen with probability ``p_detect`` per tick, and phantom targets (false alarms) appear in
     the detection disk at ``false_alarm_rate`` per UAV-second."""
@@ -229,12 +225,9 @@ class Sensor:
     false_alarm_rate: float = field(default=0.0, metadata={"ge": 0, "le": 100, "note": "phantoms per UAV-second"})
     kind: ClassVar[Literal["sensor"]] = "sensor"
 
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
-
 
 @dataclass(frozen=True, kw_only=True)
-class Jammer:
+class Jammer(Windowed):
     """A circle in which every frame copy to or from a UAV inside is lost with probability
     ``rate``."""
 
@@ -246,12 +239,9 @@ class Jammer:
     end_s: float = field(default=math.inf, metadata=_END)
     kind: ClassVar[Literal["jammer"]] = "jammer"
 
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
-
 
 @dataclass(frozen=True, kw_only=True)
-class Bridge:
+class Bridge(Windowed):
     """A partition between ``groups`` in which the ``bridge`` UAV (taken out of any group that
     lists it) still talks to every side (Jepsen's bridge)."""
 
@@ -263,9 +253,6 @@ class Bridge:
     end_s: float = field(default=math.inf, metadata=_END)
     kind: ClassVar[Literal["bridge"]] = "bridge"
 
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
-
     def partition(self) -> Partition:
         """The partition this bridge is: its groups without the bridge UAV (which is then in no
         group, so :meth:`Partition.separates` never blocks it), same window. The one definition
@@ -275,7 +262,7 @@ class Bridge:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Swizzle:
+class Swizzle(Windowed):
     """FoundationDB's swizzle-clog: at ``start_s`` a random ``count`` UAVs of ``uavs`` (empty:
     all) are drawn; their links are cut one UAV at a time over the first half of the window,
     then restored one at a time, in a random order, over the second half."""
@@ -285,9 +272,6 @@ class Swizzle:
     start_s: float = field(default=0.0, metadata=_START)
     end_s: float = field(metadata={"gt": 0, "note": "> start_s: when the last link is restored"})
     kind: ClassVar[Literal["swizzle"]] = "swizzle"
-
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
 
     def plan(self, pool: Sequence[int], rng: np.random.Generator) -> dict[int, tuple[float, float]]:
         """Who is clogged when: ``{uav: (cut_s, restore_s)}``, the UAV clogged while
@@ -309,7 +293,7 @@ class Swizzle:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Liar:
+class Liar(Windowed):
     """A Byzantine member (it holds the swarm key): it broadcasts scan records it never made
     (``scans_per_s``, uniform over the area, stamped now, under made-up origin ids since a
     receiver keeps one scan per origin and tick) and false target tracks (``tracks_per_s``,
@@ -322,12 +306,9 @@ class Liar:
     tracks_per_s: float = field(default=0.0, metadata={"ge": 0, "le": 1000, "note": "fake tracks per s"})
     kind: ClassVar[Literal["liar"]] = "liar"
 
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
-
 
 @dataclass(frozen=True, kw_only=True)
-class Spoofer:
+class Spoofer(Windowed):
     """A transmitter that is not a swarm member: from ``(x_m, y_m)`` it sends ``rate_per_s``
     well-formed frames a second, with a forged sender (``as_uav``; empty: a random member per
     frame) and without the swarm key, to every live UAV within ``range_m``."""
@@ -340,9 +321,6 @@ class Spoofer:
     rate_per_s: float = field(default=1.0, metadata={"gt": 0, "le": 1000, "note": "frames per s"})
     as_uav: str = field(default="", metadata={"expected": "a UAV name defined in [[uavs]], or \"\" (a random member per frame)"})
     kind: ClassVar[Literal["spoofer"]] = "spoofer"
-
-    def active(self, t: float) -> bool:
-        return self.start_s <= t < self.end_s
 
 
 Fault = (Drop | Burst | Delay | Duplicate | Corrupt | Partition | Crash | Join | Pause | Restart | ClockSkew

@@ -388,9 +388,9 @@ class RunContext:
                     return True
         return False
 
-    def owed(self, uid: int, m: np.ndarray) -> np.ndarray:
-        """``uid``'s map less what it need not pass on (see :func:`owed_map`)."""
-        return owed_map(m, skewed_stamps(self.faults, self.scenario.duration_s))
+    def skewed(self) -> list[tuple[float, float]]:
+        """:func:`skewed_stamps` of this run's faults so far (for :func:`owed_map`)."""
+        return skewed_stamps(self.faults, self.scenario.duration_s)
 
     def link_faults_active(self, t: float) -> bool:
         # Spoofers too: their frames (with auth off) put scans in some maps and not others.
@@ -882,7 +882,8 @@ class MapAgreementChecker(_LiveChecker):
         # allowed grows with the radio graph's diameter over the quiet window.
         if self._quiet_since is None or self._quiet_since == t:
             self._hops = 0
-        self._hops = max(self._hops, ctx.hops(poses))
+        if self._quiet_since is not None:  # (history before the quiet began is never judged)
+            self._hops = max(self._hops, ctx.hops(poses))
         lag = max(self.lag_s, ctx.relay_lag_s(self._hops))
         self._history.append((t, self._maps(members)))
         while self._history and self._history[0][0] < t - lag - _EPS:
@@ -897,10 +898,12 @@ class MapAgreementChecker(_LiveChecker):
             return
         self.checks += 1
         now = self._history[-1][1]
+        skewed = ctx.skewed()
+        then = {u: owed_map(m, skewed) for u, m in then.items()}  # what each owes the others
         if not math.isinf(ctx.scenario.radio.horizon_m):
             self._judge_local(t, then_t, then, now, members)
             return
-        known = np.maximum.reduce([ctx.owed(u, m) for u, m in then.items() if u in members]) if then else None
+        known = np.maximum.reduce([m for u, m in then.items() if u in members]) if then else None
         if known is None:
             return
         for uid in sorted(members):
@@ -915,7 +918,6 @@ class MapAgreementChecker(_LiveChecker):
                                 f"(ix={ix}, iy={iy}): {float(now[uid][iy, ix]):g} < {float(known[iy, ix]):g}",
                              [uid, *who[:1]], cells=int(behind.sum()), fraction=frac, quiet_since=self._quiet_since)
                 self._reported_window = self._quiet_since
-
 
     def _judge_local(self, t: float, then_t: float, then: dict[int, np.ndarray], now: dict[int, np.ndarray],
                      members: frozenset[int]) -> None:
@@ -979,7 +981,8 @@ class JoinerCatchUpChecker(_LiveChecker):
                              and ctx.in_range((b.x, b.y), (j.x, j.y)))
                 if nbrs:
                     maps = self._maps(nbrs)
-                    self._pending[uid] = (float(e[1]), np.maximum.reduce([ctx.owed(u, m) for u, m in maps.items()]), nbrs)
+                    skewed = ctx.skewed()
+                    self._pending[uid] = (float(e[1]), np.maximum.reduce([owed_map(m, skewed) for m in maps.values()]), nbrs)
         if not poses:
             return
         for uid, (t_join, target, nbrs) in list(self._pending.items()):
