@@ -113,6 +113,13 @@ class UncertaintyMap:
         tile.fill(NEVER)
         return tile
 
+    def tile(self, key: int) -> np.ndarray | None:
+        """The stored last-seen times of tile ``key`` (``ty * ntx + tx``), live, not to be
+        written: a tiled map's flat ``th * tw`` cells (row-major; cells outside the grid are
+        ``-inf``), a dense map's whole grid (key 0); None where never written."""
+        self._materialize()
+        return self._tiles.get(key)
+
     @property
     def tiles_allocated(self) -> int:
         self._materialize()

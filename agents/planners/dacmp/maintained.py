@@ -171,21 +171,66 @@ class Plane:
 
 
 class SeenPlane(Plane):
-    """``E`` of a tiled map, not stored: read from the map's last-seen times as needed (it is
-    element-wise in them), so a huge map's pyramid stores only its levels."""
+    """``E`` of a tiled map, not stored: computed from the map's last-seen times (it is
+    element-wise in them), so a huge map's pyramid stores only its levels.
 
-    __slots__ = ("umap", "t0")
+    Within an update (:meth:`open` .. :meth:`close`, while the map does not change) the E of
+    each map tile read is computed once, whole tiles at a time and many tiles in one
+    :func:`e_of` call (:meth:`load`), and kept until :meth:`close`; outside one, a read
+    computes the E of the cells read."""
+
+    __slots__ = ("umap", "t0", "_open")
 
     def __init__(self, umap: UncertaintyMap):
         super().__init__(umap.grid.shape, umap.tile_shape)
         self.umap = umap
         self.t0 = 0.0
+        self._open = False
+        # While open: map tile key -> its E (th, tw), or None where the map has no tile (E = 0).
+        self._tiles: dict[int, np.ndarray | None] = {}  # type: ignore[assignment]
 
     @property
     def nbytes(self) -> int:
         return 0
 
+    def open(self, t0: float) -> None:
+        self.t0 = t0
+        self._open = True
+        self._tiles = {}
+
+    def close(self) -> None:
+        self._open = False
+        self._tiles = {}
+
+    def keys(self, r0: int, r1: int, c0: int, c1: int) -> list[int]:
+        """The keys of the tiles holding cells ``[r0:r1, c0:c1]``."""
+        th, tw = self.tile
+        ntx = self._ntx
+        cols = range(c0 // tw, (c1 - 1) // tw + 1)
+        return [ty * ntx + tx for ty in range(r0 // th, (r1 - 1) // th + 1) for tx in cols]
+
+    def load(self, keys: list[int]) -> None:
+        """E of these tiles, those not loaded yet, in one :func:`e_of` call (open only)."""
+        tiles, tile_of = self._tiles, self.umap.tile
+        todo: list[int] = []
+        seen: list[np.ndarray] = []
+        for key in keys:
+            if key not in tiles:
+                a = tile_of(key)
+                if a is None:
+                    tiles[key] = None
+                elif key not in todo:
+                    todo.append(key)
+                    seen.append(a)
+        if seen:
+            e = e_of(np.stack(seen), self.umap.tau, self.t0).reshape(len(seen), *self.tile)
+            for key, v in zip(todo, e):
+                tiles[key] = v
+
     def read(self, r0: int, r1: int, c0: int, c1: int, out: np.ndarray | None = None) -> np.ndarray:
+        if self._open:
+            self.load(self.keys(r0, r1, c0, c1))
+            return super().read(r0, r1, c0, c1, out)
         e = e_of(self.umap.region(slice(r0, r1), slice(c0, c1)), self.umap.tau, self.t0)
         if out is None:
             return e
@@ -390,11 +435,38 @@ class MaintainedPyramid:
         boxes = [(0, h0, 0, w0)] if whole else _merged(rects)
         if not boxes:
             return
+        # The boxes reduce_boxes computes on levels 1, 2, ...; a dense map's levels above them
+        # (small ones) are computed whole by BLAS.
+        dense = umap.dense
+        plan: list[list[Rect]] = []
+        level_boxes = boxes
+        for m, mw in self.shapes[1:]:
+            if dense and m * mw <= WHOLE_CELLS:
+                break
+            if whole:
+                level_boxes = [(0, m, 0, mw)]
+            else:
+                level_boxes = _merged([(max(0, (r0 - 1) // 2), min(m, (r1 + 1) // 2 + 1),
+                                        max(0, (c0 - 1) // 2), min(mw, (c1 + 1) // 2 + 1))
+                                       for r0, r1, c0, c1 in level_boxes])
+                if dense and 4 * sum((b - a) * (d - c) for a, b, c, d in level_boxes) >= m * mw:
+                    level_boxes, whole = [(0, m, 0, mw)], True  # (and every level above it)
+            plan.append(level_boxes)
         chunks: set[tuple[int, int]] = set()
         cr, ccl = self._chunk_rows, self._chunk_cols
+        for r0, r1, c0, c1 in boxes:
+            for i in range(bisect.bisect_right(cr, r0) - 1, bisect.bisect_left(cr, r1)):
+                for j in range(bisect.bisect_right(ccl, c0) - 1, bisect.bisect_left(ccl, c1)):
+                    chunks.add((i, j))
         e = planes[0]
         if isinstance(e, SeenPlane):
-            e.t0 = t0  # (read from the map as needed)
+            # E of every map tile this update reads (the chunks', level 1's inputs), at once.
+            e.open(t0)
+            keys = [k for i, j in chunks for k in e.keys(cr[i], cr[i] + 1, ccl[j], ccl[j] + 1)]
+            if plan:
+                for i0, i1, j0, j1 in plan[0]:
+                    keys += e.keys(max(0, 2 * i0 - 2), min(h0, 2 * i1 + 1), max(0, 2 * j0 - 2), min(w0, 2 * j1 + 1))
+            e.load(keys)
         else:
             # E of all boxes in one go (their last-seen times side by side in one flat array).
             seen = [umap.region(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in boxes]
@@ -403,37 +475,26 @@ class MaintainedPyramid:
             for (r0, _, c0, _), a in zip(boxes, seen):
                 e.write(r0, c0, flat[at : at + a.size].reshape(a.shape))
                 at += a.size
-        for r0, r1, c0, c1 in boxes:
-            for i in range(bisect.bisect_right(cr, r0) - 1, bisect.bisect_left(cr, r1)):
-                for j in range(bisect.bisect_right(ccl, c0) - 1, bisect.bisect_left(ccl, c1)):
-                    chunks.add((i, j))
-        sums, blocks = self._chunk_sums, set()
-        for i, j in chunks:
-            v = float(e.read(cr[i], cr[i + 1], ccl[j], ccl[j + 1]).sum())  # (float32, pairwise: error ~1e-7)
-            if v:
-                sums[i, j] = v
-            else:
-                sums.pop((i, j), None)
-            blocks.add((self._chunk_block_row[i], self._chunk_block_col[j]))
-        br, bc = self._block_rows, self._block_cols
-        for bi, bj in blocks:
-            self._block_sums[bi, bj] = math.fsum(sums.get((i, j), 0.0) for i in range(br[bi], br[bi + 1])
-                                                 for j in range(bc[bj], bc[bj + 1]))
-        dense = umap.dense
-        for l in range(1, len(self.shapes)):
-            m, mw = self.shapes[l]
-            if dense and m * mw <= WHOLE_CELLS:  # this level and all above: whole, by BLAS
-                for k in range(l, len(self.shapes)):
-                    reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
-                return
-            if whole:
-                boxes = [(0, m, 0, mw)]
-            else:
-                boxes = _merged([(max(0, (r0 - 1) // 2), min(m, (r1 + 1) // 2 + 1),
-                                  max(0, (c0 - 1) // 2), min(mw, (c1 + 1) // 2 + 1)) for r0, r1, c0, c1 in boxes])
-                if dense and 4 * sum((b - a) * (d - c) for a, b, c, d in boxes) >= m * mw:
-                    boxes, whole = [(0, m, 0, mw)], True  # (and every level above it)
-            reduce_boxes(planes[l - 1], planes[l], boxes)
+        try:
+            sums, blocks = self._chunk_sums, set()
+            for i, j in chunks:
+                v = float(e.read(cr[i], cr[i + 1], ccl[j], ccl[j + 1]).sum())  # (float32, pairwise: error ~1e-7)
+                if v:
+                    sums[i, j] = v
+                else:
+                    sums.pop((i, j), None)
+                blocks.add((self._chunk_block_row[i], self._chunk_block_col[j]))
+            br, bc = self._block_rows, self._block_cols
+            for bi, bj in blocks:
+                self._block_sums[bi, bj] = math.fsum(sums.get((i, j), 0.0) for i in range(br[bi], br[bi + 1])
+                                                     for j in range(bc[bj], bc[bj + 1]))
+            for l, level_boxes in enumerate(plan, 1):
+                reduce_boxes(planes[l - 1], planes[l], level_boxes)
+        finally:
+            if isinstance(e, SeenPlane):
+                e.close()
+        for k in range(len(plan) + 1, len(self.shapes)):
+            reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
 
     # --- reads ------------------------------------------------------------------------------
 
