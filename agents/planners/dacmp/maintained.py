@@ -63,7 +63,7 @@ from typing import cast
 
 import numpy as np
 
-from agents.maps.umap import UncertaintyMap
+from agents.maps.umap import NEVER, UncertaintyMap
 from agents.planners.dacmp.pyramid import SCALE, level_shapes
 
 __all__ = ["EXP_MIN", "SPAN", "MaintainedPyramid", "Plane", "base_time", "e_of", "reduce_boxes"]
@@ -91,7 +91,9 @@ def e_of(last_seen: np.ndarray, tau: float, t0: float) -> np.ndarray:
     arg *= np.float32(tau)
     np.clip(arg, np.float32(-EXP_MIN), np.float32(EXP_MIN), out=arg)
     e = np.exp(arg, out=arg)
-    np.copyto(e, np.float32(0.0), where=np.isneginf(last_seen))
+    # Times 1 (seen: exact) or 0 (never seen: E is positive, so +0.0): cheaper than a masked
+    # copy, most of a tile's cells being never seen.
+    e *= last_seen != NEVER
     return e
 
 
@@ -126,13 +128,25 @@ class Plane:
             self._a.fill(0.0)
         self._tiles = {}
 
-    def _pieces(self, r0: int, r1: int, c0: int, c1: int):
+    def _pieces(self, r0: int, r1: int, c0: int, c1: int) -> list[tuple[int, slice, slice, slice, slice]]:
+        """``(tile_key, rows, cols in the tile, rows, cols in the region)`` of each tile
+        holding cells ``[r0:r1, c0:c1]`` (a list, not a generator, and conditional expressions,
+        not max/min: the pieces of a few hundred boxes an update)."""
         th, tw = self.tile
+        ntx = self._ntx
+        out = []
+        tx0, tx1 = c0 // tw, (c1 - 1) // tw + 1
         for ty in range(r0 // th, (r1 - 1) // th + 1):
-            a, b = max(r0, ty * th), min(r1, (ty + 1) * th)
-            for tx in range(c0 // tw, (c1 - 1) // tw + 1):
-                c, e = max(c0, tx * tw), min(c1, (tx + 1) * tw)
-                yield ty * self._ntx + tx, a, b, c, e, ty * th, tx * tw
+            y0 = ty * th
+            a = r0 if r0 > y0 else y0
+            b = r1 if r1 < y0 + th else y0 + th
+            rows, out_rows = slice(a - y0, b - y0), slice(a - r0, b - r0)
+            for tx in range(tx0, tx1):
+                x0 = tx * tw
+                c = c0 if c0 > x0 else x0
+                e = c1 if c1 < x0 + tw else x0 + tw
+                out.append((ty * ntx + tx, rows, slice(c - x0, e - x0), out_rows, slice(c - c0, e - c0)))
+        return out
 
     def read(self, r0: int, r1: int, c0: int, c1: int, out: np.ndarray | None = None) -> np.ndarray:
         """Cells ``[r0:r1, c0:c1]``: into ``out`` if given, else a view (dense) or a new array."""
@@ -143,15 +157,31 @@ class Plane:
             return out
         if out is None:
             out = np.empty((r1 - r0, c1 - c0), np.float32)
-        tiles = self._tiles
-        for key, a, b, c, e, y0, x0 in self._pieces(r0, r1, c0, c1):
-            tile = tiles.get(key)
-            dst = out[a - r0 : b - r0, c - c0 : e - c0]
+        get = self._tiles.get
+        for key, rows, cols, out_rows, out_cols in self._pieces(r0, r1, c0, c1):
+            tile = get(key)
             if tile is None:
-                dst.fill(0.0)
+                out[out_rows, out_cols] = 0.0
             else:
-                dst[...] = tile[a - y0 : b - y0, c - x0 : e - x0]
+                out[out_rows, out_cols] = tile[rows, cols]
         return out
+
+    def sum(self, r0: int, r1: int, c0: int, c1: int) -> float:
+        """``float(read(r0, r1, c0, c1).sum())`` (numpy's pairwise float32 sum of a dense
+        plane's view, of a tiled one's cells as a new C-contiguous array) of cells within one
+        tile, without the read's piecewise copy."""
+        if self._a is not None:
+            return float(self._a[r0:r1, c0:c1].sum())
+        th, tw = self.tile
+        ty, tx = r0 // th, c0 // tw
+        tile = self._tile(ty * self._ntx + tx)
+        if tile is None:
+            return 0.0
+        y0, x0 = ty * th, tx * tw
+        return float(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]).sum())
+
+    def _tile(self, key: int) -> np.ndarray | None:
+        return self._tiles.get(key)
 
     def write(self, r0: int, c0: int, values: np.ndarray) -> None:
         """Set cells ``[r0:r0 + h, c0:c0 + w]`` to ``values`` (``(h, w)``)."""
@@ -160,14 +190,14 @@ class Plane:
             self._a[r0 : r0 + h, c0 : c0 + w] = values
             return
         tiles = self._tiles
-        for key, a, b, c, e, y0, x0 in self._pieces(r0, r0 + h, c0, c0 + w):
-            piece = values[a - r0 : b - r0, c - c0 : e - c0]
+        for key, rows, cols, in_rows, in_cols in self._pieces(r0, r0 + h, c0, c0 + w):
+            piece = values[in_rows, in_cols]
             tile = tiles.get(key)
             if tile is None:
                 if not piece.any():
                     continue  # zeros where the plane is implicitly zero
                 tile = tiles[key] = np.zeros(self.tile, np.float32)
-            tile[a - y0 : b - y0, c - x0 : e - x0] = piece
+            tile[rows, cols] = piece
 
 
 class SeenPlane(Plane):
@@ -226,6 +256,16 @@ class SeenPlane(Plane):
             e = e_of(np.stack(seen), self.umap.tau, self.t0).reshape(len(seen), *self.tile)
             for key, v in zip(todo, e):
                 tiles[key] = v
+
+    def _tile(self, key: int) -> np.ndarray | None:
+        if key not in self._tiles:
+            self.load([key])
+        return self._tiles[key]
+
+    def sum(self, r0: int, r1: int, c0: int, c1: int) -> float:
+        if self._open:
+            return super().sum(r0, r1, c0, c1)
+        return float(self.read(r0, r1, c0, c1).sum())
 
     def read(self, r0: int, r1: int, c0: int, c1: int, out: np.ndarray | None = None) -> np.ndarray:
         if self._open:
@@ -295,6 +335,9 @@ def reduce_boxes(src: Plane, dst: Plane, boxes: list[tuple[int, int, int, int]])
     x = np.zeros((len(boxes), hh, ww), np.float32)
     for k, (i0, i1, j0, j1) in enumerate(boxes):
         rlo, rhi, clo, chi = 2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1
+        if rlo >= 0 and rhi <= n and clo >= 0 and chi <= w:  # interior: read in place
+            src.read(rlo, rhi, clo, chi, out=x[k, : rhi - rlo, : chi - clo])
+            continue
         rr, a, b = _reflected(rlo, rhi, n) if rlo < 0 or rhi > n else (None, rlo, rhi)
         cc, c, e = _reflected(clo, chi, w) if clo < 0 or chi > w else (None, clo, chi)
         piece = src.read(a, b, c, e)
@@ -478,7 +521,7 @@ class MaintainedPyramid:
         try:
             sums, blocks = self._chunk_sums, set()
             for i, j in chunks:
-                v = float(e.read(cr[i], cr[i + 1], ccl[j], ccl[j + 1]).sum())  # (float32, pairwise: error ~1e-7)
+                v = e.sum(cr[i], cr[i + 1], ccl[j], ccl[j + 1])  # (float32, pairwise: error ~1e-7)
                 if v:
                     sums[i, j] = v
                 else:
