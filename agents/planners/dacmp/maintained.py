@@ -244,12 +244,12 @@ class SeenPlane(Plane):
         tiles, tile_of = self._tiles, self.umap.tile
         todo: list[int] = []
         seen: list[np.ndarray] = []
-        for key in keys:
+        for key in dict.fromkeys(keys):  # (each once, in order)
             if key not in tiles:
                 a = tile_of(key)
                 if a is None:
                     tiles[key] = None
-                elif key not in todo:
+                else:
                     todo.append(key)
                     seen.append(a)
         if seen:
