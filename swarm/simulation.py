@@ -294,8 +294,10 @@ class Simulation:
                        PENDING, spec.join_s or 0.0)
         self.world.add_uav(body)
         self.names[name] = uid
-        # Scan disks and decoded frames are shared by every UAV using them within a few ticks.
-        self.grid.set_disk_cache_size(max(256, 3 * len(self.world.uavs)))
+        # Scan disks and decoded frames are shared by every UAV using them within a few ticks;
+        # anti-entropy resends scans up to sync_horizon_s old, so at least 4096 disks are kept
+        # (bench-100-dacmp 300 s: disk rebuilds 41k -> 19k, 9% less CPU, +90 MB peak RSS).
+        self.grid.set_disk_cache_size(max(4096, 3 * len(self.world.uavs)))
         self._decoder.size = max(256, 4 * len(self.world.uavs))
         planner = self._build_planner(uid, name, spec.type)
         self.actors[uid] = UavActor(
