@@ -209,6 +209,10 @@ class UavActor:
         self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes,
                                                                           key=settings.auth_key)
         self._cache = decoder
+        # Sent through a shared decoder with the swarm's key, a frame is remembered there as
+        # decoded (DecodeCache.encode): its receivers find it without running the codec.
+        self._encode = (decoder.encode if decoder is not None and decoder.key == settings.auth_key
+                        else partial(encode, key=settings.auth_key))
         self._bounds = (self._max_scan_r, grid.width_m, grid.height_m, settings.dt)  # agents.inbox.check_frame's
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
@@ -582,7 +586,7 @@ class UavActor:
     def _frame(self, t: float, messages: Sequence[Message | Packed]) -> bytes:
         self._seq += 1
         self.counters.frames_sent += 1
-        return encode(self.uid, self._seq, t, messages, self.settings.auth_key)
+        return self._encode(self.uid, self._seq, t, messages)
 
     def _outbox(self, r: SensorReading, plan: Plan) -> list[bytes]:
         t = r.t

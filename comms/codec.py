@@ -149,10 +149,42 @@ _packer = msgpack.Packer(use_bin_type=True)
 def encode(sender: int, seq: int, t: float, messages: Sequence[Message | Packed], key: bytes | None = None) -> bytes:
     """The frame of ``messages``: :class:`~comms.messages.Message` objects, or their packed forms
     (:func:`pack_hello`, ...). ``key``: the swarm key; the frame then carries its MAC."""
-    payload: bytes = _packer.pack([MAGIC, VERSION, sender, seq, float(t), [_pack_message(m) for m in messages]])
+    return _wire(sender, seq, float(t), [_pack_message(m) for m in messages], key)
+
+
+def _wire(sender: int, seq: int, t: float, packed: list[Packed], key: bytes | None) -> bytes:
+    payload: bytes = _packer.pack([MAGIC, VERSION, sender, seq, t, packed])
     if key is not None:
         payload += mac(key, payload)
     return payload + zlib.crc32(payload).to_bytes(4, "little")
+
+
+def encode_decoded(sender: int, seq: int, t: float, messages: Sequence[Message | Packed], key: bytes | None = None,
+                   max_bytes: int = DEFAULT_MAX_BYTES) -> tuple[bytes, Frame | None]:
+    """``encode(sender, seq, t, messages, key)`` and the :class:`Frame` that ``decode(data,
+    max_bytes, key)`` gives for those bytes, built from the packed messages without the wire,
+    or None where that is not certain (decoding then decides): the sender's side of
+    :class:`comms.framecache.DecodeCache`.
+
+    The frame is what decoding builds, by the same checks (:func:`_message`), applied to what
+    msgpack would give back. That is the packed messages themselves: every check admits exact
+    builtin types only (int, float, str, bytes, list), which msgpack reads back as they were
+    written; the one tuple _pack_message may leave (a ScanRecords' records) is read back as a
+    list, and is passed as one. A value that fails a check (a numpy float, a NaN, a bool)
+    gives None, not an error: decoding may accept it (a float subclass is written as a float)
+    or reject it, as it will."""
+    t = float(t)
+    packed = [_pack_message(m) for m in messages]
+    data = _wire(sender, seq, t, packed, key)
+    if len(data) > max_bytes:
+        return data, None
+    try:
+        frame = Frame(_int(sender), _int(seq), _num(t),
+                      tuple([_message(m if m[0] != K_SCAN or type(m[2]) is not tuple or len(m) != 3
+                                      else [m[0], m[1], list(m[2])]) for m in packed]))
+    except (FrameError, TypeError, ValueError, IndexError):
+        return data, None
+    return data, frame
 
 
 # --- decoding -----------------------------------------------------------------------------

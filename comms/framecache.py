@@ -22,9 +22,11 @@ frame.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from itertools import islice
 
-from comms.codec import DEFAULT_MAX_BYTES, Frame, decode
+from comms.codec import DEFAULT_MAX_BYTES, Frame, Packed, decode, encode_decoded
+from comms.messages import Message
 
 DECODE_CACHE_SIZE = 8192
 
@@ -53,13 +55,26 @@ class DecodeCache:
         self.decoded += 1
         frame = decode(data, self.max_bytes, self.key)  # raises FrameError: not cached
         if type(data) is bytes:
-            if len(frames) >= self.size:
-                derived = self._derived
-                for k in list(islice(frames, max(1, self.size // 4))):  # oldest first
-                    del frames[k]
-                    derived.pop(k, None)
-            frames[data] = frame
+            self._remember(data, frame)
         return frame
+
+    def encode(self, sender: int, seq: int, t: float, messages: Sequence[Message | Packed]) -> bytes:
+        """:func:`comms.codec.encode` ``(sender, seq, t, messages, key)``, remembering the frame
+        its bytes decode to as if it had decoded them (:func:`comms.codec.encode_decoded`): the
+        sender has the messages its receivers would decode, and they find the frame here."""
+        data, frame = encode_decoded(sender, seq, t, messages, self.key, self.max_bytes)
+        if frame is not None and data not in self._frames:
+            self._remember(data, frame)
+        return data
+
+    def _remember(self, data: bytes, frame: Frame) -> None:
+        frames = self._frames
+        if len(frames) >= self.size:
+            derived = self._derived
+            for k in list(islice(frames, max(1, self.size // 4))):  # oldest first
+                del frames[k]
+                derived.pop(k, None)
+        frames[data] = frame
 
     def derived(self, data: bytes) -> object | None:
         """The value kept for the frame of ``data`` (:meth:`keep`), or None."""

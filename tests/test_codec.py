@@ -31,6 +31,7 @@ from comms.codec import (
     FrameError,
     decode,
     encode,
+    encode_decoded,
     pack_hello,
     pack_intent,
     pack_scans,
@@ -533,3 +534,36 @@ def test_trailing_bytes_after_a_valid_frame_are_rejected(f, n):
     assume(len(data) + n <= DEFAULT_MAX_BYTES)
     with pytest.raises(FrameError):
         decode(data + b"\x00" * n)
+
+
+# ---------------------------------------------------------------------------------------------
+# encode_decoded: the sender's frame, as decoding would give it
+# ---------------------------------------------------------------------------------------------
+
+
+@settings(deadline=None)
+@given(frames, st.sampled_from([None, b"swarm key"]))
+def test_encode_decoded_gives_the_bytes_and_what_decoding_them_gives(f, key):
+    for msgs in (f.messages, [_packed_form(m) for m in f.messages]):
+        data, got = encode_decoded(f.sender, f.seq, f.t, msgs, key)
+        assert data == encode(f.sender, f.seq, f.t, msgs, key)
+        assert got is not None and got == decode(data, key=key)
+        assert_well_typed(got)
+
+
+def test_encode_decoded_leaves_to_decoding_what_it_cannot_vouch_for():
+    import numpy as np
+
+    hello = pack_hello(1, "B", 1.0, 2.0, 3.0, 0.5)
+    # A numpy float is written as a float (decoding accepts it); a bool and a NaN are rejected.
+    for bad, accepted in ((np.float64(1.5), True), (True, False), (math.nan, False)):
+        msgs = [hello, pack_scans(1, [1.0, bad, 2.0, 3.0])]
+        data, got = encode_decoded(1, 2, 3.0, msgs)
+        assert got is None
+        if accepted:
+            assert decode(data).messages[1] == ScanRecords(1, (1.0, 1.5, 2.0, 3.0))
+        else:
+            with pytest.raises(FrameError):
+                decode(data)
+    data, got = encode_decoded(1, 2, 3.0, [hello], max_bytes=10)  # too long to be decoded
+    assert got is None and data == encode(1, 2, 3.0, [hello])

@@ -109,3 +109,12 @@ def test_a_checked_frame_is_reused_only_at_the_clock_it_was_checked_for():
     assert cache.lookup(data) is None and cache.derived(data) is None
     cache.keep(data, "x")  # nothing is kept for a frame the cache does not hold
     assert cache.derived(data) is None
+
+
+def test_a_sent_frame_is_found_as_decoding_it_would_give():
+    """DecodeCache.encode: the sender's bytes, and their frame remembered without decoding."""
+    cache = DecodeCache(key=b"k")
+    msgs = [Hello(3, "B", 1.0, 2.0, 80.0, 0.1), ScanRecords(3, (1.0, 10.0, 20.0, 2000.0))]
+    data = cache.encode(3, 1, 1.0, msgs)
+    assert data == encode(3, 1, 1.0, msgs, b"k")
+    assert cache.lookup(data) == decode(data, key=b"k") and cache.decoded == 0
