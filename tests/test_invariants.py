@@ -423,6 +423,18 @@ def test_map_agreement_holds_on_an_ideal_radio_and_catches_a_radio_that_loses_fr
     assert bad.violations and {v.uavs[1] for v in bad.violations} == {"B1"}
 
 
+def test_map_agreement_does_not_judge_ticks_in_which_a_full_mailbox_dropped_frames():
+    # Found by SwarmMachine: a lossless radio whose mailboxes hold fewer frames than a tick
+    # brings loses frames all the same; judging those ticks as "quiet" reported a lag that
+    # anti-entropy had not yet had the time to repair.
+    doc = _ideal()
+    doc["radio"]["mailbox_capacity"] = 1  # two neighbours: a frame or more lost most ticks
+    with Simulation(parse_scenario(doc)) as sim:
+        small = _run_live(sim, [MapAgreementChecker()])
+        assert sim.radio.counters.dropped.get("mailbox_full", 0) > 0
+    assert small.violations == [] and small.by_name("map_agreement").checks == 0
+
+
 def test_joiner_catch_up_passes_with_state_transfer():
     doc = _ideal()
     doc["uavs"][2]["join_s"] = 20.0

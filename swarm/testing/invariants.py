@@ -797,10 +797,20 @@ class _LiveChecker(Checker):
         return {u: sim.uav_map(ctx.name(u)) for u in uids}
 
     def _radio_lossy(self) -> bool:
-        """A radio that loses frames by itself: anti-entropy converges, but in no bounded time."""
+        """A radio that loses frames by itself: anti-entropy converges, but in no bounded time.
+        Also true in a tick in which a full mailbox dropped a frame copy (a small
+        ``mailbox_capacity`` loses frames of a lossless radio the same way)."""
         r = self.context.scenario.radio
         return (r.loss_base > 0 or r.effective_loss_at_range > 0 or r.model != "disk"
-                or r.bandwidth_bytes_per_s is not None)
+                or r.bandwidth_bytes_per_s is not None or self._overflowed)
+
+    _overflowed = False  # a mailbox dropped a frame since the previous tick (_note_overflow)
+    _full_drops = 0
+
+    def _note_overflow(self) -> None:
+        """Called once per tick: whether a full mailbox dropped a frame copy since the last call."""
+        n = self._sim().radio.counters.dropped.get("mailbox_full", 0)
+        self._overflowed, self._full_drops = n > self._full_drops, n
 
 
 class MapMonotonicityChecker(_LiveChecker):
@@ -867,6 +877,7 @@ class MapAgreementChecker(_LiveChecker):
         poses = _poses(events)
         if not poses:
             return
+        self._note_overflow()
         ctx = self.context
         members = frozenset(poses)
         quiet_now = (members == self._members and not any(e[0] in ("crash", "join", "restart") for e in events)
@@ -985,6 +996,7 @@ class JoinerCatchUpChecker(_LiveChecker):
                     self._pending[uid] = (float(e[1]), np.maximum.reduce([owed_map(m, skewed) for m in maps.values()]), nbrs)
         if not poses:
             return
+        self._note_overflow()
         for uid, (t_join, target, nbrs) in list(self._pending.items()):
             if (uid not in poses or ctx.link_faults_active(t) or ctx.node_faults_disturb(t) or self._radio_lossy()
                     or not any(ctx.can_talk(uid, n, t, poses) for n in nbrs)):
