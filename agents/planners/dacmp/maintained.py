@@ -384,7 +384,11 @@ STACK_CELLS = 1 << 12
 def _stacks(jobs: list[Reduce]) -> list[list[Reduce]]:
     """The boxes in groups to stack for :func:`reduce_boxes`: largest first, each joining the
     last group while the group padded to its largest height and width stays within
-    :data:`STACK_CELLS` or twice the group's own cells, else starting a new group."""
+    :data:`STACK_CELLS` or twice the group's own cells, else starting a new group (all in one
+    group when that holds for all)."""
+    sizes = [(i1 - i0, j1 - j0) for _, _, (i0, i1, j0, j1) in jobs]
+    if len(jobs) * max(h for h, _ in sizes) * max(w for _, w in sizes) <= max(STACK_CELLS, 2 * sum(h * w for h, w in sizes)):
+        return [jobs]
     groups: list[list[Reduce]] = []
     hh = ww = cells = 0
     for job in sorted(jobs, key=lambda job: (job[2][1] - job[2][0]) * (job[2][3] - job[2][2]), reverse=True):
