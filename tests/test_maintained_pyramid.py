@@ -134,6 +134,62 @@ def test_maintained_levels_equal_a_recomputation(kind, nx, ny, levels, tau, step
         check(pyr, umap, t, levels)
 
 
+def _apply_op(umap: UncertaintyMap, grid: Grid, op: str, a: float, b: float, c: float, when: float) -> None:
+    """One map write of :data:`ops` (stamp, scan, cover, merge of a tiled or a dense map)."""
+    x, y, r = a * grid.width_m, b * grid.height_m, 50.0 + c * 2000.0
+    if op in ("stamp", "scan", "cover"):
+        disk = grid.disk_stamp(x, y, r)
+        if disk is not None:
+            getattr(umap, {"stamp": "stamp", "scan": "scan_disk", "cover": "cover"}[op])(disk, when)
+    elif op == "merge":
+        other = UncertaintyMap(grid, umap.tau, tile=umap.tile_shape if not umap.dense else None)
+        disk = grid.disk_stamp(y * grid.width_m / grid.height_m, x * grid.height_m / grid.width_m, r)
+        if disk is not None:
+            other.stamp(disk, when)
+        umap.merge(other if c < 0.5 else other.to_dense())
+
+
+writes = st.lists(st.tuples(st.integers(0, 3), st.sampled_from(["stamp", "scan", "cover", "merge"]),
+                            st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0)),
+                  max_size=8)
+
+
+@settings(max_examples=examples(40), deadline=None)
+@given(kinds=st.lists(st.sampled_from(KINDS), min_size=1, max_size=4), nx=st.integers(1, 70), ny=st.integers(1, 70),
+       levels=st.integers(0, 8), tau=st.sampled_from([1e-3, 0.005, 0.05]),
+       rounds=st.lists(st.tuples(writes, st.lists(st.floats(0.0, 1.0), min_size=4, max_size=4), st.booleans()),
+                       min_size=1, max_size=6))
+def test_update_many_equals_separate_updates(kinds, nx, ny, levels, tau, rounds):
+    """Several maps updated together (each at its own time, some crossing a span: a rebuild,
+    some with unknown changes: a reread, some unchanged, one listed twice) end bit for bit as
+    the same maps updated one by one."""
+    grid = Grid(nx * 100.0, ny * 100.0, 100.0)
+    together = [make_map(kind, grid, tau) for kind in kinds]
+    alone = [make_map(kind, grid, tau) for kind in kinds]
+    span = SPAN / tau
+    ts = [0.0] * len(kinds)
+    for changes, steps, twice in rounds:
+        for i, op, a, b, c, d in changes:
+            if i < len(kinds):
+                when = ts[i] - d * 0.5 * span
+                for umap in (together[i], alone[i]):
+                    _apply_op(umap, grid, op, a, b, c, when)
+        ts = [t + (2.0 * d if d > 0.7 else 0.3 * d) * span for t, d in zip(ts, steps)]
+        pyramids = [MaintainedPyramid.of(m, levels) for m in together]
+        times = ts + ts[:1] if twice else ts
+        got = MaintainedPyramid.update_many(pyramids + pyramids[:1] if twice else pyramids, times)
+        want = [MaintainedPyramid.of(alone[i % len(kinds)], levels).update(t) for i, t in enumerate(times)]
+        assert got == want
+        for m, n in zip(together, alone):
+            p, q = MaintainedPyramid.of(m, levels), MaintainedPyramid.of(n, levels)
+            assert p.t0 == q.t0 and p.s == q.s
+            for a_, b_ in zip(p.planes, q.planes):
+                h, w = a_.shape
+                assert same(a_.read(0, h, 0, w).copy(), b_.read(0, h, 0, w).copy())
+            assert same(p.block_means(), q.block_means())
+        check(MaintainedPyramid.of(together[0], levels), together[0], ts[0], levels)
+
+
 def test_base_time_keeps_the_exponent_in_range():
     for tau in (1e-3, 0.005, 3.0):
         for t in (0.0, 1.0, 1999.5, 1e5):

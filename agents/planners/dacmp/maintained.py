@@ -34,6 +34,13 @@ updated. Against the old pipeline (q in float32, then BLAS reduces) the levels `
 differ by float rounding only: ``tests/test_maintained_pyramid.py`` checks ``|difference| <=
 2e-6`` (q and its levels lie in [0, 1]; float32 rounding is 6e-8 per operation).
 
+Batches. The UAVs that replan together have their pyramids updated together
+(:meth:`MaintainedPyramid.update_many`), in batches of about :data:`BATCH_CELLS` changed cells:
+the E of a batch's changed cells in one :func:`e_of` call, the changed boxes of a level of all
+its maps stacked into one reduce. Both are element-wise, so each map's state is bit for bit
+what its own update gives; what is shared is the cost of the numpy calls, which dominates the
+small boxes of the upper levels.
+
 Guide point (eq. 20). A sub-area's mean ``q`` is ``1 - s * sum(E) / cells``. The sums of ``E``
 are kept per *chunk*: the sub-areas of a dense map, the pieces of the sub-areas cut at the tile
 edges of a tiled one (only chunks with seen cells are listed). A changed chunk's sum is
@@ -59,7 +66,7 @@ from __future__ import annotations
 import bisect
 import functools
 import math
-from typing import cast
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -74,6 +81,9 @@ _MIN_LEVEL_TILE = 16
 # Levels of a dense map with at most this many cells are recomputed whole (reduce_whole):
 # cheaper than working out which of their cells changed.
 WHOLE_CELLS = 1 << 12
+# update_many recomputes maps together until their changed cells reach this many: enough maps to
+# share the calls of their small boxes, few enough that their E and levels stay in cache.
+BATCH_CELLS = 1 << 16
 
 
 def base_time(t: float, tau: float) -> float:
@@ -241,21 +251,29 @@ class SeenPlane(Plane):
 
     def load(self, keys: list[int]) -> None:
         """E of these tiles, those not loaded yet, in one :func:`e_of` call (open only)."""
-        tiles, tile_of = self._tiles, self.umap.tile
-        todo: list[int] = []
-        seen: list[np.ndarray] = []
-        for key in dict.fromkeys(keys):  # (each once, in order)
-            if key not in tiles:
-                a = tile_of(key)
-                if a is None:
-                    tiles[key] = None
-                else:
-                    todo.append(key)
-                    seen.append(a)
-        if seen:
-            e = e_of(np.stack(seen), self.umap.tau, self.t0).reshape(len(seen), *self.tile)
-            for key, v in zip(todo, e):
-                tiles[key] = v
+        SeenPlane.load_many([(self, keys)])
+
+    @staticmethod
+    def load_many(loads: list[tuple[SeenPlane, list[int]]]) -> None:
+        """:meth:`load` of each plane's keys, one :func:`e_of` call for all planes of the same
+        ``tau``, ``t0`` and tile shape (element-wise: each tile gets the values of its own load)."""
+        groups: dict[tuple[float, float, tuple[int, int]], tuple[list[tuple[dict, int]], list[np.ndarray]]] = {}
+        for plane, keys in loads:
+            tiles, tile_of = plane._tiles, plane.umap.tile
+            todo, seen = groups.setdefault((plane.umap.tau, plane.t0, plane.tile), ([], []))
+            for key in dict.fromkeys(keys):  # (each once, in order)
+                if key not in tiles:
+                    a = tile_of(key)
+                    if a is None:
+                        tiles[key] = None
+                    else:
+                        todo.append((tiles, key))
+                        seen.append(a)
+        for (tau, t0, shape), (todo, seen) in groups.items():
+            if seen:
+                e = e_of(np.stack(seen), tau, t0).reshape(len(seen), *shape)
+                for (tiles, key), v in zip(todo, e):
+                    tiles[key] = v
 
     def _tile(self, key: int) -> np.ndarray | None:
         if key not in self._tiles:
@@ -317,40 +335,79 @@ def reduce_whole(src: np.ndarray, dst: np.ndarray) -> None:
     np.matmul(np.matmul(_reduce_matrix(n), src), _reduce_matrix(w).T, out=dst)
 
 
-def reduce_boxes(src: Plane, dst: Plane, boxes: list[tuple[int, int, int, int]]) -> None:
-    """Output rows ``i0:i1``, columns ``j0:j1`` of ``REDUCE(src)`` (the next level) for each box
-    ``(i0, i1, j0, j1)``, written into ``dst``. Each output is ``(a0 + a4) + 4 (a1 + a3) + 6 a2``
-    over rows, then over columns, of its 5 x 5 inputs (reflected at the border), times 1/256:
-    float32 element-wise operations, so an output's value does not depend on the box it is
-    computed in. The boxes' inputs are stacked (padded with zeros to a common shape) and
-    reduced together: one set of array operations for all of them."""
-    n, w = src.shape
-    if len(boxes) == 1:
-        i0, i1, j0, j1 = boxes[0]
+Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
+Reduce = tuple[Plane, Plane, Rect]  # output box of REDUCE(src) into dst: (src, dst, (i0, i1, j0, j1))
+
+
+def reduce_boxes(tasks: list[tuple[Plane, Plane, list[Rect]]]) -> None:
+    """For each ``(src, dst, boxes)``: output rows ``i0:i1``, columns ``j0:j1`` of ``REDUCE(src)``
+    (the next level) for each box ``(i0, i1, j0, j1)``, written into ``dst``. Each output is
+    ``(a0 + a4) + 4 (a1 + a3) + 6 a2`` over rows, then over columns, of its 5 x 5 inputs
+    (reflected at the border), times 1/256: float32 element-wise operations, so an output's
+    value does not depend on the box it is computed in nor on the boxes computed with it. The
+    inputs of the boxes of all tasks (several maps' levels) are stacked (padded with zeros to a
+    common shape, in groups of similar size: :func:`_stacks`) and reduced together: one set of
+    array operations for all of them."""
+    jobs = [(src, dst, box) for src, dst, boxes in tasks for box in boxes]
+    if len(jobs) == 1:
+        src, _, (i0, i1, j0, j1) = jobs[0]
+        n, w = src.shape
         if i0 >= 1 and 2 * i1 + 1 <= n and j0 >= 1 and 2 * j1 + 1 <= w:  # interior: no copy, no padding
-            _reduce_stack(src.read(2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1)[None], dst, boxes)
+            _reduce_stack(src.read(2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1)[None], jobs)
             return
-    hh = max(2 * (i1 - i0) + 3 for i0, i1, _, _ in boxes)
-    ww = max(2 * (j1 - j0) + 3 for _, _, j0, j1 in boxes)
-    x = np.zeros((len(boxes), hh, ww), np.float32)
-    for k, (i0, i1, j0, j1) in enumerate(boxes):
-        rlo, rhi, clo, chi = 2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1
-        if rlo >= 0 and rhi <= n and clo >= 0 and chi <= w:  # interior: read in place
-            src.read(rlo, rhi, clo, chi, out=x[k, : rhi - rlo, : chi - clo])
-            continue
-        rr, a, b = _reflected(rlo, rhi, n) if rlo < 0 or rhi > n else (None, rlo, rhi)
-        cc, c, e = _reflected(clo, chi, w) if clo < 0 or chi > w else (None, clo, chi)
-        piece = src.read(a, b, c, e)
-        if rr is not None:
-            piece = piece[rr]
-        if cc is not None:
-            piece = piece[:, cc]
-        x[k, : rhi - rlo, : chi - clo] = piece
-    _reduce_stack(x, dst, boxes)
+    for group in _stacks(jobs):
+        hh = max(2 * (i1 - i0) + 3 for _, _, (i0, i1, _, _) in group)
+        ww = max(2 * (j1 - j0) + 3 for _, _, (_, _, j0, j1) in group)
+        x = np.zeros((len(group), hh, ww), np.float32)
+        for k, (src, _, (i0, i1, j0, j1)) in enumerate(group):
+            n, w = src.shape
+            rlo, rhi, clo, chi = 2 * i0 - 2, 2 * i1 + 1, 2 * j0 - 2, 2 * j1 + 1
+            if rlo >= 0 and rhi <= n and clo >= 0 and chi <= w:  # interior: read in place
+                src.read(rlo, rhi, clo, chi, out=x[k, : rhi - rlo, : chi - clo])
+                continue
+            rr, a, b = _reflected(rlo, rhi, n) if rlo < 0 or rhi > n else (None, rlo, rhi)
+            cc, c, e = _reflected(clo, chi, w) if clo < 0 or chi > w else (None, clo, chi)
+            piece = src.read(a, b, c, e)
+            if rr is not None:
+                piece = piece[rr]
+            if cc is not None:
+                piece = piece[:, cc]
+            x[k, : rhi - rlo, : chi - clo] = piece
+        _reduce_stack(x, group)
 
 
-def _reduce_stack(x: np.ndarray, dst: Plane, boxes: list[tuple[int, int, int, int]]) -> None:
-    """The reduce of :func:`reduce_boxes` on the stacked inputs ``x`` ``(boxes, 2h + 3, 2w + 3)``."""
+# Boxes stacked together cost their padded cells, a stack its calls: boxes join a stack while
+# it computes at most twice their cells, or at most this many cells in all.
+STACK_CELLS = 1 << 12
+
+
+def _stacks(jobs: list[Reduce]) -> list[list[Reduce]]:
+    """The boxes in groups to stack for :func:`reduce_boxes`: largest first, each joining the
+    last group while the group padded to its largest height and width stays within
+    :data:`STACK_CELLS` or twice the group's own cells, else starting a new group (all in one
+    group when that holds for all)."""
+    sizes = [(i1 - i0, j1 - j0) for _, _, (i0, i1, j0, j1) in jobs]
+    if len(jobs) * max(h for h, _ in sizes) * max(w for _, w in sizes) <= max(STACK_CELLS, 2 * sum(h * w for h, w in sizes)):
+        return [jobs]
+    groups: list[list[Reduce]] = []
+    hh = ww = cells = 0
+    for job in sorted(jobs, key=lambda job: (job[2][1] - job[2][0]) * (job[2][3] - job[2][2]), reverse=True):
+        i0, i1, j0, j1 = job[2]
+        h, w = i1 - i0, j1 - j0
+        if groups:
+            nh, nw = max(hh, h), max(ww, w)
+            if (len(groups[-1]) + 1) * nh * nw <= max(STACK_CELLS, 2 * (cells + h * w)):
+                groups[-1].append(job)
+                hh, ww, cells = nh, nw, cells + h * w
+                continue
+        groups.append([job])
+        hh, ww, cells = h, w, h * w
+    return groups
+
+
+def _reduce_stack(x: np.ndarray, jobs: list[Reduce]) -> None:
+    """The reduce of :func:`reduce_boxes` on the stacked inputs ``x`` ``(boxes, 2h + 3, 2w + 3)``
+    of these boxes."""
     hh, ww = x.shape[1:]
     ni, nj = (hh - 3) // 2, (ww - 3) // 2
     r = x[:, 0 : 2 * ni - 1 : 2] + x[:, 4 : 2 * ni + 3 : 2]
@@ -360,11 +417,8 @@ def _reduce_stack(x: np.ndarray, dst: Plane, boxes: list[tuple[int, int, int, in
     out += 4 * (r[:, :, 1 : 2 * nj : 2] + r[:, :, 3 : 2 * nj + 2 : 2])
     out += 6 * r[:, :, 2 : 2 * nj + 1 : 2]
     out *= np.float32(SCALE)
-    for k, (i0, i1, j0, j1) in enumerate(boxes):
+    for k, (_, dst, (i0, i1, j0, j1)) in enumerate(jobs):
         dst.write(i0, j0, out[k, : i1 - i0, : j1 - j0])
-
-
-Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
 
 
 def _merged(rects: list[Rect]) -> list[Rect]:
@@ -453,34 +507,78 @@ class MaintainedPyramid:
     def update(self, t: float) -> float:
         """Bring ``E`` and the levels up to date with the map for a plan at ``t``; returns
         ``s = exp(-tau (t - t0))``."""
+        return MaintainedPyramid.update_many([self], [t])[0]
+
+    @staticmethod
+    def update_many(pyramids: list[MaintainedPyramid], ts: list[float]) -> list[float]:
+        """:meth:`update` of each pyramid for a plan at its ``t`` (the maps of one planning
+        batch), the work of several in shared numpy calls (up to :data:`BATCH_CELLS` changed
+        cells): one :func:`e_of` for the ``E`` of their maps (per ``tau``, ``t0`` and tile
+        shape), one :func:`reduce_boxes` per level for the changed boxes of all of them. Every
+        value is computed element-wise, by the formula an update of its map alone uses, so each
+        pyramid ends bit for bit as its own update leaves it. Returns each one's ``s``."""
+        if len({id(p) for p in pyramids}) < len(pyramids):  # (a pyramid listed twice: its updates in turn)
+            return [MaintainedPyramid.update_many([p], [t])[0] for p, t in zip(pyramids, ts)]
+        work = [w for w in (p._changed(t) for p, t in zip(pyramids, ts)) if w is not None]
+        batch: list[_Work] = []
+        cells = 0
+        for w in work:
+            batch.append(w)
+            cells += sum((r1 - r0) * (c1 - c0) for r0, r1, c0, c1 in w.boxes)
+            if cells >= BATCH_CELLS or w is work[-1]:
+                MaintainedPyramid._recompute(batch)
+                batch, cells = [], 0
+        return [p.s for p in pyramids]
+
+    @staticmethod
+    def _recompute(work: list[_Work]) -> None:
+        """Do this work of several pyramids (planned by :meth:`_changed`), in shared calls."""
+        tiled = [w for w in work if isinstance(w.pyr.planes[0], SeenPlane)]
+        try:
+            for w in tiled:
+                cast("SeenPlane", w.pyr.planes[0]).open(cast("float", w.pyr.t0))
+            SeenPlane.load_many([(cast("SeenPlane", w.pyr.planes[0]), w.pyr._e_keys(w)) for w in tiled])
+            _write_e([w for w in work if not isinstance(w.pyr.planes[0], SeenPlane)])
+            for w in work:
+                w.pyr._sum_chunks(w.chunks)
+            for l in range(1, max((len(w.plan) for w in work), default=0) + 1):
+                reduce_boxes([(w.pyr.planes[l - 1], w.pyr.planes[l], w.plan[l - 1]) for w in work if len(w.plan) >= l])
+        finally:
+            for w in tiled:
+                cast("SeenPlane", w.pyr.planes[0]).close()
+        for w in work:
+            planes = w.pyr.planes
+            for k in range(len(w.plan) + 1, len(planes)):
+                reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
+
+    def _changed(self, t: float) -> _Work | None:
+        """Set ``t0`` and ``s`` for a plan at ``t`` (clearing the state when ``t0`` moved or the
+        map's changes are not known) and plan the work on what changed (None: nothing)."""
         tau = self.umap.tau
         t0 = base_time(t, tau)
         changes = self.umap.take_changes()
+        self.s = math.exp(-tau * (t - t0))
         if t0 != self.t0 or changes is None:
             self.t0 = t0
             for p in self.planes:
                 p.clear()
             self._chunk_sums.clear()
             self._block_sums.fill(0.0)
-            self._apply(self.umap.written_boxes(), whole=self.umap.dense)
-        elif changes:
-            self._apply(changes, whole=False)
-        self.s = math.exp(-tau * (t - t0))
-        return self.s
+            return self._plan(self.umap.written_boxes(), whole=self.umap.dense)
+        return self._plan(changes, whole=False) if changes else None
 
-    def _apply(self, rects: list[Rect], whole: bool) -> None:
-        """Recompute ``E`` on these boxes of the map, then every level output they reach. A
-        level is computed whole (one box) when it is small (at most :data:`WHOLE_CELLS` cells)
-        or the boxes cover a quarter of it, or everywhere with ``whole``."""
-        umap, planes, tau, t0 = self.umap, self.planes, self.umap.tau, self.t0
-        assert t0 is not None
+    def _plan(self, rects: list[Rect], whole: bool) -> _Work | None:
+        """The work of recomputing ``E`` on these boxes of the map, then every level output they
+        reach. A level is computed whole (one box) when it is small (at most
+        :data:`WHOLE_CELLS` cells) or the boxes cover a quarter of it, or everywhere with
+        ``whole``."""
         h0, w0 = self.shapes[0]
         boxes = [(0, h0, 0, w0)] if whole else _merged(rects)
         if not boxes:
-            return
+            return None
         # The boxes reduce_boxes computes on levels 1, 2, ...; a dense map's levels above them
         # (small ones) are computed whole by BLAS.
-        dense = umap.dense
+        dense = self.umap.dense
         plan: list[list[Rect]] = []
         level_boxes = boxes
         for m, mw in self.shapes[1:]:
@@ -501,43 +599,34 @@ class MaintainedPyramid:
             for i in range(bisect.bisect_right(cr, r0) - 1, bisect.bisect_left(cr, r1)):
                 for j in range(bisect.bisect_right(ccl, c0) - 1, bisect.bisect_left(ccl, c1)):
                     chunks.add((i, j))
-        e = planes[0]
-        if isinstance(e, SeenPlane):
-            # E of every map tile this update reads (the chunks', level 1's inputs), at once.
-            e.open(t0)
-            keys = [k for i, j in chunks for k in e.keys(cr[i], cr[i] + 1, ccl[j], ccl[j] + 1)]
-            if plan:
-                for i0, i1, j0, j1 in plan[0]:
-                    keys += e.keys(max(0, 2 * i0 - 2), min(h0, 2 * i1 + 1), max(0, 2 * j0 - 2), min(w0, 2 * j1 + 1))
-            e.load(keys)
-        else:
-            # E of all boxes in one go (their last-seen times side by side in one flat array).
-            seen = [umap.region(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in boxes]
-            flat = e_of(np.concatenate([a.ravel() for a in seen]) if len(seen) > 1 else seen[0], tau, t0).ravel()
-            at = 0
-            for (r0, _, c0, _), a in zip(boxes, seen):
-                e.write(r0, c0, flat[at : at + a.size].reshape(a.shape))
-                at += a.size
-        try:
-            sums, blocks = self._chunk_sums, set()
-            for i, j in chunks:
-                v = e.sum(cr[i], cr[i + 1], ccl[j], ccl[j + 1])  # (float32, pairwise: error ~1e-7)
-                if v:
-                    sums[i, j] = v
-                else:
-                    sums.pop((i, j), None)
-                blocks.add((self._chunk_block_row[i], self._chunk_block_col[j]))
-            br, bc = self._block_rows, self._block_cols
-            for bi, bj in blocks:
-                self._block_sums[bi, bj] = math.fsum(sums.get((i, j), 0.0) for i in range(br[bi], br[bi + 1])
-                                                     for j in range(bc[bj], bc[bj + 1]))
-            for l, level_boxes in enumerate(plan, 1):
-                reduce_boxes(planes[l - 1], planes[l], level_boxes)
-        finally:
-            if isinstance(e, SeenPlane):
-                e.close()
-        for k in range(len(plan) + 1, len(self.shapes)):
-            reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
+        return _Work(self, boxes, plan, chunks)
+
+    def _e_keys(self, work: _Work) -> list[int]:
+        """The map tiles whose ``E`` this work reads (the chunks', level 1's inputs)."""
+        e = cast("SeenPlane", self.planes[0])
+        h0, w0 = self.shapes[0]
+        cr, ccl = self._chunk_rows, self._chunk_cols
+        keys = [k for i, j in work.chunks for k in e.keys(cr[i], cr[i] + 1, ccl[j], ccl[j] + 1)]
+        if work.plan:
+            for i0, i1, j0, j1 in work.plan[0]:
+                keys += e.keys(max(0, 2 * i0 - 2), min(h0, 2 * i1 + 1), max(0, 2 * j0 - 2), min(w0, 2 * j1 + 1))
+        return keys
+
+    def _sum_chunks(self, chunks: set[tuple[int, int]]) -> None:
+        """Recompute the sums of ``E`` of these chunks and of their sub-areas."""
+        e, cr, ccl = self.planes[0], self._chunk_rows, self._chunk_cols
+        sums, blocks = self._chunk_sums, set()
+        for i, j in chunks:
+            v = e.sum(cr[i], cr[i + 1], ccl[j], ccl[j + 1])  # (float32, pairwise: error ~1e-7)
+            if v:
+                sums[i, j] = v
+            else:
+                sums.pop((i, j), None)
+            blocks.add((self._chunk_block_row[i], self._chunk_block_col[j]))
+        br, bc = self._block_rows, self._block_cols
+        for bi, bj in blocks:
+            self._block_sums[bi, bj] = math.fsum(sums.get((i, j), 0.0) for i in range(br[bi], br[bi + 1])
+                                                 for j in range(bc[bj], bc[bj + 1]))
 
     # --- reads ------------------------------------------------------------------------------
 
@@ -555,3 +644,30 @@ class MaintainedPyramid:
         """Mean ``q`` over each of the guide's sub-areas, ``(ny, nx)`` float64:
         ``1 - s sum(E) / cells``."""
         return 1.0 - self.s * (self._block_sums / self._block_cells)
+
+
+class _Work(NamedTuple):
+    """What one pyramid's update recomputes: ``E`` on ``boxes``, the level boxes of
+    :func:`reduce_boxes` (``plan[l - 1]``: level ``l``'s), the chunk sums of ``chunks``."""
+
+    pyr: MaintainedPyramid
+    boxes: list[Rect]
+    plan: list[list[Rect]]
+    chunks: set[tuple[int, int]]
+
+
+def _write_e(work: list[_Work]) -> None:
+    """``E`` of the boxes of these dense maps, written into their ``P_0``: one :func:`e_of` call
+    per ``tau`` and ``t0`` (the last-seen times of all boxes side by side in one flat array)."""
+    groups: dict[tuple[float, float], list[tuple[Plane, Rect, np.ndarray]]] = {}
+    for w in work:
+        umap = w.pyr.umap
+        group = groups.setdefault((umap.tau, cast("float", w.pyr.t0)), [])
+        group += [(w.pyr.planes[0], box, umap.region(slice(box[0], box[1]), slice(box[2], box[3]))) for box in w.boxes]
+    for (tau, t0), group in groups.items():
+        seen = [a for _, _, a in group]
+        flat = e_of(np.concatenate([a.ravel() for a in seen]) if len(seen) > 1 else seen[0], tau, t0).ravel()
+        at = 0
+        for plane, (r0, _, c0, _), a in group:
+            plane.write(r0, c0, flat[at : at + a.size].reshape(a.shape))
+            at += a.size

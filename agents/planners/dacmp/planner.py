@@ -568,7 +568,7 @@ class _Layers:
         self.lam = lam[:, None, None]
         self.lam_total = float(np.add.reduce(lam, initial=0.0))
         pyramids = [MaintainedPyramid.of(v.umap, planner.levels) for v in views]
-        self.scale = np.empty(n)  # s of each UAV's map
+        self.scale = np.array(MaintainedPyramid.update_many(pyramids, [v.t for v in views]), np.float64)  # s of each UAV's map
         # Window of each UAV on each search level: rows lo..hi, columns lo..hi (inclusive).
         win = np.empty((len(search), n, 4), np.int64)
         for i, (u, pyr) in enumerate(zip(uavs, pyramids)):
@@ -577,7 +577,6 @@ class _Layers:
             # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
             # formation.
             tie_key = view.rng.random(9)
-            self.scale[i] = pyr.update(view.t)
             u.guide = planner.pick_guide(pyr.block_means(), pyr.row_edges, pyr.col_edges, g.cell_m, view.x, view.y,
                                          view.theta, tie_key=tie_key)
             xs = [view.x - u.r_max, view.x + u.r_max] + [tx for _, tx, _, _ in u.targets]
