@@ -179,12 +179,18 @@ def encode_decoded(sender: int, seq: int, t: float, messages: Sequence[Message |
     if len(data) > max_bytes:
         return data, None
     try:
-        frame = Frame(_int(sender), _int(seq), _num(t),
-                      tuple([_message(m if m[0] != K_SCAN or type(m[2]) is not tuple or len(m) != 3
-                                      else [m[0], m[1], list(m[2])]) for m in packed]))
+        frame = _frame(sender, seq, t, [_as_read_back(m) for m in packed])
     except (FrameError, TypeError, ValueError, IndexError):
         return data, None
     return data, frame
+
+
+def _as_read_back(m: Packed) -> Packed:
+    """A packed message as msgpack reads it back: itself, but for a ScanRecords' records
+    tuple, which comes back as a list."""
+    if m[0] == K_SCAN and type(m[2]) is tuple and len(m) == 3:
+        return [m[0], m[1], list(m[2])]
+    return m
 
 
 # --- decoding -----------------------------------------------------------------------------
@@ -289,6 +295,12 @@ def _message(raw: object) -> Message:
     raise FrameError(f"unknown message kind {kind}")
 
 
+def _frame(sender: object, seq: object, t: object, messages: list[Any]) -> Frame:
+    """The checked :class:`Frame` of a frame's header values and messages as msgpack gives them
+    (decoding, and the sender's side: :func:`encode_decoded`)."""
+    return Frame(_int(sender), _int(seq), _num(t), tuple([_message(m) for m in messages]))
+
+
 def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = None) -> Frame:
     """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception. ``key``: the
     swarm key; a frame whose MAC is not right under it (or that has none) raises
@@ -328,7 +340,7 @@ def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = 
             raise FrameError("bad magic")
         if raw[1] != VERSION or type(raw[1]) is not int:
             raise FrameError(f"unsupported version {raw[1]!r}")
-        return Frame(_int(raw[2]), _int(raw[3]), _num(raw[4]), tuple([_message(m) for m in _list(raw[5])]))
+        return _frame(raw[2], raw[3], raw[4], _list(raw[5]))
     except FrameError:
         raise
     except (TypeError, ValueError, IndexError, RecursionError) as exc:
