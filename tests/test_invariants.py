@@ -263,12 +263,32 @@ def test_handover_release_clock_starts_when_the_slow_uav_arrives():
     assert _check(log, HandoverChecker()) == []
 
 
-def test_handover_flags_fast_uav_that_does_not_return_to_search():
+def test_handover_released_fast_uav_may_watch_a_target_nobody_watches():
+    # Rule 4 (docs/modelling.md, "Assignment rules"): after the release the fast UAV may search
+    # or watch a target that no UAV it can talk to watches (B1 goes on to target 1, unwatched).
     log = _handover_log(slow_modes=_watching(10, 999),
                         fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
-    found = _check(log, HandoverChecker())
-    assert len(found) == 1 and "instead of returning to search" in found[0].message and found[0].t == 30.0
-    assert _check(log, HandoverChecker(require_search=False)) == []
+    assert _check(log, HandoverChecker()) == []
+
+
+def _released_onto(b2_at: tuple[float, float]) -> Log:
+    """B1 releases target 0 to A1 at 30 s and goes on to target 1, which B2 watches from ``b2_at``."""
+    log = _handover_log(slow_modes=_watching(10, 999),
+                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
+    for t in range(0, 121):
+        log.pose(t, B2, *b2_at, 60.0, 0.0, MODE_SURVEIL, 1)
+    return log
+
+
+def test_handover_flags_released_fast_uav_that_joins_a_watched_target():
+    found = _check(_released_onto((20_000.0, 20_000.0)), HandoverChecker())  # B2 within radio range of B1
+    assert len(found) == 1 and "which B2 already watches" in found[0].message and found[0].t == 30.0
+    assert found[0].uavs == ("B1", "A1", "B2")
+    assert _check(_released_onto((20_000.0, 20_000.0)), HandoverChecker(require_search=False)) == []
+
+
+def test_handover_released_fast_uav_cannot_know_of_a_watcher_out_of_radio_range():
+    assert _check(_released_onto((30_000.0, 31_000.0)), HandoverChecker()) == []  # B2 21 km from B1
 
 
 def test_handover_not_owed_when_slow_is_busy_far_or_cut_off():

@@ -108,6 +108,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.assignment import exclusion_break, handover_break
 from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
 from comms.messages import MODE_SURVEIL
@@ -132,7 +133,7 @@ from swarm.errors import SwarmError, UsageError
 from swarm.outputs import read_run_dir
 from swarm.recorder import read_events
 from swarm.rng import RngTree
-from swarm.scenario import Scenario, UavTypeSpec, parse_scenario
+from swarm.scenario import Scenario, parse_scenario
 
 __all__ = [
     "Checker",
@@ -195,12 +196,6 @@ class InvariantViolation(SwarmError, AssertionError):
 # --- the run's context ---------------------------------------------------------------------------
 
 
-def _uav_type(name: str, spec: UavTypeSpec) -> UavType:
-    return UavType(name=name, speed_min=spec.speed_min, speed_max=spec.speed_max, accel_max=spec.accel_max,
-                   bank_max_rad=math.radians(spec.bank_max_deg), detect_radius=spec.detect_radius_m,
-                   w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
-
-
 def skewed_stamps(faults: Iterable[Fault], duration_s: float) -> list[tuple[float, float]]:
     """The ranges of times skewed clocks stamped (every clock skew, over its window; skews that
     overlap on one UAV add up). Cells holding such a time are not owed to anyone, ever, by the
@@ -246,7 +241,7 @@ class RunContext:
         self.scenario = scenario
         self.sim = sim
         self.dt = scenario.dt_s
-        self.types = {n: _uav_type(n, s) for n, s in scenario.uav_types.items()}
+        self.types = {n: s.uav_type(n) for n, s in scenario.uav_types.items()}
         self.range_m = scenario.radio.range_limit_m
         self.min_separation_m = scenario.safety.min_separation_m
         self.threats = [(i, th.x_m, th.y_m, th.radius_m) for i, th in enumerate(scenario.threats)]
@@ -294,6 +289,18 @@ class RunContext:
     def kind(self, uid: int) -> UavType | None:
         t = self.type_name.get(uid)
         return self.types.get(t) if t is not None else None
+
+    def exclusion_judged(self, uid: int) -> bool:
+        """Whether ``single_watcher`` judges this UAV's type: its weights meet eq. 27
+        (:func:`agents.assignment.exclusion_break`)."""
+        k = self.kind(uid)
+        return k is not None and exclusion_break(k) is None
+
+    def handover_judged(self, slow: int, fast: int) -> bool:
+        """Whether ``handover`` judges this pair: the slower one's type is slower and their
+        weights meet eq. 25-26 (:func:`agents.assignment.handover_break`)."""
+        ks, kf = self.kind(slow), self.kind(fast)
+        return ks is not None and kf is not None and ks.speed_max < kf.speed_max and handover_break(ks, kf) is None
 
     @property
     def faults(self) -> list[Fault]:
@@ -1068,7 +1075,7 @@ class SingleWatcherChecker(_WatchChecker):
             for i, a in enumerate(ws):
                 for b in ws[i + 1:]:
                     ta, tb = ctx.type_name.get(a), ctx.type_name.get(b)
-                    if ta is None or ta != tb:
+                    if ta is None or ta != tb or not ctx.exclusion_judged(a):
                         continue
                     if not ctx.can_talk(a, b, t, poses) or self.excused(a, t) or self.excused(b, t):
                         continue
@@ -1120,7 +1127,8 @@ class HandoverChecker(_WatchChecker):
                 kf = ctx.kind(f)
                 if kf is None or self.excused(f, t):
                     continue
-                slower = [(s, k_s) for s in ws if s != f and (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max]
+                slower = [(s, k_s) for s in ws if s != f and (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max
+                          and ctx.handover_judged(s, f)]
                 slower_watching = [s for s, _ in slower]
                 # The release clock starts when the slower UAV has arrived (watches the target
                 # from within its detection radius), as the handover metric counts it: a slow
@@ -1141,7 +1149,7 @@ class HandoverChecker(_WatchChecker):
                     continue
                 free = [s for s, p in sorted(poses.items())
                         if s != f and p[4] != MODE_SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
-                        and k_s.speed_max < kf.speed_max
+                        and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f)
                         and math.hypot(p[0] - pos[0], p[1] - pos[1]) < k_s.influence_radius
                         and ctx.can_talk(f, s, t, poses)]
                 if not free:
@@ -1155,18 +1163,25 @@ class HandoverChecker(_WatchChecker):
                                     f"{', '.join(ctx.name(s) for s in free)} within its influence radius and able to "
                                     f"talk for {t - since:g} s, but none took over (bound {self.takeover_s:g} s)",
                                  [f, *free], target=m, since=since)
-        # The fast watcher that lets go after a takeover must return to search.
+        # The fast watcher that lets go after a takeover returns to search, or watches a target
+        # that nobody else watches (one it has found meanwhile, say).
         if self.require_search:
             for m, prev in self._prev_watchers.items():
                 for f in prev:
                     if f in watchers.get(m, ()) or f not in poses or self.excused(f, t):
                         continue
                     took = [s for s in watchers.get(m, ()) if (k_s := ctx.kind(s)) is not None
-                            and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max]
-                    if took and poses[f][4] == MODE_SURVEIL:
-                        self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
-                                        f"watching target {poses[f][5]} instead of returning to search",
-                                     [f, took[0]], target=m, now_watching=poses[f][5])
+                            and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max
+                            and ctx.handover_judged(s, f)]
+                    now = int(poses[f][5])
+                    if took and poses[f][4] == MODE_SURVEIL and 0 <= now < PHANTOM_TARGET_ID:
+                        others = sorted(w for w in watchers.get(now, ()) if w != f and ctx.can_talk(f, w, t, poses))
+                        if others:
+                            self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
+                                            f"to watch target {now}, which {', '.join(ctx.name(w) for w in others)} "
+                                            f"already watches, instead of searching or watching a target nobody it "
+                                            f"can talk to watches",
+                                         [f, took[0], *others], target=m, now_watching=now)
         self._offer = {k: v for k, v in self._offer.items() if k in offers}
         self._overlap = {k: v for k, v in self._overlap.items() if k in overlaps}
         self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}

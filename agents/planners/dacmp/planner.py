@@ -279,12 +279,15 @@ class DacmpPlanner(DacmpSettings):
         mine = u.view.plan
         if mine is None or mine.mode != MODE_SURVEIL:
             return None
-        for tid, tx, ty, _v in u.targets:
+        for i, (tid, tx, ty, _v) in enumerate(u.targets):
             if tid == mine.target:
                 z = np.array([[[tx]], [[ty]]])
                 batch = _Batch(self, [u], g, layers, 1)
-                _, f_s, f_t = batch.fitness(z)
-                if f_t[0, 0] > f_s[0, 0]:
+                _, f_s, _ = batch.fitness(z)
+                # This target's own term, not the whole f_t there: another target within D of
+                # g_m adds its pull to f_t at g_m, and a UAV whose own target was kept by a
+                # nearer UAV of its type went on claiming it, drawn by the free one beside it.
+                if u.own_pull(i, tx, ty, self.field_unit_m, g.cell_m / self.field_unit_m) > f_s[0, 0]:
                     wx, wy = batch.keep_near(z)[:, 0, 0]
                     return Plan(float(wx), float(wy), MODE_SURVEIL, tid)
                 return None
@@ -460,9 +463,15 @@ class _UavSearch:
         targets: list[tuple[int, float, float, float]] = []
         max_age = planner.track_max_age_s if planner.track_max_age_s is not None else 1.0 / view.umap.tau
         if view.surveillance:
+            mine = view.plan
+            watched = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
             for tid, tr in sorted(view.knowledge.tracks.items()):
-                if t - tr.t > max_age:
-                    continue  # nobody has seen it for a while: g_m(t) is unknown
+                # Nobody has seen it for a while: g_m(t) is unknown. Except our own target last
+                # seen inside a no-fly zone (targets may enter one, we may not): it is not lost,
+                # and we keep it until anyone sees it again (docs/modelling.md, "Assignment
+                # rules", rule 5; the actor loiters at the zone's edge nearest to it).
+                if t - tr.t > max_age and not (tid == watched and view.knowledge.inside_threat(tr.x, tr.y)):
+                    continue
                 tx, ty = tr.predict(t)
                 if math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
                     targets.append((tid, tx, ty, tr.value))
@@ -504,18 +513,26 @@ class _UavSearch:
         that one) declared the kept one, its nearest, and watched it beside its keeper."""
         mode, target = MODE_SEARCH, NO_TARGET
         if self.targets and f_t > f_s:
-            k = self.view.kind
-            v_i, best = self.v_i, 0.0
-            for i, (tid, tx, ty, value) in enumerate(self.targets):
-                d = math.hypot(wx - tx, wy - ty)
-                if d >= self.D:
-                    continue
-                # Attraction and the repulsion of UAVs counted at g_m share the distance to g_m.
-                pull = k.w_t * value / (v_i * v_i) - sum(k.w_r / (v_i * v_j) for *_, v_j, _s, at in self.rivals if at == i)
-                pull /= max(d / unit, floor)
+            best = 0.0
+            for i, (tid, _tx, _ty, _value) in enumerate(self.targets):
+                pull = self.own_pull(i, wx, wy, unit, floor)
                 if pull > best:
                     mode, target, best = MODE_SURVEIL, tid, pull
         return Plan(wx, wy, mode, target)
+
+    def own_pull(self, i: int, wx: float, wy: float, unit: float, floor: float) -> float:
+        """Target ``i``'s own term at ``(wx, wy)``: its eq. 22 attraction less the eq. 23
+        repulsion of the UAVs that stand at it (``at`` of :meth:`DacmpPlanner.rivals`: its
+        watchers within a planning step, a nearer claimant of our type); 0 beyond ``D``.
+        Attraction and those repulsions share the distance to ``g_m``. Both the mode switch
+        (:meth:`decide`) and the keep rule (:meth:`DacmpPlanner._keep`) judge a target by it."""
+        _tid, tx, ty, value = self.targets[i]
+        d = math.hypot(wx - tx, wy - ty)
+        if d >= self.D:
+            return 0.0
+        k, v_i = self.view.kind, self.v_i
+        pull = k.w_t * value / (v_i * v_i) - sum(k.w_r / (v_i * v_j) for *_, v_j, _s, at in self.rivals if at == i)
+        return pull / max(d / unit, floor)
 
 
 def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, int, int]:
