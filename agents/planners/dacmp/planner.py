@@ -174,7 +174,8 @@ class DacmpPlanner(DacmpSettings):
         "both in the scope of [a] target": a UAV near two known targets repels a particle near
         both once, not once per target (counted per target, a watcher of one target pushed a
         slow UAV off the next target it was taking over, or off its own). A UAV in search mode is
-        in the scope of every target within ``D`` of ``x_j(t+1)``; one in surveillance mode is in
+        in the scope of every target within ``D`` of ``x_j(t+1)`` that no UAV watches (as far as
+        we know: our claim and the intents we heard); one in surveillance mode is in
         the scope of its own target only (if within ``D`` of it), and of none when that target is
         not among ``targets``: it is not competing for the others, and counted near them it kept
         a slow UAV at the edge of ``D`` from taking over a target whose fast watcher had a slow
@@ -205,9 +206,10 @@ class DacmpPlanner(DacmpSettings):
         unit = self.field_unit_m
         mine = view.plan
         claim = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
-        for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S):
-            if p.uav == view.uav or not math.isfinite(p.wx) or t - p.t_intent > _INTENT_MAX_AGE_S:
-                continue
+        peers = [p for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S)
+                 if p.uav != view.uav and math.isfinite(p.wx) and t - p.t_intent <= _INTENT_MAX_AGE_S]
+        watched = {claim} | {p.target for p in peers if p.mode == MODE_SURVEIL}
+        for p in peers:
             v_j = self.speed_max_by_type.get(p.type, k.speed_max) / unit
             r_j = self.detect_radius_by_type.get(p.type, k.detect_radius)
             wx, wy, at = p.wx, p.wy, -1
@@ -224,7 +226,12 @@ class DacmpPlanner(DacmpSettings):
                     wx, wy, at = tx, ty, i  # its next waypoint is the target
                 scope: tuple[int, ...] = (i,) if math.hypot(wx - tx, wy - ty) < D else ()
             else:
-                scope = tuple(i for i, (_tid, tx, ty, _v) in enumerate(targets) if math.hypot(wx - tx, wy - ty) < D)
+                # A searching UAV competes for the free targets near its next waypoint only: one
+                # that passes a target another UAV watches is not after it (counted there, a fast
+                # searcher passing within D kept a slow UAV from taking a target over from a
+                # fast watcher: eq. 25 weighs one watcher's repulsion, not two).
+                scope = tuple(i for i, (tid, tx, ty, _v) in enumerate(targets)
+                              if tid not in watched and math.hypot(wx - tx, wy - ty) < D)
             if scope:
                 out.append((wx, wy, v_j, scope, at))
         return out
