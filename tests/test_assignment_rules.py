@@ -12,6 +12,7 @@ the strategies used to draw, and the warning a scenario with such a type gets.
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 
@@ -20,6 +21,7 @@ from budget import examples
 from hypothesis import HealthCheck, given, settings
 
 from agents.assignment import exclusion_break, handover_break, rule_breaks
+from comms.messages import MODE_SURVEIL
 from swarm import Simulation
 from swarm.scenario import DEFAULT_UAV_TYPES, parse_scenario
 from swarm.scenario.warnings import scenario_warnings
@@ -116,3 +118,30 @@ def test_validate_and_run_print_the_warning_and_go_ahead(tmp_path):
         assert out.returncode == 0, out.stderr
         lines = [ln for ln in out.stderr.splitlines() if ln.startswith("warning:")]
         assert len(lines) == 2 and all("uav_types: " in ln and "do not cover" in ln for ln in lines), out.stderr
+
+
+# --- rule 5: a target that drives into a no-fly zone is kept ---------------------------------------
+
+
+def test_a_watcher_keeps_a_target_inside_a_no_fly_zone_and_loiters_at_its_edge():
+    """A slow UAV watches a target that drives 1.8 km deep into a 2 km no-fly zone (seed 4) and
+    stays there for minutes, out of sight: it keeps the target (before rule 5 it let go once
+    the track was 200 s old) and circles outside the zone, never entering it."""
+    doc = {"name": "into-the-zone", "seed": 4, "duration_s": 420.0,
+           "area": {"width_m": 20_000.0, "height_m": 20_000.0},
+           "targets": {"count": 0, "placed": [{"x_m": 7200.0, "y_m": 10_000.0, "heading_deg": 0.0, "speed": 20.0}]},
+           "threats": [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 2000.0}],
+           "planner": {"name": "dacmp", "surveillance": True},
+           "uavs": [{"name": "A1", "type": "A", "x_m": 5500.0, "y_m": 10_000.0, "heading_deg": 0.0}]}
+    with Simulation(parse_scenario(doc)) as sim:
+        result = sim.run()
+    from swarm.recorder import read_events
+
+    poses = [e for e in read_events(result.events) if e[0] == "pose" and e[1] >= 100]
+    deep = [e for e in read_events(result.events) if e[0] == "target" and 150 <= e[1] <= 400
+            and math.hypot(e[3] - 10_000.0, e[4] - 10_000.0) < 2000.0 - 1500.0]
+    assert len(deep) > 100  # out of A1's sight (1.5 km) from outside the zone for minutes
+    assert all((e[7], e[8]) == (MODE_SURVEIL, 0) for e in poses if e[1] <= 400)
+    edge = [math.hypot(e[3] - 10_000.0, e[4] - 10_000.0) - 2000.0 for e in poses]
+    assert min(edge) > 0 and max(e for e, p in zip(edge, poses) if p[1] >= 200) < 3000.0
+    assert result.metrics["violations"]["threat"] == 0
