@@ -104,7 +104,8 @@ def test_a_rule_breaking_type_gets_a_warning_only_with_surveillance():
     warnings = scenario_warnings(parse_scenario(_doc(True)))
     assert len(warnings) == 2 and "eq. 27" in warnings[0] and "eq. 26" in warnings[1]
     assert scenario_warnings(parse_scenario(_doc(False))) == []
-    assert scenario_warnings(parse_scenario({**_doc(True), "uav_types": {}, "uavs": [{"type": "A", "x_m": 1000.0, "y_m": 1000.0}, {"type": "B", "x_m": 3000.0, "y_m": 1000.0}]})) == []
+    table1 = [{"type": "A", "x_m": 1000.0, "y_m": 1000.0}, {"type": "B", "x_m": 3000.0, "y_m": 1000.0}]
+    assert scenario_warnings(parse_scenario({**_doc(True), "uav_types": {}, "uavs": table1})) == []
 
 
 @pytest.mark.slow  # two subprocesses

@@ -604,10 +604,21 @@ def case1_measures(log: RunLog) -> dict:
     }
 
 
-def case2_measures(log: RunLog) -> dict:
+def case2_measures(log: RunLog, folder: Path | None = None) -> dict:
+    """What the table and the criterion need from one Case 2 run; with the run's ``folder``,
+    the handover rules are checked over its event log (:func:`case2_conditions`)."""
+    from swarm.testing.invariants import HandoverChecker, check_events, load_run_log
+
     watchers = log.watchers_at_end()
     m = log.metrics
     name = log.names
+    violations: list = []
+    opportunities = 0
+    if folder is not None:
+        scenario, events = load_run_log(folder)
+        checker = HandoverChecker()
+        violations = check_events(events, scenario, [checker])
+        opportunities = len(checker.opportunities)
     return {
         "seed": m["seed"], "duration_s": log.end_t,
         "targets_found": m["targets_found"], "targets_total": m["targets_total"],
@@ -620,47 +631,73 @@ def case2_measures(log: RunLog) -> dict:
                           for t, tg, a, b in log.handovers],
         "threat_violations": m["violations"]["threat"], "separation_violations": m["violations"]["separation"],
         "coverage": m["coverage"],
-        "conditions": case2_conditions(log),
+        "handover_opportunities": opportunities,
+        "handover_rule_violations": [str(v) for v in violations],
+        "conditions": case2_conditions(log, violations, opportunities),
     }
 
 
-# Case 2 on one seed (the paper's account of Fig. 13-15; tests/test_paper_cases.py): at least
-# this many fast -> slow handovers (the paper's UAV 3->9, 5->10, 4->8, 1->6), after each of which
-# the fast UAV leaves the target alone for this long.
+# Case 2 judged (DACMP-SPEC "Reproduction targets"; tests/test_paper_cases.py): the scenario
+# runs the paper's 2000 s, the criterion is judged on the same scenario run this long, over seeds
+# 0-19, and must hold on at least 18 of them.
+CASE2_JUDGE_S = 4000.0
+# At least this many fast -> slow handovers on a seed that offered that many opportunities (the
+# paper's UAV 3->9, 5->10, 4->8, 1->6).
 CASE2_MIN_HANDOVERS = 4
-CASE2_LET_GO_S = 60.0
-CASE2_CONDITIONS = ("found", "watched", "handovers", "safe")
+CASE2_CONDITIONS = ("found", "watched", "takeovers", "handovers", "released", "safe")
 
 
-def case2_conditions(log: RunLog) -> dict[str, bool]:
-    """The four conditions of Case 2 on one run, and ``all`` of them: ``found``, every target
-    found; ``watched``, at the last tick every target is watched by exactly one UAV (in
-    surveillance mode assigned to it) that has it inside its detection radius; ``handovers``,
-    at least :data:`CASE2_MIN_HANDOVERS` fast -> slow handovers, each an arrival (at the
-    handover tick the slow UAV watches the target and has it inside its detection radius)
-    after which the fast UAV does not watch that target for :data:`CASE2_LET_GO_S`; ``safe``, no
-    separation, threat or dynamics violation."""
+def held_at_zone_edge(log: RunLog, m: int, uav: str) -> bool:
+    """Whether ``uav`` holds target ``m`` the way rule 5 of docs/modelling.md ("Assignment
+    rules") says a target inside a no-fly zone is held: at the last tick the target is inside a
+    zone and the UAV, outside it, is within twice its detection radius of the point of the
+    zone's edge nearest the target (it circles there, docs/modelling.md)."""
+    uid = log.uid(uav)
+    if uid is None or uid not in log.poses or m not in log.targets:
+        return False
+    x, y = log.poses[uid][-1, 1:3]
+    tx, ty = log.target_at(m, np.array([log.poses[uid][-1, 0]]))[0]
+    r = float(log.type_specs.get(log.types.get(uid, "?"), {}).get("detect_radius_m", math.nan))
+    for th in log.threats:
+        cx, cy, rad = float(th["x_m"]), float(th["y_m"]), float(th["radius_m"])
+        d = math.hypot(tx - cx, ty - cy)
+        if d < rad and math.hypot(x - cx, y - cy) >= rad:
+            ux, uy = ((tx - cx) / d, (ty - cy) / d) if d > 1e-9 else (1.0, 0.0)
+            return math.hypot(x - (cx + rad * ux), y - (cy + rad * uy)) <= 2 * r
+    return False
+
+
+def case2_conditions(log: RunLog, handover_violations: Sequence[Any] = (), opportunities: int = 0) -> dict[str, bool]:
+    """Case 2's criterion on one run (DACMP-SPEC "Reproduction targets"), and ``all`` of it:
+
+    * ``found``: every target found;
+    * ``watched``: at the last tick every target is watched by exactly one UAV (in surveillance
+      mode assigned to it) that has it inside its detection radius, or that keeps a target
+      inside a no-fly zone from the zone's edge nearest to it (:func:`held_at_zone_edge`);
+    * ``takeovers``: every handover opportunity (a free slower UAV within its ``D`` of a target
+      a faster UAV watches, able to talk to it) taken within 60 s, and every release within
+      60 s of the slower UAV's arrival: no ``handover`` violation of rules 2-3
+      (docs/modelling.md, "Assignment rules");
+    * ``handovers``: at least ``min(CASE2_MIN_HANDOVERS, opportunities)`` fast -> slow
+      handovers, where ``opportunities`` counts the (target, fast watcher) pairs that were
+      offered one;
+    * ``released``: a released fast UAV returns to search or watches a target nobody it can
+      talk to holds (rule 4: no violation of it);
+    * ``safe``: no separation, threat or dynamics violation.
+
+    ``handover_violations`` and ``opportunities``: from a :class:`~swarm.testing.invariants.HandoverChecker`
+    run over the log (:func:`case2_measures` does it)."""
     m = log.metrics
     watchers = log.watchers_at_end()
-
-    def arrival_and_release(t: float, tg: int, fast: int, slow: int) -> bool:
-        p, q = log.poses.get(slow), log.poses.get(fast)
-        if p is None or q is None or tg not in log.targets:
-            return False
-        i = int(np.searchsorted(p[:, 0], t))
-        if i >= len(p) or p[i, 0] != t or int(p[i, 3]) != MODE_SURVEIL or int(p[i, 4]) != tg:
-            return False
-        tx, ty = log.target_at(tg, np.array([t]))[0]
-        r = float(log.type_specs.get(log.types.get(slow, "?"), {}).get("detect_radius_m", math.inf))
-        after = q[(q[:, 0] >= t) & (q[:, 0] <= t + CASE2_LET_GO_S)]
-        return (math.hypot(p[i, 1] - tx, p[i, 2] - ty) <= r and len(after) > 0
-                and not bool(np.any((after[:, 3] == MODE_SURVEIL) & (after[:, 4] == tg))))
-
+    rules = [v.data.get("rule") for v in handover_violations]
     fast_to_slow = [h for h in log.handovers if log.speed_max(h[2]) > log.speed_max(h[3])]
     out = {
         "found": m["targets_found"] == m["targets_total"],
-        "watched": len(watchers) == m["targets_total"] and all(len(w) == 1 and w[0][1] for w in watchers.values()),
-        "handovers": len(fast_to_slow) >= CASE2_MIN_HANDOVERS and all(arrival_and_release(*h) for h in fast_to_slow),
+        "watched": len(watchers) == m["targets_total"]
+        and all(len(w) == 1 and (w[0][1] or held_at_zone_edge(log, k, w[0][0])) for k, w in watchers.items()),
+        "takeovers": not any(r in (2, 3) for r in rules),
+        "handovers": len(fast_to_slow) >= min(CASE2_MIN_HANDOVERS, opportunities),
+        "released": 4 not in rules,
         "safe": not any(m["violations"].values()),
     }
     out["all"] = all(out.values())

@@ -30,6 +30,7 @@ from collections.abc import Callable, Sequence
 
 from hypothesis import strategies as st
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from comms.radio import LinkModel
 from faults.schedule import (
     FAULT_KINDS,

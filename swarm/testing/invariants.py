@@ -412,7 +412,7 @@ class RunContext:
         tracks reach every UAV)."""
         names = {self.names.get(u) for u in uids}
         lo = t0 - RECOVER_S
-        out = []
+        out: list[Fault] = []
         for f in self.faults:
             if isinstance(f, (Crash, Join)):
                 when = (f.at_s, f.at_s)
@@ -1170,6 +1170,8 @@ class HandoverChecker(_WatchChecker):
         self._reported: set[tuple] = set()
         self._prev_watchers: dict[int, set[int]] = {}
         self._targets: dict[int, tuple[float, float]] = {}
+        #: Every (target, faster watcher) pair that was offered a takeover (rule 2) at some time.
+        self.opportunities: set[tuple[int, int]] = set()
 
     def on_group(self, t, events):
         for e in events:
@@ -1205,7 +1207,7 @@ class HandoverChecker(_WatchChecker):
                             self._reported.add(("release", key))
                             self.violate(t, f"fast {ctx.name(f)} kept watching target {m} for {t - since:g} s after "
                                             f"slower {ctx.name(s)} took it over (release bound {self.release_s:g} s)",
-                                         [f, s], target=m, since=since)
+                                         [f, s], target=m, since=since, rule=3)
                 if slower_watching or pos is None:
                     continue
                 free = [s for s, p in sorted(poses.items())
@@ -1217,13 +1219,14 @@ class HandoverChecker(_WatchChecker):
                     continue
                 key2 = (m, f)
                 offers.add(key2)
+                self.opportunities.add(key2)
                 since = self._offer.setdefault(key2, t)
                 if t - since > self.takeover_s + _EPS and ("takeover", key2, since) not in self._reported:
                     self._reported.add(("takeover", key2, since))
                     self.violate(t, f"target {m} watched by fast {ctx.name(f)}: free slower "
                                     f"{', '.join(ctx.name(s) for s in free)} within its influence radius and able to "
                                     f"talk for {t - since:g} s, but none took over (bound {self.takeover_s:g} s)",
-                                 [f, *free], target=m, since=since)
+                                 [f, *free], target=m, since=since, rule=2)
         # The fast watcher that lets go after a takeover returns to search, or watches a target
         # that nobody else watches (one it has found meanwhile, say).
         if self.require_search:
@@ -1243,7 +1246,7 @@ class HandoverChecker(_WatchChecker):
                                             f"to watch target {now}, which {', '.join(ctx.name(w) for w in others)} "
                                             f"already holds, instead of searching or watching a target nobody it "
                                             f"can talk to holds",
-                                         [f, took[0], *others], target=m, now_watching=now)
+                                         [f, took[0], *others], target=m, now_watching=now, rule=4)
         self._offer = {k: v for k, v in self._offer.items() if k in offers}
         self._overlap = {k: v for k, v in self._overlap.items() if k in overlaps}
         self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}

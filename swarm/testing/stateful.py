@@ -59,6 +59,7 @@ from hypothesis import note
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from faults.schedule import ClockSkew, Crash, Drop, Fault, Join, Liar, Partition, Pause, Restart
 from swarm.scenario import Scenario, parse_scenario
 from swarm.simulation import Simulation

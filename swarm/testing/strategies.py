@@ -41,6 +41,7 @@ from hypothesis import assume, note
 from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from agents.assignment import rule_breaks
 from agents.types import UavType
 from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
