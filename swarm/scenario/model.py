@@ -765,10 +765,13 @@ class PlannerSettings(_Model):
         except PlannerError as exc:
             _raise_if([_Problem(("name",), self.name, _PLANNER_WORDS, hint=str(exc))])
         own = self.options_for.get(self.name, {})
-        found_problems = [_Problem(("options_for", self.name, key) if key in own else ("options", key), None, expected,
-                                   found=found, hint=_ONE_PLANNER if found.startswith("unknown") and key not in own and "did you mean" not in expected
-                                   else "")
-                          for key, found, expected in problems]
+        found_problems = []
+        for key, found, expected in problems:
+            in_own = key in own
+            # An unknown option, not a typo of a known one: perhaps meant for another planner of a sweep.
+            hint = _ONE_PLANNER if found.startswith("unknown") and not in_own and "did you mean" not in expected else ""
+            found_problems.append(_Problem(("options_for", self.name, key) if in_own else ("options", key), None,
+                                           expected, found=found, hint=hint))
         for other, options in self.options_for.items():
             if other == self.name or not permits(allow, other):
                 continue  # a module:Class nobody allowed is not imported: checked if it is ever run

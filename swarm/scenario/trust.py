@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterable
+from typing import Literal
 
 from agents.planners.registry import is_module_ref
 
@@ -34,7 +35,7 @@ ALLOW_ENV = "SWARM_ALLOW_PLANNER_IMPORTS"
 ALLOW_FLAG = "--allow-planner-imports"
 
 # True: any module:Class; a frozenset: these names only (built-ins and entry points always).
-Allowed = bool | frozenset[str]
+Allowed = Literal[True] | frozenset[str]
 
 
 def env_allows() -> bool:
