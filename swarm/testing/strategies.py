@@ -41,8 +41,8 @@ from hypothesis import note
 from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
-from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
 from agents.planners.registry import is_module_ref
+from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, parse_scenario
 from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
 
