@@ -170,12 +170,15 @@ def _cmd_run(args) -> int:
     from swarm.scenario import apply_overrides, load_scenario, parse_assignment
     from swarm.simulation import Simulation
 
+    sets = dict(parse_assignment(s) for s in args.set)
+    if args.planner is not None and "planner.name" in sets:
+        raise UsageError(f"--planner {args.planner} and --set planner.name={sets['planner.name']}: give the planner "
+                         f"once, with --planner")
     # The planner first (typed by the user: allowed, and the file's own planner is then never
     # imported), so --set planner.options.KEY are the options of the planner that runs.
     sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports)
-    if args.set:
-        sc = apply_overrides(sc, dict(parse_assignment(s) for s in args.set),
-                             allow_planner_imports=args.allow_planner_imports)
+    if sets:
+        sc = apply_overrides(sc, sets, allow_planner_imports=args.allow_planner_imports)
     sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,

@@ -338,3 +338,27 @@ def test_cli_the_issues_file_and_a_per_planner_sweep(tmp_path):
         seen.setdefault(planner["name"], planner["options_for"])
     assert seen == {"greedy": {real: {"tries": 2}}, real: {real: {"tries": 2}}}
     assert len(list(out.glob("runs/**/metrics.json"))) == 4
+
+
+def test_sweep_fingerprints_of_runs_without_per_planner_options_are_what_they_were():
+    # Folders of sweeps run before planner.options_for existed must resume (sweep.json).
+    import hashlib
+
+    from swarm.experiments.sweep import _dumps, fingerprint
+
+    spec = plan_runs(load_scenario("paper-case1"), seeds=[3], planners=["greedy"], duration_s=10.0)[0]
+    assert spec.scenario["planner"]["options_for"] == {}
+    old_doc = {**spec.scenario, "planner": {k: v for k, v in spec.scenario["planner"].items() if k != "options_for"}}
+    old = hashlib.sha256(_dumps([old_doc, "greedy", 3, 10.0], sort_keys=True, default=str).encode()).hexdigest()
+    assert fingerprint(spec) == old
+    with_options = plan_runs(load_scenario("paper-case1"), seeds=[3], planners=["greedy"], duration_s=10.0,
+                             grid={"planner.options_for.levy.mu": [1.5]})[0]
+    assert fingerprint(with_options) != old
+
+
+def test_run_takes_the_planner_once(capsys):
+    assert main(["run", "paper-case1", "--planner", "greedy", "--set", "planner.name=levy"]) == 2
+    assert "give the planner once, with --planner" in _one_error_line(capsys)
+    # as a --set value, a module:Class is a scenario setting: it needs the opt-in
+    assert main(["run", "paper-case1", "--set", f"planner.name={EXAMPLE}", "--duration", "5", "--quiet"]) == 2
+    assert "--allow-planner-imports" in _one_error_line(capsys)

@@ -95,7 +95,7 @@ class RunSpec:
     figures: bool = False
     # Which module:Class planners this run may import (swarm.scenario.trust): True, or these
     # names. Decided where the sweep was asked for (the planners the user named, an opt-in) and
-    # carried to the worker, which honours it whatever its own environment says.
+    # carried to the worker, which honours it without an opt-in of its own.
     allow_planner_imports: bool | tuple[str, ...] = ()
 
     @property
