@@ -362,3 +362,14 @@ def test_run_takes_the_planner_once(capsys):
     # as a --set value, a module:Class is a scenario setting: it needs the opt-in
     assert main(["run", "paper-case1", "--set", f"planner.name={EXAMPLE}", "--duration", "5", "--quiet"]) == 2
     assert "--allow-planner-imports" in _one_error_line(capsys)
+
+
+def test_the_issues_file_verbatim_is_one_error_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "evil.toml").write_text('[planner]\nname = "subprocess:Popen"\n[planner.options]\n'
+                                        'args = ["touch", "PWNED"]\n')
+    for command in ("validate", "run"):
+        assert main([command, "evil.toml"]) == 2
+        line = _one_error_line(capsys)
+        assert line.startswith("error: evil.toml: planner.name: found 'subprocess:Popen'") and "--allow-planner" in line
+    assert not (tmp_path / "PWNED").exists()

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ValidationError
 from swarm.errors import ScenarioError
 from swarm.scenario.model import _FAULT_CLASSES, FAULT_KINDS, PlannerSettings, Scenario, _Invalid
 from swarm.scenario.positions import document_position, found_words, key_path, value_at
-from swarm.scenario.trust import allowed
+from swarm.scenario.trust import allowed, permits, refusal
 
 # --- loading -------------------------------------------------------------------------------
 _BUILTIN_PACKAGE = "swarm.scenario.builtin"
@@ -97,7 +97,14 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated
         raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
     data = dict(doc)
     data.setdefault("name", _default_name(source))
-    context = {"truncated": truncated, "allow_planners": allowed(allow_planner_imports)}
+    allow = allowed(allow_planner_imports)
+    # Code the user did not allow is the one thing said about such a document (the model checks
+    # it too, for documents validated directly).
+    table = data.get("planner")
+    name = table.get("name") if isinstance(table, dict) else None
+    if isinstance(name, str) and not permits(allow, name):
+        raise ScenarioError(source, _PLANNER_NAME, *refusal(name))
+    context = {"truncated": truncated, "allow_planners": allow}
     try:
         return Scenario.model_validate(data, context=context)
     except ValidationError as exc:
