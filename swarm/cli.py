@@ -86,6 +86,7 @@ def _console(stderr: bool = False):
 def _cmd_validate(args) -> int:
     from swarm.errors import ScenarioError
     from swarm.scenario import load_scenario
+    from swarm.scenario.warnings import scenario_warnings
 
     reports = []
     for ref in args.scenario:
@@ -95,6 +96,8 @@ def _cmd_validate(args) -> int:
             reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
             continue
         types = sorted({u.type for u in sc.uavs})
+        for w in scenario_warnings(sc):
+            print(f"warning: {ref}: {w}", file=sys.stderr)
         reports.append({"scenario": ref, "ok": True, "name": sc.name, "uavs": len(sc.uavs), "types": types,
                         "targets": len(sc.targets.placed) + sc.targets.count, "threats": len(sc.threats),
                         "faults": len(sc.faults), "duration_s": sc.duration_s})
@@ -168,6 +171,7 @@ def _summary_table(metrics: dict, out_dir: Path | None):
 def _cmd_run(args) -> int:
     from swarm.outputs import write_run
     from swarm.scenario import apply_overrides, load_scenario, parse_assignment
+    from swarm.scenario.warnings import scenario_warnings
     from swarm.simulation import Simulation
 
     sets = dict(parse_assignment(s) for s in args.set)
@@ -180,6 +184,8 @@ def _cmd_run(args) -> int:
     if sets:
         sc = apply_overrides(sc, sets, allow_planner_imports=args.allow_planner_imports)
     sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
+    for w in scenario_warnings(sim.scenario):
+        print(f"warning: {args.scenario}: {w}", file=sys.stderr)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
                                  note="t=0 s")
