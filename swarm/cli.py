@@ -91,7 +91,7 @@ def _cmd_validate(args) -> int:
     reports = []
     for ref in args.scenario:
         try:
-            sc = load_scenario(ref)
+            sc = load_scenario(ref, allow_planner_imports=args.allow_planner_imports)
         except ScenarioError as err:
             reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
             continue
@@ -174,11 +174,16 @@ def _cmd_run(args) -> int:
     from swarm.scenario.warnings import scenario_warnings
     from swarm.simulation import Simulation
 
-    sc = load_scenario(args.scenario)
-    if args.set:
-        sc = apply_overrides(sc, dict(parse_assignment(s) for s in args.set))
-    sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration,
-                     memory_limit_gb=args.memory_limit)
+    sets = dict(parse_assignment(s) for s in args.set)
+    if args.planner is not None and "planner.name" in sets:
+        raise UsageError(f"--planner {args.planner} and --set planner.name={sets['planner.name']}: give the planner "
+                         f"once, with --planner")
+    # The planner first (typed by the user: allowed, and the file's own planner is then never
+    # imported), so --set planner.options.KEY are the options of the planner that runs.
+    sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports)
+    if sets:
+        sc = apply_overrides(sc, sets, allow_planner_imports=args.allow_planner_imports)
+    sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
     for w in scenario_warnings(sim.scenario):
         print(f"warning: {args.scenario}: {w}", file=sys.stderr)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
@@ -238,9 +243,9 @@ def _cmd_sweep(args) -> int:
             resolve_planner(name)
         except PlannerError as exc:
             raise UsageError(f"--planner {args.planner!r}: {exc}") from None
-    sc = load_scenario(args.scenario)
-    runs = plan_runs(sc, seeds=args.seeds, planners=planners,
-                     grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
+    sc = load_scenario(args.scenario, planner=planners[0], allow_planner_imports=args.allow_planner_imports)
+    runs = plan_runs(sc, seeds=args.seeds, planners=planners, grid=_parse_grid(args.set), duration_s=args.duration,
+                     figures=args.figures, allow_planner_imports=args.allow_planner_imports)
     executor, client = _dask_executor(args)
     try:
         with _progress(quiet=args.quiet or args.json, count=True) as progress:
@@ -440,6 +445,15 @@ def _add_executor_args(parser: argparse.ArgumentParser, scheduler_help: str) -> 
     parser.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
 
 
+def _add_allow_arg(parser: argparse.ArgumentParser) -> None:
+    """``--allow-planner-imports``: the opt-in for module:Class planners named by files
+    (swarm.scenario.trust; the environment variable SWARM_ALLOW_PLANNER_IMPORTS=1 does the same)."""
+    parser.add_argument("--allow-planner-imports", action="store_true",
+                        help="import a planner given as module:Class inside a scenario file or a --set value (runs "
+                             "that module's code; off by default: only planners you type with --planner, built-in "
+                             "and entry-point names are imported); same as SWARM_ALLOW_PLANNER_IMPORTS=1")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -462,11 +476,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "this machine's memory)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
     r.add_argument("--json", action="store_true", help="print the metrics as JSON on stdout instead of the table")
+    _add_allow_arg(r)
     r.set_defaults(func=_cmd_run)
 
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
     v.add_argument("--json", action="store_true", help="print one JSON record per scenario on stdout")
+    _add_allow_arg(v)
     v.set_defaults(func=_cmd_validate)
 
     b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
@@ -488,6 +504,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--out", required=True, help="sweep folder (runs/, summary.json, summary.csv)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar or table")
     sw.add_argument("--json", action="store_true", help="print summary.json's content on stdout instead of the table")
+    _add_allow_arg(sw)
     sw.set_defaults(func=_cmd_sweep)
 
     pa = sub.add_parser("paper", help="reproduce the paper's experiments (section 4): figures and a table")

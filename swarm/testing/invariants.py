@@ -1458,9 +1458,13 @@ def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checker
     return monitor.finish()
 
 
-def load_run_log(out_dir: str | Path) -> tuple[Scenario, list[list]]:
+def load_run_log(out_dir: str | Path, *, allow_planner_imports: bool | Iterable[str] = False
+                 ) -> tuple[Scenario, list[list]]:
     """The validated scenario (``scenario.json``) and the events (``events.msgpack``) of a
-    ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`)."""
+    ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`). A run folder is data:
+    a ``module:Class`` planner in its ``scenario.json`` is refused unless allowed here
+    (``True``, or its name; :mod:`swarm.scenario.trust`)."""
     run = read_run_dir(out_dir)
-    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"), truncated=True)  # may be cut short
+    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"), truncated=True,  # may be cut short
+                              allow_planner_imports=allow_planner_imports)
     return scenario, list(read_events(run.events))

@@ -43,6 +43,7 @@ from hypothesis.errors import InvalidArgument
 
 import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from agents.assignment import rule_breaks
+from agents.planners.registry import is_module_ref
 from agents.types import UavType
 from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, UavTypeSpec, parse_scenario
@@ -375,8 +376,12 @@ def fault_schedule_of(scenario: Scenario) -> FaultSchedule:
 
 def scenarios(**kwargs: Any) -> st.SearchStrategy[Scenario]:
     """Validated :class:`~swarm.scenario.Scenario` objects (see :func:`scenario_documents` for
-    the options). A document the model rejects is a bug in these strategies and raises."""
-    return scenario_documents(**kwargs).map(lambda doc: parse_scenario(doc, GENERATED_SOURCE))
+    the options). A document the model rejects is a bug in these strategies and raises. The
+    ``planners`` named here are the caller's choice, so a ``module:Class`` among them may be
+    imported (:mod:`swarm.scenario.trust`)."""
+    allow = tuple(kwargs.get("planners", ()))
+    return scenario_documents(**kwargs).map(lambda doc: parse_scenario(doc, GENERATED_SOURCE,
+                                                                       allow_planner_imports=allow))
 
 
 # --- reproducing an example --------------------------------------------------------------------
@@ -458,8 +463,11 @@ def scenario_toml(scenario: Scenario | dict, comment: str = "") -> str:
     return "\n".join(lines).strip("\n") + "\n"
 
 
-def reproduce_command(path: str | os.PathLike[str], seed: int) -> str:
-    return f"swarm run {os.fspath(path)} --seed {seed}"
+def reproduce_command(path: str | os.PathLike[str], seed: int, planner: str | None = None) -> str:
+    """The ``swarm run`` command replaying a written scenario; a ``module:Class`` planner is
+    typed on it (a file alone may not import one: :mod:`swarm.scenario.trust`)."""
+    typed = f" --planner {planner}" if planner is not None and is_module_ref(planner) else ""
+    return f"swarm run {os.fspath(path)} --seed {seed}{typed}"
 
 
 def reproduction(scenario: Scenario, directory: str | os.PathLike[str] | None = None,
@@ -473,7 +481,7 @@ def reproduction(scenario: Scenario, directory: str | os.PathLike[str] | None = 
     digest = hashlib.sha256(text.encode()).hexdigest()[:12]
     path = folder / f"{scenario.name}-{digest}.toml"
     path.write_text(text, encoding="utf-8")
-    return path, reproduce_command(path, scenario.seed)
+    return path, reproduce_command(path, scenario.seed, scenario.planner.name)
 
 
 @contextlib.contextmanager
