@@ -24,13 +24,16 @@ Needs ``hypothesis`` (the ``test`` extra); nothing in the simulator imports this
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 import functools
 import math
 from collections.abc import Callable, Sequence
 
 from hypothesis import strategies as st
 
-import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from comms.radio import LinkModel
 from faults.schedule import (
     FAULT_KINDS,

@@ -50,6 +50,10 @@ Needs ``hypothesis`` (the ``test`` extra).
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 import math
 import sys
 from collections.abc import Callable
@@ -59,7 +63,6 @@ from hypothesis import note
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
-import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from faults.schedule import ClockSkew, Crash, Drop, Fault, Join, Liar, Partition, Pause, Restart
 from swarm.scenario import Scenario, parse_scenario
 from swarm.simulation import Simulation

@@ -27,6 +27,10 @@ Needs ``hypothesis`` (the ``test`` extra); nothing in the simulator imports this
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 import contextlib
 import hashlib
 import math
@@ -41,7 +45,6 @@ from hypothesis import assume, note
 from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
-import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
 from agents.assignment import rule_breaks
 from agents.planners.registry import is_module_ref
 from agents.types import UavType
