@@ -732,13 +732,16 @@ class PlannerSettings(_Model):
 
     @model_validator(mode="after")
     def _known_planner(self) -> PlannerSettings:
-        from agents.planners.registry import PlannerError, option_problems
+        from agents.planners.registry import PlannerError, option_problems, surveillance_problem
 
         try:
             problems = option_problems(self.name, self.options)
+            refused = surveillance_problem(self.name) if self.surveillance else None
         except PlannerError as exc:
             _raise_if([_Problem(("name",), self.name, _PLANNER_WORDS, hint=str(exc))])
         _raise_if([_Problem(("options", key), None, expected, found=found) for key, found, expected in problems])
+        # A planner that declares it only searches (surveils = False) cannot run with surveillance.
+        _raise_if([_Problem(("surveillance",), True, f"false: {refused}")] if refused else [])
         return self
 
 
