@@ -31,6 +31,11 @@ History:
   the farther same-type claimant yields, the declared target is the strongest pull, watchers
   feel threats at 0.15 k_rep): unchanged here (one target, seen at 20 s; no watcher in a threat field),
   paper-case2/3 logs change; paper-fig11's (search only) do not.
+- greedy and the reference planners surveil with planner.surveillance = true, through the shared
+  surveillance logic (agents.planners.surveillance). This scenario leaves surveillance on (the
+  default), so greedy's pinned run is now taken with surveillance off: the same hash as before
+  (greedy ignored the flag), as a search-only greedy must keep. "greedy-surveillance" pins the
+  new behaviour (intended).
 """
 
 from __future__ import annotations
@@ -38,14 +43,20 @@ from __future__ import annotations
 import pytest
 
 from swarm import Simulation
+from swarm.scenario import apply_overrides, load_scenario
 
 PINNED = {
-    "greedy": "28ac6a09c44b534c028ac764ff241b191238cf8874c828dda12d1a4c75244b20",
+    "greedy": "28ac6a09c44b534c028ac764ff241b191238cf8874c828dda12d1a4c75244b20",  # surveillance off
+    "greedy-surveillance": "de042dd1be3f17798386279f8815d1f5d4883c2f1d4e27e00d9a159bef08daa3",
     "dacmp": "f5d2755cef6c3b6229acad3475ff4eac1ec2d396b19743c5d8d516a9a0fe0f01",
 }
 
 
-@pytest.mark.parametrize("planner", sorted(PINNED))
-def test_pinned_hash(planner, small_scenario_path):
-    with Simulation(small_scenario_path, duration_s=60.0, planner=planner) as sim:
-        assert sim.run().metrics["event_log_sha256"] == PINNED[planner]
+@pytest.mark.parametrize("case", sorted(PINNED))
+def test_pinned_hash(case, small_scenario_path):
+    planner, _, surveillance = case.partition("-")
+    scenario = load_scenario(small_scenario_path)
+    if planner == "greedy":  # greedy's pin is search only; the shared surveillance logic has its own
+        scenario = apply_overrides(scenario, {"planner.surveillance": surveillance == "surveillance"})
+    with Simulation(scenario, duration_s=60.0, planner=planner) as sim:
+        assert sim.run().metrics["event_log_sha256"] == PINNED[case]
