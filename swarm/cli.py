@@ -138,6 +138,25 @@ def _progress(*, quiet: bool, transient: bool = False, count: bool = False):
     return Progress(*columns, console=_console(stderr=True), transient=transient, disable=quiet)
 
 
+def _per_target(values: dict, fmt) -> str:
+    """``0: 7 s, 1: –`` (a dash: never), target by target."""
+    return ", ".join(f"{k}: {'–' if v is None else fmt(v)}" for k, v in sorted(values.items(), key=lambda kv: int(kv[0])))
+
+
+def _watch_rows(metrics: dict) -> list[tuple[str, str]]:
+    """The detection and watch rows of the summary (docs/outputs.md)."""
+    if "time_to_first_detection_s" not in metrics:
+        return []
+    share = metrics["uav_time_share"]
+    return [
+        ("first detection (s, per target)", _per_target(metrics["time_to_first_detection_s"], lambda v: f"{v:g}")),
+        (f"to slow watcher (s; {', '.join(metrics['slow_types'])})",
+         _per_target(metrics["time_to_slow_watcher_s"], lambda v: f"{v:g}")),
+        ("watched share (per found target)", _per_target(metrics["watched_share"], lambda v: f"{v:.3f}") or "none found"),
+        ("UAV time watching / searching", f"{share['watching']:.3f} / {share['searching']:.3f}"),
+    ]
+
+
 def _summary_table(metrics: dict, out_dir: Path | None):
     from rich.table import Table
 
@@ -152,6 +171,7 @@ def _summary_table(metrics: dict, out_dir: Path | None):
         ("targets found", f"{metrics['targets_found']} / {metrics['targets_total']}"),
         ("surveillance ratio (mean)", f"{metrics['surveillance_ratio_mean']:.3f}"),
         ("handovers (fast->slow)", f"{metrics['handovers']} ({metrics['handovers_fast_to_slow']})"),
+        *_watch_rows(metrics),
         ("radio sent/delivered", f"{r['sent']} / {r['delivered']}"),
         ("radio dropped/rejected", f"{r['dropped']} / {r['rejected']}"),
         ("violations sep/threat/dyn", "{separation} / {threat} / {dynamics}".format(**metrics["violations"])),
