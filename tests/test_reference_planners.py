@@ -31,10 +31,10 @@ REFERENCE = ("lawnmower", "formation", "levy")
 lengths = st.floats(1_000.0, 200_000.0)
 
 
-def test_registered_built_in_search_only():
+def test_registered_built_in_searchers_with_the_shared_surveillance():
     for name, cls in zip(REFERENCE, (LawnmowerPlanner, FormationPlanner, LevyPlanner)):
         assert name in BUILTIN and resolve_planner(name) is cls
-        assert cls.surveillance is False and cls.name == name
+        assert cls.surveils == "shared" and cls.name == name
 
 
 # --- geometry: pure functions ------------------------------------------------------------------
