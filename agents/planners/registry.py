@@ -180,7 +180,8 @@ def surveillance_problem(name: str) -> str | None:
     if surveils_of(resolve_planner(name)) is not False:
         return None
     return (f"planner {name!r} only searches (its class declares surveils = False): set "
-            f"planner.surveillance = false (--set planner.surveillance=false), choose a planner that "
+            f"planner.surveillance = false (in the scenario, or --set planner.surveillance=false beside "
+            f"--planner), choose a planner that "
             f"watches targets (dacmp, greedy, lawnmower, formation, levy), or declare surveils = \"shared\" "
             f"in the class to use the shared surveillance logic (docs/planners.md)")
 
