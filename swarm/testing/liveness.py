@@ -23,9 +23,9 @@ once it has rejoined):
   node fault hit that UAV (crash, pause, restart), and that nobody watches at ``T0``, is
   watched again (some live UAV's pose declares it) within :func:`reassign_bound_s` of ``T0``,
   provided that at ``T0`` the planner watches targets (``planner.surveillance``: every planner
-  that may run with it watches, the search planners through the shared logic), a live UAV not watching anything knows the target's track, and
-  the radio loses nothing by itself. Otherwise the obligation is listed as not judged, with
-  why.
+  that may run with it watches, the search planners through the shared logic), a live UAV not
+  watching anything knows the target's track, and the radio loses nothing by itself. Otherwise
+  the obligation is listed as not judged, with why.
 
 The bounds, from the scenario's settings (``dt`` the tick, ``lat`` = ``radio.latency_s +
 radio.jitter_s``, ``n`` the live UAVs):
