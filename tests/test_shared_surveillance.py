@@ -123,3 +123,11 @@ def test_metrics_json_and_summary_show_the_detection_and_watch_measures(tmp_path
     m = json.loads((out / "metrics.json").read_text())
     assert set(m["time_to_first_detection_s"]) == {"0", "1"} and m["slow_types"] == ["A"]
     assert set(m["per_uav"]["B1"]["time_share"]) == {"watching", "searching"}
+    from swarm.viz.report import write_report
+
+    html = write_report(out).read_text()
+    section = html[html.index('<h2 id="watch">'):]
+    first = m["time_to_first_detection_s"]["0"]
+    assert "to slow watcher" in section and f"<td>0</td><td>{first:g} s</td>" in section
+    share = m["uav_time_share"]
+    assert f"<td>swarm</td><td></td><td>{share['watching']:.3f}</td><td>{share['searching']:.3f}</td>" in section
