@@ -141,6 +141,25 @@ def _progress(*, quiet: bool, transient: bool = False, count: bool = False):
     return Progress(*columns, console=_console(stderr=True), transient=transient, disable=quiet)
 
 
+def _per_target(values: dict, fmt) -> str:
+    """``0: 7 s, 1: –`` (a dash: never), target by target."""
+    return ", ".join(f"{k}: {'–' if v is None else fmt(v)}" for k, v in sorted(values.items(), key=lambda kv: int(kv[0])))
+
+
+def _watch_rows(metrics: dict) -> list[tuple[str, str]]:
+    """The detection and watch rows of the summary (docs/outputs.md)."""
+    if "time_to_first_detection_s" not in metrics:
+        return []
+    share = metrics["uav_time_share"]
+    return [
+        ("first detection (s, per target)", _per_target(metrics["time_to_first_detection_s"], lambda v: f"{v:g}")),
+        (f"to slow watcher (s; {', '.join(metrics['slow_types'])})",
+         _per_target(metrics["time_to_slow_watcher_s"], lambda v: f"{v:g}")),
+        ("watched share (per found target)", _per_target(metrics["watched_share"], lambda v: f"{v:.3f}") or "none found"),
+        ("UAV time watching / searching", f"{share['watching']:.3f} / {share['searching']:.3f}"),
+    ]
+
+
 def _summary_table(metrics: dict, out_dir: Path | None):
     from rich.table import Table
 
@@ -155,6 +174,7 @@ def _summary_table(metrics: dict, out_dir: Path | None):
         ("targets found", f"{metrics['targets_found']} / {metrics['targets_total']}"),
         ("surveillance ratio (mean)", f"{metrics['surveillance_ratio_mean']:.3f}"),
         ("handovers (fast->slow)", f"{metrics['handovers']} ({metrics['handovers_fast_to_slow']})"),
+        *_watch_rows(metrics),
         ("radio sent/delivered", f"{r['sent']} / {r['delivered']}"),
         ("radio dropped/rejected", f"{r['dropped']} / {r['rejected']}"),
         ("violations sep/threat/dyn", "{separation} / {threat} / {dynamics}".format(**metrics["violations"])),
@@ -170,7 +190,7 @@ def _summary_table(metrics: dict, out_dir: Path | None):
 
 def _cmd_run(args) -> int:
     from swarm.outputs import write_run
-    from swarm.scenario import apply_overrides, load_scenario, parse_assignment
+    from swarm.scenario import load_scenario, parse_assignment
     from swarm.scenario.warnings import scenario_warnings
     from swarm.simulation import Simulation
 
@@ -180,9 +200,10 @@ def _cmd_run(args) -> int:
                          f"once, with --planner")
     # The planner first (typed by the user: allowed, and the file's own planner is then never
     # imported), so --set planner.options.KEY are the options of the planner that runs.
-    sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports)
-    if sets:
-        sc = apply_overrides(sc, sets, allow_planner_imports=args.allow_planner_imports)
+    # --set goes into the document before it is judged, so a setting that only makes sense
+    # beside another one (--set planner.surveillance=false for a search-only --planner) is.
+    sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports,
+                       overrides=sets)
     sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
     for w in scenario_warnings(sim.scenario):
         print(f"warning: {args.scenario}: {w}", file=sys.stderr)

@@ -18,6 +18,13 @@ release, or at the newcomer's arrival if the owner had already let go. Its ``lat
 spec's "time from the slow UAV's arrival to the fast UAV's release" (negative when the owner
 left before the newcomer arrived). An owner that stops watching while nobody holds the target
 logs a ``release``.
+
+Detection-to-watch measures (:meth:`Metrics.assignment`, in ``metrics.json``; docs/outputs.md):
+per target, the time from its appearance to its first detection, the time from that detection
+to the first tick a UAV of the scenario's slowest type holds it (its *slow watcher*), and the
+share of its time since detection during which some UAV held it (``watched_share``: unlike the
+surveillance ratio, only a UAV assigned to that target counts); per UAV, the share of its flying time spent watching
+(surveillance mode) and searching.
 """
 
 from __future__ import annotations
@@ -58,6 +65,9 @@ class Metrics:
     watch_since: dict[tuple[int, int], float] = field(default_factory=dict)  # (uid, target) -> start
     arrived: dict[tuple[int, int], float] = field(default_factory=dict)  # (uid, target) -> first hold
     handovers: list[Handover] = field(default_factory=list)
+    appeared_t: dict[int, float] = field(default_factory=dict)  # target -> when it was added (0 at the start)
+    held_s: dict[int, float] = field(default_factory=dict)  # found target -> seconds some UAV held it
+    first_hold: dict[tuple[int, str], float] = field(default_factory=dict)  # (target, UAV type) -> first hold
     rows: list[dict] = field(default_factory=list)
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
 
@@ -164,6 +174,11 @@ class Metrics:
         for m in self.found_t:
             if m in covered:
                 self.watched_s[m] = self.watched_s.get(m, 0.0) + dt
+            if m in holding:
+                self.held_s[m] = self.held_s.get(m, 0.0) + dt
+        for m, uids in holding.items():
+            for uid in uids:
+                self.first_hold.setdefault((m, types.get(uid, "?")), t)
         for m in sorted(set(self.owner) | set(holding)):
             old = self.owner.get(m)
             if old is not None and old in watching.get(m, ()):
@@ -197,3 +212,46 @@ class Metrics:
             1 for h in self.handovers
             if speed_max_by_type.get(h.from_type, math.inf) > speed_max_by_type.get(h.to_type, math.inf)
         )
+
+    def assignment(self, targets: int, uav_types: dict[int, str], speed_max_by_type: dict[str, float],
+                   t_end: float) -> dict:
+        """The detection-to-watch measures of a run (module docstring; names in docs/outputs.md).
+
+        ``targets``: how many the run has (ids ``0 .. targets - 1``); ``uav_types``: uid -> type
+        name of every UAV the run has had (the slowest of their types is the "slow" type)."""
+        speeds = [speed_max_by_type.get(k, math.inf) for k in set(uav_types.values())]
+        slowest = min(speeds) if speeds else math.inf
+        slow = {k for k in set(uav_types.values()) if speed_max_by_type.get(k, math.inf) == slowest}
+        detection: dict[str, float | None] = {}
+        to_slow: dict[str, float | None] = {}
+        watched: dict[str, float] = {}
+        for m in range(targets):
+            t0 = self.found_t.get(m)
+            detection[str(m)] = None if t0 is None else t0 - self.appeared_t.get(m, 0.0)
+            if t0 is None:
+                to_slow[str(m)] = None
+                continue
+            firsts = [t for (tm, k), t in self.first_hold.items() if tm == m and k in slow]
+            to_slow[str(m)] = min(firsts) - t0 if firsts else None
+            span = t_end - t0
+            watched[str(m)] = self.held_s.get(m, 0.0) / span if span > 0 else 0.0
+        per_uav: dict[int, dict[str, float]] = {}
+        total = {"search": 0.0, "surveil": 0.0}
+        for uid in sorted(uav_types):
+            ms = self.mode_s.get(uid, {"search": 0.0, "surveil": 0.0})
+            flying = ms["search"] + ms["surveil"]
+            per_uav[uid] = {"watching": ms["surveil"] / flying if flying > 0 else 0.0,
+                            "searching": ms["search"] / flying if flying > 0 else 0.0}
+            total["search"] += ms["search"]
+            total["surveil"] += ms["surveil"]
+        flying = total["search"] + total["surveil"]
+        return {
+            "time_to_first_detection_s": detection,
+            "time_to_slow_watcher_s": to_slow,
+            "watched_share": watched,
+            "watched_share_mean": float(np.mean(list(watched.values()))) if watched else 0.0,
+            "slow_types": sorted(slow),
+            "uav_time_share": {"watching": total["surveil"] / flying if flying > 0 else 0.0,
+                               "searching": total["search"] / flying if flying > 0 else 0.0},
+            "per_uav": per_uav,
+        }

@@ -81,6 +81,10 @@ def run_metrics(sim: Simulation) -> dict:
             "messages_ignored": a.counters.messages_ignored,  # other heard messages with absurd values
         }
     surv = m.surveillance_ratio(t)
+    assignment = m.assignment(len(sim.targets), {uid: b.kind.name for uid, b in sim.world.uavs.items()},
+                              sim.speed_max_by_type, t)
+    for uid, share in assignment.pop("per_uav").items():
+        per_uav[sim.world.uavs[uid].name]["time_share"] = share
     return {
         "scenario": sc.name,
         "planner": sc.planner.name,
@@ -100,6 +104,7 @@ def run_metrics(sim: Simulation) -> dict:
              "to": sim.world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
              "latency_s": h.latency_s} for h in m.handovers
         ],
+        **assignment,  # time_to_first_detection_s ... uav_time_share (swarm.metrics.Metrics.assignment)
         "radio": radio,
         "violations": dict(sim.world.violations),
         "faults_applied": dict(sorted(sim.injector.fired.items())),

@@ -300,6 +300,7 @@ class Simulation:
     def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
         tid = self.targets.add(x, y, theta, v, value, rng)
         self._target_paths[tid] = []
+        self.metrics.appeared_t[tid] = self.clock.now  # (time to first detection counts from here)
         return tid
 
     def _add_uav_spec(self, spec: UavSpec) -> int:

@@ -566,7 +566,8 @@ def test_single_watcher_catches_a_planner_that_never_lets_go():
 
 
 def test_handover_catches_a_slow_uav_that_will_not_take_over():
-    m = _with_planners({"B1": Sticky()})  # A1 stays greedy: never watches
+    # A1 gets greedy's bare search (the scenario's greedy would surveil through the shared logic).
+    m = _with_planners({"B1": Sticky(), "A1": GreedyPlanner()})
     (v,) = [v for v in m.violations if v.invariant == "handover"]
     assert v.uavs[:2] == ("B1", "A1") and "none took over" in v.message
 
@@ -577,7 +578,8 @@ def test_handover_catches_a_fast_uav_that_will_not_release():
 
 
 def test_no_drop_catches_a_planner_that_abandons_its_target():
-    m = _with_planners({"B1": Fickle()})
+    # The others get greedy's bare search: the scenario's greedy would take the target over.
+    m = _with_planners({"B1": Fickle(), "B2": GreedyPlanner(), "A1": GreedyPlanner()})
     (v,) = [v for v in m.violations if v.invariant == "no_drop"]
     assert v.uavs == ("B1",) and v.target == 0
 

@@ -67,3 +67,98 @@ def test_no_handover_without_arrival_or_when_the_target_was_dropped_first():
     dropped, events = _handovers(lambda t: {FAST: (SURVEIL if t < 20 else SEARCH, t < 20),
                                             SLOW: (SURVEIL if t >= 25 else SEARCH, t >= 40)})
     assert dropped == [] and ("release", 20.0, 0, FAST) in events
+
+
+# --- detection and watch measures (Metrics.assignment; docs/outputs.md) ---------------------------
+
+
+def test_detection_and_watch_measures_by_hand():
+    """Ticks of 1 s from 0 to 99 s (t_end 100 s); a fast UAV (type B) and a slow one (A).
+
+    Target 0 (appears at 0 s): the fast UAV sees it at 10 s, watches and holds it 10-39 s; the
+    slow UAV declares it at 30 s and holds it from 35 s to the end. First detection 10 s; first
+    slow hold 35 s, 25 s after detection; held at every tick from 10 s on: 90 s of 90.
+    Target 1 (added at 5 s): the slow UAV's sensor sees it at 20 s only, on its way elsewhere
+    (15 s after it appeared); the fast UAV watches it from afar at 40-49 s (assigned, never
+    inside its radius): never held, watched share 0. Target 2: never found.
+    """
+    m = Metrics(Grid(10_000.0, 10_000.0, 100.0), 0.005)
+    m.appeared_t.update({0: 0.0, 1: 5.0, 2: 0.0})
+    types, speeds = {FAST: "B", SLOW: "A"}, {"B": 90.0, "A": 30.0}
+    for t in map(float, range(100)):
+        fast = (1, 0) if 10 <= t < 40 else (1, 1) if 40 <= t < 50 else SEARCH
+        slow = (1, 0) if t >= 30 else SEARCH
+        sensed = {FAST: [0] if 10 <= t < 40 else [], SLOW: ([0] if t >= 35 else []) + ([1] if t == 20 else [])}
+        m.observe(t, 1.0, {FAST: fast, SLOW: slow}, sensed, types, speeds)
+    a = m.assignment(3, types, speeds, 100.0)
+    assert a["time_to_first_detection_s"] == {"0": 10.0, "1": 15.0, "2": None}
+    assert a["time_to_slow_watcher_s"] == {"0": 25.0, "1": None, "2": None}
+    assert a["watched_share"] == {"0": 1.0, "1": 0.0}  # found targets only
+    assert a["watched_share_mean"] == 0.5
+    assert a["slow_types"] == ["A"]
+    # Fast: 40 s in surveillance mode (10-49 s) of 100 flying; slow: 70 (30-99 s) of 100.
+    assert a["per_uav"] == {FAST: {"watching": 0.4, "searching": 0.6}, SLOW: {"watching": 0.7, "searching": 0.3}}
+    assert a["uav_time_share"] == {"watching": 0.55, "searching": 0.45}
+
+
+def test_slow_watcher_of_a_one_type_swarm_is_any_watcher_and_a_crashed_slow_type_still_counts():
+    m = Metrics(Grid(10_000.0, 10_000.0, 100.0), 0.005)
+    for t in map(float, range(20)):
+        m.observe(t, 1.0, {0: (1, 0) if t >= 4 else SEARCH}, {0: [0] if t >= 2 else []}, {0: "B"}, {"B": 90.0})
+    a = m.assignment(1, {0: "B"}, {"B": 90.0, "A": 30.0}, 20.0)  # type A declared but not flown
+    assert a["slow_types"] == ["B"] and a["time_to_slow_watcher_s"] == {"0": 2.0}
+    assert a["watched_share"] == {"0": 16.0 / 18.0}
+    # The slowest type of the run is A even if its only UAV never flew (or crashed): B never counts.
+    a = m.assignment(1, {0: "B", 1: "A"}, {"B": 90.0, "A": 30.0}, 20.0)
+    assert a["slow_types"] == ["A"] and a["time_to_slow_watcher_s"] == {"0": None}
+    assert a["per_uav"][1] == {"watching": 0.0, "searching": 0.0}  # never flew: no flying time
+
+
+def test_detection_and_watch_measures_agree_with_the_event_log_on_paper_case1():
+    """paper-case1 (600 s, 3 UAVs, 2 targets), greedy with the shared surveillance logic:
+    metrics.json's measures recomputed from the event log alone (found, pose and target
+    events; a UAV holds a target when its pose says surveillance of it and the target is within
+    its type's detection radius)."""
+    import math
+
+    from swarm import Simulation
+    from swarm.recorder import read_events
+
+    with Simulation("paper-case1", planner="greedy") as sim:
+        r = sim.run()
+        radius = {b.uid: b.kind.detect_radius for b in sim.world.uavs.values()}
+        kind = {b.uid: b.kind.name for b in sim.world.uavs.values()}
+    m = r.metrics
+    found, pose, target = {}, {}, {}
+    for ev in read_events(r.events):
+        if ev[0] == "found":
+            found.setdefault(ev[2], ev[1])
+        elif ev[0] == "pose":
+            pose.setdefault(ev[1], {})[ev[2]] = (ev[3], ev[4], ev[7], ev[8])
+        elif ev[0] == "target":
+            target.setdefault(ev[1], {})[ev[2]] = (ev[3], ev[4])
+    t_end = m["sim_seconds"]
+    assert m["time_to_first_detection_s"] == {str(k): found.get(k) for k in range(2)}
+    held = {k: [] for k in found}  # per found target: (t, uid) of each hold
+    surveil = dict.fromkeys(kind, 0)
+    for t, uavs in pose.items():
+        for uid, (x, y, mode, tgt) in uavs.items():
+            surveil[uid] += mode == 1
+            if mode == 1 and tgt in held and t >= found[tgt]:
+                tx, ty = target[t][tgt]
+                if math.hypot(tx - x, ty - y) <= radius[uid]:
+                    held[tgt].append((t, uid))
+    for k, holds in held.items():
+        slow = [t for t, uid in holds if kind[uid] == "A"]
+        assert m["time_to_slow_watcher_s"][str(k)] == (min(slow) - found[k] if slow else None)
+        assert m["watched_share"][str(k)] == pytest.approx(len({t for t, _ in holds}) / (t_end - found[k]))
+    names = {b: n for n, b in sim.names.items()}
+    for uid, n in surveil.items():
+        assert m["per_uav"][names[uid]]["time_share"]["watching"] == pytest.approx(n / len(pose))
+    # What this run shows (hand-checked against its trajectories): both targets found at 7 s by
+    # the fast UAVs they lie ahead of; A1 takes target 0 over from B1 (253 s after detection),
+    # nobody slow takes target 1 (B2 keeps it: A1 is busy); both are watched most of the time.
+    assert m["time_to_first_detection_s"] == {"0": 7.0, "1": 7.0}
+    assert m["time_to_slow_watcher_s"] == {"0": 253.0, "1": None}
+    assert m["watched_share"]["0"] > 0.8 and m["watched_share"]["1"] > 0.95
+    assert m["surveillance_ratio_mean"] > 0 and m["handovers_fast_to_slow"] == 1

@@ -215,7 +215,8 @@ def case2_table(per_seed: list[dict]) -> str:
     """The per-seed table of the Case 2 criterion (what the slow test prints)."""
     from swarm.experiments.paper import CASE2_CONDITIONS
 
-    head = f"{'seed':>4} {'found':>5} {'f->s':>4} {'opp':>3} {'sep':>3} {'thr':>3}  " + " ".join(f"{k:>9}" for k in CASE2_CONDITIONS)
+    head = (f"{'seed':>4} {'found':>5} {'f->s':>4} {'opp':>3} {'sep':>3} {'thr':>3}  "
+            + " ".join(f"{k:>9}" for k in CASE2_CONDITIONS))
     rows = [head] + [f"{m['seed']:>4} {m['targets_found']:>5} {m['handovers_fast_to_slow']:>4} "
                      f"{m['handover_opportunities']:>3} {m['separation_violations']:>3} {m['threat_violations']:>3}  "
                      + " ".join(f"{'yes' if m['conditions'][k] else 'NO':>9}" for k in CASE2_CONDITIONS)

@@ -280,7 +280,7 @@ def test_the_python_api_takes_options_beside_the_planner(world):
         with Simulation("paper-case1", planner=planner, planner_options={"tries": 3}, duration_s=10.0) as sim:
             assert sim.actors[0].planner.tries == 3
     with Simulation("paper-case1", planner="levy", planner_options={"mu": 1.5}, duration_s=10.0) as sim:
-        assert sim.actors[0].planner.mu == 1.5
+        assert sim.actors[0].planner.search.mu == 1.5  # (paper-case1 surveils: the shared logic wraps it)
     with pytest.raises(ScenarioError) as err:
         Simulation("paper-case1", planner="levy", planner_options={"tries": 3})
     assert err.value.key == "planner.options.tries" and "planner.options_for.NAME.KEY" in str(err.value)

@@ -7,8 +7,9 @@
 * :mod:`.registry`: built-in names, ``package.module:Class`` and the ``swarm.planners``
   entry-point group; :class:`PlannerContext`, what a planner may know before the run;
 * the planners: :mod:`.greedy` (the paper's baseline), :mod:`.dacmp` (the paper's planner),
-  and the reference planners :mod:`.lawnmower`, :mod:`.formation` and :mod:`.levy` (search-only,
-  like greedy; docs/planners.md).
+  and the reference planners :mod:`.lawnmower`, :mod:`.formation` and :mod:`.levy` (they search,
+  like greedy; with surveillance on, :mod:`.surveillance` adds the shared surveillance logic to
+  them: docs/planners.md).
 
 The deprecation policy of this API is in docs/embedding.md.
 """

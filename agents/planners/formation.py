@@ -32,8 +32,9 @@ next band, and when the area is done sweeps it again.
   different fronts and each sweeps its own; collision avoidance is the APF's, as for every
   planner.
 
-Search only: it never watches a target (``surveillance = False``), whatever
-``planner.surveillance`` says. Known threats: see :mod:`.reference`.
+It only searches (``surveils = "shared"``): with ``planner.surveillance = true`` the registry
+wraps it in the shared surveillance logic (:mod:`agents.planners.surveillance`), which decides
+when the UAV watches a target. Known threats: see :mod:`.reference`.
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ def band_order(bands: int, first: int) -> Iterator[int]:
 
 class FormationPlanner:
     name = "formation"
-    surveillance = False  # search only: never watches a target
+    surveils = "shared"  # it searches; the shared logic watches (agents.planners.surveillance)
 
     def __init__(self, lane: int = 0, lanes: int = 1, area_m: tuple[float, float] | None = None,
                  overlap: float = 0.0):

@@ -33,9 +33,10 @@ _JITTER = 1e-7
 class GreedyPlanner:
     headings: int = 15
     name: str = "greedy"
-    # Search-only, as in the paper (section 4.2): with planner.surveillance = true it does not
-    # watch targets; a sighting changes nothing (docs/planners.md).
-    surveillance = False
+    # It searches (the paper's section 4.2 compares search only). With planner.surveillance =
+    # true the registry wraps it in the shared surveillance logic, DACMP's decision
+    # (agents.planners.surveillance), so comparisons under surveillance are like for like.
+    surveils = "shared"
 
     @classmethod
     def from_context(cls, context: PlannerContext) -> GreedyPlanner:

@@ -27,8 +27,9 @@ neighbour crashed does not take over its strip.
   (plus the turns its sweep will need from there), and flies that path; its transit may cross
   other strips.
 
-Search only: it never watches a target (``surveillance = False``), whatever
-``planner.surveillance`` says. Known threats: see :mod:`.reference` (the UAV follows a
+It only searches (``surveils = "shared"``): with ``planner.surveillance = true`` the registry
+wraps it in the shared surveillance logic (:mod:`agents.planners.surveillance`), which decides
+when the UAV watches a target. Known threats: see :mod:`.reference` (the UAV follows a
 threat's ring round it; no waypoint lies inside a ``d_max``).
 """
 
@@ -106,7 +107,7 @@ def turn_cost(dw: float, r: float) -> tuple[float, float]:
 
 class LawnmowerPlanner:
     name = "lawnmower"
-    surveillance = False  # search only: never watches a target
+    surveils = "shared"  # it searches; the shared logic watches (agents.planners.surveillance)
 
     def __init__(self, index: int = 0, count: int = 1, area_m: tuple[float, float] | None = None,
                  overlap: float = 0.0):

@@ -19,8 +19,9 @@ achieves with the same airframes.
   rejects such headings) is drawn again, up to 16 times (the length is kept, so lengths stay a
   pure power law); waypoints are moved out of ``d_max`` (:mod:`.reference`).
 
-Search only: it never watches a target (``surveillance = False``), whatever
-``planner.surveillance`` says.
+It only searches (``surveils = "shared"``): with ``planner.surveillance = true`` the registry
+wraps it in the shared surveillance logic (:mod:`agents.planners.surveillance`), which decides
+when the UAV watches a target.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ def pareto_step(rng: np.random.Generator, mu: float, minimum: float, cap: float)
 
 class LevyPlanner:
     name = "levy"
-    surveillance = False  # search only: never watches a target
+    surveils = "shared"  # it searches; the shared logic watches (agents.planners.surveillance)
 
     def __init__(self, mu: float = 2.0, area_m: tuple[float, float] | None = None):
         if not 1.0 < mu <= 3.0:

@@ -19,6 +19,18 @@ caller's decision (a scenario file may not make it: :mod:`swarm.scenario.trust`)
 imported is checked before anything in it is called: it must be a class (found without running
 its module's ``__getattr__`` or descriptors) with a ``plan`` method, its ``from_context`` if any
 a class method, and the options must fit its signature.
+
+Every planner either surveils or says it does not, with a class attribute ``surveils``
+(:func:`surveils_of`):
+
+* ``True`` (and a class without the attribute): it decides itself when its UAV watches a
+  target (``PlanView.surveillance`` tells it whether it may); ``dacmp`` does;
+* ``"shared"``: it only searches, and with ``planner.surveillance = true`` each UAV's instance
+  is wrapped in the one shared surveillance and handover logic
+  (:class:`agents.planners.surveillance.SharedSurveillance`, DACMP's decision): ``greedy`` and
+  the reference planners do;
+* ``False``: it only searches and cannot watch: a scenario with ``planner.surveillance = true``
+  is refused when it is validated (:func:`surveillance_problem`).
 """
 
 from __future__ import annotations
@@ -28,7 +40,7 @@ import importlib
 import inspect
 from dataclasses import dataclass
 from importlib.metadata import entry_points
-from typing import Any
+from typing import Any, cast
 
 from agents.planners.base import Planner, PlannerError
 
@@ -41,6 +53,8 @@ __all__ = [
     "is_module_ref",
     "option_problems",
     "resolve_planner",
+    "surveillance_problem",
+    "surveils_of",
 ]
 
 ENTRY_POINT_GROUP = "swarm.planners"
@@ -181,8 +195,30 @@ def option_problems(name: str, options: dict[str, Any]) -> list[tuple[str, str, 
     return problems
 
 
+def surveils_of(cls: type) -> bool | str:
+    """What a planner class declares about surveillance: ``True``, ``False`` or ``"shared"``
+    (module docstring); a class that declares nothing counts as ``True``."""
+    value = getattr(cls, "surveils", True)
+    if value is True or value is False or value == "shared":
+        return value
+    raise PlannerError(f"planner class {cls.__name__}: surveils = {value!r}; expected True (it watches targets "
+                       f"itself), False (search only) or \"shared\" (the shared surveillance logic)")
+
+
+def surveillance_problem(name: str) -> str | None:
+    """Why planner ``name`` cannot run with ``planner.surveillance = true`` (None: it can)."""
+    if surveils_of(resolve_planner(name)) is not False:
+        return None
+    return (f"planner {name!r} only searches (its class declares surveils = False): set "
+            f"planner.surveillance = false (in the scenario, or --set planner.surveillance=false beside "
+            f"--planner), choose a planner that "
+            f"watches targets (dacmp, greedy, lawnmower, formation, levy), or declare surveils = \"shared\" "
+            f"in the class to use the shared surveillance logic (docs/planners.md)")
+
+
 def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -> Planner:
-    """One UAV's planner instance."""
+    """One UAV's planner instance: with ``planner.surveillance = true`` (``context.settings``), a
+    planner that declares ``surveils = "shared"`` comes wrapped in the shared surveillance logic."""
     cls = resolve_planner(name)
     problems = option_problems(name, options)
     if problems:  # checked before anything of the class is called
@@ -198,4 +234,12 @@ def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -
                            f"{type(exc).__name__}: {exc}") from exc
     if not callable(getattr(planner, "plan", None)):
         raise PlannerError(f"planner {name!r}: {cls.__name__} has no plan(view) method")
+    surveils = surveils_of(cls)
+    if context.settings is not None and getattr(context.settings, "surveillance", False):
+        if surveils is False:
+            raise PlannerError(cast(str, surveillance_problem(name)))
+        if surveils == "shared":
+            from agents.planners.surveillance import SharedSurveillance
+
+            return SharedSurveillance.of(planner, context)
     return planner

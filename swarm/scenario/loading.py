@@ -36,7 +36,8 @@ def builtin_scenarios() -> list[str]:
 
 
 def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
-                  allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
+                  allow_planner_imports: bool | Iterable[str] = False,
+                  overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Load a built-in scenario by name or a TOML file by path.
 
     ``planner``: run this planner instead of the one the file names (as ``--planner``: the
@@ -44,7 +45,10 @@ def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
     :func:`switch_planner`); the file's own planner is then never imported.
     ``allow_planner_imports``: a ``module:Class`` named in the file is imported (to check it)
     only if allowed here: ``True``, or its name among these (``planner`` always is); see
-    :mod:`swarm.scenario.trust`."""
+    :mod:`swarm.scenario.trust`. ``overrides``: dotted keys set in the document before it is
+    validated (``--set``), as :func:`apply_overrides` does after, so that the document is judged
+    once, as the user wrote it with those changes (``--planner X --set planner.surveillance=false``
+    for a planner that only searches)."""
     if not isinstance(ref, (str, os.PathLike)):
         raise ScenarioError("", "", found_words(ref), _file_expected())
     source = os.fspath(ref)
@@ -62,10 +66,12 @@ def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
             raise ScenarioError(source, "", "a file that is not UTF-8 text", "a TOML document") from None
         except OSError as exc:
             raise ScenarioError(source, "", f"a file that cannot be read ({exc.strerror or exc})", _file_expected()) from None
-        return scenario_from_toml(text, source, planner=planner, allow_planner_imports=allow_planner_imports)
+        return scenario_from_toml(text, source, planner=planner, allow_planner_imports=allow_planner_imports,
+                                  overrides=overrides)
     if isinstance(ref, str) and ref in builtin_scenarios():
         text = resources.files(_BUILTIN_PACKAGE).joinpath(f"{ref}.toml").read_text(encoding="utf-8")
-        return scenario_from_toml(text, ref, planner=planner, allow_planner_imports=allow_planner_imports)
+        return scenario_from_toml(text, ref, planner=planner, allow_planner_imports=allow_planner_imports,
+                                  overrides=overrides)
     found = "no such file" if not path.exists() else "something that is not a file"
     raise ScenarioError(source, "", found, _file_expected())
 
@@ -75,14 +81,21 @@ def _file_expected() -> str:
 
 
 def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
-                       allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
-    """A scenario from TOML text (``planner``, ``allow_planner_imports``: see :func:`load_scenario`)."""
+                       allow_planner_imports: bool | Iterable[str] = False,
+                       overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """A scenario from TOML text (``planner``, ``allow_planner_imports``, ``overrides``: see
+    :func:`load_scenario`)."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(source, "", f"invalid TOML ({exc})", "a TOML document") from None
     if planner is not None:
         switch_planner(doc, planner)
+    for dotted, value in sorted((overrides or {}).items(), key=lambda item: item[0] != _PLANNER_NAME):
+        if dotted == _PLANNER_NAME:
+            switch_planner(doc, value)
+        else:
+            _set_path(doc, dotted, value, source)
     return parse_scenario(doc, source, allow_planner_imports=allowed(allow_planner_imports, planner))
 
 

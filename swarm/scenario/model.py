@@ -760,7 +760,7 @@ class PlannerSettings(_Model):
         # Nothing a scenario names is imported unless the user allowed it (swarm.scenario.trust);
         # what is imported is checked to be a planner class, and the options against its
         # signature, before anything in it is called (agents.planners.registry).
-        from agents.planners.registry import PlannerError, option_problems
+        from agents.planners.registry import PlannerError, option_problems, surveillance_problem
         from swarm.scenario.trust import permits, refusal
 
         allow = info.context.get("allow_planners") if info.context else None
@@ -769,6 +769,7 @@ class PlannerSettings(_Model):
             _raise_if([_Problem(("name",), self.name, expected, hint=hint, found=found)])
         try:
             problems = option_problems(self.name, self.options_of())
+            refused = surveillance_problem(self.name) if self.surveillance else None
         except PlannerError as exc:
             _raise_if([_Problem(("name",), self.name, _PLANNER_WORDS, hint=str(exc))])
         own = self.options_for.get(self.name, {})
@@ -791,6 +792,8 @@ class PlannerSettings(_Model):
             found_problems += [_Problem(("options_for", other, key), None, expected, found=found)
                                for key, found, expected in other_problems]
         _raise_if(found_problems)
+        # A planner that declares it only searches (surveils = False) cannot run with surveillance.
+        _raise_if([_Problem(("surveillance",), True, f"false: {refused}")] if refused else [])
         return self
 
 

@@ -22,10 +22,10 @@ once it has rejoined):
 * **targets are watched again**: a target that a UAV was watching (pose mode surveil) when a
   node fault hit that UAV (crash, pause, restart), and that nobody watches at ``T0``, is
   watched again (some live UAV's pose declares it) within :func:`reassign_bound_s` of ``T0``,
-  provided that at ``T0`` the planner watches targets (``planner.surveillance`` and a planner
-  that does: not ``greedy``), a live UAV not watching anything knows the target's track, and
-  the radio loses nothing by itself. Otherwise the obligation is listed as not judged, with
-  why.
+  provided that at ``T0`` the planner watches targets (``planner.surveillance``: every planner
+  that may run with it watches, the search planners through the shared logic), a live UAV not
+  watching anything knows the target's track, and the radio loses nothing by itself. Otherwise
+  the obligation is listed as not judged, with why.
 
 The bounds, from the scenario's settings (``dt`` the tick, ``lat`` = ``radio.latency_s +
 radio.jitter_s``, ``n`` the live UAVs):
@@ -199,7 +199,8 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
     pending: dict[int, float] = {}
     if watch is not None:
         watch.observe()
-        planner_watches = sc.planner.surveillance and sc.planner.name != "greedy"
+        # (a planner that cannot watch, surveils = False, is refused with surveillance on)
+        planner_watches = sc.planner.surveillance
         watched = set(_watchers(sim).values())
         free = [uid for uid in live if uid not in _watchers(sim)]
         for m, (t_lost, who) in sorted(watch.orphaned.items()):

@@ -541,6 +541,38 @@ def _metrics_rows(m: dict) -> list[tuple]:
     return rows
 
 
+def _seconds_or_dash(v) -> str:
+    return "–" if v is None else f"{_fmt(v)} s"
+
+
+def _share_or_dash(v) -> str:
+    return "–" if v is None else f"{v:.3f}"
+
+
+def _detection_watch_rows(m: dict, rp: Replay) -> tuple[list[tuple], list[tuple]]:
+    """The "Detection and watch" section (metrics.json, docs/outputs.md): one row per target
+    (time to first detection, to a slow watcher, watched share, surveillance ratio), one per UAV
+    and the swarm (share of flying time watching and searching). Empty for an older metrics.json."""
+    detection = m.get("time_to_first_detection_s")
+    if detection is None:
+        return [], []
+    to_slow = m.get("time_to_slow_watcher_s") or {}
+    watched = m.get("watched_share") or {}
+    ratio = m.get("surveillance_ratio") or {}
+    targets = [(k, detection[k], to_slow.get(k), watched.get(k), ratio.get(k)) for k in sorted(detection, key=int)]
+    target_rows = [(k, _seconds_or_dash(d), _seconds_or_dash(s), _share_or_dash(w), _share_or_dash(r))
+                   for k, d, s, w, r in targets]
+    per = m.get("per_uav", {}) or {}
+    uav_rows = []
+    for u in _uav_order(rp):
+        name = rp.names[u]
+        share = (per.get(name) or {}).get("time_share") or {}
+        uav_rows.append((name, rp.types[u], _share_or_dash(share.get("watching")), _share_or_dash(share.get("searching"))))
+    total = m.get("uav_time_share") or {}
+    uav_rows.append(("swarm", "", _share_or_dash(total.get("watching")), _share_or_dash(total.get("searching"))))
+    return target_rows, uav_rows
+
+
 def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
     """The HTML text of a run's report (``run_report.html.j2``)."""
     m = rp.metrics or {}
@@ -581,13 +613,14 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
         uav_rows.append((name, rp.types[u], p.get("state", "–"), s["search"], s["surveil"], s["not flying"],
                          p.get("frames_sent"), p.get("frames_delivered"), p.get("frames_rejected"), p.get("plans")))
     handovers = m.get("handover_list") or []
+    watch_target_rows, watch_uav_rows = _detection_watch_rows(m, rp)
     return render(
         "run_report.html.j2",
         title=f"Report: {title}",
         heading=title,
         run_dir=str(run_dir.resolve()),
         nav=[("figures", "figures"), ("animation", "animation"), ("faults", "faults"), ("scenario", "scenario"),
-             ("metrics", "metrics"), ("uavs", "UAVs")],
+             ("metrics", "metrics"), ("uavs", "UAVs"), ("watch", "detection and watch")],
         card_items=cards,
         figures=figures,
         animation=_animation(animation),
@@ -601,6 +634,9 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
                     "frames received", "frames rejected", "plans"),
         handover_rows=[(f"{h['t']:g} s", h["target"], f"{h['from']} ({h['from_type']})", f"{h['to']} ({h['to_type']})",
                         f"{h['latency_s']:g} s") for h in handovers],
+        watch_target_rows=watch_target_rows,
+        watch_uav_rows=watch_uav_rows,
+        slow_types=", ".join(m.get("slow_types") or []),
     )
 
 
