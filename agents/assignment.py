@@ -15,6 +15,10 @@ top speeds alone (target value 1):
   it attracts them: ``w_t < w_r``. A type with ``w_t = 0`` never watches: nothing to exclude.
 * **takeover** (eq. 25), a slower type ``s`` near a target that a faster type ``f`` watches is
   drawn in: ``w_t,s / v_s > w_r,s / v_f``, with ``w_t,s > 0``.
+  And drawn in from afar: the target's net pull on it, ``(w_t,s / v_s - w_r,s / v_f) / (v_s d)``
+  in the planner's field units (km, km/s: ``planner.dacmp.field_unit_m``), must beat the search
+  term (at most 1) at ``d = D_s``, its influence radius, or it may never switch to
+  surveillance (with eq. 25 met by a hair, a generated type was never drawn in).
 * **release** (eq. 26), the faster one is pushed off once the slower one is there:
   ``w_t,f / v_f < w_r,f / v_s``. (The paper prints eq. 26 with the two speeds swapped; as
   printed, its own Table 1 would break it: ``2.0 / 50 < 2.1 / 90`` is false. Derived from eq.
@@ -46,9 +50,10 @@ def exclusion_break(k: UavType) -> str | None:
     return None
 
 
-def handover_break(slow: UavType, fast: UavType) -> str | None:
+def handover_break(slow: UavType, fast: UavType, unit_m: float = 1000.0) -> str | None:
     """Why a target watched by a UAV of type ``fast`` may not pass to one of the slower type
-    ``slow`` (eq. 25 or 26 broken), or None (also None when ``slow`` is not slower)."""
+    ``slow`` (eq. 25 or 26 broken, or the pull too weak to draw it in from its influence radius;
+    ``unit_m``: the planner's field unit), or None (also None when ``slow`` is not slower)."""
     vs, vf = slow.speed_max, fast.speed_max
     if not vs < vf:
         return None
@@ -58,6 +63,11 @@ def handover_break(slow: UavType, fast: UavType) -> str | None:
         return (f"types {slow.name} and {fast.name}: w_t,{slow.name} / v_{slow.name} = {_g(slow.w_t / vs)} is not above "
                 f"w_r,{slow.name} / v_{fast.name} = {_g(slow.w_r / vf)} (eq. 25), so type {slow.name} does not take "
                 f"targets over from type {fast.name}")
+    net = (slow.w_t / (vs / unit_m) - slow.w_r / (vf / unit_m)) / (vs / unit_m) / (slow.influence_radius / unit_m)
+    if not net > 1.0:
+        return (f"types {slow.name} and {fast.name}: a target type {fast.name} watches pulls type {slow.name} at its "
+                f"influence radius ({_g(slow.influence_radius)} m) by {_g(net)} (eq. 22-23), not more than the search "
+                f"term can (1), so type {slow.name} may never be drawn in to take it over")
     if fast.w_t > 0 and not fast.w_t * vs < fast.w_r * vf:
         return (f"types {slow.name} and {fast.name}: w_t,{fast.name} / v_{fast.name} = {_g(fast.w_t / vf)} is not below "
                 f"w_r,{fast.name} / v_{slow.name} = {_g(fast.w_r / vs)} (eq. 26), so type {fast.name} does not release "
@@ -65,10 +75,10 @@ def handover_break(slow: UavType, fast: UavType) -> str | None:
     return None
 
 
-def rule_breaks(kinds: Iterable[UavType]) -> list[str]:
+def rule_breaks(kinds: Iterable[UavType], unit_m: float = 1000.0) -> list[str]:
     """Every weight condition that these types (those that fly in a scenario) break, one line
-    each; empty when the assignment rules can hold."""
+    each; empty when the assignment rules can hold (``unit_m``: the planner's field unit)."""
     ks = sorted({k.name: k for k in kinds}.values(), key=lambda k: k.name)
     out = [m for k in ks if (m := exclusion_break(k)) is not None]
-    out += [m for s in ks for f in ks if s is not f and (m := handover_break(s, f)) is not None]
+    out += [m for s in ks for f in ks if s is not f and (m := handover_break(s, f, unit_m)) is not None]
     return out

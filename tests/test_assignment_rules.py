@@ -90,6 +90,9 @@ def test_each_precondition_is_named_when_broken():
     assert "eq. 25" in (handover_break(_kind("A", w_t=2.0, w_r=5.1), _kind("B")) or "")  # 2/50 < 5.1/90
     assert "eq. 26" in (handover_break(_kind("A"), _kind("B", w_t=4.0, w_r=2.1)) or "")  # 4/90 > 2.1/50
     assert handover_break(_kind("B"), _kind("A")) is None  # B is not the slower one
+    # Eq. 25 met by a hair (5 * 51 > 5.1 * 50 by float noise): no pull left to draw A in.
+    assert "may never be drawn in" in (handover_break(_kind("A"), _kind("B", speed_max=51.0)) or "")
+    assert handover_break(_kind("A"), _kind("B", speed_max=53.0)) is None  # net pull 3.8 at 10 km
 
 
 def _doc(surveillance: bool) -> dict:

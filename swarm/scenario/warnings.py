@@ -17,5 +17,6 @@ def scenario_warnings(scenario: Scenario) -> list[str]:
         flown = sorted({u.type for u in scenario.uavs})
         kinds = [s.uav_type(n) for n, s in sorted(scenario.uav_types.items()) if n in flown]
         out += [f"uav_types: {m}; the assignment rules (docs/modelling.md, \"Assignment rules\") do not cover "
-                f"these types and the checkers do not judge them" for m in rule_breaks(kinds)]
+                f"these types and the checkers do not judge them"
+                for m in rule_breaks(kinds, scenario.planner.dacmp.field_unit_m)]
     return out

@@ -465,6 +465,10 @@ def fault_schedules(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, *, 
     if min_faults < 0 or max_faults < min_faults:
         raise ValueError(f"need 0 <= min_faults <= max_faults, got {min_faults}, {max_faults}")
     one = faults(uavs, duration_s, kinds=kinds, step_s=step_s, joinable=joinable, area=area)
+    if one.is_empty:  # no kind can be drawn here (say, only joins and nobody may join)
+        if min_faults > 0:
+            raise ValueError(f"no fault of kinds {list(kinds)} can be drawn for UAVs {list(uavs)} in {duration_s:g} s")
+        return FaultSchedule([])
     # Only joins must be unique (per UAV); any other fault is keyed by its own identity, so it
     # never collides (two equal drops are a legitimate, if redundant, schedule).
     items = draw(st.lists(one, min_size=min_faults, max_size=max_faults,

@@ -322,7 +322,8 @@ class RunContext:
         """Whether ``handover`` judges this pair: the slower one's type is slower and their
         weights meet eq. 25-26 (:func:`agents.assignment.handover_break`)."""
         ks, kf = self.kind(slow), self.kind(fast)
-        return ks is not None and kf is not None and ks.speed_max < kf.speed_max and handover_break(ks, kf) is None
+        return (ks is not None and kf is not None and ks.speed_max < kf.speed_max
+                and handover_break(ks, kf, self.scenario.planner.dacmp.field_unit_m) is None)
 
     @property
     def faults(self) -> list[Fault]:
@@ -1239,8 +1240,9 @@ class HandoverChecker(_WatchChecker):
                             and ctx.handover_judged(s, f)]
                     now = int(poses[f][5])
                     if took and poses[f][4] == MODE_SURVEIL and 0 <= now < PHANTOM_TARGET_ID:
+                        # (Taking a target over from a faster holder is rule 2, not a breach of rule 4.)
                         others = sorted(w for w in watchers.get(now, ()) if w != f and ctx.can_talk(f, w, t, poses)
-                                        and self._holds(w, now, poses))
+                                        and self._holds(w, now, poses) and not ctx.handover_judged(f, w))
                         if others:
                             self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
                                             f"to watch target {now}, which {', '.join(ctx.name(w) for w in others)} "
