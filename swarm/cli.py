@@ -7,6 +7,7 @@ prints one ``error:`` line and exits with status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import NoReturn
 from swarm.errors import SwarmError, UsageError
 
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
 
 
 class _Parser(argparse.ArgumentParser):
@@ -221,7 +223,7 @@ def _dask_executor(args):
 
 def _cmd_sweep(args) -> int:
     from agents.planners import PlannerError, resolve_planner
-    from swarm.experiments.sweep import plan_runs, run_sweep
+    from swarm.experiments.sweep import SweepInterrupted, graceful_interrupts, plan_runs, run_sweep
     from swarm.scenario import load_scenario
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
@@ -236,14 +238,29 @@ def _cmd_sweep(args) -> int:
     runs = plan_runs(sc, seeds=args.seeds, planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
     executor, client = _dask_executor(args)
+
+    def on_first_interrupt() -> None:
+        print("interrupted: starting no new run, finishing the runs in progress (Ctrl-C again to stop at once)",
+              file=sys.stderr)
+
     try:
-        with _progress(quiet=args.quiet or args.json, count=True) as progress:
+        with graceful_interrupts(on_first_interrupt) as stop, \
+                _progress(quiet=args.quiet or args.json, count=True) as progress:
             task = progress.add_task("sweep", total=len(runs), note="")
 
             def on_progress(done: int, total: int, spec, status: str) -> None:
                 progress.update(task, completed=done, note=f"{status}: {spec.label}")
 
-            result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress)
+            result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress,
+                               stop=stop)
+    except SweepInterrupted as exc:
+        r = exc.result
+        how = ("stopped after the runs in progress finished" if exc.graceful
+               else "stopped at once; the runs in progress were abandoned")
+        print(f"interrupted: {how}. {r.summary.get('runs_finished', 0)} of {r.total} runs are finished and kept in "
+              f"{args.out} ({r.ran} ran now); run the same command again to resume: "
+              f"swarm {shlex.join(args.argv)}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         if client is not None:
             client.close()
@@ -554,12 +571,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args, extras = parser.parse_known_args(argv)
         if extras:
             args.subparsers[args.command].unknown_options(extras)
     except SystemExit as exc:  # argparse has printed the usage and its error line (or --help)
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    args.argv = argv  # what the user typed (a stopped sweep says how to resume it)
     try:
         return args.func(args)
     except SwarmError as exc:
@@ -567,7 +586,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover
