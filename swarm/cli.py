@@ -31,6 +31,18 @@ class _Parser(argparse.ArgumentParser):
         # One line, like every other mistake the command reports (argparse would add its usage).
         self.exit(EXIT_USAGE, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
 
+    def _check_value(self, action, value):
+        # An invalid choice (a subcommand, an experiment, an axis) names the closest valid one.
+        import difflib
+
+        choices = action.choices
+        if choices is not None and value not in choices:
+            names = [str(c) for c in choices]
+            close = difflib.get_close_matches(str(value), names, n=1)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r} ({hint}choose from {', '.join(names)})")
+        return super()._check_value(action, value)
+
     def unknown_options(self, extras: list[str]) -> None:
         """Exit with one usage error for arguments this (sub)command does not take, naming the
         closest option it does take."""
@@ -85,6 +97,17 @@ def _console(stderr: bool = False):
     return Console(stderr=stderr, highlight=False, width=width)
 
 
+def _warn(source: str, scenario, duration_s: float | None = None) -> list[str]:
+    """Print a ``warning:`` line on stderr for each value that runs but looks unintended
+    (:mod:`swarm.scenario.advice`); return them."""
+    from swarm.scenario import scenario_warnings
+
+    warnings = scenario_warnings(scenario, duration_s)
+    for w in warnings:
+        print(f"warning: {source}: {w}", file=sys.stderr)
+    return warnings
+
+
 def _cmd_validate(args) -> int:
     from swarm.errors import ScenarioError
     from swarm.scenario import load_scenario
@@ -99,7 +122,7 @@ def _cmd_validate(args) -> int:
         types = sorted({u.type for u in sc.uavs})
         reports.append({"scenario": ref, "ok": True, "name": sc.name, "uavs": len(sc.uavs), "types": types,
                         "targets": len(sc.targets.placed) + sc.targets.count, "threats": len(sc.threats),
-                        "faults": len(sc.faults), "duration_s": sc.duration_s})
+                        "faults": len(sc.faults), "duration_s": sc.duration_s, "warnings": _warn(ref, sc)})
     if args.json:
         _print_json(reports)
     for r in reports:
@@ -118,13 +141,17 @@ def _cmd_list(args) -> int:
     if args.planners:
         from agents.planners import BUILTIN, available_planners
 
-        for name, where in available_planners().items():
+        planners = available_planners()
+        width = max(map(len, planners), default=0)
+        for name, where in planners.items():
             origin = "built-in" if name in BUILTIN else "entry point"
-            print(f"{name:14s} {origin:12s} {where}")
+            print(f"{name:{width}s}  {origin:11s}  {where}")
         return 0
-    for name in builtin_scenarios():
+    names = builtin_scenarios()
+    width = max(map(len, names), default=0)
+    for name in names:
         sc = load_scenario(name)
-        print(f"{name:14s} {sc.description}")
+        print(f"{name:{width}s}  {sc.description}")
     return 0
 
 
@@ -172,11 +199,23 @@ def _cmd_run(args) -> int:
     from swarm.scenario import apply_overrides, load_scenario, parse_assignment
     from swarm.simulation import Simulation
 
+    if args.duration is not None and not args.duration > 0:
+        raise UsageError(f"--duration {args.duration:g}: expected a positive number of seconds")
+    if args.memory_limit is not None and not args.memory_limit > 0:
+        raise UsageError(f"--memory-limit {args.memory_limit:g}: expected a positive number of GB")
     sc = load_scenario(args.scenario)
-    if args.set:
-        sc = apply_overrides(sc, dict(parse_assignment(s) for s in args.set))
+    overrides = dict(parse_assignment(s) for s in args.set)
+    if args.duration is not None:
+        if "duration_s" in overrides and overrides["duration_s"] != args.duration:
+            raise UsageError(f"--duration {args.duration:g} and --set duration_s={overrides['duration_s']}: "
+                             f"give the duration once")
+        # Validated together: --set dt_s=1e-5 --duration 1 is judged against the 1 s run.
+        overrides["duration_s"] = args.duration
+    if overrides:
+        sc = apply_overrides(sc, overrides, truncated=args.duration is not None)
     sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration,
                      memory_limit_gb=args.memory_limit)
+    _warn(args.scenario, sim.scenario)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
                                  note="t=0 s")
@@ -237,6 +276,7 @@ def _cmd_sweep(args) -> int:
     sc = load_scenario(args.scenario)
     runs = plan_runs(sc, seeds=args.seeds, planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
+    _warn(args.scenario, sc, args.duration)
     executor, client = _dask_executor(args)
 
     def on_first_interrupt() -> None:

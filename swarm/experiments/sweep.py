@@ -138,6 +138,10 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
     """
     grid = dict(grid or {})
     keys = list(grid)
+    # The duration applies before validation, as --duration does in `swarm run`: a setting that
+    # only fits the shortened run (dt_s=1e-5 for a 1 s run) is not refused against the
+    # scenario's own duration. The run's document keeps the scenario's duration_s (execute
+    # applies spec.duration_s), so fingerprints of earlier sweeps still match.
     seeds = list(seeds)
     if not seeds:
         raise UsageError("a sweep needs at least one seed")
@@ -147,8 +151,13 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
     for planner in planners:
         for values in product(*(grid[k] for k in keys)):
             settings = tuple(zip(keys, values))
-            sc = apply_overrides(scenario, {"planner.name": planner, **dict(settings)})
+            overrides = {"planner.name": planner, **dict(settings)}
+            if duration_s is not None:
+                overrides["duration_s"] = duration_s  # what runs (execute applies it last)
+            sc = apply_overrides(scenario, overrides, truncated=duration_s is not None)
             doc = sc.to_dict()
+            if duration_s is not None:
+                doc["duration_s"] = dict(settings).get("duration_s", scenario.duration_s)
             for seed in seeds:
                 runs.append(RunSpec(doc, planner, int(seed), settings,
                                     f"runs/{planner}/{slug(settings)}/seed-{int(seed):03d}",
@@ -163,7 +172,8 @@ def execute(spec: RunSpec) -> dict:
     from swarm.simulation import Simulation
 
     try:
-        sc = parse_scenario(spec.scenario, source=f"sweep run {spec.folder}")
+        doc = spec.scenario if spec.duration_s is None else {**spec.scenario, "duration_s": spec.duration_s}
+        sc = parse_scenario(doc, source=f"sweep run {spec.folder}", truncated=spec.duration_s is not None)
         with Simulation(sc, seed=spec.seed, duration_s=spec.duration_s) as sim:
             result = sim.run()
             # A run's metrics.json records the swept settings it ran with.

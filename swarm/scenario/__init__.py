@@ -1,7 +1,9 @@
 """Scenarios: the data that describes one run (:mod:`.model`), how it is loaded from TOML and
 overridden with ``--set`` (:mod:`.loading`), how errors name positions (:mod:`.positions`),
-and the built-in scenario files (``builtin/``)."""
+the warnings about values that run but look unintended (:mod:`.advice`), and the built-in
+scenario files (``builtin/``)."""
 
+from swarm.scenario.advice import scenario_warnings
 from swarm.scenario.loading import (
     apply_overrides,
     builtin_scenarios,
@@ -76,4 +78,5 @@ __all__ = [
     "parse_assignment",
     "parse_scenario",
     "scenario_from_toml",
+    "scenario_warnings",
 ]

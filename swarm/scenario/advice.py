@@ -1,0 +1,56 @@
+"""Warnings about a valid scenario: values that run but are most likely not what was meant.
+
+A mistake that cannot run is an error (:class:`~swarm.errors.ScenarioError`, one line, exit
+status 2). What follows runs, so it is only a warning (the command line prints one ``warning:``
+line each, on stderr, and goes on); each says the key path and why:
+
+* a fault that starts at or after the end of the run never fires: the crash at 900 s of a
+  600 s run. A warning, not an error, because a scenario's faults are often timed for its own
+  duration and the run is shortened on purpose (``--duration``, ``Simulation(duration_s=...)``);
+* a UAV that joins at or after the end of a run shortened by ``--duration`` never flies. (In
+  the scenario's own duration that is an error: ``uavs[i].join_s`` must be ``< duration_s``);
+* an angle in degrees small enough to be radians: ``uav_types.X.bank_max_deg <= pi/2``
+  (0.44 was meant as 0.44 rad = 25 degrees: read as degrees it gives a turn radius of tens of
+  kilometres). A warning, not an error: such a bank limit is legal, only implausible.
+"""
+
+from __future__ import annotations
+
+import math
+
+from agents.types import GRAVITY
+from swarm.scenario.model import Scenario
+
+__all__ = ["scenario_warnings"]
+
+
+def _s(x: float) -> str:
+    return f"{x:g} s"
+
+
+def scenario_warnings(scenario: Scenario, duration_s: float | None = None) -> list[str]:
+    """The warnings of ``scenario`` run for ``duration_s`` (default: its own ``duration_s``),
+    one sentence each, starting with the key path (see the module docstring)."""
+    end = scenario.duration_s if duration_s is None else float(duration_s)
+    out: list[str] = []
+    for i, fault in enumerate(scenario.faults):
+        if fault.kind == "join":
+            continue  # said once, for the UAV (below)
+        at = getattr(fault, "at_s", None)
+        start = float(at if at is not None else getattr(fault, "start_s", 0.0))
+        if start >= end:
+            what = "happens" if at is not None else "starts"
+            out.append(f"faults[{i}] ({fault.kind}) {what} at {_s(start)}, at or after the end of the run ({_s(end)}): "
+                       f"it never fires")
+    for i, uav in enumerate(scenario.uavs):
+        if uav.join_s is not None and uav.join_s >= end:
+            out.append(f"uavs[{i}] ({uav.name}) joins at {_s(uav.join_s)}, at or after the end of the run ({_s(end)}): "
+                       f"it never flies")
+    for name, spec in scenario.uav_types.items():
+        bank = spec.bank_max_deg
+        if bank <= math.pi / 2:
+            radius_km = spec.speed_max**2 / (GRAVITY * math.tan(math.radians(bank))) / 1000.0
+            out.append(f"uav_types.{name}.bank_max_deg = {bank:g} looks like radians ({bank:g} rad = "
+                       f"{math.degrees(bank):.1f} degrees); it is read as degrees: a turn radius of {radius_km:,.0f} km "
+                       f"at {spec.speed_max:g} m/s")
+    return out
