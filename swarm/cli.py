@@ -276,7 +276,6 @@ def _cmd_sweep(args) -> int:
     sc = load_scenario(args.scenario)
     runs = plan_runs(sc, seeds=args.seeds, planners=planners,
                      grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
-    _warn(args.scenario, sc, args.duration)
     executor, client = _dask_executor(args)
 
     def on_first_interrupt() -> None:
@@ -304,6 +303,7 @@ def _cmd_sweep(args) -> int:
     finally:
         if client is not None:
             client.close()
+    _warn(args.scenario, sc, args.duration)  # after the sweep: its errors come first, as one line
     summary = result.summary
     from swarm.viz.report import write_sweep_report
 

@@ -116,8 +116,10 @@ def test_warnings_for_faults_and_joins_after_the_end_and_angles_like_radians():
     assert own[0].startswith("faults[0] (crash) happens at 900 s, at or after the end of the run (600 s)")
     assert own[1].startswith("uav_types.C.bank_max_deg = 0.44 looks like radians (0.44 rad = 25.2 degrees)")
     short = scenario_warnings(sc, duration_s=200.0)  # as --duration 200 runs it
-    assert any(w.startswith("uavs[1] (B1) joins at 300 s") for w in short)
+    assert short[1] == ("the run ends at 200 s, before the scenario's end (600 s): uavs[1] (B1 joining at 300 s) "
+                        "never happens")
     assert not any("faults[1]" in w for w in short)  # the drop starts at 100 s: it fires
+    assert len(scenario_warnings(sc, duration_s=50.0)[1].split("faults[1] (drop at 100 s), uavs[1]")) == 2
     assert scenario_warnings(load_scenario("paper-case1")) == []
     fine = parse_scenario({**sc.to_dict(), "faults": [], "uav_types": {"C": {**sc.to_dict()["uav_types"]["C"],
                                                                            "bank_max_deg": 25.0}}})
@@ -134,7 +136,7 @@ def test_the_cli_prints_warnings_and_runs(tmp_path, capsys):
     assert len(warnings) == 2 and all(w.startswith(f"warning: {path}: ") for w in warnings)
     assert main(["run", str(path), "--duration", "20", "--quiet"]) == 0
     err = capsys.readouterr().err
-    assert "warning: " in err and "uavs[1] (B1) joins at 300 s" in err and "error" not in err
+    assert "warning: " in err and "faults[1] (drop at 100 s), uavs[1] (B1 joining at 300 s) never happen" in err and "error" not in err
     assert main(["validate", str(path), "--json"]) == 0
     (record,) = json.loads(capsys.readouterr().out)
     assert len(record["warnings"]) == 2

@@ -352,11 +352,11 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
                 spec = futures.pop(fut)
                 if fut.cancelled():
                     continue
+                if not stopping:
+                    submit_next()  # before writing this one's files: keep the worker busy
                 status = _record(out, spec, fut, result)
                 result.ran += 1
                 done += 1
-                if not stopping:
-                    submit_next()
                 if progress is not None:
                     progress(done, len(runs), spec, status)
     except BaseException as exc:

@@ -4,11 +4,12 @@ A mistake that cannot run is an error (:class:`~swarm.errors.ScenarioError`, one
 status 2). What follows runs, so it is only a warning (the command line prints one ``warning:``
 line each, on stderr, and goes on); each says the key path and why:
 
-* a fault that starts at or after the end of the run never fires: the crash at 900 s of a
-  600 s run. A warning, not an error, because a scenario's faults are often timed for its own
-  duration and the run is shortened on purpose (``--duration``, ``Simulation(duration_s=...)``);
-* a UAV that joins at or after the end of a run shortened by ``--duration`` never flies. (In
-  the scenario's own duration that is an error: ``uavs[i].join_s`` must be ``< duration_s``);
+* a fault that happens or starts at or after the scenario's own ``duration_s`` never fires:
+  the crash at 900 s of a 600 s scenario (one warning per fault). A warning, not an error: the
+  scenario runs, and a longer ``--duration`` would fire it;
+* a run shortened by ``--duration`` (``Simulation(duration_s=...)``) that ends before some
+  faults or late joins of the scenario: one warning listing them. (A join at or after the
+  scenario's own ``duration_s`` is an error: ``join_s`` must be ``< duration_s``);
 * an angle in degrees small enough to be radians: ``uav_types.X.bank_max_deg <= pi/2``
   (0.44 was meant as 0.44 rad = 25 degrees: read as degrees it gives a turn radius of tens of
   kilometres). A warning, not an error: such a bank limit is legal, only implausible.
@@ -28,24 +29,34 @@ def _s(x: float) -> str:
     return f"{x:g} s"
 
 
+def _list(items: list[str], most: int = 4) -> str:
+    return ", ".join(items[:most]) + (f" and {len(items) - most} more" if len(items) > most else "")
+
+
 def scenario_warnings(scenario: Scenario, duration_s: float | None = None) -> list[str]:
     """The warnings of ``scenario`` run for ``duration_s`` (default: its own ``duration_s``),
-    one sentence each, starting with the key path (see the module docstring)."""
-    end = scenario.duration_s if duration_s is None else float(duration_s)
+    one sentence each, starting with the key path or the run (see the module docstring)."""
+    own_end = scenario.duration_s
+    end = own_end if duration_s is None else float(duration_s)
     out: list[str] = []
+    cut: list[str] = []  # what a shortened run leaves out (one warning for all of them)
     for i, fault in enumerate(scenario.faults):
         if fault.kind == "join":
-            continue  # said once, for the UAV (below)
+            continue  # said for the UAV (below)
         at = getattr(fault, "at_s", None)
         start = float(at if at is not None else getattr(fault, "start_s", 0.0))
-        if start >= end:
+        if start >= own_end:
             what = "happens" if at is not None else "starts"
-            out.append(f"faults[{i}] ({fault.kind}) {what} at {_s(start)}, at or after the end of the run ({_s(end)}): "
+            out.append(f"faults[{i}] ({fault.kind}) {what} at {_s(start)}, at or after the end of the run ({_s(own_end)}): "
                        f"it never fires")
+        elif start >= end:
+            cut.append(f"faults[{i}] ({fault.kind} at {_s(start)})")
     for i, uav in enumerate(scenario.uavs):
-        if uav.join_s is not None and uav.join_s >= end:
-            out.append(f"uavs[{i}] ({uav.name}) joins at {_s(uav.join_s)}, at or after the end of the run ({_s(end)}): "
-                       f"it never flies")
+        if uav.join_s is not None and end <= uav.join_s < own_end:  # (at or after own_end: an error)
+            cut.append(f"uavs[{i}] ({uav.name} joining at {_s(uav.join_s)})")
+    if cut:
+        out.append(f"the run ends at {_s(end)}, before the scenario's end ({_s(own_end)}): {_list(cut)} "
+                   f"never {'happens' if len(cut) == 1 else 'happen'}")
     for name, spec in scenario.uav_types.items():
         bank = spec.bank_max_deg
         if bank <= math.pi / 2:
