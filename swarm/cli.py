@@ -205,6 +205,7 @@ def _cmd_run(args) -> int:
         raise UsageError(f"--memory-limit {args.memory_limit:g}: expected a positive number of GB")
     sc = load_scenario(args.scenario)
     overrides = dict(parse_assignment(s) for s in args.set)
+    own_duration = overrides.get("duration_s", sc.duration_s)  # the scenario's end, before --duration
     if args.duration is not None:
         if "duration_s" in overrides and overrides["duration_s"] != args.duration:
             raise UsageError(f"--duration {args.duration:g} and --set duration_s={overrides['duration_s']}: "
@@ -215,7 +216,10 @@ def _cmd_run(args) -> int:
         sc = apply_overrides(sc, overrides, truncated=args.duration is not None)
     sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration,
                      memory_limit_gb=args.memory_limit)
-    _warn(args.scenario, sim.scenario)
+    if args.duration is None:
+        _warn(args.scenario, sim.scenario)
+    else:  # the scenario as written, run for --duration (what the shortened run leaves out)
+        _warn(args.scenario, sim.scenario.model_copy(update={"duration_s": own_duration}), args.duration)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
                                  note="t=0 s")
