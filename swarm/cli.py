@@ -213,7 +213,7 @@ def _cmd_run(args) -> int:
         # Validated together: --set dt_s=1e-5 --duration 1 is judged against the 1 s run.
         overrides["duration_s"] = args.duration
     if overrides:
-        sc = apply_overrides(sc, overrides, truncated=args.duration is not None)
+        sc = apply_overrides(sc, overrides, truncated=args.duration is not None, scenario_duration_s=own_duration)
     sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration,
                      memory_limit_gb=args.memory_limit)
     if args.duration is None:

@@ -57,6 +57,14 @@ def test_set_is_validated_with_the_duration_given(tmp_path, capsys):
     assert "dt_s" in _one_error(capsys)
 
 
+def test_with_duration_a_set_join_is_still_judged_against_the_scenarios_end(capsys):
+    assert main(["run", "paper-case1", "--duration", "5", "--set", "uavs[2].join_s=1e6", "--quiet"]) == 2
+    err = _one_error(capsys)
+    assert "uavs[2].join_s" in err and "(600: it would join after the end)" in err
+    assert main(["run", "paper-case3", "--duration", "20", "--quiet"]) == 0  # its joiner at 300 s is cut, not refused
+    assert "uavs[10] (B6 joining at 300 s) never happens" in capsys.readouterr().err
+
+
 def test_set_and_duration_disagreeing_on_the_duration_is_one_error(capsys):
     assert main(["run", "paper-case1", "--set", "duration_s=5", "--duration", "1", "--quiet"]) == 2
     assert "give the duration once" in _one_error(capsys)

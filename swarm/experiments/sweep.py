@@ -154,7 +154,8 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
             overrides = {"planner.name": planner, **dict(settings)}
             if duration_s is not None:
                 overrides["duration_s"] = duration_s  # what runs (execute applies it last)
-            sc = apply_overrides(scenario, overrides, truncated=duration_s is not None)
+            own = dict(settings).get("duration_s", scenario.duration_s)  # late joiners still join before it
+            sc = apply_overrides(scenario, overrides, truncated=duration_s is not None, scenario_duration_s=own)
             doc = sc.to_dict()
             if duration_s is not None:
                 doc["duration_s"] = dict(settings).get("duration_s", scenario.duration_s)

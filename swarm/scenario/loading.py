@@ -73,16 +73,18 @@ def scenario_from_toml(text: str, source: str) -> Scenario:
     return parse_scenario(doc, source)
 
 
-def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated: bool = False) -> Scenario:
+def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated: bool = False,
+                   scenario_duration_s: float | None = None) -> Scenario:
     """Validate an already-parsed document. ``name`` defaults to the source's file stem.
-    ``truncated``: the run is cut short on purpose (``--duration``), so UAVs may join after
-    its end."""
+    ``truncated``: the document's ``duration_s`` is a run cut short on purpose (``--duration``),
+    so UAVs may join after its end; they must still join before ``scenario_duration_s``, the
+    scenario's own end, if given."""
     if not isinstance(doc, dict):
         raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
     data = dict(doc)
     data.setdefault("name", _default_name(source))
     try:
-        return Scenario.model_validate(data, context={"truncated": truncated})
+        return Scenario.model_validate(data, context={"truncated": truncated, "scenario_duration_s": scenario_duration_s})
     except ValidationError as exc:
         # from None: our message says everything; pydantic's would only repeat it less clearly.
         raise _first_error(exc, doc, source) from None
@@ -95,16 +97,19 @@ def _default_name(source: str) -> str:
 
 
 # --- overrides -----------------------------------------------------------------------------
-def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncated: bool = False) -> Scenario:
+def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncated: bool = False,
+                    scenario_duration_s: float | None = None) -> Scenario:
     """A new scenario with dotted keys replaced, e.g. ``{"radio.loss_base": 0.3}`` or
-    ``{"uavs[0].x_m": 100}``; the result is validated as a whole (``truncated``: see
-    :func:`parse_scenario`)."""
+    ``{"uavs[0].x_m": 100}``; the result is validated as a whole. ``truncated``: the
+    ``duration_s`` override shortens the run (``--duration``): everything is judged against
+    it, except late joiners, which must join before ``scenario_duration_s``, the scenario's
+    own end, if given (not judged otherwise); see :func:`parse_scenario`."""
     source = f"{scenario.name} (with overrides)"
     doc = scenario._document()
     for dotted, value in overrides.items():
         _set_path(doc, dotted, value, source)
     try:
-        return parse_scenario(doc, source, truncated=truncated)
+        return parse_scenario(doc, source, truncated=truncated, scenario_duration_s=scenario_duration_s)
     except ScenarioError as err:
         if err.key in overrides or err.hint:
             raise
