@@ -385,7 +385,7 @@ class UavActor:
         goal_x, goal_y = plan.wx, plan.wy
         apf = s.apf
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
-            goal_x, goal_y, speed = self._loiter(r, k.tracks[plan.target])
+            goal_x, goal_y, speed = self._loiter(r, k.tracks[plan.target], apf.threat_margin_m)
             # With the full eq. 30 field a watcher stays about 1.7 km off a no-fly zone's edge, and
             # its target, 1.5-2 km from it, is lost as soon as it nears the zone (most of Case 2's
             # lost targets). A weaker field lets it follow to about 0.75 km; the threat guard
@@ -400,7 +400,7 @@ class UavActor:
         replies = self._answer_digests(t) if self._digests else []
         return ActorOutput(a, omega, frames, plan, received, replies)
 
-    def _loiter(self, r: SensorReading, track: Track) -> tuple[float, float, float]:
+    def _loiter(self, r: SensorReading, track: Track, threat_margin_m: float) -> tuple[float, float, float]:
         """Goal and speed for a watcher: circle the target inside the detection radius.
 
         A vector field (Nelson et al., 2007) around the target's predicted position: far out it
@@ -411,6 +411,12 @@ class UavActor:
         the target instead overflies it and comes back on a turn of at least the turn radius,
         which for a fast UAV (1 km at 60 m/s, 2.3 km at 90 m/s) takes it out of its 2 km
         detection circle on every pass.
+
+        A target predicted inside a known no-fly zone (targets may enter one; we may not) is
+        circled from outside: the circle's centre moves out along the line from the zone's
+        centre through the target to where the circle just clears the threat guard's band
+        (a turn radius at the loiter speed plus ``threat_margin_m``, agents.apf), at the edge
+        nearest to the target (docs/modelling.md, "Assignment rules", rule 5).
         """
         s = self.settings
         kind = self.kind
@@ -419,15 +425,22 @@ class UavActor:
         fresh = t - track.t <= s.replan_s
         tvx, tvy = (track.vx, track.vy) if fresh else (0.0, 0.0)
         r_l = max(s.loiter_radius_factor * kind.detect_radius, s.loiter_turn_factor * kind.r_min(kind.speed_min))
+        # Loiter at the fastest speed whose turn radius fits the circle (with the same margin);
+        # brake to it in time to arrive on the circle at that speed.
+        v_l = min(max(math.sqrt(r_l / s.loiter_turn_factor * GRAVITY * math.tan(kind.bank_max_rad)),
+                      kind.speed_min), kind.speed_max)
+        zone = self.knowledge.inside_threat(tx, ty) if self.knowledge.threats else None
+        if zone is not None:
+            ux, uy = tx - zone.x, ty - zone.y
+            n = math.hypot(ux, uy)
+            ux, uy = (ux / n, uy / n) if n > 1e-9 else (1.0, 0.0)
+            out = zone.radius + kind.r_min(v_l) + threat_margin_m + r_l
+            tx, ty, tvx, tvy = zone.x + out * ux, zone.y + out * uy, 0.0, 0.0
         ex, ey = r.x - tx, r.y - ty
         d = math.hypot(ex, ey)
         gamma = math.atan2(ey, ex) if d > 1e-6 else r.theta - math.pi / 2
         sense = 1.0 if ex * math.sin(r.theta) - ey * math.cos(r.theta) >= 0.0 else -1.0
         chi = gamma + sense * (math.pi / 2 + math.atan(s.loiter_gain * (d - r_l) / r_l))
-        # Loiter at the fastest speed whose turn radius fits the circle (with the same margin);
-        # brake to it in time to arrive on the circle at that speed.
-        v_l = min(max(math.sqrt(r_l / s.loiter_turn_factor * GRAVITY * math.tan(kind.bank_max_rad)),
-                      kind.speed_min), kind.speed_max)
         brake = max(r.v * r.v - v_l * v_l, 0.0) / (2.0 * kind.accel_max)
         speed = v_l if d <= kind.detect_radius + brake else kind.speed_max
         dx, dy = speed * math.cos(chi) + tvx, speed * math.sin(chi) + tvy

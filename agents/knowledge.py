@@ -88,6 +88,13 @@ class Knowledge:
             elif it.t >= tr.t:
                 tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = it.x, it.y, it.vx, it.vy, it.t, it.value
 
+    def inside_threat(self, x: float, y: float) -> KnownThreat | None:
+        """The first known threat (by id) whose circle holds ``(x, y)``, or None."""
+        for _, th in sorted(self.threats.items()):
+            if math.hypot(x - th.x, y - th.y) < th.radius:
+                return th
+        return None
+
     def add_threat(self, threat: int, x: float, y: float, radius: float, d_max: float) -> None:
         if threat not in self.threats:
             self.threats[threat] = KnownThreat(threat, x, y, radius, d_max)

@@ -8,7 +8,6 @@ and decide nothing at run time; :class:`swarm.simulation.Simulation` composes th
 from __future__ import annotations
 
 import hashlib
-import math
 from collections.abc import Callable
 
 import numpy as np
@@ -26,17 +25,7 @@ __all__ = ["actor_settings", "auth_key", "radio", "target_motion", "threats", "u
 
 def uav_type_from_spec(name: str, spec: UavTypeSpec) -> UavType:
     """A scenario's ``[uav_types.NAME]`` table as the agents' :class:`UavType`."""
-    return UavType(
-        name=name,
-        speed_min=spec.speed_min,
-        speed_max=spec.speed_max,
-        accel_max=spec.accel_max,
-        bank_max_rad=math.radians(spec.bank_max_deg),
-        detect_radius=spec.detect_radius_m,
-        w_t=spec.w_t,
-        w_r=spec.w_r,
-        influence_radius=spec.influence_radius_m,
-    )
+    return spec.uav_type(name)
 
 
 def uav_types(sc: Scenario) -> dict[str, UavType]:

@@ -99,7 +99,7 @@ def _console(stderr: bool = False):
 
 def _warn(source: str, scenario, duration_s: float | None = None) -> list[str]:
     """Print a ``warning:`` line on stderr for each value that runs but looks unintended
-    (:mod:`swarm.scenario.advice`); return them."""
+    (:mod:`swarm.scenario.warnings`); return them."""
     from swarm.scenario import scenario_warnings
 
     warnings = scenario_warnings(scenario, duration_s)
@@ -115,7 +115,7 @@ def _cmd_validate(args) -> int:
     reports = []
     for ref in args.scenario:
         try:
-            sc = load_scenario(ref)
+            sc = load_scenario(ref, allow_planner_imports=args.allow_planner_imports)
         except ScenarioError as err:
             reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
             continue
@@ -203,19 +203,24 @@ def _cmd_run(args) -> int:
         raise UsageError(f"--duration {args.duration:g}: expected a positive number of seconds")
     if args.memory_limit is not None and not args.memory_limit > 0:
         raise UsageError(f"--memory-limit {args.memory_limit:g}: expected a positive number of GB")
-    sc = load_scenario(args.scenario)
-    overrides = dict(parse_assignment(s) for s in args.set)
-    own_duration = overrides.get("duration_s", sc.duration_s)  # the scenario's end, before --duration
+    sets = dict(parse_assignment(s) for s in args.set)
+    if args.planner is not None and "planner.name" in sets:
+        raise UsageError(f"--planner {args.planner} and --set planner.name={sets['planner.name']}: give the planner "
+                         f"once, with --planner")
+    # The planner first (typed by the user: allowed, and the file's own planner is then never
+    # imported), so --set planner.options.KEY are the options of the planner that runs.
+    sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports)
+    own_duration = sets.get("duration_s", sc.duration_s)  # the scenario's end, before --duration
     if args.duration is not None:
-        if "duration_s" in overrides and overrides["duration_s"] != args.duration:
-            raise UsageError(f"--duration {args.duration:g} and --set duration_s={overrides['duration_s']}: "
+        if "duration_s" in sets and sets["duration_s"] != args.duration:
+            raise UsageError(f"--duration {args.duration:g} and --set duration_s={sets['duration_s']}: "
                              f"give the duration once")
         # Validated together: --set dt_s=1e-5 --duration 1 is judged against the 1 s run.
-        overrides["duration_s"] = args.duration
-    if overrides:
-        sc = apply_overrides(sc, overrides, truncated=args.duration is not None, scenario_duration_s=own_duration)
-    sim = Simulation(sc, seed=args.seed, planner=args.planner, duration_s=args.duration,
-                     memory_limit_gb=args.memory_limit)
+        sets["duration_s"] = args.duration
+    if sets:
+        sc = apply_overrides(sc, sets, truncated=args.duration is not None, scenario_duration_s=own_duration,
+                             allow_planner_imports=args.allow_planner_imports)
+    sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
     if args.duration is None:
         _warn(args.scenario, sim.scenario)
     else:  # the scenario as written, run for --duration (what the shortened run leaves out)
@@ -277,9 +282,9 @@ def _cmd_sweep(args) -> int:
             resolve_planner(name)
         except PlannerError as exc:
             raise UsageError(f"--planner {args.planner!r}: {exc}") from None
-    sc = load_scenario(args.scenario)
-    runs = plan_runs(sc, seeds=args.seeds, planners=planners,
-                     grid=_parse_grid(args.set), duration_s=args.duration, figures=args.figures)
+    sc = load_scenario(args.scenario, planner=planners[0], allow_planner_imports=args.allow_planner_imports)
+    runs = plan_runs(sc, seeds=args.seeds, planners=planners, grid=_parse_grid(args.set), duration_s=args.duration,
+                     figures=args.figures, allow_planner_imports=args.allow_planner_imports)
     executor, client = _dask_executor(args)
 
     def on_first_interrupt() -> None:
@@ -495,6 +500,15 @@ def _add_executor_args(parser: argparse.ArgumentParser, scheduler_help: str) -> 
     parser.add_argument("--connect-timeout", type=float, default=10.0, help=argparse.SUPPRESS)
 
 
+def _add_allow_arg(parser: argparse.ArgumentParser) -> None:
+    """``--allow-planner-imports``: the opt-in for module:Class planners named by files
+    (swarm.scenario.trust; the environment variable SWARM_ALLOW_PLANNER_IMPORTS=1 does the same)."""
+    parser.add_argument("--allow-planner-imports", action="store_true",
+                        help="import a planner given as module:Class inside a scenario file or a --set value (runs "
+                             "that module's code; off by default: only planners you type with --planner, built-in "
+                             "and entry-point names are imported); same as SWARM_ALLOW_PLANNER_IMPORTS=1")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="swarm", description="Deterministic multi-UAV search and surveillance simulator (DACMP).")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -517,11 +531,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "this machine's memory)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
     r.add_argument("--json", action="store_true", help="print the metrics as JSON on stdout instead of the table")
+    _add_allow_arg(r)
     r.set_defaults(func=_cmd_run)
 
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
     v.add_argument("--json", action="store_true", help="print one JSON record per scenario on stdout")
+    _add_allow_arg(v)
     v.set_defaults(func=_cmd_validate)
 
     b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
@@ -543,6 +559,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--out", required=True, help="sweep folder (runs/, summary.json, summary.csv)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar or table")
     sw.add_argument("--json", action="store_true", help="print summary.json's content on stdout instead of the table")
+    _add_allow_arg(sw)
     sw.set_defaults(func=_cmd_sweep)
 
     pa = sub.add_parser("paper", help="reproduce the paper's experiments (section 4): figures and a table")

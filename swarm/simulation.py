@@ -29,10 +29,11 @@ import gc
 import math
 import time
 from collections import defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,6 +76,7 @@ from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
 from swarm.rng import RngTree
 from swarm.scenario import Scenario, UavSpec, load_scenario
+from swarm.scenario.trust import allowed
 from swarm.world import ALIVE, CRASHED, PENDING, Targets, UavBody, World
 
 # Scan records in each spoofed frame (see Simulation._spoof).
@@ -126,22 +128,37 @@ class Simulation:
         *,
         seed: int | None = None,
         planner: str | type | None = None,
+        planner_options: Mapping[str, Any] | None = None,
         duration_s: float | None = None,
         batch_planning: bool = True,
         memory_limit_gb: float | None = None,
+        allow_planner_imports: bool | Iterable[str] = False,
     ):
-        """``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
+        """``planner``: a planner name (built-in, entry point or ``"module:Class"``) or a class,
+        instead of the scenario's; ``planner_options``: options of the planner that runs (set
+        over the scenario's options for it, key by key, and checked against its signature).
+        ``allow_planner_imports``: a ``module:Class`` planner named in a scenario *file* given by
+        path is refused unless ``True`` (or its name is among these); a planner given here is
+        always allowed (see :mod:`swarm.scenario.trust`).
+        ``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
         planner call (same event log as planning one by one, only faster; see
         :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself.
         ``memory_limit_gb``: refuse (:class:`~swarm.memory.MemoryLimitError`) a scenario whose
         estimated memory is above it (default: ``SWARM_MEMORY_LIMIT_GB``, else half of this
         machine's memory)."""
+        # A class is named by where it lives (module:Class), as a scenario would name it.
+        name = planner if planner is None or isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
         if not isinstance(scenario, Scenario):
-            scenario = load_scenario(scenario)
+            scenario = load_scenario(scenario, planner=name, allow_planner_imports=allow_planner_imports)
         overrides: dict[str, object] = {}
-        if planner is not None:
-            # A class is named by where it lives (module:Class), as a scenario would name it.
-            overrides["planner.name"] = planner if isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
+        if name is not None:
+            overrides["planner.name"] = name
+        if planner_options is not None:
+            if not isinstance(planner_options, Mapping) or not all(isinstance(k, str) and k.isidentifier()
+                                                                  for k in planner_options):
+                raise UsageError(f"planner_options {planner_options!r}: expected a dict of option names "
+                                 f"(Python identifiers) to values")
+            overrides.update({f"planner.options.{key}": value for key, value in planner_options.items()})
         if duration_s is not None:
             overrides["duration_s"] = duration_s
         if seed is not None:
@@ -149,7 +166,8 @@ class Simulation:
         if overrides:
             from swarm.scenario import apply_overrides
 
-            scenario = apply_overrides(scenario, overrides, truncated=duration_s is not None)
+            scenario = apply_overrides(scenario, overrides, truncated=duration_s is not None,
+                                       allow_planner_imports=allowed(allow_planner_imports, name))
         # Before anything is allocated: refuse a run that cannot fit (swarm.memory).
         self.memory_estimate = check_memory(scenario, memory_limit_gb)
         self.scenario = scenario
@@ -260,7 +278,7 @@ class Simulation:
 
     @classmethod
     def from_file(cls, ref: str | Path, **kw) -> Simulation:
-        return cls(load_scenario(ref), **kw)
+        return cls(ref, **kw)
 
     def _build_planner(self, uid: int, name: str, type_name: str) -> Planner:
         """A UAV's own planner instance (agents.planners.registry)."""
@@ -275,7 +293,7 @@ class Simulation:
             settings=sc.planner,
         )
         try:
-            return build_planner(sc.planner.name, dict(sc.planner.options), context)
+            return build_planner(sc.planner.name, sc.planner.options_of(), context)
         except PlannerError as exc:
             raise SimulationError(str(exc)) from exc
 

@@ -1,6 +1,6 @@
 """The command line as a new user meets it: did-you-mean for subcommands, an aligned `swarm
 list`, --set and --duration validated together, warnings for values that run but look
-unintended (swarm.scenario.advice), memory figures in readable units, `swarm report` on a sweep
+unintended (swarm.scenario.warnings), memory figures in readable units, `swarm report` on a sweep
 folder."""
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ accel_max = 0.5
 bank_max_deg = 0.44
 detect_radius_m = 1000
 w_t = 1
-w_r = 1
+w_r = 1.1
 influence_radius_m = 3000
 [[uavs]]
 type = "C"

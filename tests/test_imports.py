@@ -1,4 +1,5 @@
-"""Importing the simulator never needs Hypothesis (only swarm.testing does, and says so), and
+"""Importing the simulator never needs Hypothesis (only swarm.testing's strategies and state
+machine do, and say so; its checkers do not), and
 the import graph points one way: agents, comms and faults never import swarm."""
 
 from __future__ import annotations
@@ -24,16 +25,25 @@ def _modules(package: str) -> list[str]:
 @pytest.mark.slow  # a subprocess importing every module (the swarm.testing one below is quick)
 def test_every_module_outside_swarm_testing_imports_without_hypothesis():
     names = [m for p in ("swarm", "agents", "comms", "faults") for m in _modules(p)
-             if not m.startswith(("swarm.testing", "swarm.env")) and m != "swarm.__main__"]
+             if not m.startswith(("swarm.testing.strategies", "swarm.testing.fault_strategies", "swarm.testing.stateful",
+                                  "swarm.testing._hypothesis", "swarm.env")) and m != "swarm.__main__"]
     code = BLOCK_HYPOTHESIS + "import importlib\n" + "".join(f"importlib.import_module({n!r})\n" for n in names)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert r.returncode == 0, r.stderr
 
 
-def test_swarm_testing_names_the_extra_it_needs():
-    r = subprocess.run([sys.executable, "-c", BLOCK_HYPOTHESIS + "import swarm.testing"], capture_output=True,
+@pytest.mark.parametrize("code", ["import swarm.testing.strategies", "import swarm.testing.stateful",
+                                  "from swarm.testing import scenarios"])
+def test_swarm_testing_strategies_name_the_extra_they_need(code):
+    r = subprocess.run([sys.executable, "-c", BLOCK_HYPOTHESIS + code], capture_output=True,
                        text=True, cwd=ROOT, timeout=60)
     assert r.returncode != 0 and "uav-swarm-sim[testing]" in r.stderr
+
+
+def test_swarm_testing_checkers_need_no_hypothesis():
+    code = BLOCK_HYPOTHESIS + "import swarm.testing.invariants, swarm.testing.liveness\nfrom swarm.testing import Monitor"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert r.returncode == 0, r.stderr
 
 
 def test_lower_packages_never_import_swarm():

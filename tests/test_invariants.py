@@ -263,12 +263,38 @@ def test_handover_release_clock_starts_when_the_slow_uav_arrives():
     assert _check(log, HandoverChecker()) == []
 
 
-def test_handover_flags_fast_uav_that_does_not_return_to_search():
+def test_handover_released_fast_uav_may_watch_a_target_nobody_watches():
+    # Rule 4 (docs/modelling.md, "Assignment rules"): after the release the fast UAV may search
+    # or watch a target that no UAV it can talk to watches (B1 goes on to target 1, unwatched).
     log = _handover_log(slow_modes=_watching(10, 999),
                         fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
-    found = _check(log, HandoverChecker())
-    assert len(found) == 1 and "instead of returning to search" in found[0].message and found[0].t == 30.0
-    assert _check(log, HandoverChecker(require_search=False)) == []
+    assert _check(log, HandoverChecker()) == []
+
+
+def _released_onto(b2_at: tuple[float, float], target_1_at: tuple[float, float] = (20_000.0, 20_500.0)) -> Log:
+    """B1 releases target 0 to A1 at 30 s and goes on to target 1 (at ``target_1_at``), which B2
+    watches from ``b2_at``."""
+    log = _handover_log(slow_modes=_watching(10, 999),
+                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
+    for t in range(0, 121):
+        log.target(t, 1, *target_1_at)  # (after _handover_log's: the last one of the tick counts)
+        log.pose(t, B2, *b2_at, 60.0, 0.0, MODE_SURVEIL, 1)
+    return log
+
+
+def test_handover_flags_released_fast_uav_that_joins_a_held_target():
+    found = _check(_released_onto((20_000.0, 20_000.0)), HandoverChecker())  # B2 holds it, within radio range of B1
+    assert len(found) == 1 and "which B2 already holds" in found[0].message and found[0].t == 30.0
+    assert found[0].uavs == ("B1", "A1", "B2")
+    assert _check(_released_onto((20_000.0, 20_000.0)), HandoverChecker(require_search=False)) == []
+
+
+def test_handover_released_fast_uav_may_join_a_target_another_is_still_flying_to():
+    assert _check(_released_onto((20_000.0, 26_000.0)), HandoverChecker()) == []  # B2 5.5 km off target 1
+
+
+def test_handover_released_fast_uav_cannot_know_of_a_watcher_out_of_radio_range():
+    assert _check(_released_onto((30_000.0, 31_000.0), (30_000.0, 30_000.0)), HandoverChecker()) == []  # 27 km
 
 
 def test_handover_not_owed_when_slow_is_busy_far_or_cut_off():
@@ -319,6 +345,43 @@ def test_no_drop_flags_an_abandoned_target_but_not_a_crash_or_a_handover():
     assert _check(log_with(20, crash_at=21), NoDropChecker()) == []
     assert _check(log_with(20, a1_from=21), NoDropChecker()) == []
     assert _check(log_with(20, a1_from=28), NoDropChecker()) == []  # within the grace time
+
+
+def _drop_log(b1_at, *, threats=(), t1: int = 100) -> Log:
+    """B1 watches target 0 (standing at 10 km, 10 km) from ``b1_at(t)`` until 20 s, then
+    searches; nobody else watches it; A1 searches 29 km away."""
+    log = Log(_scenario(threats=threats))
+    for t in range(0, t1):
+        log.target(t, 0, 10_000.0, 10_000.0)
+        m, tg = _watching(0, 20)(t)
+        log.pose(t, B1, *b1_at(t), 60.0, 0.0, m, tg)
+        log.pose(t, A1, 39_000.0, 30_000.0, 30.0, 0.0)
+    return log
+
+
+def test_no_drop_judges_only_a_watcher_that_has_held_its_target():
+    # A UAV that declared a target 5 km away and turns to something else before arriving: no drop.
+    assert _check(_drop_log(lambda t: (10_000.0, 15_000.0)), NoDropChecker()) == []
+    (v,) = _check(_drop_log(lambda t: (10_000.0, 10_500.0)), NoDropChecker())  # it held it (500 m away)
+    assert v.t == 21.0 and "not lost" in v.message
+
+
+def _track_life(log: Log, seconds: float) -> Log:
+    sc = log.scenario
+    dacmp = sc.planner.dacmp.model_copy(update={"track_max_age_s": seconds})
+    log.scenario = sc.model_copy(update={"planner": sc.planner.model_copy(update={"dacmp": dacmp})})
+    return log
+
+
+def test_no_drop_a_lost_target_is_not_dropped_unless_last_seen_in_a_no_fly_zone():
+    # B1 holds the target until 5 s, then loses it (flies 5 km off) and lets go at 20 s: 15 s
+    # after anyone last saw it.
+    lost_at_5 = lambda t: (10_000.0, 10_500.0 if t <= 5 else 15_000.0)  # noqa: E731
+    assert len(_check(_drop_log(lost_at_5), NoDropChecker())) == 1  # track lifetime 1/tau = 200 s
+    assert _check(_track_life(_drop_log(lost_at_5), 10.0), NoDropChecker()) == []  # lost after 10 s
+    # Last seen inside a no-fly zone: not lost, its watcher keeps it.
+    zone = [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 300.0}]
+    assert len(_check(_track_life(_drop_log(lost_at_5, threats=zone), 10.0), NoDropChecker())) == 1
 
 
 def test_log_checkers_refuse_live_only_ones():

@@ -31,6 +31,11 @@ History:
   the farther same-type claimant yields, the declared target is the strongest pull, watchers
   feel threats at 0.15 k_rep): unchanged here (one target, seen at 20 s; no watcher in a threat field),
   paper-case2/3 logs change; paper-fig11's (search only) do not.
+- Assignment rules (docs/modelling.md): a searching UAV competes (eq. 23) only for targets no UAV
+  watches (a fast searcher passing within D of a watched target kept a slow UAV from taking it
+  over); the keep rule judges the watched target by its own term; a target last seen inside a
+  no-fly zone is kept. The dacmp hash changes (a searcher near the watched target here); greedy's
+  does not; paper-fig11's (search only) do not.
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ from swarm import Simulation
 
 PINNED = {
     "greedy": "28ac6a09c44b534c028ac764ff241b191238cf8874c828dda12d1a4c75244b20",
-    "dacmp": "f5d2755cef6c3b6229acad3475ff4eac1ec2d396b19743c5d8d516a9a0fe0f01",
+    "dacmp": "e7ad249893753fce4fb2a1b8e95edc22c268e46d0afb5c62cb8827c84259cc26",
 }
 
 

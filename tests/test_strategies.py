@@ -41,7 +41,7 @@ from faults.schedule import (
 )
 from swarm import Simulation
 from swarm.recorder import read_events
-from swarm.scenario import Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
+from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
 from swarm.testing.fault_strategies import (
     ALL_KINDS,
     fault_schedules,
@@ -231,6 +231,24 @@ def test_fleets_mix_types_including_a_generated_third_one():
 @given(uav_type_specs())
 def test_generated_uav_types_are_valid(spec):
     UavTypeSpec(**spec)
+
+
+def _with_table1(spec: dict) -> list:
+    from agents.assignment import rule_breaks
+    kinds = [s.uav_type(n) for n, s in {**DEFAULT_UAV_TYPES, "C": UavTypeSpec(**spec)}.items()]
+    return rule_breaks(kinds)
+
+
+@settings(max_examples=examples(100))
+@given(uav_type_specs())
+def test_generated_uav_types_keep_the_assignment_rules_by_default(spec):
+    """Eq. 25-27 hold for the generated type on its own and beside Table 1's A and B."""
+    assert _with_table1(spec) == []
+
+
+def test_rule_breaking_types_are_generated_only_when_asked():
+    spec = find(uav_type_specs(rule_abiding=False), lambda s: _with_table1(s) != [])
+    assert any("eq. 2" in m for m in _with_table1(spec))
 
 
 @pytest.mark.slow  # shrinking takes seconds

@@ -62,11 +62,14 @@ def test_embedding_api_runs_a_user_planner_by_name_and_by_class(on_path):
 
 
 def test_planner_options_reach_the_constructor_and_wrong_ones_name_the_key(on_path):
-    sc = apply_overrides(load_scenario("paper-case1"), {"planner.name": EXAMPLE, "planner.options": {"tries": 2}})
+    # A module:Class set through overrides is a scenario setting: imported only when allowed.
+    sc = apply_overrides(load_scenario("paper-case1"), {"planner.name": EXAMPLE, "planner.options": {"tries": 2}},
+                         allow_planner_imports=[EXAMPLE])
     with Simulation(sc, duration_s=20.0) as sim:
         assert sim.actors[0].planner.tries == 2
     with pytest.raises(ScenarioError) as err:
-        apply_overrides(load_scenario("paper-case1"), {"planner.name": EXAMPLE, "planner.options": {"trys": 2}})
+        apply_overrides(load_scenario("paper-case1"), {"planner.name": EXAMPLE, "planner.options": {"trys": 2}},
+                        allow_planner_imports=True)
     assert err.value.key == "planner.options.trys" and "did you mean 'tries'" in str(err.value)
     with pytest.raises(ScenarioError, match="planner.options.headings"):
         apply_overrides(load_scenario("paper-case1"), {"planner.name": "greedy", "planner.options": {"headings": 3}})

@@ -13,6 +13,12 @@ method is built by it (it sees the :class:`PlannerContext`: what a planner may k
 run); otherwise by ``Class(**options)``. ``options`` is the scenario's ``[planner.options]``
 table; :func:`option_problems` checks it against the signature before anything runs, so a
 wrong option is reported with its key path like any other scenario mistake.
+
+Importing a ``module:Class`` runs that module's code, so *whether* to import one is the
+caller's decision (a scenario file may not make it: :mod:`swarm.scenario.trust`). What is
+imported is checked before anything in it is called: it must be a class (found without running
+its module's ``__getattr__`` or descriptors) with a ``plan`` method, its ``from_context`` if any
+a class method, and the options must fit its signature.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ __all__ = [
     "PlannerContext",
     "available_planners",
     "build_planner",
+    "is_module_ref",
     "option_problems",
     "resolve_planner",
 ]
@@ -73,8 +80,20 @@ class PlannerContext:
     settings: Any = None  # the scenario's [planner] table (built-ins read their own sub-table)
 
 
+def is_module_ref(name: str) -> bool:
+    """Whether a planner name is ``package.module:Class`` (code to import), not a built-in or an
+    entry-point name."""
+    return isinstance(name, str) and ":" in name and name not in BUILTIN
+
+
 def _import(ref: str) -> type:
+    """The planner class ``module:Class`` names, checked to be one before anything in it is
+    called: importing the module runs its top-level code (the caller decides whether that is
+    allowed), but nothing the module defines is called here. Raises :class:`PlannerError` for a
+    module that is not found, a name that is not a class, or a class that is not a planner."""
     module_name, _, attr = ref.partition(":")
+    if not module_name or not attr or not all(part.isidentifier() for part in (*module_name.split("."), *attr.split("."))):
+        raise PlannerError(f"planner {ref!r}: expected package.module:Class (dotted Python names)")
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
@@ -82,11 +101,19 @@ def _import(ref: str) -> type:
                            f"is it on PYTHONPATH?") from None
     obj: Any = module
     for part in attr.split("."):
-        obj = getattr(obj, part, None)
+        # Static lookup: no descriptor, property or module __getattr__ of the user's code runs.
+        obj = inspect.getattr_static(obj, part, None)
         if obj is None:
             raise PlannerError(f"planner {ref!r}: module {module_name!r} has no {attr!r}")
-    if not callable(obj):
-        raise PlannerError(f"planner {ref!r}: {attr!r} is not a class")
+    if not inspect.isclass(obj):
+        what = "a function" if inspect.isroutine(obj) else f"a {type(obj).__name__}"
+        raise PlannerError(f"planner {ref!r}: {attr!r} is {what}, not a class; expected a planner class "
+                           f"(a class with a plan(view) method)")
+    if not callable(inspect.getattr_static(obj, "plan", None)):
+        raise PlannerError(f"planner {ref!r}: {obj.__name__} is not a planner (it has no plan(view) method)")
+    maker = inspect.getattr_static(obj, "from_context", None)
+    if maker is not None and not isinstance(maker, (classmethod, staticmethod)):
+        raise PlannerError(f"planner {ref!r}: {obj.__name__}.from_context is not a class method")
     return obj
 
 
@@ -132,14 +159,17 @@ def option_problems(name: str, options: dict[str, Any]) -> list[tuple[str, str, 
     maker, with_context = _maker(cls)
     try:
         params = list(inspect.signature(maker).parameters.values())
-    except (TypeError, ValueError):  # no signature to read (a builtin type): let the call decide
-        return []
+    except (TypeError, ValueError):  # no signature to read (a class written in C): it takes no options we can check
+        return [(key, f"option {key!r}", f"no options (the constructor of planner {name!r} has no signature to check "
+                 f"them against)") for key in options]
     if with_context and params:
         params = params[1:]
     if any(p.kind is p.VAR_KEYWORD for p in params):
         return []
     named = {p.name: p for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
-    problems = []
+    problems = [(p.name, f"a positional-only parameter {p.name!r} without a default",
+                 f"a constructor planner {name!r} can be built with by keyword (options are passed by name)")
+                for p in params if p.kind is p.POSITIONAL_ONLY and p.default is p.empty]
     for key in options:
         if key not in named:
             close = difflib.get_close_matches(key, list(named), n=1)
@@ -154,6 +184,10 @@ def option_problems(name: str, options: dict[str, Any]) -> list[tuple[str, str, 
 def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -> Planner:
     """One UAV's planner instance."""
     cls = resolve_planner(name)
+    problems = option_problems(name, options)
+    if problems:  # checked before anything of the class is called
+        key, found, expected = problems[0]
+        raise PlannerError(f"planner {name!r}: option {key}: found {found}; expected {expected}")
     maker, with_context = _maker(cls)
     try:
         planner = maker(context, **options) if with_context else maker(**options)

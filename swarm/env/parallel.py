@@ -147,13 +147,15 @@ class SwarmSearchEnv(ParallelEnv):
         if render_mode is not None:
             raise UsageError(f"render_mode {render_mode!r}: {ENV_NAME} renders nothing (use swarm animate on a run folder)")
         self.render_mode = None
-        sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        # A planner named here is the caller's choice (allowed even as module:Class); one named by a
+        # scenario file is not imported (swarm.scenario.trust).
+        sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, planner=planner)
         overrides: dict[str, object] = {}
         if planner is not None:
             overrides["planner.name"] = planner
         if duration_s is not None:
             overrides["duration_s"] = duration_s
-        self.scenario = apply_overrides(sc, overrides) if overrides else sc
+        self.scenario = apply_overrides(sc, overrides, allow_planner_imports=[planner] if planner else False) if overrides else sc
         sc = self.scenario
         if not (isinstance(map_size, int) and map_size >= 1 and map_size % 2 == 1):
             raise UsageError(f"map_size must be an odd number >= 1, got {map_size!r}")

@@ -352,7 +352,7 @@ def _plan(axis: str, out_dir: str | Path, *, scenario: str | os.PathLike = DEFAU
     """Check everything about one axis before anything runs: (scenario, seeds, run seconds, runs)."""
     if duration_s is not None and not duration_s > 0:
         raise UsageError(f"--duration {duration_s:g}: expected a positive number of seconds")
-    sc = load_scenario(scenario)
+    sc = load_scenario(scenario, planner=PLANNERS[0])  # the axes run their own planners: the file's is never imported
     seed_list = seeds_from(seeds)
     run_s = expected_duration(sc, duration_s)
     runs = plan_axis(axis, sc, values=values, seeds=seed_list, duration_s=duration_s, crash_at_s=crash_at_s,

@@ -53,6 +53,7 @@ import numpy as np
 from swarm.errors import UsageError
 from swarm.outputs import run_files, write_files
 from swarm.scenario import Scenario, apply_overrides, load_scenario, parse_scenario
+from swarm.scenario.trust import allowed
 
 # Metrics summarised per group: every number at the top level of metrics.json, plus these
 # nested counters (flattened with a dot).
@@ -95,6 +96,10 @@ class RunSpec:
     folder: str  # relative to the sweep's out_dir
     duration_s: float | None = None
     figures: bool = False
+    # Which module:Class planners this run may import (swarm.scenario.trust): True, or these
+    # names. Decided where the sweep was asked for (the planners the user named, an opt-in) and
+    # carried to the worker, which honours it without an opt-in of its own.
+    allow_planner_imports: bool | tuple[str, ...] = ()
 
     @property
     def label(self) -> str:
@@ -129,12 +134,18 @@ def slug(settings: Sequence[tuple[str, Any]]) -> str:
 
 def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[str],
               grid: Mapping[str, Sequence[Any]] | None = None, duration_s: float | None = None,
-              figures: bool = False) -> list[RunSpec]:
+              figures: bool = False, allow_planner_imports: bool | Iterable[str] = False) -> list[RunSpec]:
     """Every combination of ``planners`` x the cartesian product of ``grid`` x ``seeds``.
 
     ``grid`` maps a dotted scenario key to the values to try, e.g.
     ``{"radio.loss_base": [0.0, 0.3]}``. Each combination is validated here, so a bad key or
-    value fails before anything runs, naming the key.
+    value fails before anything runs, naming the key. Each planner replaces the scenario's as
+    ``--planner`` does (options follow their planner: ``planner.options_for.NAME.KEY`` gives
+    one planner an option, ``planner.options.KEY`` gives it to every planner of the sweep).
+
+    ``planners`` are named by the caller, so a ``module:Class`` among them may be imported;
+    ``allow_planner_imports`` allows more (``True``: any, e.g. a grid value of ``planner.name``).
+    The decision is stored in each :class:`RunSpec` for its worker.
     """
     grid = dict(grid or {})
     keys = list(grid)
@@ -147,6 +158,8 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
         raise UsageError("a sweep needs at least one seed")
     if not planners:
         raise UsageError("a sweep needs at least one planner")
+    allow = allowed(allow_planner_imports, planners)
+    carried: bool | tuple[str, ...] = True if allow is True else tuple(sorted(allow))
     runs = []
     for planner in planners:
         for values in product(*(grid[k] for k in keys)):
@@ -155,14 +168,15 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
             if duration_s is not None:
                 overrides["duration_s"] = duration_s  # what runs (execute applies it last)
             own = dict(settings).get("duration_s", scenario.duration_s)  # late joiners still join before it
-            sc = apply_overrides(scenario, overrides, truncated=duration_s is not None, scenario_duration_s=own)
+            sc = apply_overrides(scenario, overrides, truncated=duration_s is not None, scenario_duration_s=own,
+                                 allow_planner_imports=allow)
             doc = sc.to_dict()
             if duration_s is not None:
                 doc["duration_s"] = dict(settings).get("duration_s", scenario.duration_s)
             for seed in seeds:
                 runs.append(RunSpec(doc, planner, int(seed), settings,
                                     f"runs/{planner}/{slug(settings)}/seed-{int(seed):03d}",
-                                    duration_s, figures))
+                                    duration_s, figures, carried))
     return runs
 
 
@@ -174,7 +188,8 @@ def execute(spec: RunSpec) -> dict:
 
     try:
         doc = spec.scenario if spec.duration_s is None else {**spec.scenario, "duration_s": spec.duration_s}
-        sc = parse_scenario(doc, source=f"sweep run {spec.folder}", truncated=spec.duration_s is not None)
+        sc = parse_scenario(doc, source=f"sweep run {spec.folder}", truncated=spec.duration_s is not None,
+                            allow_planner_imports=spec.allow_planner_imports)
         with Simulation(sc, seed=spec.seed, duration_s=spec.duration_s) as sim:
             result = sim.run()
             # A run's metrics.json records the swept settings it ran with.
@@ -190,7 +205,12 @@ def is_finished(out_dir: Path, spec: RunSpec) -> bool:
 
 def fingerprint(spec: RunSpec) -> str:
     """What makes a run what it is (not how it is executed)."""
-    doc = _dumps([spec.scenario, spec.planner, spec.seed, spec.duration_s], sort_keys=True, default=str)
+    scenario = spec.scenario
+    planner = scenario.get("planner")
+    if isinstance(planner, dict) and planner.get("options_for") == {}:
+        # As before planner.options_for existed, so finished folders of older sweeps resume.
+        scenario = {**scenario, "planner": {k: v for k, v in planner.items() if k != "options_for"}}
+    doc = _dumps([scenario, spec.planner, spec.seed, spec.duration_s], sort_keys=True, default=str)
     return hashlib.sha256(doc.encode()).hexdigest()
 
 
@@ -569,15 +589,21 @@ def write_summary(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
 def sweep(scenario: str | os.PathLike | Scenario, out_dir: str | Path, *, seeds: int | Iterable[int] = 30,
           planners: Sequence[str] = ("dacmp", "greedy"), grid: Mapping[str, Sequence[Any]] | None = None,
           executor: Executor | None = None, workers: int | None = None, duration_s: float | None = None,
-          figures: bool = False, progress: ProgressFn | None = None) -> SweepResult:
+          figures: bool = False, progress: ProgressFn | None = None,
+          allow_planner_imports: bool | Iterable[str] = False) -> SweepResult:
     """Plan and run a sweep in one call (the Python form of ``swarm sweep``).
 
-    ``seeds``: a count (seeds 0..n-1) or the seeds themselves. See :func:`plan_runs` and
-    :func:`run_sweep` for the rest.
+    ``seeds``: a count (seeds 0..n-1) or the seeds themselves. ``allow_planner_imports``: a
+    ``module:Class`` named by the scenario file or the grid (not by ``planners``) is imported
+    only if allowed (:mod:`swarm.scenario.trust`). See :func:`plan_runs` and :func:`run_sweep`
+    for the rest.
     """
-    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    first = planners[0] if planners else None
+    sc = (scenario if isinstance(scenario, Scenario)
+          else load_scenario(scenario, planner=first, allow_planner_imports=allow_planner_imports))
     seed_list = range(seeds) if isinstance(seeds, int) else list(seeds)
-    runs = plan_runs(sc, seeds=seed_list, planners=planners, grid=grid, duration_s=duration_s, figures=figures)
+    runs = plan_runs(sc, seeds=seed_list, planners=planners, grid=grid, duration_s=duration_s, figures=figures,
+                     allow_planner_imports=allow_planner_imports)
     return run_sweep(runs, out_dir, executor=executor, workers=workers, progress=progress)
 
 

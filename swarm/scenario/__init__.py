@@ -1,9 +1,8 @@
 """Scenarios: the data that describes one run (:mod:`.model`), how it is loaded from TOML and
 overridden with ``--set`` (:mod:`.loading`), how errors name positions (:mod:`.positions`),
-the warnings about values that run but look unintended (:mod:`.advice`), and the built-in
+the warnings about values that run but look unintended (:mod:`.warnings`), and the built-in
 scenario files (``builtin/``)."""
 
-from swarm.scenario.advice import scenario_warnings
 from swarm.scenario.loading import (
     apply_overrides,
     builtin_scenarios,
@@ -42,6 +41,7 @@ from swarm.scenario.model import (
     UavSpec,
     UavTypeSpec,
 )
+from swarm.scenario.warnings import scenario_warnings
 
 __all__ = [
     "ApfSettings",

@@ -13,7 +13,7 @@ import os
 import re
 import tomllib
 import types
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, NamedTuple, Union, get_args, get_origin
@@ -21,8 +21,9 @@ from typing import Annotated, Any, NamedTuple, Union, get_args, get_origin
 from pydantic import BaseModel, ValidationError
 
 from swarm.errors import ScenarioError
-from swarm.scenario.model import _FAULT_CLASSES, FAULT_KINDS, Scenario, _Invalid
+from swarm.scenario.model import _FAULT_CLASSES, FAULT_KINDS, PlannerSettings, Scenario, _Invalid
 from swarm.scenario.positions import document_position, found_words, key_path, value_at
+from swarm.scenario.trust import allowed, permits, refusal
 
 # --- loading -------------------------------------------------------------------------------
 _BUILTIN_PACKAGE = "swarm.scenario.builtin"
@@ -34,8 +35,16 @@ def builtin_scenarios() -> list[str]:
     return sorted(p.name[: -len(".toml")] for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
-def load_scenario(ref: str | os.PathLike[str]) -> Scenario:
-    """Load a built-in scenario by name or a TOML file by path."""
+def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
+                  allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
+    """Load a built-in scenario by name or a TOML file by path.
+
+    ``planner``: run this planner instead of the one the file names (as ``--planner``: the
+    file's ``[planner.options]`` move to ``[planner.options_for.<its planner>]``, see
+    :func:`switch_planner`); the file's own planner is then never imported.
+    ``allow_planner_imports``: a ``module:Class`` named in the file is imported (to check it)
+    only if allowed here: ``True``, or its name among these (``planner`` always is); see
+    :mod:`swarm.scenario.trust`."""
     if not isinstance(ref, (str, os.PathLike)):
         raise ScenarioError("", "", found_words(ref), _file_expected())
     source = os.fspath(ref)
@@ -53,10 +62,10 @@ def load_scenario(ref: str | os.PathLike[str]) -> Scenario:
             raise ScenarioError(source, "", "a file that is not UTF-8 text", "a TOML document") from None
         except OSError as exc:
             raise ScenarioError(source, "", f"a file that cannot be read ({exc.strerror or exc})", _file_expected()) from None
-        return scenario_from_toml(text, source)
+        return scenario_from_toml(text, source, planner=planner, allow_planner_imports=allow_planner_imports)
     if isinstance(ref, str) and ref in builtin_scenarios():
         text = resources.files(_BUILTIN_PACKAGE).joinpath(f"{ref}.toml").read_text(encoding="utf-8")
-        return scenario_from_toml(text, ref)
+        return scenario_from_toml(text, ref, planner=planner, allow_planner_imports=allow_planner_imports)
     found = "no such file" if not path.exists() else "something that is not a file"
     raise ScenarioError(source, "", found, _file_expected())
 
@@ -65,26 +74,41 @@ def _file_expected() -> str:
     return f"a path to an existing .toml file or a built-in name ({', '.join(builtin_scenarios())})"
 
 
-def scenario_from_toml(text: str, source: str) -> Scenario:
+def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
+                       allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
+    """A scenario from TOML text (``planner``, ``allow_planner_imports``: see :func:`load_scenario`)."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(source, "", f"invalid TOML ({exc})", "a TOML document") from None
-    return parse_scenario(doc, source)
+    if planner is not None:
+        switch_planner(doc, planner)
+    return parse_scenario(doc, source, allow_planner_imports=allowed(allow_planner_imports, planner))
 
 
 def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated: bool = False,
-                   scenario_duration_s: float | None = None) -> Scenario:
+                   scenario_duration_s: float | None = None,
+                   allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
     """Validate an already-parsed document. ``name`` defaults to the source's file stem.
     ``truncated``: the document's ``duration_s`` is a run cut short on purpose (``--duration``),
     so UAVs may join after its end; they must still join before ``scenario_duration_s``, the
-    scenario's own end, if given."""
+    scenario's own end, if given. ``allow_planner_imports``: ``True``, or the ``module:Class``
+    planner names that may be imported (checked); any other ``module:Class`` in the document is
+    refused without being imported (:mod:`swarm.scenario.trust`)."""
     if not isinstance(doc, dict):
         raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
     data = dict(doc)
     data.setdefault("name", _default_name(source))
+    allow = allowed(allow_planner_imports)
+    # Code the user did not allow is the one thing said about such a document (the model checks
+    # it too, for documents validated directly).
+    table = data.get("planner")
+    name = table.get("name") if isinstance(table, dict) else None
+    if isinstance(name, str) and not permits(allow, name):
+        raise ScenarioError(source, _PLANNER_NAME, *refusal(name))
+    context = {"truncated": truncated, "scenario_duration_s": scenario_duration_s, "allow_planners": allow}
     try:
-        return Scenario.model_validate(data, context={"truncated": truncated, "scenario_duration_s": scenario_duration_s})
+        return Scenario.model_validate(data, context=context)
     except ValidationError as exc:
         # from None: our message says everything; pydantic's would only repeat it less clearly.
         raise _first_error(exc, doc, source) from None
@@ -98,18 +122,30 @@ def _default_name(source: str) -> str:
 
 # --- overrides -----------------------------------------------------------------------------
 def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncated: bool = False,
-                    scenario_duration_s: float | None = None) -> Scenario:
+                    scenario_duration_s: float | None = None,
+                    allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
     """A new scenario with dotted keys replaced, e.g. ``{"radio.loss_base": 0.3}`` or
     ``{"uavs[0].x_m": 100}``; the result is validated as a whole. ``truncated``: the
     ``duration_s`` override shortens the run (``--duration``): everything is judged against
     it, except late joiners, which must join before ``scenario_duration_s``, the scenario's
-    own end, if given (not judged otherwise); see :func:`parse_scenario`."""
+    own end, if given (not judged otherwise); see :func:`parse_scenario`.
+
+    ``planner.name`` is applied first and replaces the planner as :func:`switch_planner` does
+    (its options follow it), so ``planner.options.KEY`` overrides are the new planner's.
+    ``allow_planner_imports``: as :func:`parse_scenario`; the scenario's own planner stays
+    allowed (it was when ``scenario`` was validated), a new ``module:Class`` needs allowing."""
     source = f"{scenario.name} (with overrides)"
     doc = scenario._document()
-    for dotted, value in overrides.items():
-        _set_path(doc, dotted, value, source)
+    ordered = sorted(overrides.items(), key=lambda item: item[0] != _PLANNER_NAME)
+    for dotted, value in ordered:
+        if dotted == _PLANNER_NAME:
+            switch_planner(doc, value)
+        else:
+            _set_path(doc, dotted, value, source)
+    allow = allowed(allow_planner_imports, scenario.planner.name)
     try:
-        return parse_scenario(doc, source, truncated=truncated, scenario_duration_s=scenario_duration_s)
+        return parse_scenario(doc, source, truncated=truncated, scenario_duration_s=scenario_duration_s,
+                              allow_planner_imports=allow)
     except ScenarioError as err:
         if err.key in overrides or err.hint:
             raise
@@ -119,18 +155,52 @@ def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncat
         raise ScenarioError(err.source, err.key, err.found, err.expected, f"after overriding {changed}") from None
 
 
-_SEGMENT = re.compile(r"([^.\[\]]+)((?:\[\d+\])*)")
+_PLANNER_NAME = "planner.name"
+
+
+def switch_planner(doc: dict[str, Any], name: Any) -> None:
+    """Make ``name`` the planner of a scenario document (in place). Options follow their
+    planner: when the planner changes, ``[planner.options]`` (written for the old one) move to
+    ``[planner.options_for.<old name>]``, where a later switch back finds them; the new planner
+    is built with its own ``options_for`` entry, if any (``PlannerSettings.options_of``)."""
+    table = doc.get("planner")
+    if table is None:
+        table = doc["planner"] = {}
+    if not isinstance(table, dict):
+        return  # not a table: validation says so
+    old = table.get("name", _DEFAULT_PLANNER)
+    table["name"] = name
+    if name == old or not isinstance(old, str):
+        return
+    options = table.pop("options", None)
+    if isinstance(options, dict) and options:
+        others = table.get("options_for")
+        if others is None:
+            others = table["options_for"] = {}
+        if isinstance(others, dict):
+            theirs = others.get(old)
+            others[old] = {**options, **theirs} if isinstance(theirs, dict) else options
+
+
+_DEFAULT_PLANNER = str(PlannerSettings.model_fields["name"].default)
+
+# One segment of a dotted key: a bare name or a "quoted" one (for names with dots, such as
+# planner.options_for."pkg.mod:Class".key), then any [n] indices.
+_SEGMENT = re.compile(r'(?:"([^"]*)"|([^."\[\]]+))((?:\[\d+\])*)(?:\.|$)')
 
 
 def _split_key(dotted: str, source: str) -> list[str | int]:
-    """'uavs[0].x_m' -> ['uavs', 0, 'x_m']."""
+    """'uavs[0].x_m' -> ['uavs', 0, 'x_m']; 'a."b.c".d' -> ['a', 'b.c', 'd']."""
     parts: list[str | int] = []
-    for segment in dotted.split("."):
-        match = _SEGMENT.fullmatch(segment)
-        if match is None:
-            raise ScenarioError(source, dotted, f"the key {dotted!r}", "a dotted key like radio.loss_base or uavs[0].x_m")
-        parts.append(match.group(1))
-        parts.extend(int(i) for i in re.findall(r"\d+", match.group(2)))
+    pos = 0
+    while pos < len(dotted) or not parts:
+        match = _SEGMENT.match(dotted, pos)
+        if match is None or match.end() == pos or (match.end() == len(dotted) and dotted.endswith(".")):
+            raise ScenarioError(source, dotted, f"the key {dotted!r}",
+                                'a dotted key like radio.loss_base, uavs[0].x_m or planner.options_for."pkg.mod:Class".key')
+        parts.append(match.group(1) if match.group(1) is not None else match.group(2))
+        parts.extend(int(i) for i in re.findall(r"\d+", match.group(3)))
+        pos = match.end()
     return parts
 
 

@@ -42,6 +42,7 @@ from pydantic import (
 
 from agents import apf as _apf
 from agents.planners.dacmp import settings as _dacmp
+from agents.types import UavType
 from comms import radio as _radio
 from faults import schedule as _faults
 from swarm.errors import UsageError
@@ -312,6 +313,12 @@ class UavTypeSpec(_Model):
     w_t: Num = _num(..., ge=0, note="target attraction weight")
     w_r: Num = _num(..., ge=0, note="repulsion weight")
     influence_radius_m: Num = _num(..., gt=0, note="target influence radius D")
+
+    def uav_type(self, name: str) -> UavType:
+        """This table as the agents' :class:`~agents.types.UavType` named ``name``."""
+        return UavType(name=name, speed_min=self.speed_min, speed_max=self.speed_max, accel_max=self.accel_max,
+                       bank_max_rad=math.radians(self.bank_max_deg), detect_radius=self.detect_radius_m,
+                       w_t=self.w_t, w_r=self.w_r, influence_radius=self.influence_radius_m)
 
     @model_validator(mode="after")
     def _speed_range(self) -> UavTypeSpec:
@@ -707,12 +714,23 @@ _PLANNER_WORDS = ("a planner: a built-in name (see `swarm list --planners`), pac
                   "or a name registered under the entry-point group swarm.planners")
 
 
+_ONE_PLANNER = "options for one planner of several (a sweep): planner.options_for.NAME.KEY"
+
+
 class PlannerSettings(_Model):
     # Resolved by agents.planners.registry; a user's class must be importable where the run runs.
     name: Str = Field(default="dacmp", description=_PLANNER_WORDS)
     # Keyword arguments of the planner's constructor (or of its from_context); the built-in
     # planners take theirs from their own tables ([planner.dacmp], [planner.greedy]).
     options: dict[Str, Any] = Field(default_factory=dict, description="a table [planner.options] of the planner's options")
+    # Options per planner, by planner name as written ([planner.options_for.levy], or
+    # [planner.options_for."pkg.mod:Class"]): the planner that runs is built with `options` and
+    # its own entry here over them (options_of); the others wait for a run that picks their
+    # planner (a sweep over planners, --planner). When the planner is replaced (--planner,
+    # Simulation(planner=...), a sweep: loading.switch_planner), `options` move here under the
+    # planner they were written for.
+    options_for: dict[Str, dict[Str, Any]] = Field(
+        default_factory=dict, description="tables [planner.options_for.NAME] of options, one per planner name")
     replan_s: Num = _num(10.0, gt=0)
     # False: a sighting ends interest in a target (search only, as in paper-fig11).
     surveillance: Bool = Field(default=True, description="true or false")
@@ -730,15 +748,49 @@ class PlannerSettings(_Model):
     dacmp: DacmpSettings = _table(DacmpSettings, "planner.dacmp")
     apf: ApfSettings = _table(ApfSettings, "planner.apf")
 
-    @model_validator(mode="after")
-    def _known_planner(self) -> PlannerSettings:
-        from agents.planners.registry import PlannerError, option_problems
+    def options_of(self, name: str | None = None) -> dict[str, Any]:
+        """The options planner ``name`` (default: the one that runs) is built with: ``options``
+        (when it is the planner that runs) with ``options_for[name]`` over them."""
+        name = self.name if name is None else name
+        own = self.options if name == self.name else {}
+        return {**own, **self.options_for.get(name, {})}
 
+    @model_validator(mode="after")
+    def _known_planner(self, info: ValidationInfo) -> PlannerSettings:
+        # Nothing a scenario names is imported unless the user allowed it (swarm.scenario.trust);
+        # what is imported is checked to be a planner class, and the options against its
+        # signature, before anything in it is called (agents.planners.registry).
+        from agents.planners.registry import PlannerError, option_problems
+        from swarm.scenario.trust import permits, refusal
+
+        allow = info.context.get("allow_planners") if info.context else None
+        if not permits(allow, self.name):
+            found, expected, hint = refusal(self.name)
+            _raise_if([_Problem(("name",), self.name, expected, hint=hint, found=found)])
         try:
-            problems = option_problems(self.name, self.options)
+            problems = option_problems(self.name, self.options_of())
         except PlannerError as exc:
             _raise_if([_Problem(("name",), self.name, _PLANNER_WORDS, hint=str(exc))])
-        _raise_if([_Problem(("options", key), None, expected, found=found) for key, found, expected in problems])
+        own = self.options_for.get(self.name, {})
+        found_problems = []
+        for key, found, expected in problems:
+            in_own = key in own
+            # An unknown option, not a typo of a known one: perhaps meant for another planner of a sweep.
+            hint = _ONE_PLANNER if found.startswith("unknown") and not in_own and "did you mean" not in expected else ""
+            found_problems.append(_Problem(("options_for", self.name, key) if in_own else ("options", key), None,
+                                           expected, found=found, hint=hint))
+        for other, options in self.options_for.items():
+            if other == self.name or not permits(allow, other):
+                continue  # a module:Class nobody allowed is not imported: checked if it is ever run
+            try:
+                other_problems = option_problems(other, options)
+            except PlannerError as exc:
+                found_problems.append(_Problem(("options_for", other), None, _PLANNER_WORDS, hint=str(exc),
+                                               found=f"options for {other!r}, which is not a planner"))
+                continue
+            found_problems += [_Problem(("options_for", other, key), None, expected, found=found)
+                               for key, found, expected in other_problems]
+        _raise_if(found_problems)
         return self
 
 

@@ -35,13 +35,15 @@ def found_words(value: Any) -> str:
 
 
 def key_path(path: tuple[Any, ...]) -> str:
-    """('uavs', 2, 'x_m') -> 'uavs[2].x_m'."""
+    """('uavs', 2, 'x_m') -> 'uavs[2].x_m'; a name with a dot is quoted, as ``--set`` reads it:
+    ('planner', 'options_for', 'pkg.mod:C', 'k') -> 'planner.options_for."pkg.mod:C".k'."""
     out = ""
     for part in path:
         if isinstance(part, int) and not isinstance(part, bool):
             out += f"[{part}]"
         else:
-            out += f".{part}" if out else str(part)
+            text = f'"{part}"' if "." in str(part) else str(part)
+            out += f".{text}" if out else text
     return out
 
 

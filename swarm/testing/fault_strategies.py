@@ -24,6 +24,10 @@ Needs ``hypothesis`` (the ``test`` extra); nothing in the simulator imports this
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 import functools
 import math
 from collections.abc import Callable, Sequence

@@ -54,16 +54,13 @@ The invariants (``name``: class, parameters and their defaults):
   ``bound_s`` of joining, a late joiner knows everything its radio neighbours knew when it
   joined (judged only while it can talk to one of them with no link fault active); with a
   knowledge horizon, those of them within ``H - slack`` of the joiner (as for ``map_agreement``).
-* ``single_watcher``: :class:`SingleWatcherChecker(settle_s=30)`: two UAVs of one type that can
-  talk never both watch one target for longer than ``settle_s`` (after a partition heals the
-  duplicate assignment must be resolved within ``settle_s``: targets are reassigned).
-* ``handover``: :class:`HandoverChecker(takeover_s=60, release_s=60)`: a target watched by a
-  fast UAV, with a free (searching) slower UAV inside the slower one's influence radius ``D``
-  of the target that can talk to the watcher, is taken over within ``takeover_s``; once the
-  slower UAV watches it from within its detection radius (it has arrived) the fast one stops
-  within ``release_s`` and returns to search.
-* ``no_drop``: :class:`NoDropChecker(grace_s=10)`: a watched target is never left unwatched by
-  a watcher that is still flying (unless someone else watches it within ``grace_s``).
+* ``single_watcher``, ``handover``, ``no_drop``: the assignment rules, stated once in
+  docs/modelling.md ("Assignment rules"), rules 1 (:class:`SingleWatcherChecker(settle_s=30)`:
+  exclusion), 2-4 (:class:`HandoverChecker(takeover_s=60, release_s=60)`: takeover, release,
+  after release) and 5 (:class:`NoDropChecker(grace_s=10)`: no drop; a lost target is no
+  drop). They judge only the types and pairs whose weights meet the rules' preconditions
+  (:mod:`agents.assignment`, paper eq. 25-27; :meth:`RunContext.exclusion_judged`,
+  :meth:`RunContext.handover_judged`).
 
 "Can talk" means: both flying, within radio range, no active partition or bridge between them
 (either way), neither clogged by a swizzle, and neither inside an active jammer of rate 1.
@@ -108,6 +105,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.assignment import exclusion_break, handover_break
 from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
 from comms.messages import MODE_SURVEIL
@@ -116,23 +114,28 @@ from faults.schedule import (
     PHANTOM_TARGET_ID,
     Bridge,
     ClockSkew,
+    Crash,
     Delay,
     Fault,
     Jammer,
+    Join,
+    Liar,
     LinkFault,
     NavError,
     Partition,
     Pause,
+    Restart,
     Sensor,
     Spoofer,
     Swizzle,
     fault_from_dict,
+    fault_to_dict,
 )
 from swarm.errors import SwarmError, UsageError
 from swarm.outputs import read_run_dir
 from swarm.recorder import read_events
 from swarm.rng import RngTree
-from swarm.scenario import Scenario, UavTypeSpec, parse_scenario
+from swarm.scenario import Scenario, parse_scenario
 
 __all__ = [
     "Checker",
@@ -152,6 +155,7 @@ __all__ = [
     "Violation",
     "check_events",
     "default_checkers",
+    "describe_fault",
     "handover_checkers",
     "load_run_log",
     "safety_checkers",
@@ -173,11 +177,15 @@ class Violation:
     uavs: tuple[str, ...] = ()
     target: int | None = None
     data: dict = field(default_factory=dict, compare=False)
+    #: The faults that may explain it (:meth:`RunContext.explaining`): active on these UAVs, on
+    #: their links or on everyone around its time. Empty: nothing but the planner to blame.
+    faults: tuple[str, ...] = field(default=(), compare=False)
 
     def __str__(self) -> str:
         who = f" uavs={','.join(self.uavs)}" if self.uavs else ""
         tgt = f" target={self.target}" if self.target is not None else ""
-        return f"[{self.invariant}] t={self.t:g} s{who}{tgt}: {self.message}"
+        under = f" [under fault: {'; '.join(self.faults)}]" if self.faults else ""
+        return f"[{self.invariant}] t={self.t:g} s{who}{tgt}: {self.message}{under}"
 
 
 class InvariantViolation(SwarmError, AssertionError):
@@ -192,13 +200,22 @@ class InvariantViolation(SwarmError, AssertionError):
         super().__init__(f"{len(self.violations)} invariant violation(s):\n  " + "\n  ".join(lines))
 
 
+def describe_fault(f: Fault) -> str:
+    """A fault in a few words: kind, whom it acts on, when (``drop 0.5 on B1 10-50 s``)."""
+    d = fault_to_dict(f)
+    kind = d.pop("kind")
+    who = d.pop("uav", None) or ",".join(d.pop("uavs", None) or ())
+    if isinstance(f, (Crash, Join)):
+        when = f"at {f.at_s:g} s"
+    elif isinstance(f, Restart):
+        when = f"at {f.at_s:g} s for {f.downtime_s:g} s"
+    else:
+        end = getattr(f, "end_s", math.inf)
+        when = f"{getattr(f, 'start_s', 0.0):g}-{end:g} s" if math.isfinite(end) else f"from {getattr(f, 'start_s', 0.0):g} s"
+    return " ".join(p for p in (kind, f"on {who}" if who else "", when) if p)
+
+
 # --- the run's context ---------------------------------------------------------------------------
-
-
-def _uav_type(name: str, spec: UavTypeSpec) -> UavType:
-    return UavType(name=name, speed_min=spec.speed_min, speed_max=spec.speed_max, accel_max=spec.accel_max,
-                   bank_max_rad=math.radians(spec.bank_max_deg), detect_radius=spec.detect_radius_m,
-                   w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
 
 
 def skewed_stamps(faults: Iterable[Fault], duration_s: float) -> list[tuple[float, float]]:
@@ -246,7 +263,7 @@ class RunContext:
         self.scenario = scenario
         self.sim = sim
         self.dt = scenario.dt_s
-        self.types = {n: _uav_type(n, s) for n, s in scenario.uav_types.items()}
+        self.types = {n: s.uav_type(n) for n, s in scenario.uav_types.items()}
         self.range_m = scenario.radio.range_limit_m
         self.min_separation_m = scenario.safety.min_separation_m
         self.threats = [(i, th.x_m, th.y_m, th.radius_m) for i, th in enumerate(scenario.threats)]
@@ -294,6 +311,18 @@ class RunContext:
     def kind(self, uid: int) -> UavType | None:
         t = self.type_name.get(uid)
         return self.types.get(t) if t is not None else None
+
+    def exclusion_judged(self, uid: int) -> bool:
+        """Whether ``single_watcher`` judges this UAV's type: its weights meet eq. 27
+        (:func:`agents.assignment.exclusion_break`)."""
+        k = self.kind(uid)
+        return k is not None and exclusion_break(k) is None
+
+    def handover_judged(self, slow: int, fast: int) -> bool:
+        """Whether ``handover`` judges this pair: the slower one's type is slower and their
+        weights meet eq. 25-26 (:func:`agents.assignment.handover_break`)."""
+        ks, kf = self.kind(slow), self.kind(fast)
+        return ks is not None and kf is not None and ks.speed_max < kf.speed_max and handover_break(ks, kf) is None
 
     @property
     def faults(self) -> list[Fault]:
@@ -374,6 +403,33 @@ class RunContext:
                 elif getattr(f, "uav", None) == name:
                     return True
         return False
+
+    def explaining(self, uids: Iterable[int], t0: float, t1: float) -> list[Fault]:
+        """The faults that may explain something these UAVs did between ``t0`` and ``t1``: acting
+        at some time from ``RECOVER_S`` before ``t0`` to ``t1``, on one of them (a node fault,
+        a crash, a join, a restart), on their links (a link fault on them or on everyone, a
+        swizzle), or on anyone (a partition, a bridge, a jammer, a spoofer, a liar: a liar's
+        tracks reach every UAV)."""
+        names = {self.names.get(u) for u in uids}
+        lo = t0 - RECOVER_S
+        out: list[Fault] = []
+        for f in self.faults:
+            if isinstance(f, (Crash, Join)):
+                when = (f.at_s, f.at_s)
+            elif isinstance(f, Restart):
+                when = (f.at_s, f.at_s + f.downtime_s)
+            else:
+                when = (getattr(f, "start_s", 0.0), getattr(f, "end_s", math.inf))
+            if not (when[0] <= t1 + _EPS and when[1] >= lo - _EPS):
+                continue
+            if isinstance(f, (Partition, Bridge, Jammer, Spoofer, Liar)):
+                out.append(f)
+            elif isinstance(f, (LinkFault, Sensor, Swizzle)):
+                if not f.uavs or names & set(f.uavs):
+                    out.append(f)
+            elif getattr(f, "uav", None) in names:
+                out.append(f)
+        return out
 
     def node_faults_disturb(self, t: float) -> bool:
         """Whether a node fault keeps the maps from agreeing at ``t``: a pause (the UAV merges
@@ -513,8 +569,12 @@ class Checker:
         if len(self.violations) >= self.max_violations:
             self.truncated += 1
             return
+        uavs = list(uavs)
         names = tuple(self.ctx.name(u) for u in uavs) if self.ctx else tuple(str(u) for u in uavs)
-        self.violations.append(Violation(self.name, float(t), message, names, target, dict(data)))
+        since = data.get("since", t)
+        faults = self.ctx.explaining(uavs, float(since), float(t)) if self.ctx else []
+        self.violations.append(Violation(self.name, float(t), message, names, target, dict(data),
+                                         tuple(describe_fault(f) for f in faults)))
 
     def raise_if(self) -> None:
         if self.violations:
@@ -1031,6 +1091,8 @@ RECOVER_S = 30.0
 class _WatchChecker(Checker):
     """Helpers for the assignment invariants: watchers per target from the pose events."""
 
+    _targets: dict[int, tuple[float, float]]  # target -> last logged (x, y), kept by the subclasses that need it
+
     @staticmethod
     def watchers(poses: dict[int, tuple]) -> dict[int, set[int]]:
         out: dict[int, set[int]] = {}
@@ -1043,6 +1105,12 @@ class _WatchChecker(Checker):
     def excused(self, uid: int, t: float) -> bool:
         """A UAV under a node or sensing fault (RunContext.impaired) is not judged."""
         return self.context.impaired(uid, t, _WATCH_EXCUSED)
+
+    def _holds(self, uid: int, m: int, poses: dict[int, tuple]) -> bool:
+        """Whether ``uid`` has target ``m`` (at its last logged position) inside its detection radius."""
+        k, pos = self.context.kind(uid), self._targets.get(m)
+        return (k is not None and pos is not None and uid in poses
+                and math.hypot(poses[uid][0] - pos[0], poses[uid][1] - pos[1]) <= k.detect_radius)
 
 
 class SingleWatcherChecker(_WatchChecker):
@@ -1068,7 +1136,7 @@ class SingleWatcherChecker(_WatchChecker):
             for i, a in enumerate(ws):
                 for b in ws[i + 1:]:
                     ta, tb = ctx.type_name.get(a), ctx.type_name.get(b)
-                    if ta is None or ta != tb:
+                    if ta is None or ta != tb or not ctx.exclusion_judged(a):
                         continue
                     if not ctx.can_talk(a, b, t, poses) or self.excused(a, t) or self.excused(b, t):
                         continue
@@ -1102,6 +1170,8 @@ class HandoverChecker(_WatchChecker):
         self._reported: set[tuple] = set()
         self._prev_watchers: dict[int, set[int]] = {}
         self._targets: dict[int, tuple[float, float]] = {}
+        #: Every (target, faster watcher) pair that was offered a takeover (rule 2) at some time.
+        self.opportunities: set[tuple[int, int]] = set()
 
     def on_group(self, t, events):
         for e in events:
@@ -1120,7 +1190,8 @@ class HandoverChecker(_WatchChecker):
                 kf = ctx.kind(f)
                 if kf is None or self.excused(f, t):
                     continue
-                slower = [(s, k_s) for s in ws if s != f and (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max]
+                slower = [(s, k_s) for s in ws if s != f and (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max
+                          and ctx.handover_judged(s, f)]
                 slower_watching = [s for s, _ in slower]
                 # The release clock starts when the slower UAV has arrived (watches the target
                 # from within its detection radius), as the handover metric counts it: a slow
@@ -1136,46 +1207,59 @@ class HandoverChecker(_WatchChecker):
                             self._reported.add(("release", key))
                             self.violate(t, f"fast {ctx.name(f)} kept watching target {m} for {t - since:g} s after "
                                             f"slower {ctx.name(s)} took it over (release bound {self.release_s:g} s)",
-                                         [f, s], target=m, since=since)
+                                         [f, s], target=m, since=since, rule=3)
                 if slower_watching or pos is None:
                     continue
                 free = [s for s, p in sorted(poses.items())
                         if s != f and p[4] != MODE_SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
-                        and k_s.speed_max < kf.speed_max
+                        and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f)
                         and math.hypot(p[0] - pos[0], p[1] - pos[1]) < k_s.influence_radius
                         and ctx.can_talk(f, s, t, poses)]
                 if not free:
                     continue
                 key2 = (m, f)
                 offers.add(key2)
+                self.opportunities.add(key2)
                 since = self._offer.setdefault(key2, t)
                 if t - since > self.takeover_s + _EPS and ("takeover", key2, since) not in self._reported:
                     self._reported.add(("takeover", key2, since))
                     self.violate(t, f"target {m} watched by fast {ctx.name(f)}: free slower "
                                     f"{', '.join(ctx.name(s) for s in free)} within its influence radius and able to "
                                     f"talk for {t - since:g} s, but none took over (bound {self.takeover_s:g} s)",
-                                 [f, *free], target=m, since=since)
-        # The fast watcher that lets go after a takeover must return to search.
+                                 [f, *free], target=m, since=since, rule=2)
+        # The fast watcher that lets go after a takeover returns to search, or watches a target
+        # that nobody else watches (one it has found meanwhile, say).
         if self.require_search:
             for m, prev in self._prev_watchers.items():
                 for f in prev:
                     if f in watchers.get(m, ()) or f not in poses or self.excused(f, t):
                         continue
                     took = [s for s in watchers.get(m, ()) if (k_s := ctx.kind(s)) is not None
-                            and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max]
-                    if took and poses[f][4] == MODE_SURVEIL:
-                        self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
-                                        f"watching target {poses[f][5]} instead of returning to search",
-                                     [f, took[0]], target=m, now_watching=poses[f][5])
+                            and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max
+                            and ctx.handover_judged(s, f)]
+                    now = int(poses[f][5])
+                    if took and poses[f][4] == MODE_SURVEIL and 0 <= now < PHANTOM_TARGET_ID:
+                        others = sorted(w for w in watchers.get(now, ()) if w != f and ctx.can_talk(f, w, t, poses)
+                                        and self._holds(w, now, poses))
+                        if others:
+                            self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
+                                            f"to watch target {now}, which {', '.join(ctx.name(w) for w in others)} "
+                                            f"already holds, instead of searching or watching a target nobody it "
+                                            f"can talk to holds",
+                                         [f, took[0], *others], target=m, now_watching=now, rule=4)
         self._offer = {k: v for k, v in self._offer.items() if k in offers}
         self._overlap = {k: v for k, v in self._overlap.items() if k in overlaps}
         self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}
 
 
 class NoDropChecker(_WatchChecker):
-    """A target that is being watched is not dropped while its watcher is flying and not
-    displaced: if its watcher stops watching it, someone must be watching it within
-    ``grace_s`` (a watcher that crashed is excused)."""
+    """Rule 5 of docs/modelling.md, "Assignment rules": a watched target is not dropped while its
+    watcher is flying and not impaired, once the watcher has held it (had it inside its
+    detection radius since it began watching it): if it stops watching it, someone must be
+    watching it within ``grace_s`` (a watcher that crashed is excused), unless the target is
+    *lost*: no flying UAV has had it inside its detection radius for the track lifetime
+    (``planner.dacmp.track_max_age_s``, default ``1 / tau``) and it was last seen outside every
+    no-fly zone (a target inside one is kept, not lost)."""
 
     name = "no_drop"
 
@@ -1183,28 +1267,61 @@ class NoDropChecker(_WatchChecker):
         super().__init__()
         self.grace_s = grace_s
         self._prev: dict[int, set[int]] = {}
-        self._pending: dict[int, tuple[float, int]] = {}  # target -> (dropped at, by)
+        self._pending: dict[int, tuple[float, int, float]] = {}  # target -> (dropped at, by, last seen then)
+        self._targets: dict[int, tuple[float, float]] = {}
+        self._seen: dict[int, tuple[float, float, float]] = {}  # target -> last (t, x, y) inside a sensor
+        self._held: dict[int, set[int]] = {}  # target -> watchers that have held it since they began watching it
+
+    def _track_life(self) -> float:
+        sc = self.context.scenario
+        life = sc.planner.dacmp.track_max_age_s
+        return float(life) if life is not None else 1.0 / sc.effective_tau
+
+    def _lost(self, m: int, t: float) -> bool:
+        seen = self._seen.get(m)
+        if seen is None:
+            return True
+        t_seen, x, y = seen
+        inside = any(math.hypot(x - cx, y - cy) < r for _, cx, cy, r in self.context.threats)
+        return t - t_seen > self._track_life() - _EPS and not inside
+
+    def _sightings(self, t: float, poses: dict[int, tuple]) -> None:
+        ctx = self.context
+        for m, (x, y) in self._targets.items():
+            for uid, p in poses.items():
+                k = ctx.kind(uid)
+                if k is not None and math.hypot(p[0] - x, p[1] - y) <= k.detect_radius:
+                    self._seen[m] = (t, x, y)
+                    break
 
     def on_group(self, t, events):
+        for e in events:
+            if e[0] == "target":
+                self._targets[e[2]] = (e[3], e[4])
         poses = _poses(events)
         if not poses:
             return
+        self._sightings(t, poses)
         watchers = self.watchers(poses)
+        held = {m: {w for w in self._held.get(m, ()) if w in ws} | {w for w in ws if self._holds(w, m, poses)}
+                for m, ws in watchers.items()}
         for m in [m for m in self._pending if watchers.get(m)]:
             del self._pending[m]
-        for m, (t0, w) in list(self._pending.items()):
+        for m, (t0, w, seen) in list(self._pending.items()):
             if t - t0 > self.grace_s + _EPS:
                 del self._pending[m]
                 self.violate(t0, f"{self.context.name(w)} stopped watching target {m} while flying and nobody watched it "
-                                 f"within {self.grace_s:g} s", [w], target=m,
-                             now=poses.get(w, (None,) * 6)[4:6])
+                                 f"within {self.grace_s:g} s (not lost: seen {t0 - seen:g} s before, or last seen "
+                                 f"inside a no-fly zone)", [w], target=m, now=poses.get(w, (None,) * 6)[4:6])
         for m, prev in self._prev.items():
-            if watchers.get(m) or m in self._pending:
+            if watchers.get(m) or m in self._pending or self._lost(m, t):
                 continue
-            alive = sorted(w for w in prev if w in poses and not self.excused(w, t))
+            # Only a watcher that has held the target: one still on its way may turn to another.
+            alive = sorted(w for w in prev if w in self._held.get(m, ()) and w in poses and not self.excused(w, t))
             if alive:
-                self._pending[m] = (t, alive[0])
+                self._pending[m] = (t, alive[0], self._seen[m][0] if m in self._seen else -math.inf)
         self._prev = watchers
+        self._held = held
 
     def finish(self, t_end):
         self._pending.clear()  # not enough time left to judge
@@ -1350,9 +1467,13 @@ def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checker
     return monitor.finish()
 
 
-def load_run_log(out_dir: str | Path) -> tuple[Scenario, list[list]]:
+def load_run_log(out_dir: str | Path, *, allow_planner_imports: bool | Iterable[str] = False
+                 ) -> tuple[Scenario, list[list]]:
     """The validated scenario (``scenario.json``) and the events (``events.msgpack``) of a
-    ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`)."""
+    ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`). A run folder is data:
+    a ``module:Class`` planner in its ``scenario.json`` is refused unless allowed here
+    (``True``, or its name; :mod:`swarm.scenario.trust`)."""
     run = read_run_dir(out_dir)
-    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"), truncated=True)  # may be cut short
+    scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"), truncated=True,  # may be cut short
+                              allow_planner_imports=allow_planner_imports)
     return scenario, list(read_events(run.events))

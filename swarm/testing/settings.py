@@ -39,6 +39,10 @@ This project's own test profiles (``tests/conftest.py``) are built on these sett
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 from hypothesis import HealthCheck, settings
 
 __all__ = ["PROFILE", "SIMULATION_HEALTH_CHECKS", "simulation_settings"]

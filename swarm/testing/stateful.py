@@ -50,6 +50,10 @@ Needs ``hypothesis`` (the ``test`` extra).
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 import math
 import sys
 from collections.abc import Callable

@@ -27,23 +27,30 @@ Needs ``hypothesis`` (the ``test`` extra); nothing in the simulator imports this
 
 from __future__ import annotations
 
+import swarm.testing._hypothesis  # noqa: F401  (first: a clear error without Hypothesis)
+
+# isort: split
+
 import contextlib
 import hashlib
 import math
 import os
 import re
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from hypothesis import currently_in_test_context, note
+from hypothesis import assume, currently_in_test_context, note
 from hypothesis import strategies as st
 from hypothesis.control import current_build_context
 from hypothesis.errors import InvalidArgument
 
+from agents.assignment import rule_breaks
+from agents.planners.registry import is_module_ref
+from agents.types import UavType
 from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
-from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, parse_scenario
+from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, UavTypeSpec, parse_scenario
 from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
 
 __all__ = [
@@ -82,19 +89,45 @@ def areas(draw: st.DrawFn, min_km: int = 5, max_km: int = 15, cell_m: Sequence[f
 
 
 @st.composite
-def uav_type_specs(draw: st.DrawFn) -> dict:
-    """A ``[uav_types.NAME]`` table for a type that is not in Table 1 (types are data)."""
+def uav_type_specs(draw: st.DrawFn, *, rule_abiding: bool = True, others: Mapping[str, dict] | None = None) -> dict:
+    """A ``[uav_types.NAME]`` table for a type that is not in Table 1 (types are data).
+
+    With ``rule_abiding`` (the default) its weights meet the preconditions of the assignment
+    rules (docs/modelling.md, "Assignment rules"; :mod:`agents.assignment`: eq. 25-27) on their
+    own and beside ``others`` (``[uav_types]`` tables by name; default Table 1's A and B):
+    ``w_t`` just below ``w_r``, and above ``w_r`` times its top speed over each faster type's.
+    ``rule_abiding=False`` draws ``w_t`` and ``w_r`` independently: such a type may break the
+    rules, the scenario validator warns about it, and the assignment checkers do not judge it."""
     speed_min = float(draw(st.integers(15, 60)))
-    return {
+    spec: dict[str, Any] = {
         "speed_min": speed_min,
         "speed_max": speed_min + float(draw(st.integers(0, 40))),
         "accel_max": draw(st.sampled_from([0.5, 0.2, 1.0, 2.0])),
         "bank_max_deg": float(draw(st.integers(10, 45))),
         "detect_radius_m": float(draw(st.integers(5, 25)) * 100),
-        "w_t": draw(st.sampled_from([3.0, 0.0, 1.0, 6.0])),
-        "w_r": draw(st.sampled_from([3.1, 0.0, 1.1, 6.1])),
         "influence_radius_m": float(draw(st.integers(1, 10)) * 1000),
     }
+    if not rule_abiding:
+        spec["w_t"] = draw(st.sampled_from([3.0, 0.0, 1.0, 6.0]))
+        spec["w_r"] = draw(st.sampled_from([3.1, 0.0, 1.1, 6.1]))
+        return spec
+    others = {k: v.model_dump() for k, v in DEFAULT_UAV_TYPES.items()} if others is None else dict(others)
+    w_r = draw(st.sampled_from([3.1, 1.1, 6.1]))
+    # eq. 25 as the slower type: w_t / w_r above v / v_faster for every faster type.
+    need = max([spec["speed_max"] / o["speed_max"] for o in others.values() if o["speed_max"] > spec["speed_max"]],
+               default=0.0)
+    ratio = draw(st.sampled_from([0.98, 0.95, 0.9, 0.99]))
+    if ratio <= need:
+        ratio = (need + 1.0) / 2.0
+    spec["w_r"], spec["w_t"] = w_r, round(w_r * ratio, 6)
+    kinds = [_uav_type(n, o) for n, o in others.items()]
+    # The others as slower types beside this one (eq. 25 for them) depend on its speed alone.
+    assume(not rule_breaks([*kinds, _uav_type("NEW", spec)]))
+    return spec
+
+
+def _uav_type(name: str, spec: Mapping[str, Any]) -> UavType:
+    return UavTypeSpec(**spec).uav_type(name)
 
 
 def _lattice(area: dict, spacing_m: float, margin_m: float) -> list[tuple[float, float]]:
@@ -201,6 +234,7 @@ def scenario_documents(
     planners: Sequence[str] = ("greedy", "dacmp"),
     surveillance: bool | None = None,
     extra_types: bool = True,
+    rule_abiding_types: bool = True,
     late_joiners: bool = True,
     max_targets: int = 3,
     max_threats: int = 2,
@@ -212,6 +246,11 @@ def scenario_documents(
 ) -> dict:
     """A scenario document (a dict, as parsed from TOML) that :func:`parse_scenario` accepts.
     :func:`scenarios` validates it; the fuzz tests mutate it into wrong documents.
+
+    With ``extra_types`` some examples fly a generated third type ``C``
+    (:func:`uav_type_specs`); ``rule_abiding_types`` (default) keeps its weights within the
+    assignment rules' preconditions (docs/modelling.md, "Assignment rules"), False lets them
+    break those rules (for tests of the warning and of the checkers' scope).
 
     ``swarm`` (default: :func:`swarm_testing_enabled`, on under the ``swarm`` Hypothesis
     profile): swarm testing, as FoundationDB's simulation does it: each example also draws its
@@ -226,7 +265,7 @@ def scenario_documents(
     type_specs: dict[str, dict] = {}
     types = ["B", "A"]
     if extra_types and draw(st.booleans()):
-        type_specs["C"] = draw(uav_type_specs())
+        type_specs["C"] = draw(uav_type_specs(rule_abiding=rule_abiding_types))
         types.append("C")
     if swarm:
         types = draw(_subsets(types), label="types flown")
@@ -341,8 +380,12 @@ def fault_schedule_of(scenario: Scenario) -> FaultSchedule:
 
 def scenarios(**kwargs: Any) -> st.SearchStrategy[Scenario]:
     """Validated :class:`~swarm.scenario.Scenario` objects (see :func:`scenario_documents` for
-    the options). A document the model rejects is a bug in these strategies and raises."""
-    return scenario_documents(**kwargs).map(lambda doc: parse_scenario(doc, GENERATED_SOURCE))
+    the options). A document the model rejects is a bug in these strategies and raises. The
+    ``planners`` named here are the caller's choice, so a ``module:Class`` among them may be
+    imported (:mod:`swarm.scenario.trust`)."""
+    allow = tuple(kwargs.get("planners", ()))
+    return scenario_documents(**kwargs).map(lambda doc: parse_scenario(doc, GENERATED_SOURCE,
+                                                                       allow_planner_imports=allow))
 
 
 # --- reproducing an example --------------------------------------------------------------------
@@ -424,8 +467,11 @@ def scenario_toml(scenario: Scenario | dict, comment: str = "") -> str:
     return "\n".join(lines).strip("\n") + "\n"
 
 
-def reproduce_command(path: str | os.PathLike[str], seed: int) -> str:
-    return f"swarm run {os.fspath(path)} --seed {seed}"
+def reproduce_command(path: str | os.PathLike[str], seed: int, planner: str | None = None) -> str:
+    """The ``swarm run`` command replaying a written scenario; a ``module:Class`` planner is
+    typed on it (a file alone may not import one: :mod:`swarm.scenario.trust`)."""
+    typed = f" --planner {planner}" if planner is not None and is_module_ref(planner) else ""
+    return f"swarm run {os.fspath(path)} --seed {seed}{typed}"
 
 
 def reproduction(scenario: Scenario, directory: str | os.PathLike[str] | None = None,
@@ -439,7 +485,7 @@ def reproduction(scenario: Scenario, directory: str | os.PathLike[str] | None = 
     digest = hashlib.sha256(text.encode()).hexdigest()[:12]
     path = folder / f"{scenario.name}-{digest}.toml"
     path.write_text(text, encoding="utf-8")
-    return path, reproduce_command(path, scenario.seed)
+    return path, reproduce_command(path, scenario.seed, scenario.planner.name)
 
 
 @contextlib.contextmanager

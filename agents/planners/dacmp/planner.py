@@ -174,7 +174,8 @@ class DacmpPlanner(DacmpSettings):
         "both in the scope of [a] target": a UAV near two known targets repels a particle near
         both once, not once per target (counted per target, a watcher of one target pushed a
         slow UAV off the next target it was taking over, or off its own). A UAV in search mode is
-        in the scope of every target within ``D`` of ``x_j(t+1)``; one in surveillance mode is in
+        in the scope of every target within ``D`` of ``x_j(t+1)`` that no UAV watches (as far as
+        we know: our claim and the intents we heard); one in surveillance mode is in
         the scope of its own target only (if within ``D`` of it), and of none when that target is
         not among ``targets``: it is not competing for the others, and counted near them it kept
         a slow UAV at the edge of ``D`` from taking over a target whose fast watcher had a slow
@@ -205,9 +206,10 @@ class DacmpPlanner(DacmpSettings):
         unit = self.field_unit_m
         mine = view.plan
         claim = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
-        for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S):
-            if p.uav == view.uav or not math.isfinite(p.wx) or t - p.t_intent > _INTENT_MAX_AGE_S:
-                continue
+        peers = [p for p in view.knowledge.recent_peers(t, _INTENT_MAX_AGE_S)
+                 if p.uav != view.uav and math.isfinite(p.wx) and t - p.t_intent <= _INTENT_MAX_AGE_S]
+        watched = {claim} | {p.target for p in peers if p.mode == MODE_SURVEIL}
+        for p in peers:
             v_j = self.speed_max_by_type.get(p.type, k.speed_max) / unit
             r_j = self.detect_radius_by_type.get(p.type, k.detect_radius)
             wx, wy, at = p.wx, p.wy, -1
@@ -224,7 +226,12 @@ class DacmpPlanner(DacmpSettings):
                     wx, wy, at = tx, ty, i  # its next waypoint is the target
                 scope: tuple[int, ...] = (i,) if math.hypot(wx - tx, wy - ty) < D else ()
             else:
-                scope = tuple(i for i, (_tid, tx, ty, _v) in enumerate(targets) if math.hypot(wx - tx, wy - ty) < D)
+                # A searching UAV competes for the free targets near its next waypoint only: one
+                # that passes a target another UAV watches is not after it (counted there, a fast
+                # searcher passing within D kept a slow UAV from taking a target over from a
+                # fast watcher: eq. 25 weighs one watcher's repulsion, not two).
+                scope = tuple(i for i, (tid, tx, ty, _v) in enumerate(targets)
+                              if tid not in watched and math.hypot(wx - tx, wy - ty) < D)
             if scope:
                 out.append((wx, wy, v_j, scope, at))
         return out
@@ -279,12 +286,15 @@ class DacmpPlanner(DacmpSettings):
         mine = u.view.plan
         if mine is None or mine.mode != MODE_SURVEIL:
             return None
-        for tid, tx, ty, _v in u.targets:
+        for i, (tid, tx, ty, _v) in enumerate(u.targets):
             if tid == mine.target:
                 z = np.array([[[tx]], [[ty]]])
                 batch = _Batch(self, [u], g, layers, 1)
-                _, f_s, f_t = batch.fitness(z)
-                if f_t[0, 0] > f_s[0, 0]:
+                _, f_s, _ = batch.fitness(z)
+                # This target's own term, not the whole f_t there: another target within D of
+                # g_m adds its pull to f_t at g_m, and a UAV whose own target was kept by a
+                # nearer UAV of its type went on claiming it, drawn by the free one beside it.
+                if u.own_pull(i, tx, ty, self.field_unit_m, g.cell_m / self.field_unit_m) > f_s[0, 0]:
                     wx, wy = batch.keep_near(z)[:, 0, 0]
                     return Plan(float(wx), float(wy), MODE_SURVEIL, tid)
                 return None
@@ -460,9 +470,15 @@ class _UavSearch:
         targets: list[tuple[int, float, float, float]] = []
         max_age = planner.track_max_age_s if planner.track_max_age_s is not None else 1.0 / view.umap.tau
         if view.surveillance:
+            mine = view.plan
+            watched = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
             for tid, tr in sorted(view.knowledge.tracks.items()):
-                if t - tr.t > max_age:
-                    continue  # nobody has seen it for a while: g_m(t) is unknown
+                # Nobody has seen it for a while: g_m(t) is unknown. Except our own target last
+                # seen inside a no-fly zone (targets may enter one, we may not): it is not lost,
+                # and we keep it until anyone sees it again (docs/modelling.md, "Assignment
+                # rules", rule 5; the actor loiters at the zone's edge nearest to it).
+                if t - tr.t > max_age and not (tid == watched and view.knowledge.inside_threat(tr.x, tr.y)):
+                    continue
                 tx, ty = tr.predict(t)
                 if math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
                     targets.append((tid, tx, ty, tr.value))
@@ -504,18 +520,26 @@ class _UavSearch:
         that one) declared the kept one, its nearest, and watched it beside its keeper."""
         mode, target = MODE_SEARCH, NO_TARGET
         if self.targets and f_t > f_s:
-            k = self.view.kind
-            v_i, best = self.v_i, 0.0
-            for i, (tid, tx, ty, value) in enumerate(self.targets):
-                d = math.hypot(wx - tx, wy - ty)
-                if d >= self.D:
-                    continue
-                # Attraction and the repulsion of UAVs counted at g_m share the distance to g_m.
-                pull = k.w_t * value / (v_i * v_i) - sum(k.w_r / (v_i * v_j) for *_, v_j, _s, at in self.rivals if at == i)
-                pull /= max(d / unit, floor)
+            best = 0.0
+            for i, (tid, _tx, _ty, _value) in enumerate(self.targets):
+                pull = self.own_pull(i, wx, wy, unit, floor)
                 if pull > best:
                     mode, target, best = MODE_SURVEIL, tid, pull
         return Plan(wx, wy, mode, target)
+
+    def own_pull(self, i: int, wx: float, wy: float, unit: float, floor: float) -> float:
+        """Target ``i``'s own term at ``(wx, wy)``: its eq. 22 attraction less the eq. 23
+        repulsion of the UAVs that stand at it (``at`` of :meth:`DacmpPlanner.rivals`: its
+        watchers within a planning step, a nearer claimant of our type); 0 beyond ``D``.
+        Attraction and those repulsions share the distance to ``g_m``. Both the mode switch
+        (:meth:`decide`) and the keep rule (:meth:`DacmpPlanner._keep`) judge a target by it."""
+        _tid, tx, ty, value = self.targets[i]
+        d = math.hypot(wx - tx, wy - ty)
+        if d >= self.D:
+            return 0.0
+        k, v_i = self.view.kind, self.v_i
+        pull = k.w_t * value / (v_i * v_i) - sum(k.w_r / (v_i * v_j) for *_, v_j, _s, at in self.rivals if at == i)
+        return pull / max(d / unit, floor)
 
 
 def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, int, int]:

@@ -1,9 +1,13 @@
-"""Warnings about a valid scenario: values that run but are most likely not what was meant.
+"""Warnings about a valid scenario: values that run but under which a documented rule no longer
+holds, or that are most likely not what was meant.
 
 A mistake that cannot run is an error (:class:`~swarm.errors.ScenarioError`, one line, exit
-status 2). What follows runs, so it is only a warning (the command line prints one ``warning:``
-line each, on stderr, and goes on); each says the key path and why:
+status 2). What follows runs, so it is only a warning: ``swarm validate``, ``swarm run`` and
+``swarm sweep`` (at its end) print each as one ``warning:`` line on stderr and go on. Each
+starts with the key path (or the run) and says why:
 
+* UAV types the assignment rules do not cover (docs/modelling.md, "Assignment rules"): the
+  checkers do not judge them;
 * a fault that happens or starts at or after the scenario's own ``duration_s`` never fires:
   the crash at 900 s of a 600 s scenario (one warning per fault). A warning, not an error: the
   scenario runs, and a longer ``--duration`` would fire it;
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import math
 
+from agents.assignment import rule_breaks
 from agents.types import GRAVITY
 from swarm.scenario.model import Scenario
 
@@ -35,10 +40,15 @@ def _list(items: list[str], most: int = 4) -> str:
 
 def scenario_warnings(scenario: Scenario, duration_s: float | None = None) -> list[str]:
     """The warnings of ``scenario`` run for ``duration_s`` (default: its own ``duration_s``),
-    one sentence each, starting with the key path or the run (see the module docstring)."""
+    one line each, without the ``warning:`` prefix (see the module docstring)."""
     own_end = scenario.duration_s
     end = own_end if duration_s is None else float(duration_s)
     out: list[str] = []
+    if scenario.planner.surveillance:
+        flown = sorted({u.type for u in scenario.uavs})
+        kinds = [s.uav_type(n) for n, s in sorted(scenario.uav_types.items()) if n in flown]
+        out += [f"uav_types: {m}; the assignment rules (docs/modelling.md, \"Assignment rules\") do not cover "
+                f"these types and the checkers do not judge them" for m in rule_breaks(kinds)]
     cut: list[str] = []  # what a shortened run leaves out (one warning for all of them)
     for i, fault in enumerate(scenario.faults):
         if fault.kind == "join":

@@ -1,0 +1,74 @@
+"""When the assignment rules hold: the weight conditions of DACMP's handover analysis (paper eq. 25-27).
+
+The rules themselves (same-type exclusion, fast-to-slow handover, what a released UAV may do,
+when a watcher may drop a target) are stated once, in words, in docs/modelling.md ("Assignment
+rules"); the checkers of :mod:`swarm.testing.invariants` test them and cite that page. This
+module holds the one fact they share with the planner and the scenario validator: for which
+UAV types the rules can hold at all.
+
+DACMP decides who watches a target by comparing, at the target, its attraction (eq. 22:
+``w_t / (d v_i^2)``) with the competing repulsion of the UAV already there (eq. 23:
+``w_r / (d v_i v_j)``). Both share the distance ``d``, so the outcome depends on the weights and
+top speeds alone (target value 1):
+
+* **exclusion** (eq. 27), one type: two UAVs of the type repel each other off a target more than
+  it attracts them: ``w_t < w_r``. A type with ``w_t = 0`` never watches: nothing to exclude.
+* **takeover** (eq. 25), a slower type ``s`` near a target that a faster type ``f`` watches is
+  drawn in: ``w_t,s / v_s > w_r,s / v_f``, with ``w_t,s > 0``.
+* **release** (eq. 26), the faster one is pushed off once the slower one is there:
+  ``w_t,f / v_f < w_r,f / v_s``. (The paper prints eq. 26 with the two speeds swapped; as
+  printed, its own Table 1 would break it: ``2.0 / 50 < 2.1 / 90`` is false. Derived from eq.
+  22-23 as above, Table 1 meets it: ``2.0 / 90 < 2.1 / 50``.)
+
+Table 1's A and B meet all three. A type that breaks one is allowed (types are data), but the
+rule it breaks is then the weights' doing, not the planner's: the scenario validator warns, and
+the checkers do not judge it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from agents.types import UavType
+
+__all__ = ["exclusion_break", "handover_break", "rule_breaks"]
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}"
+
+
+def exclusion_break(k: UavType) -> str | None:
+    """Why two UAVs of type ``k`` may both keep one target (eq. 27 broken), or None."""
+    if k.w_t > 0 and not k.w_t < k.w_r:
+        return (f"type {k.name}: w_t = {_g(k.w_t)} is not below w_r = {_g(k.w_r)} (eq. 27), so two UAVs of "
+                f"this type may both keep one target")
+    return None
+
+
+def handover_break(slow: UavType, fast: UavType) -> str | None:
+    """Why a target watched by a UAV of type ``fast`` may not pass to one of the slower type
+    ``slow`` (eq. 25 or 26 broken), or None (also None when ``slow`` is not slower)."""
+    vs, vf = slow.speed_max, fast.speed_max
+    if not vs < vf:
+        return None
+    if not slow.w_t > 0:
+        return f"type {slow.name} has w_t = 0: it never watches, so it cannot take a target over from type {fast.name}"
+    if not slow.w_t * vf > slow.w_r * vs:
+        return (f"types {slow.name} and {fast.name}: w_t,{slow.name} / v_{slow.name} = {_g(slow.w_t / vs)} is not above "
+                f"w_r,{slow.name} / v_{fast.name} = {_g(slow.w_r / vf)} (eq. 25), so type {slow.name} does not take "
+                f"targets over from type {fast.name}")
+    if fast.w_t > 0 and not fast.w_t * vs < fast.w_r * vf:
+        return (f"types {slow.name} and {fast.name}: w_t,{fast.name} / v_{fast.name} = {_g(fast.w_t / vf)} is not below "
+                f"w_r,{fast.name} / v_{slow.name} = {_g(fast.w_r / vs)} (eq. 26), so type {fast.name} does not release "
+                f"targets to type {slow.name}")
+    return None
+
+
+def rule_breaks(kinds: Iterable[UavType]) -> list[str]:
+    """Every weight condition that these types (those that fly in a scenario) break, one line
+    each; empty when the assignment rules can hold."""
+    ks = sorted({k.name: k for k in kinds}.values(), key=lambda k: k.name)
+    out = [m for k in ks if (m := exclusion_break(k)) is not None]
+    out += [m for s in ks for f in ks if s is not f and (m := handover_break(s, f)) is not None]
+    return out

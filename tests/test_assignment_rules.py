@@ -1,0 +1,148 @@
+"""The assignment rules (docs/modelling.md, "Assignment rules") as properties of whole runs.
+
+With no fault, generated surveillance scenarios (rule-abiding UAV types, any radio the
+strategies draw, 2-4 UAVs with late joiners, up to three moving targets, threats) never break
+a rule: 500 examples under the ``ci`` profile (what CI runs), 5000 under ``deep``
+(``HYPOTHESIS_PROFILE=deep``). With faults of every kind, each violation names a fault that may
+explain it (:attr:`Violation.faults`); one that names none is the planner's.
+
+Also here: the preconditions (agents.assignment) on Table 1 and on the rule-breaking weights
+the strategies used to draw, and the warning a scenario with such a type gets.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import pytest
+from budget import examples
+from hypothesis import HealthCheck, given, settings
+
+from agents.assignment import exclusion_break, handover_break, rule_breaks
+from comms.messages import MODE_SURVEIL
+from swarm import Simulation
+from swarm.scenario import DEFAULT_UAV_TYPES, parse_scenario
+from swarm.scenario.warnings import scenario_warnings
+from swarm.testing.fault_strategies import ALL_KINDS
+from swarm.testing.invariants import check_events, handover_checkers
+from swarm.testing.strategies import scenario_documents
+
+# The planners that surveil (the others refuse planner.surveillance = true).
+SURVEILLING = ("dacmp",)
+
+_HEALTH = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much]
+
+
+def _violations(doc: dict) -> list:
+    scenario = parse_scenario(doc)
+    with Simulation(scenario) as sim:
+        result = sim.run()
+    return check_events(result.events, scenario, handover_checkers())
+
+
+@pytest.mark.slow  # 500 runs of 60-240 s
+@settings(max_examples=examples(500), deadline=None, suppress_health_check=_HEALTH)
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, faults=False, min_uavs=2, max_uavs=4,
+                          min_duration_s=60, max_duration_s=240))
+def test_no_fault_run_breaks_no_assignment_rule(doc):
+    found = _violations(doc)
+    assert found == [], "\n".join(map(str, found))
+
+
+@pytest.mark.slow  # 150 runs of 60-180 s with up to 5 faults each
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=_HEALTH)
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, fault_kinds=ALL_KINDS, min_uavs=2, max_uavs=4,
+                          min_duration_s=60, max_duration_s=180))
+def test_under_faults_every_violation_names_a_fault_that_may_explain_it(doc):
+    unexplained = [v for v in _violations(doc) if not v.faults]
+    assert unexplained == [], "\n".join(map(str, unexplained))
+
+
+@settings(max_examples=examples(50), deadline=None, suppress_health_check=_HEALTH)
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, faults=False, min_uavs=2, max_uavs=3,
+                          min_duration_s=60, max_duration_s=120))
+def test_no_fault_run_breaks_no_assignment_rule_short(doc):
+    """The property above on shorter runs, in the quick loop too (5 examples there)."""
+    found = _violations(doc)
+    assert found == [], "\n".join(map(str, found))
+
+
+# --- the preconditions --------------------------------------------------------------------------
+
+
+def _kind(name: str, **change):
+    return DEFAULT_UAV_TYPES[name].model_copy(update=change).uav_type(name)
+
+
+def test_table1_meets_every_precondition():
+    a, b = _kind("A"), _kind("B")
+    assert rule_breaks([a, b]) == []
+    # Eq. 26 as the paper prints it (speeds swapped) would fail for Table 1: 2.0/50 < 2.1/90 is false.
+    assert not b.w_t / a.speed_max < b.w_r / b.speed_max
+
+
+def test_each_precondition_is_named_when_broken():
+    assert "eq. 27" in (exclusion_break(_kind("B", w_t=3.0, w_r=1.1)) or "")
+    assert exclusion_break(_kind("B", w_t=0.0, w_r=0.0)) is None  # never watches: nothing to exclude
+    assert "w_t = 0" in (handover_break(_kind("A", w_t=0.0), _kind("B")) or "")
+    assert "eq. 25" in (handover_break(_kind("A", w_t=2.0, w_r=5.1), _kind("B")) or "")  # 2/50 < 5.1/90
+    assert "eq. 26" in (handover_break(_kind("A"), _kind("B", w_t=4.0, w_r=2.1)) or "")  # 4/90 > 2.1/50
+    assert handover_break(_kind("B"), _kind("A")) is None  # B is not the slower one
+
+
+def _doc(surveillance: bool) -> dict:
+    return {"name": "weights", "duration_s": 5.0, "area": {"width_m": 5000.0, "height_m": 5000.0},
+            "planner": {"name": "dacmp", "surveillance": surveillance},
+            "uav_types": {"C": {"speed_min": 40.0, "speed_max": 66.0, "accel_max": 1.0, "bank_max_deg": 30.0,
+                                "detect_radius_m": 1500.0, "w_t": 6.0, "w_r": 3.1, "influence_radius_m": 3000.0}},
+            "uavs": [{"type": "C", "x_m": 1000.0, "y_m": 1000.0}, {"type": "A", "x_m": 3000.0, "y_m": 1000.0}]}
+
+
+def test_a_rule_breaking_type_gets_a_warning_only_with_surveillance():
+    warnings = scenario_warnings(parse_scenario(_doc(True)))
+    assert len(warnings) == 2 and "eq. 27" in warnings[0] and "eq. 26" in warnings[1]
+    assert scenario_warnings(parse_scenario(_doc(False))) == []
+    table1 = [{"type": "A", "x_m": 1000.0, "y_m": 1000.0}, {"type": "B", "x_m": 3000.0, "y_m": 1000.0}]
+    assert scenario_warnings(parse_scenario({**_doc(True), "uav_types": {}, "uavs": table1})) == []
+
+
+@pytest.mark.slow  # two subprocesses
+def test_validate_and_run_print_the_warning_and_go_ahead(tmp_path):
+    from swarm.testing.strategies import scenario_toml
+
+    path = tmp_path / "weights.toml"
+    path.write_text(scenario_toml(_doc(True)))
+    for cmd in (["validate", str(path)], ["run", str(path), "--quiet"]):
+        out = subprocess.run([sys.executable, "-m", "swarm", *cmd], capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        lines = [ln for ln in out.stderr.splitlines() if ln.startswith("warning:")]
+        assert len(lines) == 2 and all("uav_types: " in ln and "do not cover" in ln for ln in lines), out.stderr
+
+
+# --- rule 5: a target that drives into a no-fly zone is kept ---------------------------------------
+
+
+def test_a_watcher_keeps_a_target_inside_a_no_fly_zone_and_loiters_at_its_edge():
+    """A slow UAV watches a target that drives 1.8 km deep into a 2 km no-fly zone (seed 4) and
+    stays there for minutes, out of sight: it keeps the target (before rule 5 it let go once
+    the track was 200 s old) and circles outside the zone, never entering it."""
+    doc = {"name": "into-the-zone", "seed": 4, "duration_s": 420.0,
+           "area": {"width_m": 20_000.0, "height_m": 20_000.0},
+           "targets": {"count": 0, "placed": [{"x_m": 7200.0, "y_m": 10_000.0, "heading_deg": 0.0, "speed": 20.0}]},
+           "threats": [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 2000.0}],
+           "planner": {"name": "dacmp", "surveillance": True},
+           "uavs": [{"name": "A1", "type": "A", "x_m": 5500.0, "y_m": 10_000.0, "heading_deg": 0.0}]}
+    with Simulation(parse_scenario(doc)) as sim:
+        result = sim.run()
+    from swarm.recorder import read_events
+
+    poses = [e for e in read_events(result.events) if e[0] == "pose" and e[1] >= 100]
+    deep = [e for e in read_events(result.events) if e[0] == "target" and 150 <= e[1] <= 400
+            and math.hypot(e[3] - 10_000.0, e[4] - 10_000.0) < 2000.0 - 1500.0]
+    assert len(deep) > 100  # out of A1's sight (1.5 km) from outside the zone for minutes
+    assert all((e[7], e[8]) == (MODE_SURVEIL, 0) for e in poses if e[1] <= 400)
+    edge = [math.hypot(e[3] - 10_000.0, e[4] - 10_000.0) - 2000.0 for e in poses]
+    assert min(edge) > 0 and max(e for e, p in zip(edge, poses) if p[1] >= 200) < 3000.0
+    assert result.metrics["violations"]["threat"] == 0
