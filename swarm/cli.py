@@ -7,6 +7,7 @@ prints one ``error:`` line and exits with status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import NoReturn
 from swarm.errors import SwarmError, UsageError
 
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
 
 
 class _Parser(argparse.ArgumentParser):
@@ -28,6 +30,18 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         # One line, like every other mistake the command reports (argparse would add its usage).
         self.exit(EXIT_USAGE, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
+
+    def _check_value(self, action, value):
+        # An invalid choice (a subcommand, an experiment, an axis) names the closest valid one.
+        import difflib
+
+        choices = action.choices
+        if choices is not None and value not in choices:
+            names = [str(c) for c in choices]
+            close = difflib.get_close_matches(str(value), names, n=1)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r} ({hint}choose from {', '.join(names)})")
+        return super()._check_value(action, value)
 
     def unknown_options(self, extras: list[str]) -> None:
         """Exit with one usage error for arguments this (sub)command does not take, naming the
@@ -83,10 +97,20 @@ def _console(stderr: bool = False):
     return Console(stderr=stderr, highlight=False, width=width)
 
 
+def _warn(source: str, scenario, duration_s: float | None = None) -> list[str]:
+    """Print a ``warning:`` line on stderr for each value that runs but looks unintended
+    (:mod:`swarm.scenario.warnings`); return them."""
+    from swarm.scenario import scenario_warnings
+
+    warnings = scenario_warnings(scenario, duration_s)
+    for w in warnings:
+        print(f"warning: {source}: {w}", file=sys.stderr)
+    return warnings
+
+
 def _cmd_validate(args) -> int:
     from swarm.errors import ScenarioError
     from swarm.scenario import load_scenario
-    from swarm.scenario.warnings import scenario_warnings
 
     reports = []
     for ref in args.scenario:
@@ -96,11 +120,9 @@ def _cmd_validate(args) -> int:
             reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
             continue
         types = sorted({u.type for u in sc.uavs})
-        for w in scenario_warnings(sc):
-            print(f"warning: {ref}: {w}", file=sys.stderr)
         reports.append({"scenario": ref, "ok": True, "name": sc.name, "uavs": len(sc.uavs), "types": types,
                         "targets": len(sc.targets.placed) + sc.targets.count, "threats": len(sc.threats),
-                        "faults": len(sc.faults), "duration_s": sc.duration_s})
+                        "faults": len(sc.faults), "duration_s": sc.duration_s, "warnings": _warn(ref, sc)})
     if args.json:
         _print_json(reports)
     for r in reports:
@@ -119,13 +141,17 @@ def _cmd_list(args) -> int:
     if args.planners:
         from agents.planners import BUILTIN, available_planners
 
-        for name, where in available_planners().items():
+        planners = available_planners()
+        width = max(map(len, planners), default=0)
+        for name, where in planners.items():
             origin = "built-in" if name in BUILTIN else "entry point"
-            print(f"{name:14s} {origin:12s} {where}")
+            print(f"{name:{width}s}  {origin:11s}  {where}")
         return 0
-    for name in builtin_scenarios():
+    names = builtin_scenarios()
+    width = max(map(len, names), default=0)
+    for name in names:
         sc = load_scenario(name)
-        print(f"{name:14s} {sc.description}")
+        print(f"{name:{width}s}  {sc.description}")
     return 0
 
 
@@ -191,22 +217,31 @@ def _summary_table(metrics: dict, out_dir: Path | None):
 def _cmd_run(args) -> int:
     from swarm.outputs import write_run
     from swarm.scenario import load_scenario, parse_assignment
-    from swarm.scenario.warnings import scenario_warnings
     from swarm.simulation import Simulation
 
+    if args.duration is not None and not args.duration > 0:
+        raise UsageError(f"--duration {args.duration:g}: expected a positive number of seconds")
+    if args.memory_limit is not None and not args.memory_limit > 0:
+        raise UsageError(f"--memory-limit {args.memory_limit:g}: expected a positive number of GB")
     sets = dict(parse_assignment(s) for s in args.set)
     if args.planner is not None and "planner.name" in sets:
         raise UsageError(f"--planner {args.planner} and --set planner.name={sets['planner.name']}: give the planner "
                          f"once, with --planner")
     # The planner first (typed by the user: allowed, and the file's own planner is then never
     # imported), so --set planner.options.KEY are the options of the planner that runs.
-    # --set goes into the document before it is judged, so a setting that only makes sense
-    # beside another one (--set planner.surveillance=false for a search-only --planner) is.
+    # --set and --duration go into the document before it is judged, together: a setting that
+    # only makes sense beside another one (--set planner.surveillance=false for a search-only
+    # --planner; --set dt_s=1e-5 for a --duration 1 run) is judged as the user means it.
+    if args.duration is not None and "duration_s" in sets and sets["duration_s"] != args.duration:
+        raise UsageError(f"--duration {args.duration:g} and --set duration_s={sets['duration_s']}: give the duration once")
     sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports,
-                       overrides=sets)
+                       overrides=sets, run_duration_s=args.duration)
+    own_duration = sc.duration_s  # the scenario's end, before --duration
     sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
-    for w in scenario_warnings(sim.scenario):
-        print(f"warning: {args.scenario}: {w}", file=sys.stderr)
+    if args.duration is None:
+        _warn(args.scenario, sim.scenario)
+    else:  # the scenario as written, run for --duration (what the shortened run leaves out)
+        _warn(args.scenario, sim.scenario.model_copy(update={"duration_s": own_duration}), args.duration)
     with sim, _progress(quiet=args.quiet or args.json, transient=True) as progress:
         task = progress.add_task(f"{sim.scenario.name} ({sim.scenario.planner.name})", total=sim.n_ticks,
                                  note="t=0 s")
@@ -253,7 +288,7 @@ def _dask_executor(args):
 
 def _cmd_sweep(args) -> int:
     from agents.planners import PlannerError, resolve_planner
-    from swarm.experiments.sweep import plan_runs, run_sweep
+    from swarm.experiments.sweep import SweepInterrupted, graceful_interrupts, plan_runs, run_sweep
     from swarm.scenario import load_scenario
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
@@ -268,17 +303,33 @@ def _cmd_sweep(args) -> int:
     runs = plan_runs(sc, seeds=args.seeds, planners=planners, grid=_parse_grid(args.set), duration_s=args.duration,
                      figures=args.figures, allow_planner_imports=args.allow_planner_imports)
     executor, client = _dask_executor(args)
+
+    def on_first_interrupt() -> None:
+        print("interrupted: starting no new run, finishing the runs in progress (Ctrl-C again to stop at once)",
+              file=sys.stderr)
+
     try:
-        with _progress(quiet=args.quiet or args.json, count=True) as progress:
+        with graceful_interrupts(on_first_interrupt) as stop, \
+                _progress(quiet=args.quiet or args.json, count=True) as progress:
             task = progress.add_task("sweep", total=len(runs), note="")
 
             def on_progress(done: int, total: int, spec, status: str) -> None:
                 progress.update(task, completed=done, note=f"{status}: {spec.label}")
 
-            result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress)
+            result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress,
+                               stop=stop)
+    except SweepInterrupted as exc:
+        r = exc.result
+        how = ("stopped after the runs in progress finished" if exc.graceful
+               else "stopped at once; the runs in progress were abandoned")
+        print(f"interrupted: {how}. {r.summary.get('runs_finished', 0)} of {r.total} runs are finished and kept in "
+              f"{args.out} ({r.ran} ran now); run the same command again to resume: "
+              f"swarm {shlex.join(args.argv)}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         if client is not None:
             client.close()
+    _warn(args.scenario, sc, args.duration)  # after the sweep: its errors come first, as one line
     summary = result.summary
     from swarm.viz.report import write_sweep_report
 
@@ -598,12 +649,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args, extras = parser.parse_known_args(argv)
         if extras:
             args.subparsers[args.command].unknown_options(extras)
     except SystemExit as exc:  # argparse has printed the usage and its error line (or --help)
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    args.argv = argv  # what the user typed (a stopped sweep says how to resume it)
     try:
         return args.func(args)
     except SwarmError as exc:
@@ -611,7 +664,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover

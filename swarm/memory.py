@@ -37,7 +37,7 @@ from agents.maps.umap import DENSE_MAX_CELLS as _DENSE_MAX_CELLS
 from swarm.errors import SwarmError
 from swarm.scenario import Scenario
 
-__all__ = ["MemoryEstimate", "MemoryLimitError", "check_memory", "default_limit_bytes", "estimate_memory"]
+__all__ = ["MemoryEstimate", "MemoryLimitError", "check_memory", "default_limit_bytes", "estimate_memory", "format_bytes"]
 
 _GB = 1024**3
 _TYPICAL_FRAME_BYTES = 512  # a beacon (hello, intent, a few scans) is 150-400 bytes
@@ -108,6 +108,18 @@ def estimate_memory(sc: Scenario) -> MemoryEstimate:
     return MemoryEstimate(cells, parts)
 
 
+def format_bytes(n: float) -> str:
+    """A size for a person: ``512 B``, ``10.2 MB``, ``1.5 GB``, ``3.2e+285 TB`` (binary units,
+    1 KB = 1024 B; three significant digits)."""
+    if not math.isfinite(n):
+        return f"{n} B"
+    for unit in ("B", "KB", "MB", "GB"):
+        if abs(n) < 1024:
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} TB" if abs(n) < 1e4 else f"{n:.2e} TB"
+
+
 def _physical_memory() -> int | None:
     try:
         return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
@@ -135,10 +147,11 @@ def check_memory(sc: Scenario, limit_gb: float | None = None) -> MemoryEstimate:
     est = estimate_memory(sc)
     limit = default_limit_bytes() if limit_gb is None else limit_gb * _GB
     if est.total > limit:
-        biggest = ", ".join(f"{name} {b / _GB:.1f} GB" for name, b in sorted(est.parts.items(), key=lambda p: -p[1])[:3])
+        biggest = ", ".join(f"{name} {format_bytes(b)}" for name, b in sorted(est.parts.items(), key=lambda p: -p[1])[:3])
+        cells = f"{est.cells:,}" if est.cells < 10**12 else f"{float(est.cells):.3g}"
         raise MemoryLimitError(
-            f"scenario {sc.name!r} would need about {est.total / _GB:.1f} GB ({biggest}), above the limit of "
-            f"{limit / _GB:.1f} GB: it has {est.cells:,} cells (area.width_m {sc.area.width_m:g} x area.height_m "
+            f"scenario {sc.name!r} would need about {format_bytes(est.total)} ({biggest}), above the limit of "
+            f"{format_bytes(limit)}: it has {cells} cells (area.width_m {sc.area.width_m:g} x area.height_m "
             f"{sc.area.height_m:g} at area.cell_m {sc.area.cell_m:g}) and {len(sc.uavs)} UAVs over duration_s "
             f"{sc.duration_s:g}; use a larger area.cell_m or a smaller area, or raise the limit "
             f"(--memory-limit GB, SWARM_MEMORY_LIMIT_GB)")

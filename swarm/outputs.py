@@ -119,11 +119,25 @@ def check_run_dir(run_dir: str | os.PathLike[str]) -> Path:
         raise RunDirError(f"{d}: no such run folder")
     events = d / "events.msgpack"
     if not events.is_file():
+        if (d / "sweep.json").is_file():
+            raise RunDirError(_sweep_folder_message(d))
         raise RunDirError(f"{events}: missing; {d} is not a run folder (write one with `swarm run SCENARIO --out DIR`)")
     scen = d / "scenario.json"
     if not scen.is_file():
         raise RunDirError(f"{scen}: missing; it gives the area, UAV types, threats and radio range")
     return d
+
+
+def _sweep_folder_message(d: Path) -> str:
+    """What to say when a sweep's folder is given where a run folder is expected."""
+    report = d / "report.html"
+    where = (f"the sweep's report is {report}" if report.is_file() else
+             f"the sweep's report will be {report} (`swarm sweep` writes it when the sweep finishes: run the same "
+             f"command again to finish it)")
+    example = next(iter(sorted(d.glob("runs/*/*/seed-*/events.msgpack"))), None)
+    runs = f", e.g. {example.parent}" if example is not None else ""
+    return (f"{d} is a sweep folder, not a run folder: {where}; each of its runs is a run folder under "
+            f"{d / 'runs'}/PLANNER/SETTINGS/seed-NNN{runs}")
 
 
 def read_json(path: Path) -> dict:

@@ -6,14 +6,17 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, settings
+from hypothesis import settings
 
 from swarm.testing.fault_strategies import ALL_KINDS
+from swarm.testing.settings import simulation_settings
 from swarm.testing.strategies import set_swarm_testing
 
 DATA = Path(__file__).parent / "data"
 
 # --- Hypothesis profiles ----------------------------------------------------------------------
+# All four are built on swarm.testing.settings.simulation_settings, the settings the toolkit ships
+# for simulation-backed properties (no deadline, the too_slow health check suppressed).
 # ci: the same examples on every run (derandomize), a fixed number of them, no per-example
 #   deadline (a simulation run is not a microbenchmark). Tests scale their example counts with
 #   the profile's max_examples (``examples(n)`` = n * max_examples // 100 in each test module),
@@ -31,19 +34,10 @@ DATA = Path(__file__).parent / "data"
 # slow tests (``-m "not slow"``); else `ci` (a plain ``python -m pytest``, what CI runs).
 # Chosen in pytest_configure, before any test module is imported: the modules read
 # settings.default.max_examples when their decorators run.
-settings.register_profile(
-    "ci", derandomize=True, max_examples=100, deadline=None, print_blob=True,
-    suppress_health_check=[HealthCheck.too_slow],
-)
-settings.register_profile(
-    "deep", max_examples=1000, deadline=None, print_blob=True,
-    suppress_health_check=[HealthCheck.too_slow],
-)
+settings.register_profile("ci", simulation_settings, derandomize=True, max_examples=100, print_blob=True)
+settings.register_profile("deep", simulation_settings, max_examples=1000, print_blob=True)
 settings.register_profile("quick", parent=settings.get_profile("ci"), max_examples=10)
-settings.register_profile(
-    "swarm", max_examples=100, deadline=None, print_blob=True,
-    suppress_health_check=[HealthCheck.too_slow],
-)
+settings.register_profile("swarm", simulation_settings, max_examples=100, print_blob=True)
 
 
 def deselects_slow(config: pytest.Config) -> bool:

@@ -53,3 +53,26 @@ def test_check_events_takes_what_run_result_events_holds_and_schedules_iterate()
     assert check_events(result.events, scenario) == []
     schedule = FaultSchedule([Drop(rate=0.5), Drop(rate=0.1, start_s=5.0)])
     assert [f.rate for f in schedule] == [0.5, 0.1] and len(schedule) == 2
+
+
+def test_uav_map_is_what_embedding_md_says():
+    """docs/embedding.md: a float32 (ny, nx) copy indexed [iy, ix], last-seen times in simulated
+    seconds (never after now, never decreasing), -inf where never known scanned."""
+    import math
+
+    import numpy as np
+
+    with Simulation("paper-case1", duration_s=30.0) as sim:
+        sim.step(10)
+        first = sim.uav_map("B1")
+        sim.step(10)
+        m = sim.uav_map("B1")
+        area = sim.scenario.area
+        assert m.dtype == np.float32 and m.shape == (math.ceil(area.height_m / area.cell_m),
+                                                     math.ceil(area.width_m / area.cell_m))
+        assert np.isneginf(m).any() and np.isfinite(m).any()
+        assert float(m[np.isfinite(m)].max()) <= sim.now and (m >= first).all()
+        b1 = next(u for u in sim.snapshot().uavs if u.name == "B1")
+        assert np.isfinite(m[int(b1.y // area.cell_m), int(b1.x // area.cell_m)])  # [iy, ix]: under B1 is scanned
+        m[:] = 0.0
+        assert np.isneginf(sim.uav_map("B1")).any()  # a copy

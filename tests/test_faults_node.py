@@ -59,7 +59,7 @@ def _run(faults, duration_s: float = 120.0, planner: str = "greedy", seed: int =
 
 def _clean(sc, result, faults) -> None:
     assert result.metrics["violations"]["dynamics"] == 0
-    assert [str(v) for v in check_events(result.events, sc, faults=faults)] == []
+    assert [str(v) for v in check_events(result.events, sc, faults=faults)] == []  # every log checker
 
 
 # --- pause ------------------------------------------------------------------------------------

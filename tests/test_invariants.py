@@ -572,6 +572,22 @@ def test_handover_catches_a_slow_uav_that_will_not_take_over():
     assert v.uavs[:2] == ("B1", "A1") and "none took over" in v.message
 
 
+def test_check_events_judges_the_assignment_invariants_by_default():
+    """``check_events`` with no ``checkers`` runs every checker a log can judge: the sticky
+    planners' log breaks ``single_watcher`` and ``handover``, found without asking for them."""
+    doc = _small(duration_s=150.0, planner={"name": "greedy", "surveillance": True},
+                 targets={"placed": [{"x_m": 6500.0, "y_m": 10_000.0}]})
+    with Simulation(parse_scenario(doc)) as sim:
+        for name in ("B1", "B2"):
+            sim.actors[sim.names[name]].planner = Sticky()
+        result = sim.run()
+        scenario = sim.scenario
+    found = {v.invariant for v in check_events(result.events, scenario)}
+    assert {"single_watcher", "handover"} <= found
+    assert not {"single_watcher", "handover", "no_drop"} & {v.invariant for v in check_events(
+        result.events, scenario, default_checkers())}  # the any-planner set leaves them out
+
+
 def test_handover_catches_a_fast_uav_that_will_not_release():
     m = _with_planners({"B1": Sticky(), "A1": Sticky()})
     assert any(v.invariant == "handover" and "kept watching" in v.message for v in m.violations)

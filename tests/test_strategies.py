@@ -288,6 +288,28 @@ def test_reproducible_notes_the_command_on_failure(tmp_path):
     assert f"--seed {sc.seed}" in note and "swarm run " in note and str(tmp_path) in note
 
 
+def test_reproducible_writes_only_the_shrunk_example(tmp_path):
+    """A failing property leaves one reproduction file, the minimal example Hypothesis reports,
+    not one per failing example met while shrinking."""
+    base = load_scenario("paper-case1")
+    failing_examples = []
+
+    @settings(max_examples=50, derandomize=True, database=None, deadline=None)
+    @given(st.integers(0, 10**6).map(lambda seed: base.with_overrides(seed=seed)))
+    def prop(scenario):
+        with reproducible(scenario, tmp_path):
+            if scenario.seed >= 10:
+                failing_examples.append(scenario.seed)
+                raise AssertionError("planted")
+
+    with pytest.raises(AssertionError) as info:
+        prop()
+    assert len(set(failing_examples)) > 2  # Hypothesis met several failing examples while shrinking
+    (written,) = tmp_path.glob("*.toml")
+    assert scenario_from_toml(written.read_text(), str(written)).seed == 10  # the shrunk one
+    assert any(str(written) in n for n in info.value.__notes__)
+
+
 # --- the property: generated runs keep the any-planner invariants and replay exactly ----------
 
 

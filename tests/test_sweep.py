@@ -176,3 +176,87 @@ def test_cli_sweep_unreachable_scheduler(small_scenario_path, tmp_path, capsys):
     assert main(["sweep", str(small_scenario_path), "--out", str(tmp_path), "--quiet", "--seeds", "1",
                  "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"]) == 2
     assert "cannot reach a Dask scheduler" in capsys.readouterr().err
+
+
+# --- Ctrl-C: the first stops well, the second at once ---------------------------------------------
+
+
+def _sweep_process(out: Path, seeds: int, duration: float):
+    """`swarm sweep` in a process group of its own, as a terminal runs it: a Ctrl-C there
+    reaches every process of the group (the sweep and its two workers), as os.killpg does."""
+    import subprocess
+    import sys
+
+    args = [sys.executable, "-m", "swarm", "sweep", "paper-fig11", "--planner", "greedy", "--seeds", str(seeds),
+            "--duration", str(duration), "--workers", "2", "--out", str(out), "--quiet"]
+    return args, subprocess.Popen(args, stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _wait_for(predicate, timeout_s: float = 120.0) -> None:
+    import time
+
+    end = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.02)
+
+
+def _finished(out: Path) -> set[str]:
+    return {str(p.parent.relative_to(out)) for p in out.glob("runs/**/metrics.json")}
+
+
+@pytest.mark.slow  # subprocesses and a process pool
+def test_first_ctrl_c_keeps_the_runs_in_progress_and_the_sweep_resumes(tmp_path):
+    import os
+    import signal
+
+    from swarm import Simulation
+
+    out = tmp_path / "sweep"
+    args, proc = _sweep_process(out, seeds=6, duration=300.0)
+    _wait_for(lambda: len(_finished(out)) >= 1 or proc.poll() is not None)
+    before = _finished(out)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    after = _finished(out)
+    assert proc.returncode == 130, err
+    assert "starting no new run, finishing the runs in progress" in err
+    assert "stopped after the runs in progress finished" in err and "run the same command again to resume" in err
+    # The runs in progress at the signal (at most one per worker) finished and are kept; no new one started.
+    assert before < after and len(after - before) <= 2 and len(after) < 6, (before, after)
+    assert f"{len(after)} of 6 runs are finished" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs_finished"] == len(after)
+    # Those kept runs are whole: their hashes are what an undisturbed run gives.
+    hashes = _hashes(out)
+    for folder in after - before:
+        seed = int(folder.rsplit("-", 1)[1])
+        with Simulation("paper-fig11", seed=seed, planner="greedy", duration_s=300.0) as sim:
+            assert sim.run().metrics["event_log_sha256"] == hashes[folder]
+    # Resuming runs only what is missing and keeps what finished, byte for byte.
+    assert main(args[3:]) == 0
+    assert _finished(out) == {f"runs/greedy/default/seed-{s:03d}" for s in range(6)}
+    assert {k: v for k, v in _hashes(out).items() if k in after} == hashes
+
+
+@pytest.mark.slow  # subprocesses and a process pool
+def test_second_ctrl_c_stops_at_once_keeping_what_finished(tmp_path):
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "sweep"
+    _, proc = _sweep_process(out, seeds=2, duration=4000.0)  # two runs of over 10 s each
+    _wait_for(lambda: (out / "sweep.json").is_file() or proc.poll() is not None)  # the handler is in place
+    time.sleep(1.0)  # the workers are running
+    os.killpg(proc.pid, signal.SIGINT)
+    time.sleep(0.3)
+    os.killpg(proc.pid, signal.SIGINT)
+    t0 = time.monotonic()
+    _, err = proc.communicate(timeout=300)
+    waited = time.monotonic() - t0
+    assert proc.returncode == 130, err
+    assert "stopped at once; the runs in progress were abandoned" in err and "resume" in err
+    assert _finished(out) == set() and "0 of 2 runs are finished" in err
+    assert json.loads((out / "summary.json").read_text())["runs_finished"] == 0
+    assert waited < 5.0, f"took {waited:.1f} s to stop"  # a run takes longer than that

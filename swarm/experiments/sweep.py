@@ -17,7 +17,9 @@ Layout of ``out_dir``::
     sweep.json                           what each run folder holds (scenario, seed, duration)
 
 A run folder with ``metrics.json`` is finished, so running the same sweep again skips it: an
-interrupted sweep keeps the runs it finished and resumes where it stopped. A run that raises is
+interrupted sweep keeps the runs it finished and resumes where it stopped. Stopping well (no new
+run, the runs in progress finished and kept) or at once: see :func:`run_sweep`'s ``stop`` and
+:func:`graceful_interrupts` (``swarm sweep``: first and second Ctrl-C). A run that raises is
 recorded and does not stop the others; it is tried again on the next invocation. A finished
 folder is only reused for the very run that made it: ``sweep.json`` keeps a fingerprint of each
 run (scenario document, planner, seed, duration), and asking the same folder for a different run
@@ -30,6 +32,7 @@ string ``"inf"``, ``"-inf"`` or ``"nan"`` (the TOML spelling, which ``--set`` re
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
@@ -38,8 +41,8 @@ import math
 import os
 import re
 import traceback
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from itertools import product
 from pathlib import Path
@@ -146,6 +149,10 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
     """
     grid = dict(grid or {})
     keys = list(grid)
+    # The duration applies before validation, as --duration does in `swarm run`: a setting that
+    # only fits the shortened run (dt_s=1e-5 for a 1 s run) is not refused against the
+    # scenario's own duration. The run's document keeps the scenario's duration_s (execute
+    # applies spec.duration_s), so fingerprints of earlier sweeps still match.
     seeds = list(seeds)
     if not seeds:
         raise UsageError("a sweep needs at least one seed")
@@ -157,8 +164,15 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
     for planner in planners:
         for values in product(*(grid[k] for k in keys)):
             settings = tuple(zip(keys, values))
-            sc = apply_overrides(scenario, {"planner.name": planner, **dict(settings)}, allow_planner_imports=allow)
+            overrides = {"planner.name": planner, **dict(settings)}
+            if duration_s is not None:
+                overrides["duration_s"] = duration_s  # what runs (execute applies it last)
+            own = dict(settings).get("duration_s", scenario.duration_s)  # late joiners still join before it
+            sc = apply_overrides(scenario, overrides, truncated=duration_s is not None, scenario_duration_s=own,
+                                 allow_planner_imports=allow)
             doc = sc.to_dict()
+            if duration_s is not None:
+                doc["duration_s"] = dict(settings).get("duration_s", scenario.duration_s)
             for seed in seeds:
                 runs.append(RunSpec(doc, planner, int(seed), settings,
                                     f"runs/{planner}/{slug(settings)}/seed-{int(seed):03d}",
@@ -173,7 +187,8 @@ def execute(spec: RunSpec) -> dict:
     from swarm.simulation import Simulation
 
     try:
-        sc = parse_scenario(spec.scenario, source=f"sweep run {spec.folder}",
+        doc = spec.scenario if spec.duration_s is None else {**spec.scenario, "duration_s": spec.duration_s}
+        sc = parse_scenario(doc, source=f"sweep run {spec.folder}", truncated=spec.duration_s is not None,
                             allow_planner_imports=spec.allow_planner_imports)
         with Simulation(sc, seed=spec.seed, duration_s=spec.duration_s) as sim:
             result = sim.run()
@@ -223,17 +238,95 @@ def _check_manifest(out: Path, runs: Sequence[RunSpec]) -> None:
 ProgressFn = Callable[[int, int, RunSpec, str], None]
 
 
+class SweepInterrupted(KeyboardInterrupt):
+    """A sweep stopped before its end. ``graceful``: it was asked to stop (``stop()`` turned
+    true) and waited for the runs in progress, keeping them; otherwise it was interrupted at
+    once (a ``KeyboardInterrupt`` or an exception from ``progress``) and the runs in progress
+    were abandoned. Either way every finished run is on disk, with the summary of them, and
+    running the same sweep again resumes it. ``result``: what this invocation did."""
+
+    def __init__(self, result: SweepResult, graceful: bool):
+        super().__init__(f"sweep interrupted ({'after the runs in progress' if graceful else 'at once'})")
+        self.result = result
+        self.graceful = graceful
+
+
+def _ignore_first_sigint() -> None:
+    """Initializer of a sweep's own worker processes. A Ctrl-C at a terminal reaches every
+    process of the foreground group, workers included: the first must not kill the runs in
+    progress (the sweep finishes them), a second one stops them at once."""
+    import signal
+
+    count = 0
+
+    def handler(signum: int, frame: Any) -> None:
+        nonlocal count
+        count += 1
+        if count > 1:
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+
+
+@contextlib.contextmanager
+def graceful_interrupts(on_first: Callable[[], None] | None = None) -> Iterator[Callable[[], bool]]:
+    """While the block runs, a first Ctrl-C (SIGINT) asks the sweep to stop well instead of
+    raising: give the yielded function as ``run_sweep(stop=...)``. ``on_first()`` is called when
+    it arrives (e.g. to say so); a second Ctrl-C raises ``KeyboardInterrupt`` as usual (the sweep
+    stops at once). The previous handler is restored on exit. Only in the main thread (signals
+    are delivered there); elsewhere it changes nothing and ``stop()`` stays false."""
+    import signal
+    import threading
+
+    asked = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield asked.is_set
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if asked.is_set():
+            raise KeyboardInterrupt
+        asked.set()
+        if on_first is not None:
+            on_first()
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield asked.is_set
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _terminate_workers(executor: Executor) -> None:
+    """Stop a process pool's workers now (Python 3.11 has no public way: the pool's own
+    process table, if it has one)."""
+    for proc in list((getattr(executor, "_processes", None) or {}).values()):
+        with contextlib.suppress(Exception):
+            proc.terminate()
+
+
 def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executor | None = None,
-              workers: int | None = None, progress: ProgressFn | None = None) -> SweepResult:
+              workers: int | None = None, progress: ProgressFn | None = None,
+              stop: Callable[[], bool] | None = None) -> SweepResult:
     """Run what is not finished yet, write each run's folder as it completes, then the summary.
 
     ``executor``: any ``concurrent.futures.Executor`` (``submit`` returning futures), e.g. a
     Dask ``Client(...).get_executor()``; by default a local process pool of ``workers``
-    processes (default: the CPU count). ``progress(done, total, spec, status)`` is called after
-    each run with status ``"ok"`` or ``"error"`` (and once with ``"skipped"`` per finished run).
-    If interrupted (KeyboardInterrupt or an exception from ``progress``), pending runs are
-    cancelled, finished ones stay on disk, the summary of what finished is written, and the
-    exception propagates.
+    processes (default: the CPU count), fed one run per free worker. ``progress(done, total,
+    spec, status)`` is called after each run with status ``"ok"`` or ``"error"`` (and once with
+    ``"skipped"`` per finished run).
+
+    Stopping (both raise :class:`SweepInterrupted`, a ``KeyboardInterrupt``, after writing the
+    summary of what finished; running the same sweep again resumes it):
+
+    * well: once ``stop()`` returns true (polled a few times a second; see
+      :func:`graceful_interrupts`), no new run starts, runs not yet started are cancelled, and
+      the runs in progress are waited for and kept (with a given executor: those it no longer
+      lets cancel); if no run was left out, the sweep simply ends as usual;
+    * at once: on ``KeyboardInterrupt`` (a second Ctrl-C, or raised by ``progress``), pending
+      runs are cancelled, the workers of the sweep's own pool are terminated, runs in progress
+      are lost; finished ones stay on disk. (Any other exception from ``progress`` is cleaned up
+      after the same way and propagates as it is.)
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -246,42 +339,81 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
             if s not in todo:
                 progress(done, len(runs), s, "skipped")
     own = executor is None and bool(todo)
+    n_workers = workers or os.cpu_count() or 1
     if own:
-        executor = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1)
+        executor = ProcessPoolExecutor(max_workers=n_workers, initializer=_ignore_first_sigint)
+    # Our own pool gets one run per worker at a time, so that stopping starts no queued run;
+    # a given executor (Dask) gets them all and schedules them itself.
+    window = n_workers if own else len(todo)
+    queue = iter(todo)
+    futures: dict[Future[dict[str, Any]], RunSpec] = {}
+    stopping = False
+    unstarted = 0  # runs a stop left out
+
+    def submit_next() -> None:
+        spec = next(queue, None)
+        if spec is not None and executor is not None:
+            futures[executor.submit(execute, spec)] = spec
+
     try:
-        # No executor: nothing to do (otherwise it is our own pool).
-        futures: dict[Future[dict[str, Any]], RunSpec] = (
-            {executor.submit(execute, s): s for s in todo} if executor is not None else {})
-        for fut in as_completed(futures):
-            spec = futures[fut]
-            try:
-                outcome = fut.result()
-            except Exception as exc:  # the worker itself died (e.g. killed, out of memory)
-                outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
-            folder = out / spec.folder
-            if "files" in outcome:
-                (folder / "error.json").unlink(missing_ok=True)
-                write_files(folder, outcome["files"])
-                status = "ok"
-            else:
-                write_files(folder, {"error.json": _dumps(
-                    {"run": spec.label, "folder": spec.folder, **outcome}, indent=2).encode()})
-                result.failed.append({"run": spec.label, "folder": spec.folder, "error": outcome["error"]})
-                status = "error"
-            result.ran += 1
-            done += 1
-            if progress is not None:
-                progress(done, len(runs), spec, status)
-    except BaseException:
-        for f in futures if "futures" in locals() else ():
+        for _ in range(window):
+            submit_next()
+        while futures:
+            if not stopping and stop is not None and stop():
+                stopping = True
+                unstarted = sum(1 for _ in queue)
+                for f in [f for f in futures if f.cancel()]:
+                    del futures[f]  # never started
+                    unstarted += 1
+                if not futures:
+                    break
+            finished, _ = wait(futures, timeout=0.2 if stop is not None and not stopping else None,
+                               return_when=FIRST_COMPLETED)
+            for fut in finished:
+                spec = futures.pop(fut)
+                if fut.cancelled():
+                    continue
+                if not stopping:
+                    submit_next()  # before writing this one's files: keep the worker busy
+                status = _record(out, spec, fut, result)
+                result.ran += 1
+                done += 1
+                if progress is not None:
+                    progress(done, len(runs), spec, status)
+    except BaseException as exc:
+        for f in futures:
             f.cancel()
-        write_summary(out, runs)
+        if own and executor is not None:
+            _terminate_workers(executor)
+            executor.shutdown(wait=False, cancel_futures=True)
+        result.summary = write_summary(out, runs)
+        if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, SweepInterrupted):
+            raise SweepInterrupted(result, graceful=False) from exc
         raise
     finally:
         if own and executor is not None:
             executor.shutdown(wait=True, cancel_futures=True)
     result.summary = write_summary(out, runs)
+    if unstarted:
+        raise SweepInterrupted(result, graceful=True)
     return result
+
+
+def _record(out: Path, spec: RunSpec, fut: Future[dict[str, Any]], result: SweepResult) -> str:
+    """Write a finished run's folder (or its error.json); ``"ok"`` or ``"error"``."""
+    try:
+        outcome = fut.result()
+    except Exception as exc:  # the worker itself died (e.g. killed, out of memory)
+        outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+    folder = out / spec.folder
+    if "files" in outcome:
+        (folder / "error.json").unlink(missing_ok=True)
+        write_files(folder, outcome["files"])
+        return "ok"
+    write_files(folder, {"error.json": _dumps(
+        {"run": spec.label, "folder": spec.folder, **outcome}, indent=2).encode()})
+    result.failed.append({"run": spec.label, "folder": spec.folder, "error": outcome["error"]})
+    return "error"
 
 
 # --- statistics --------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 """Scenarios: the data that describes one run (:mod:`.model`), how it is loaded from TOML and
 overridden with ``--set`` (:mod:`.loading`), how errors name positions (:mod:`.positions`),
-and the built-in scenario files (``builtin/``)."""
+the warnings about values that run but look unintended (:mod:`.warnings`), and the built-in
+scenario files (``builtin/``)."""
 
 from swarm.scenario.loading import (
     apply_overrides,
@@ -40,6 +41,7 @@ from swarm.scenario.model import (
     UavSpec,
     UavTypeSpec,
 )
+from swarm.scenario.warnings import scenario_warnings
 
 __all__ = [
     "ApfSettings",
@@ -76,4 +78,5 @@ __all__ = [
     "parse_assignment",
     "parse_scenario",
     "scenario_from_toml",
+    "scenario_warnings",
 ]

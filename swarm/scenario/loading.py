@@ -37,7 +37,7 @@ def builtin_scenarios() -> list[str]:
 
 def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
                   allow_planner_imports: bool | Iterable[str] = False,
-                  overrides: Mapping[str, Any] | None = None) -> Scenario:
+                  overrides: Mapping[str, Any] | None = None, run_duration_s: float | None = None) -> Scenario:
     """Load a built-in scenario by name or a TOML file by path.
 
     ``planner``: run this planner instead of the one the file names (as ``--planner``: the
@@ -48,7 +48,10 @@ def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
     :mod:`swarm.scenario.trust`. ``overrides``: dotted keys set in the document before it is
     validated (``--set``), as :func:`apply_overrides` does after, so that the document is judged
     once, as the user wrote it with those changes (``--planner X --set planner.surveillance=false``
-    for a planner that only searches)."""
+    for a planner that only searches). ``run_duration_s`` (``--duration``): the document is
+    judged as run for that long, with the overrides (``--set dt_s=1e-5 --duration 1`` is judged
+    on the 1 s run; late joiners against the scenario's own end); the scenario returned keeps
+    its own ``duration_s`` (``Simulation(..., duration_s=)`` then runs it for the shorter time)."""
     if not isinstance(ref, (str, os.PathLike)):
         raise ScenarioError("", "", found_words(ref), _file_expected())
     source = os.fspath(ref)
@@ -67,11 +70,11 @@ def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
         except OSError as exc:
             raise ScenarioError(source, "", f"a file that cannot be read ({exc.strerror or exc})", _file_expected()) from None
         return scenario_from_toml(text, source, planner=planner, allow_planner_imports=allow_planner_imports,
-                                  overrides=overrides)
+                                  overrides=overrides, run_duration_s=run_duration_s)
     if isinstance(ref, str) and ref in builtin_scenarios():
         text = resources.files(_BUILTIN_PACKAGE).joinpath(f"{ref}.toml").read_text(encoding="utf-8")
         return scenario_from_toml(text, ref, planner=planner, allow_planner_imports=allow_planner_imports,
-                                  overrides=overrides)
+                                  overrides=overrides, run_duration_s=run_duration_s)
     found = "no such file" if not path.exists() else "something that is not a file"
     raise ScenarioError(source, "", found, _file_expected())
 
@@ -82,9 +85,9 @@ def _file_expected() -> str:
 
 def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
                        allow_planner_imports: bool | Iterable[str] = False,
-                       overrides: Mapping[str, Any] | None = None) -> Scenario:
-    """A scenario from TOML text (``planner``, ``allow_planner_imports``, ``overrides``: see
-    :func:`load_scenario`)."""
+                       overrides: Mapping[str, Any] | None = None, run_duration_s: float | None = None) -> Scenario:
+    """A scenario from TOML text (``planner``, ``allow_planner_imports``, ``overrides``,
+    ``run_duration_s``: see :func:`load_scenario`)."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -96,16 +99,26 @@ def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
             switch_planner(doc, value)
         else:
             _set_path(doc, dotted, value, source)
-    return parse_scenario(doc, source, allow_planner_imports=allowed(allow_planner_imports, planner))
+    allow = allowed(allow_planner_imports, planner)
+    if run_duration_s is None:
+        return parse_scenario(doc, source, allow_planner_imports=allow)
+    own = doc.get("duration_s", Scenario.model_fields["duration_s"].default)
+    if isinstance(own, bool) or not isinstance(own, (int, float)) or not own > 0:
+        return parse_scenario(doc, source, allow_planner_imports=allow)  # (says what is wrong with it)
+    run = parse_scenario({**doc, "duration_s": run_duration_s}, source, truncated=True, scenario_duration_s=float(own),
+                         allow_planner_imports=allow)
+    return run.model_copy(update={"duration_s": float(own)})  # valid as run; kept with its own end
 
 
 def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated: bool = False,
+                   scenario_duration_s: float | None = None,
                    allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
     """Validate an already-parsed document. ``name`` defaults to the source's file stem.
-    ``truncated``: the run is cut short on purpose (``--duration``), so UAVs may join after
-    its end. ``allow_planner_imports``: ``True``, or the ``module:Class`` planner names that may
-    be imported (checked); any other ``module:Class`` in the document is refused without being
-    imported (:mod:`swarm.scenario.trust`)."""
+    ``truncated``: the document's ``duration_s`` is a run cut short on purpose (``--duration``),
+    so UAVs may join after its end; they must still join before ``scenario_duration_s``, the
+    scenario's own end, if given. ``allow_planner_imports``: ``True``, or the ``module:Class``
+    planner names that may be imported (checked); any other ``module:Class`` in the document is
+    refused without being imported (:mod:`swarm.scenario.trust`)."""
     if not isinstance(doc, dict):
         raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
     data = dict(doc)
@@ -117,7 +130,7 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated
     name = table.get("name") if isinstance(table, dict) else None
     if isinstance(name, str) and not permits(allow, name):
         raise ScenarioError(source, _PLANNER_NAME, *refusal(name))
-    context = {"truncated": truncated, "allow_planners": allow}
+    context = {"truncated": truncated, "scenario_duration_s": scenario_duration_s, "allow_planners": allow}
     try:
         return Scenario.model_validate(data, context=context)
     except ValidationError as exc:
@@ -133,10 +146,13 @@ def _default_name(source: str) -> str:
 
 # --- overrides -----------------------------------------------------------------------------
 def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncated: bool = False,
+                    scenario_duration_s: float | None = None,
                     allow_planner_imports: bool | Iterable[str] = False) -> Scenario:
     """A new scenario with dotted keys replaced, e.g. ``{"radio.loss_base": 0.3}`` or
-    ``{"uavs[0].x_m": 100}``; the result is validated as a whole (``truncated``: see
-    :func:`parse_scenario`).
+    ``{"uavs[0].x_m": 100}``; the result is validated as a whole. ``truncated``: the
+    ``duration_s`` override shortens the run (``--duration``): everything is judged against
+    it, except late joiners, which must join before ``scenario_duration_s``, the scenario's
+    own end, if given (not judged otherwise); see :func:`parse_scenario`.
 
     ``planner.name`` is applied first and replaces the planner as :func:`switch_planner` does
     (its options follow it), so ``planner.options.KEY`` overrides are the new planner's.
@@ -152,7 +168,8 @@ def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncat
             _set_path(doc, dotted, value, source)
     allow = allowed(allow_planner_imports, scenario.planner.name)
     try:
-        return parse_scenario(doc, source, truncated=truncated, allow_planner_imports=allow)
+        return parse_scenario(doc, source, truncated=truncated, scenario_duration_s=scenario_duration_s,
+                              allow_planner_imports=allow)
     except ScenarioError as err:
         if err.key in overrides or err.hint:
             raise

@@ -890,9 +890,12 @@ class Scenario(_Model):
                 self.uavs[i] = uav.model_copy(update={"name": f"{uav.type}{per_type[uav.type]}"})
 
         # A run shortened by Simulation(duration_s=...) / --duration may end before a late joiner
-        # joins; a scenario that says so itself is a mistake.
-        truncated = bool(info.context and info.context.get("truncated"))
-        problems = self._cross_problems(truncated)
+        # joins; a scenario that says so itself is a mistake (judged against the scenario's own
+        # duration, "scenario_duration_s", when the caller knows it).
+        context = info.context or {}
+        truncated = bool(context.get("truncated"))
+        join_end = context.get("scenario_duration_s") if truncated else self.duration_s
+        problems = self._cross_problems(join_end)
         _raise_if(problems)
 
         for fault in self.faults:
@@ -920,7 +923,7 @@ class Scenario(_Model):
                                          f"and 0 <= y0 < y1 <= {_fmt(area.height_m)} (inside the area)"))
         return problems
 
-    def _cross_problems(self, truncated: bool = False) -> list[_Problem]:
+    def _cross_problems(self, join_end: float | None) -> list[_Problem]:
         """Checks that need more than one table: names, types, positions, fault references."""
         problems: list[_Problem] = []
         area = self.area
@@ -990,12 +993,13 @@ class Scenario(_Model):
                                      f"(one per pyramid layer 1..L, map.levels = {self.map.levels})"))
         if self.metrics.sample_s < self.dt_s:
             problems.append(_Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({_fmt(self.dt_s)})"))
-        problems += self._runnable_problems(truncated)
+        problems += self._runnable_problems(join_end)
         return problems
 
-    def _runnable_problems(self, truncated: bool) -> list[_Problem]:
+    def _runnable_problems(self, join_end: float | None) -> list[_Problem]:
         """Values that validate one by one but cannot run: a run that would never finish, a
-        memory factor float32 cannot hold, a UAV that would join after the end."""
+        memory factor float32 cannot hold, a UAV that would join at or after ``join_end`` (the
+        scenario's end; None: not judged)."""
         problems: list[_Problem] = []
         ticks = self.duration_s / self.dt_s
         if ticks > MAX_TICKS:
@@ -1011,13 +1015,13 @@ class Scenario(_Model):
                                          f"{_FLOAT32_MAX / max(self.duration_s, 1.0):.3g}] 1/s (float32 map times; "
                                          f"this gives {tau:.3g})"))
         for i, uav in enumerate(self.uavs):
-            if not truncated and uav.join_s is not None and uav.join_s >= self.duration_s:
+            if join_end is not None and uav.join_s is not None and uav.join_s >= join_end:
                 problems.append(_Problem(("uavs", i, "join_s"), uav.join_s,
-                                         f"a number < duration_s ({_fmt(self.duration_s)}: it would join after the end)"))
+                                         f"a number < duration_s ({_fmt(join_end)}: it would join after the end)"))
         for f, fault in enumerate(self.faults):
-            if not truncated and isinstance(fault, JoinFault) and fault.at_s >= self.duration_s:
+            if join_end is not None and isinstance(fault, JoinFault) and fault.at_s >= join_end:
                 problems.append(_Problem(("faults", f, "at_s"), fault.at_s,
-                                         f"a number < duration_s ({_fmt(self.duration_s)}: the UAV would join after the end)"))
+                                         f"a number < duration_s ({_fmt(join_end)}: the UAV would join after the end)"))
         return problems
 
     def _uav_by_name(self, name: str) -> UavSpec:

@@ -4,7 +4,9 @@
 * :mod:`.fault_strategies`: every fault kind, whole fault schedules, link models;
 * :mod:`.invariants`: checkers of safety, radio, map and assignment properties over event
   logs or live runs (these need no Hypothesis: ``swarm paper`` uses them);
-* :mod:`.stateful`: :class:`SwarmMachine`, a Hypothesis state machine driving one simulation.
+* :mod:`.stateful`: :class:`SwarmMachine`, a Hypothesis state machine driving one simulation;
+* :mod:`.settings`: :data:`simulation_settings`, the Hypothesis settings a property over whole
+  runs needs (no deadline, the ``too_slow`` health check suppressed, 50 examples).
 
 Nothing outside this package imports Hypothesis: ``import swarm`` never needs it, nor do the
 checkers; the strategies and the state machine say so when it is missing.
@@ -21,6 +23,7 @@ except ImportError:  # the checkers above work without it; the rest says what it
         raise AttributeError(name)
 else:
     from swarm.testing.fault_strategies import fault_schedules, faults, link_models
+    from swarm.testing.settings import simulation_settings
     from swarm.testing.stateful import SwarmMachine
     from swarm.testing.strategies import scenario_documents, scenarios
 
@@ -34,4 +37,5 @@ __all__ = [
     "link_models",
     "scenario_documents",
     "scenarios",
+    "simulation_settings",
 ]

@@ -8,7 +8,7 @@ log or live from ``sim.subscribe``::
     # after the run: `swarm run my.toml --out out/` wrote scenario.json and events.msgpack
     from swarm.testing.invariants import check_events, load_run_log
     scenario, events = load_run_log("out/")
-    for v in check_events(events, scenario):
+    for v in check_events(events, scenario):   # the seven checkers a log can judge
         print(v)
 
     # live, e.g. in a test or a Hypothesis state machine
@@ -1445,12 +1445,21 @@ def default_checkers(*, live: bool = False, handover: bool = False, liveness: bo
 
 def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checkers: Iterable[Checker] | None = None, *,
                  faults: Iterable[Fault] | None = None) -> list[Violation]:
-    """Run ``checkers`` (default: every log-only checker that holds for any planner) over a
-    run's events: decoded events, or the event log's bytes as ``RunResult.events`` and
-    ``events.msgpack`` hold them. Returns the violations (empty: all invariants held)."""
+    """Run ``checkers`` over a run's events: decoded events, or the event log's bytes as
+    ``RunResult.events`` and ``events.msgpack`` hold them. Returns the violations (empty: all
+    invariants held).
+
+    By default, every checker a log can judge, with its default parameters:
+    ``default_checkers(handover=True)``, that is ``separation``, ``threat``, ``dynamics``,
+    ``radio``, ``single_watcher``, ``handover`` and ``no_drop``. (The live checkers,
+    ``map_monotonic``, ``map_agreement`` and ``joiner_catch_up``, read the UAVs' maps and
+    need :class:`Monitor` attached to a simulation.) The last three are the assignment
+    invariants of the surveillance handover (DACMP's, which the built-in planners share); for
+    a planner of your own that watches targets by other rules, pass
+    ``checkers=default_checkers()``: the first four."""
     if isinstance(events, (bytes, bytearray, memoryview)):
         events = read_events(bytes(events))
-    checkers = list(checkers) if checkers is not None else default_checkers()
+    checkers = list(checkers) if checkers is not None else default_checkers(handover=True)
     live = [c.name for c in checkers if c.live_only]
     if live:
         raise UsageError(f"checker(s) {live} need a live simulation; use Monitor(...).attach(sim)")

@@ -41,8 +41,9 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from hypothesis import assume, note
+from hypothesis import assume, currently_in_test_context, note
 from hypothesis import strategies as st
+from hypothesis.control import current_build_context
 from hypothesis.errors import InvalidArgument
 
 from agents.assignment import rule_breaks
@@ -498,11 +499,19 @@ def reproducible(scenario: Scenario, directory: str | os.PathLike[str] | None = 
         def test_something(scenario):
             with reproducible(scenario):
                 ...
+
+    Inside a Hypothesis test only the failing example Hypothesis reports is written: the
+    shrunk one, which Hypothesis runs once more at the end (its *final* run). The failing
+    examples met while generating and shrinking are not, so a failing test leaves one file
+    per distinct failure Hypothesis reports, not one per example it tried. Outside Hypothesis
+    every failure is written.
     """
     try:
         yield
     except BaseException as exc:
         if isinstance(exc, (KeyboardInterrupt, SystemExit, GeneratorExit)):
+            raise
+        if not _reported_example():
             raise
         faults = ", ".join(f.kind for f in scenario.faults) or "none"
         try:
@@ -516,3 +525,11 @@ def reproducible(scenario: Scenario, directory: str | os.PathLike[str] | None = 
         if hasattr(exc, "add_note"):
             exc.add_note(text)
         raise
+
+
+def _reported_example() -> bool:
+    """False while Hypothesis is generating or shrinking (a failing example there is not the one
+    it will report); True in its final run of the reported example, and outside Hypothesis."""
+    if not currently_in_test_context():
+        return True
+    return current_build_context().is_final
