@@ -678,22 +678,42 @@ CASE2_MIN_HANDOVERS = 4
 CASE2_CONDITIONS = ("found", "watched", "takeovers", "handovers", "released", "safe")
 
 
+def last_seen(log: RunLog, m: int) -> tuple[float, float, float] | None:
+    """``(t, x, y)`` of the last tick at which some UAV had target ``m`` inside its detection
+    radius (ground truth), or None if none ever did."""
+    rows = log.targets.get(m)
+    if rows is None:
+        return None
+    best: tuple[float, float, float] | None = None
+    for uid, p in log.poses.items():
+        r = float(log.type_specs.get(log.types.get(uid, "?"), {}).get("detect_radius_m", math.nan))
+        txy = log.target_at(m, p[:, 0])
+        seen = np.nonzero(np.hypot(p[:, 1] - txy[:, 0], p[:, 2] - txy[:, 1]) <= r)[0]
+        if seen.size and (best is None or p[seen[-1], 0] > best[0]):
+            i = seen[-1]
+            best = (float(p[i, 0]), float(txy[i, 0]), float(txy[i, 1]))
+    return best
+
+
 def held_at_zone_edge(log: RunLog, m: int, uav: str) -> bool:
     """Whether ``uav`` holds target ``m`` the way rule 5 of docs/modelling.md ("Assignment
     rules") says a target inside a no-fly zone is held: at the last tick the target is inside a
-    zone and the UAV, outside it, is within twice its detection radius of the point of the
-    zone's edge nearest the target (it circles there, docs/modelling.md)."""
+    zone, and the UAV, outside it, is within twice its detection radius of the point of that
+    zone's edge nearest to where the target was last seen (by anyone: the UAV cannot know where
+    inside the zone it went; it circles at that edge, docs/modelling.md)."""
     uid = log.uid(uav)
-    if uid is None or uid not in log.poses or m not in log.targets:
+    seen = last_seen(log, m)
+    if uid is None or uid not in log.poses or seen is None:
         return False
     x, y = log.poses[uid][-1, 1:3]
     tx, ty = log.target_at(m, np.array([log.poses[uid][-1, 0]]))[0]
     r = float(log.type_specs.get(log.types.get(uid, "?"), {}).get("detect_radius_m", math.nan))
     for th in log.threats:
         cx, cy, rad = float(th["x_m"]), float(th["y_m"]), float(th["radius_m"])
-        d = math.hypot(tx - cx, ty - cy)
-        if d < rad and math.hypot(x - cx, y - cy) >= rad:
-            ux, uy = ((tx - cx) / d, (ty - cy) / d) if d > 1e-9 else (1.0, 0.0)
+        if math.hypot(tx - cx, ty - cy) < rad and math.hypot(x - cx, y - cy) >= rad:
+            _, sx, sy = seen
+            d = math.hypot(sx - cx, sy - cy)
+            ux, uy = ((sx - cx) / d, (sy - cy) / d) if d > 1e-9 else (1.0, 0.0)
             return math.hypot(x - (cx + rad * ux), y - (cy + rad * uy)) <= 2 * r
     return False
 

@@ -1171,7 +1171,8 @@ class HandoverChecker(_WatchChecker):
         self._reported: set[tuple] = set()
         self._prev_watchers: dict[int, set[int]] = {}
         self._targets: dict[int, tuple[float, float]] = {}
-        #: Every (target, faster watcher) pair that was offered a takeover (rule 2) at some time.
+        #: Every (target, faster watcher) pair that was offered a takeover at some time: a free
+        #: slower UAV within its D (rule 2), or one that already watches the target too.
         self.opportunities: set[tuple[int, int]] = set()
 
     def on_group(self, t, events):
@@ -1209,6 +1210,8 @@ class HandoverChecker(_WatchChecker):
                             self.violate(t, f"fast {ctx.name(f)} kept watching target {m} for {t - since:g} s after "
                                             f"slower {ctx.name(s)} took it over (release bound {self.release_s:g} s)",
                                          [f, s], target=m, since=since, rule=3)
+                if slower_watching:  # an opportunity taken already (a slower UAV claimed it)
+                    self.opportunities.add((m, f))
                 if slower_watching or pos is None:
                     continue
                 free = [s for s, p in sorted(poses.items())
