@@ -36,6 +36,7 @@ def uav_type_from_spec(name: str, spec: UavTypeSpec) -> UavType:
         w_t=spec.w_t,
         w_r=spec.w_r,
         influence_radius=spec.influence_radius_m,
+        daa_range=spec.daa_range_m,
     )
 
 

@@ -42,6 +42,7 @@ from pydantic import (
 
 from agents import apf as _apf
 from agents.planners.dacmp import settings as _dacmp
+from agents.types import DAA_RANGE_M
 from comms import radio as _radio
 from faults import schedule as _faults
 from swarm.errors import UsageError
@@ -312,6 +313,11 @@ class UavTypeSpec(_Model):
     w_t: Num = _num(..., ge=0, note="target attraction weight")
     w_r: Num = _num(..., ge=0, note="repulsion weight")
     influence_radius_m: Num = _num(..., gt=0, note="target influence radius D")
+    # Not in the paper. Other UAVs within this range are sensed (true position and velocity) for
+    # collision avoidance instead of taken from the radio. Default 3000 m: collision avoidance
+    # looks planner.apf.lookahead_s = 15 s ahead and Table 1's fastest closing speed is two type B
+    # head-on, 180 m/s: 15 x 180 = 2700 m, plus a margin. 0 turns the sensor off (the radio only).
+    daa_range_m: Num = _num(DAA_RANGE_M, ge=0, note="m, detect-and-avoid sensor range; 0 = no sensor")
 
     @model_validator(mode="after")
     def _speed_range(self) -> UavTypeSpec:

@@ -198,7 +198,8 @@ class InvariantViolation(SwarmError, AssertionError):
 def _uav_type(name: str, spec: UavTypeSpec) -> UavType:
     return UavType(name=name, speed_min=spec.speed_min, speed_max=spec.speed_max, accel_max=spec.accel_max,
                    bank_max_rad=math.radians(spec.bank_max_deg), detect_radius=spec.detect_radius_m,
-                   w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m)
+                   w_t=spec.w_t, w_r=spec.w_r, influence_radius=spec.influence_radius_m,
+                   daa_range=spec.daa_range_m)
 
 
 def skewed_stamps(faults: Iterable[Fault], duration_s: float) -> list[tuple[float, float]]:
