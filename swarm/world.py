@@ -223,7 +223,8 @@ class World:
             return out
         uavs = self.uavs
         pxy = xy if xy is not None and pop == ids else self.positions(pop)
-        pairs = cKDTree(pxy).query_pairs(rmax, output_type="ndarray")
+        # (The tree's reach a hair beyond the range; the test below is exact.)
+        pairs = cKDTree(pxy).query_pairs(rmax * (1.0 + 1e-9) + 1e-6, output_type="ndarray")
         if not len(pairs):
             return out
         # Both directions of each pair: observer a senses b if b is within a's own range.
