@@ -12,10 +12,13 @@ A fixed-wing UAV cannot stop, so a potential field alone can fly it into a threa
 late for its turn radius. A guard therefore overrides the field when the UAV is within a turn
 radius (plus margin) of a threat edge and heading towards it: full turn away, minimum speed.
 The same holds between UAVs: at 180 m/s closing speed the eq. 31-32 field acts for only a few
-seconds. So each UAV also predicts the closest point of approach with every UAV it hears
-(constant velocities) and, if they would pass closer than twice the minimum separation within
-``lookahead_s``, turns at full rate away from where the other will be: right when it will be
-on its left, left when on its right. When the predicted miss is under the minimum separation
+seconds. So each UAV also predicts the closest point of approach with every other UAV it
+knows of (``others``: sensed within its detect-and-avoid range, else as last heard; see
+:meth:`agents.actor.UavActor._others`) under constant velocities and, if they would come closer
+than twice the minimum separation within ``lookahead_s`` (at the closest point, or at the
+lookahead's end when that point is later: two UAVs converging slowly side by side, as two
+turning away from the same threat do), turns at full rate away from where the other will be:
+right when it will be on its left, left when on its right. When the predicted miss is under the minimum separation
 its side, computed from poses heard a second ago, is noise (two B UAVs read a 20 m miss the
 same way round, turned into each other and flew 10 s closer than 200 m), so both take the
 side given by their relative velocity turned clockwise, which they agree on: head-on both turn
@@ -24,6 +27,11 @@ does not resolve overtaking or side-by-side conflicts: both turn the same way, t
 faster.) It also speeds up when the other will pass behind it and slows down when ahead: two
 UAVs converging at a shallow angle have that point almost on both headings, where turning
 barely helps. Deterministic and without negotiation.
+When the guard and collision avoidance both want to act, avoidance wins as long as, after its
+step, the full-rate turn away from every threat ahead still clears the threat's edge by
+``threat_margin_m`` (:func:`_can_escape`); otherwise the guard turns, at avoidance's speed if
+that too leaves the way out. (The guard used to win always: two fast UAVs turning from the
+same no-fly zone side by side flew into each other, paper-case2 seed 13.)
 The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_command`).
 """
 
