@@ -31,6 +31,13 @@ History:
   the farther same-type claimant yields, the declared target is the strongest pull, watchers
   feel threats at 0.15 k_rep): unchanged here (one target, seen at 20 s; no watcher in a threat field),
   paper-case2/3 logs change; paper-fig11's (search only) do not.
+- Detect and avoid (issue 22, point 3: collision avoidance takes the true poses of the UAVs
+  within uav_types.X.daa_range_m instead of the radio's one-tick-old ones), the threat guard no
+  longer overriding collision avoidance, and a conflict also when two UAVs are closer than
+  2 d_min at the lookahead's end: unchanged here (no two UAVs of this scenario ever come close
+  enough for collision avoidance to act). The paper-fig11 logs of greedy and DACMP change (UAVs
+  do meet there: greedy seed 0 first differs at t = 543 s by the conflict rule, at 545 s by
+  detect and avoid alone), the lawnmower's do not; see docs/paper.md for the statistics.
 """
 
 from __future__ import annotations
