@@ -26,7 +26,7 @@ import numpy as np
 
 from agents.apf import ApfSettings, apf_command
 from agents.inbox import Heard, check_frame
-from agents.knowledge import Knowledge, KnownThreat, Track
+from agents.knowledge import Knowledge, KnownThreat, Peer, Track
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
@@ -94,9 +94,17 @@ class SensedTarget:
     value: float
 
 
+# Another UAV as the detect-and-avoid sensor gives it: (uav id, x, y, vx, vy).
+SensedUav = tuple[int, float, float, float, float]
+
+
 @dataclass(slots=True)
 class SensorReading:
-    """What the UAV's own sensors give it this tick (ground truth inside its detection radius)."""
+    """What the UAV's own sensors give it this tick (ground truth inside its detection radius).
+
+    ``uavs``: the other UAVs inside its detect-and-avoid range (``UavType.daa_range``), in id
+    order, placed relative to where the UAV believes it is (a sensor measures range and bearing);
+    ``None`` when it has no such sensor (range 0)."""
 
     t: float
     x: float
@@ -105,6 +113,7 @@ class SensorReading:
     theta: float
     targets: list[SensedTarget]
     threats: list[KnownThreat]
+    uavs: list[SensedUav] | None = None
 
 
 @dataclass(slots=True)
@@ -391,14 +400,40 @@ class UavActor:
             # lost targets). A weaker field lets it follow to about 0.75 km; the threat guard
             # (agents.apf) still keeps it out.
             apf = replace(apf, k_rep=apf.k_rep * s.loiter_threat_weight)
-        others = [(p.x, p.y, p.v * math.cos(p.theta), p.v * math.sin(p.theta))
-                  for p in k.recent_peers(t, s.peer_timeout_s) if p.uav != self.uid]
+        others = self._others(r, k.recent_peers(t, s.peer_timeout_s))
         a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
                                list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
         replies = self._answer_digests(t) if self._digests else []
         return ActorOutput(a, omega, frames, plan, received, replies)
+
+    def _others(self, r: SensorReading, peers: list[Peer]) -> list[tuple[float, float, float, float]]:
+        """The other UAVs collision avoidance steers clear of, ``(x, y, vx, vy)`` in id order.
+
+        Without a detect-and-avoid sensor (``r.uavs`` is None): every UAV heard within the
+        peer timeout, as last heard. With one, the sensor decides inside its range: a UAV it
+        senses is taken as sensed (true position and velocity now, whatever the radio said or
+        failed to say), and a heard pose inside the range where the sensor sees no UAV of that id
+        is not believed (a stale, lost or forged report); beyond the range the radio is all
+        there is."""
+        me = self.uid
+        sensed = r.uavs
+        if sensed is None:
+            return [(p.x, p.y, p.v * math.cos(p.theta), p.v * math.sin(p.theta)) for p in peers if p.uav != me]
+        if not peers:
+            return [o[1:] for o in sensed]
+        seen = {o[0] for o in sensed}
+        x, y = r.x, r.y
+        r2 = self.kind.daa_range * self.kind.daa_range
+        merged: list[SensedUav] = list(sensed)
+        for p in peers:
+            u = p.uav
+            if u != me and u not in seen and (p.x - x) ** 2 + (p.y - y) ** 2 > r2:
+                merged.append((u, p.x, p.y, p.v * math.cos(p.theta), p.v * math.sin(p.theta)))
+        if len(merged) > len(sensed):
+            merged.sort()
+        return [o[1:] for o in merged]
 
     def _loiter(self, r: SensorReading, track: Track, threat_margin_m: float) -> tuple[float, float, float]:
         """Goal and speed for a watcher: circle the target inside the detection radius.
@@ -646,4 +681,4 @@ class UavActor:
         return frames
 
 
-__all__ = ["ActorOutput", "ActorSettings", "SensedTarget", "SensorReading", "UavActor", "NO_TARGET"]
+__all__ = ["ActorOutput", "ActorSettings", "SensedTarget", "SensedUav", "SensorReading", "UavActor", "NO_TARGET"]

@@ -12,10 +12,13 @@ A fixed-wing UAV cannot stop, so a potential field alone can fly it into a threa
 late for its turn radius. A guard therefore overrides the field when the UAV is within a turn
 radius (plus margin) of a threat edge and heading towards it: full turn away, minimum speed.
 The same holds between UAVs: at 180 m/s closing speed the eq. 31-32 field acts for only a few
-seconds. So each UAV also predicts the closest point of approach with every UAV it hears
-(constant velocities) and, if they would pass closer than twice the minimum separation within
-``lookahead_s``, turns at full rate away from where the other will be: right when it will be
-on its left, left when on its right. When the predicted miss is under the minimum separation
+seconds. So each UAV also predicts the closest point of approach with every other UAV it
+knows of (``others``: sensed within its detect-and-avoid range, else as last heard; see
+:meth:`agents.actor.UavActor._others`) under constant velocities and, if they would come closer
+than twice the minimum separation within ``lookahead_s`` (at the closest point, or at the
+lookahead's end when that point is later: two UAVs converging slowly side by side, as two
+turning away from the same threat do), turns at full rate away from where the other will be:
+right when it will be on its left, left when on its right. When the predicted miss is under the minimum separation
 its side, computed from poses heard a second ago, is noise (two B UAVs read a 20 m miss the
 same way round, turned into each other and flew 10 s closer than 200 m), so both take the
 side given by their relative velocity turned clockwise, which they agree on: head-on both turn
@@ -24,6 +27,11 @@ does not resolve overtaking or side-by-side conflicts: both turn the same way, t
 faster.) It also speeds up when the other will pass behind it and slows down when ahead: two
 UAVs converging at a shallow angle have that point almost on both headings, where turning
 barely helps. Deterministic and without negotiation.
+When the guard and collision avoidance both want to act, avoidance wins as long as, after its
+step, the full-rate turn away from every threat ahead still clears the threat's edge by
+``threat_margin_m`` (:func:`_can_escape`); otherwise the guard turns, at avoidance's speed if
+that too leaves the way out. (The guard used to win always: two fast UAVs turning from the
+same no-fly zone side by side flew into each other, paper-case2 seed 13.)
 The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_command`).
 """
 
@@ -32,7 +40,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from agents.dynamics import limit_command, wrap_angle
+from agents.dynamics import integrate, limit_command, wrap_angle
 from agents.knowledge import KnownThreat
 from agents.types import UavType
 
@@ -61,6 +69,29 @@ class ApfSettings:
     threat_margin_m: float = 300.0
     # Collision avoidance looks this far ahead for a closest approach under 2 * min separation.
     lookahead_s: float = field(default=15.0, metadata={"gt": 0, "note": "seconds"})
+
+
+def _can_escape(kind: UavType, x: float, y: float, v: float, theta: float, omega: float, speed: float,
+                threats: list[KnownThreat], s: ApfSettings, dt: float) -> bool:
+    """True if, after flying ``(omega, speed)`` (within limits) for ``dt``, the UAV can still
+    turn clear of every known threat it is then heading towards: the full-rate turn away from
+    it (towards the side of its outward normal, as the guard turns) stays at least
+    ``threat_margin_m`` outside its edge all the way round. (The whole circle: a conservative
+    test, since the turn ends once the UAV heads away.)"""
+    a, omega = limit_command(kind, v, (speed - v) / dt, omega, dt)
+    x, y, v, theta = integrate(x, y, v, theta, a, omega, dt)
+    r = kind.r_min(v)
+    c, sn = math.cos(theta), math.sin(theta)
+    for th in threats:
+        ex, ey = x - th.x, y - th.y
+        if c * ex + sn * ey >= 0.0:
+            continue  # heading away from it (or along its edge): nothing to escape from
+        # The outward normal's side: left (+1) if the threat is on the right.
+        side = 1.0 if c * ey - sn * ex >= 0.0 else -1.0
+        cx, cy = x - side * r * sn, y + side * r * c
+        if math.hypot(cx - th.x, cy - th.y) - r < th.radius + s.threat_margin_m:
+            return False
+    return True
 
 
 def apf_command(
@@ -117,11 +148,20 @@ def apf_command(
         w2 = wx_ * wx_ + wy_ * wy_
         if w2 > 1e-9:
             t_cpa = (ex * wx_ + ey * wy_) / w2  # = -(p . w)/|w|^2 with p = other - me = -e
-            if 0.0 < t_cpa < s.lookahead_s:
+            if 0.0 < t_cpa:
                 mx, my = -ex + wx_ * t_cpa, -ey + wy_ * t_cpa
                 miss2 = mx * mx + my * my
-                if miss2 < (2.0 * s.min_separation_m) ** 2 and t_cpa < t_first:
-                    t_first = t_cpa
+                # Closest within the lookahead: at the CPA, or at the lookahead's end if the CPA
+                # is later (two UAVs converging slowly, e.g. side by side in the same turn, come
+                # closer than 2 d_min long before their CPA: a conflict all the same).
+                t_near = t_cpa
+                near2 = miss2
+                if t_cpa >= s.lookahead_s:
+                    t_near = s.lookahead_s
+                    qx, qy = -ex + wx_ * t_near, -ey + wy_ * t_near
+                    near2 = qx * qx + qy * qy
+                if near2 < (2.0 * s.min_separation_m) ** 2 and t_near < t_first:
+                    t_first = t_near
                     if miss2 < (0.25 * s.min_separation_m) ** 2:
                         # Nearly a collision course: the side of a miss this small is noise
                         # (heard poses, turning), and the two UAVs could read it the same way
@@ -144,7 +184,23 @@ def apf_command(
         fx += mag * ex / dd
         fy += mag * ey / dd
 
-    if guard_turn:
+    if guard_turn and conflict:
+        # Both a threat ahead and a UAV on a conflicting course. Collision avoidance wins as
+        # long as the UAV, having followed it for one step, could still turn clear of every
+        # threat it knows (_can_escape); only then does the guard's turn win, at collision
+        # avoidance's speed where that too leaves a way out (else, as the guard alone, slowest).
+        # Before, the guard always won: two fast UAVs turning away from the same no-fly zone
+        # side by side flew into each other (paper-case2 seed 13).
+        w_max = kind.turn_rate_max(v)
+        if _can_escape(kind, x, y, v, theta, conflict * w_max, conflict_speed, threats, s, dt):
+            omega, speed = conflict * w_max, conflict_speed
+        else:
+            omega = guard_turn * w_max
+            if not _can_escape(kind, x, y, v, theta, omega, conflict_speed, threats, s, dt):
+                speed = kind.speed_min
+            else:
+                speed = conflict_speed
+    elif guard_turn:
         omega = guard_turn * kind.turn_rate_max(v)
         speed = kind.speed_min
     elif conflict:

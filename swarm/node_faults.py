@@ -7,8 +7,8 @@ applies them, tick by tick, to the UAVs that are flying:
 * ``pause``: the UAV is not woken (the simulation flies its last command; see
   ``Simulation._wake_actors``);
 * ``clock_skew``: the reading's ``t`` is the UAV's clock, ``t + error``;
-* ``nav_error``: the reading's ``x, y`` (and the targets it senses) are shifted by the bias plus
-  Gaussian noise: the UAV believes it is there;
+* ``nav_error``: the reading's ``x, y`` (and the targets and, detect and avoid, UAVs it senses)
+  are shifted by the bias plus Gaussian noise: the UAV believes it is there;
 * ``sensor``: each sensed target is kept with probability ``p_detect``; phantom targets are
   added at ``false_alarm_rate`` per second (Poisson) at uniform points of the detection disk;
 * ``liar``: fabricated scans and tracks are handed to the actor, which sends them with its
@@ -135,6 +135,8 @@ class NodeFaults:
                     r.x += ex
                     r.y += ey
                     r.targets = [replace(s, x=s.x + ex, y=s.y + ey) for s in r.targets]
+                    if r.uavs:  # (detect and avoid measures the others relative to the UAV)
+                        r.uavs = [(u, x + ex, y + ey, vx, vy) for u, x, y, vx, vy in r.uavs]
                 elif isinstance(f, ClockSkew):
                     r.t += f.error(t)
                 elif isinstance(f, Liar):

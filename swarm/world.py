@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from agents.actor import SensedTarget, SensorReading
+from agents.actor import SensedTarget, SensedUav, SensorReading
 from agents.dynamics import clamp, command_violates, integrate, limit_command, wrap_angle
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
@@ -197,16 +197,59 @@ class World:
             rows, cols = (d2 <= (radii * radii)[:, None]).nonzero()  # row-major: targets in id order
             for k, i in zip(rows.tolist(), cols.tolist()):
                 inside[k].append(i)
+        daa = self._detect_and_avoid(ids, bodies, xy)
         readings = []
-        for b, hits in zip(bodies, inside):
+        for k, (b, hits) in enumerate(zip(bodies, inside)):
             r = b.kind.detect_radius
             seen: list[SensedTarget] = []
             for i in hits:
                 v, th = tg.v[i], tg.theta[i]
                 seen.append(SensedTarget(i, tg.x[i], tg.y[i], v * math.cos(th), v * math.sin(th), tg.value[i]))
             threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
-            readings.append(SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats))
+            readings.append(SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats, daa[k]))
         return readings
+
+    def _detect_and_avoid(self, ids: list[int], bodies: list[UavBody], xy: np.ndarray | None) -> list[list[SensedUav] | None]:
+        """Each UAV's detect-and-avoid reading: every other flying UAV within its type's
+        ``daa_range`` (true position and velocity, in id order), or None for a UAV without the
+        sensor (range 0). One k-d tree over the flying UAVs for all of them."""
+        ranges = [b.kind.daa_range for b in bodies]
+        out: list[list[SensedUav] | None] = [[] if r > 0 else None for r in ranges]
+        rmax = max(ranges, default=0.0)
+        if rmax <= 0:
+            return out
+        pop = self.alive_ids()  # who is in the air to be sensed
+        if len(pop) < 2:
+            return out
+        uavs = self.uavs
+        pxy = xy if xy is not None and pop == ids else self.positions(pop)
+        # (The tree's reach a hair beyond the range; the test below is exact.)
+        pairs = cKDTree(pxy).query_pairs(rmax * (1.0 + 1e-9) + 1e-6, output_type="ndarray")
+        if not len(pairs):
+            return out
+        # Both directions of each pair: observer a senses b if b is within a's own range.
+        a = np.concatenate((pairs[:, 0], pairs[:, 1]))
+        b = np.concatenate((pairs[:, 1], pairs[:, 0]))
+        d2 = ((pxy[a] - pxy[b]) ** 2).sum(axis=1)
+        pranges = np.array([uavs[u].kind.daa_range for u in pop])
+        keep = d2 <= pranges[a] ** 2
+        a, b = a[keep], b[keep]
+        order = np.lexsort((b, a))  # by observer, then by the sensed UAV's id (pop is in id order)
+        a, b = a[order], b[order]
+        # Velocities with math's cos and sin, as a Hello's receiver computes them (numpy's may
+        # differ in the last bit from one CPU to another).
+        vel = [(v * math.cos(th), v * math.sin(th)) for v, th in ((uavs[u].v, uavs[u].theta) for u in pop)]
+        bl = b.tolist()
+        sensed = ((pop[j], x, y, *vel[j]) for j, x, y in zip(bl, pxy[b, 0].tolist(), pxy[b, 1].tolist()))
+        row_of = {u: k for k, u in enumerate(ids)}
+        rows = [row_of.get(u, -1) for u in pop]
+        for obs, s in zip(a.tolist(), sensed):
+            k = rows[obs]
+            if k >= 0:
+                lst = out[k]
+                if lst is not None:
+                    lst.append(s)
+        return out
 
     # --- motion -----------------------------------------------------------------------------
 

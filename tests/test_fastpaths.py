@@ -30,7 +30,7 @@ from agents.types import UavType
 from comms.codec import FrameError, _num, _nums
 from comms.messages import TrackItem
 from swarm.recorder import EventLog, read_events
-from swarm.world import ALIVE, TargetMotion, Targets, UavBody, World, _all_far_apart
+from swarm.world import ALIVE, PENDING, TargetMotion, Targets, UavBody, World, _all_far_apart
 
 any_float = st.floats(allow_nan=True, allow_infinity=True)
 edge_floats = st.sampled_from([0.0, -0.0, 1.0, -1.0, math.inf, -math.inf, math.nan])
@@ -51,6 +51,8 @@ def test_clamp_is_min_of_max(v, lo, hi):
 
 KIND_A = UavType("A", 20.0, 40.0, 1.0, 0.5, 1500.0, 1.0, 1.0, 5000.0)
 KIND_B = UavType("B", 60.0, 90.0, 0.6, 0.35, 2000.0, 2.0, 2.1, 4000.0)
+KIND_C = UavType("C", 20.0, 40.0, 1.0, 0.5, 1500.0, 1.0, 1.0, 5000.0, daa_range=1200.0)
+KIND_OFF = UavType("O", 20.0, 40.0, 1.0, 0.5, 1500.0, 1.0, 1.0, 5000.0, daa_range=0.0)
 
 
 def _reading_by_formula(world: World, uid: int, t: float):
@@ -66,7 +68,13 @@ def _reading_by_formula(world: World, uid: int, t: float):
             v, th = tg.v[i], tg.theta[i]
             seen.append((i, tg.x[i], tg.y[i], v * math.cos(th), v * math.sin(th), tg.value[i]))
     threats = [th.threat for th in world.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
-    return seen, threats
+    # Detect and avoid: every other flying UAV within this one's range, pair by pair.
+    daa = None
+    if b.kind.daa_range > 0:
+        daa = [(o.uid, o.x, o.y, o.v * math.cos(o.theta), o.v * math.sin(o.theta))
+               for o in sorted(world.uavs.values(), key=lambda o: o.uid)
+               if o.uid != uid and o.state == ALIVE and (o.x - b.x) ** 2 + (o.y - b.y) ** 2 <= b.kind.daa_range ** 2]
+    return seen, threats, daa
 
 
 coords = st.floats(0.0, 10_000.0)
@@ -74,7 +82,8 @@ coords = st.floats(0.0, 10_000.0)
 
 @settings(deadline=None, max_examples=examples(100))
 @given(
-    st.lists(st.tuples(coords, coords, st.booleans()), min_size=0, max_size=8),
+    st.lists(st.tuples(coords, coords, st.sampled_from([KIND_A, KIND_B, KIND_C, KIND_OFF]), st.booleans(),
+                       st.floats(-math.pi, math.pi)), min_size=0, max_size=8),
     st.lists(st.tuples(coords, coords, st.floats(-math.pi, math.pi), st.floats(0.0, 20.0)), max_size=10),
     st.lists(st.tuples(coords, coords, st.floats(100.0, 3000.0)), max_size=3),
 )
@@ -84,15 +93,16 @@ def test_sense_many_equals_one_by_one(uavs, targets, threats):
         tg.add(x, y, th, v, 1.0 + k, np.random.default_rng(k))
     world = World(Grid(10_000.0, 10_000.0, 100.0), tg,
                   [KnownThreat(i, x, y, r, 2 * r) for i, (x, y, r) in enumerate(threats)])
-    for uid, (x, y, fast) in enumerate(uavs):
-        world.add_uav(UavBody(uid, f"U{uid}", KIND_B if fast else KIND_A, x, y, 50.0, 0.3, ALIVE))
+    for uid, (x, y, kind, flying, theta) in enumerate(uavs):
+        world.add_uav(UavBody(uid, f"U{uid}", kind, x, y, 50.0, theta, ALIVE if flying else PENDING))
     ids = world.alive_ids()
     readings = world.sense_many(ids, 7.0)
     assert len(readings) == len(ids)
     for uid, r in zip(ids, readings):
-        seen, threat_ids = _reading_by_formula(world, uid, 7.0)
+        seen, threat_ids, daa = _reading_by_formula(world, uid, 7.0)
         assert [(s.target, s.x, s.y, s.vx, s.vy, s.value) for s in r.targets] == seen
         assert [th.threat for th in r.threats] == threat_ids
+        assert r.uavs == daa
         b = world.uavs[uid]
         assert (r.t, r.x, r.y, r.v, r.theta) == (7.0, b.x, b.y, b.v, b.theta)
         assert world.sense(uid, 7.0) == r

@@ -42,6 +42,13 @@ History:
   (greedy ignored the flag), as a search-only greedy must keep. "greedy-surveillance" pins the
   new behaviour (intended); measured after the assignment-rule changes above, which the shared
   logic inherits.
+- Detect and avoid (issue 22, point 3: collision avoidance takes the true poses of the UAVs
+  within uav_types.X.daa_range_m instead of the radio's one-tick-old ones), the threat guard no
+  longer overriding collision avoidance, and a conflict also when two UAVs are closer than
+  2 d_min at the lookahead's end: unchanged here (no two UAVs of this scenario ever come close
+  enough for collision avoidance to act). The paper-fig11 logs of greedy and DACMP change (UAVs
+  do meet there: greedy seed 0 first differs at t = 543 s by the conflict rule, at 545 s by
+  detect and avoid alone), the lawnmower's do not; see docs/paper.md for the statistics.
 """
 
 from __future__ import annotations

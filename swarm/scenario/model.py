@@ -42,7 +42,7 @@ from pydantic import (
 
 from agents import apf as _apf
 from agents.planners.dacmp import settings as _dacmp
-from agents.types import UavType
+from agents.types import DAA_RANGE_M, UavType
 from comms import radio as _radio
 from faults import schedule as _faults
 from swarm.errors import UsageError
@@ -313,12 +313,18 @@ class UavTypeSpec(_Model):
     w_t: Num = _num(..., ge=0, note="target attraction weight")
     w_r: Num = _num(..., ge=0, note="repulsion weight")
     influence_radius_m: Num = _num(..., gt=0, note="target influence radius D")
+    # Not in the paper. Other UAVs within this range are sensed (true position and velocity) for
+    # collision avoidance instead of taken from the radio. Default 3000 m: collision avoidance
+    # looks planner.apf.lookahead_s = 15 s ahead and Table 1's fastest closing speed is two type B
+    # head-on, 180 m/s: 15 x 180 = 2700 m, plus a margin. 0 turns the sensor off (the radio only).
+    daa_range_m: Num = _num(DAA_RANGE_M, ge=0, note="m, detect-and-avoid sensor range; 0 = no sensor")
 
     def uav_type(self, name: str) -> UavType:
         """This table as the agents' :class:`~agents.types.UavType` named ``name``."""
         return UavType(name=name, speed_min=self.speed_min, speed_max=self.speed_max, accel_max=self.accel_max,
                        bank_max_rad=math.radians(self.bank_max_deg), detect_radius=self.detect_radius_m,
-                       w_t=self.w_t, w_r=self.w_r, influence_radius=self.influence_radius_m)
+                       w_t=self.w_t, w_r=self.w_r, influence_radius=self.influence_radius_m,
+                       daa_range=self.daa_range_m)
 
     @model_validator(mode="after")
     def _speed_range(self) -> UavTypeSpec:
