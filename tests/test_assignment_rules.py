@@ -29,8 +29,8 @@ from swarm.testing.fault_strategies import ALL_KINDS
 from swarm.testing.invariants import check_events, handover_checkers
 from swarm.testing.strategies import scenario_documents
 
-# The planners that surveil (the others refuse planner.surveillance = true).
-SURVEILLING = ("dacmp",)
+# The planners that surveil (DACMP itself; the others through the shared logic, surveils = "shared").
+SURVEILLING = ("dacmp", "greedy", "lawnmower", "formation", "levy")
 
 _HEALTH = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much]
 
