@@ -600,9 +600,11 @@ class _Layers:
         win = np.empty((len(search), n, 4), np.int64)
         for i, (u, pyr) in enumerate(zip(uavs, pyramids)):
             view = u.view
-            # Ties go to a neighbour drawn from the UAV's own stream: with the heading as
-            # tie-break, UAVs flying side by side all picked the same sub-area and flew on in
-            # formation.
+            # Ties go to a neighbour drawn from the UAV's own stream, afresh each replanning.
+            # With the heading as tie-break, UAVs flying side by side all picked the same
+            # sub-area and flew on in formation, each UAV flew straight at a sub-area centre
+            # rather than straight ahead, and paper-case2 found half as many targets by 200 s
+            # (docs/paper.md, "Why a fast UAV misses the target straight ahead").
             tie_key = view.rng.random(9)
             u.guide = planner.pick_guide(pyr.block_means(), pyr.row_edges, pyr.col_edges, g.cell_m, view.x, view.y,
                                          view.theta, tie_key=tie_key)
