@@ -350,7 +350,7 @@ def _sweep_table(summary: dict):
     from rich.table import Table
 
     shown = ["coverage", "certainty", "targets_found", "surveillance_ratio_mean", "handovers_fast_to_slow"]
-    t = Table(title="sweep summary (mean [95% interval])")
+    t = Table(title="sweep summary (mean [95% interval])", caption=summary.get("interval"))
     t.add_column("planner")
     t.add_column("settings")
     t.add_column("runs", justify="right")
@@ -497,15 +497,24 @@ def _cmd_animate(args) -> int:
         path = job.render(progress=on_frame)
     if not args.quiet:
         print(f"wrote {path}")
+    from swarm.viz.report import refresh_report
+
+    report = refresh_report(args.rundir, path)
+    if report is not None and not args.quiet:
+        print(f"updated {report} (it now embeds {path.name})")
     return 0
 
 
 def _cmd_report(args) -> int:
-    from swarm.viz.report import write_report
+    from swarm.viz.report import find_animation, write_report
 
     path = write_report(args.rundir, args.out, animation=args.animation)
     if not args.quiet:
         print(f"wrote {path}")
+        if args.animation is None and find_animation(args.rundir) is None:
+            then = (f"adds it to {path}" if args.out is None
+                    else f"then run `swarm report` again to add it to {path}")
+            print(f"no animation in {args.rundir}: `swarm animate {args.rundir}` makes one and {then}", file=sys.stderr)
     return 0
 
 

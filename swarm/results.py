@@ -102,11 +102,16 @@ def run_metrics(sim: Simulation) -> dict:
         "handover_list": [
             {"t": h.t, "target": h.target, "from": sim.world.uavs[h.from_uav].name,
              "to": sim.world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
-             "latency_s": h.latency_s} for h in m.handovers
+             "latency_s": h.latency_s, "overlap_s": max(h.latency_s, 0.0), "gap_s": max(-h.latency_s, 0.0)}
+            for h in m.handovers
         ],
         **assignment,  # time_to_first_detection_s ... uav_time_share (swarm.metrics.Metrics.assignment)
         "radio": radio,
         "violations": dict(sim.world.violations),
+        "dynamics_violations_by_uav": {
+            sim.world.uavs[uid].name: {"count": int(n), "first_s": first, "last_s": last}
+            for uid, (n, first, last) in sorted(sim.world.dynamics_by_uav.items())
+        },
         "faults_applied": dict(sorted(sim.injector.fired.items())),
         "per_uav": per_uav,
         "events": sim.log.total,

@@ -780,7 +780,7 @@ class Simulation:
         dt = self.dt
         for uid in alive:
             out = outputs[uid]
-            self.world.apply(uid, out.a, out.omega, dt)
+            self.world.apply(uid, out.a, out.omega, dt, self.now)
         self.targets.step(dt, self.grid)
 
     def _end_tick(self) -> None:

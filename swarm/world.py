@@ -163,6 +163,8 @@ class World:
         self.targets = targets
         self.threats = threats
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
+        # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
+        self.dynamics_by_uav: dict[int, list[float]] = {}
 
     def add_uav(self, body: UavBody) -> None:
         self.uavs[body.uid] = body
@@ -253,11 +255,14 @@ class World:
 
     # --- motion -----------------------------------------------------------------------------
 
-    def apply(self, uid: int, a: float, omega: float, dt: float) -> None:
+    def apply(self, uid: int, a: float, omega: float, dt: float, t: float = math.nan) -> None:
         b = self.uavs[uid]
         a, omega = limit_command(b.kind, b.v, a, omega, dt)
         if command_violates(b.kind, b.v, a, omega, dt):
             self.violations["dynamics"] += 1
+            seen = self.dynamics_by_uav.setdefault(uid, [0, t, t])
+            seen[0] += 1
+            seen[2] = t
         b.x, b.y, b.v, b.theta = integrate(b.x, b.y, b.v, b.theta, a, omega, dt)
 
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:

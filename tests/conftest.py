@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import functools
 import os
 import re
 from collections import Counter
@@ -38,6 +39,58 @@ settings.register_profile("ci", simulation_settings, derandomize=True, max_examp
 settings.register_profile("deep", simulation_settings, max_examples=1000, print_blob=True)
 settings.register_profile("quick", parent=settings.get_profile("ci"), max_examples=10)
 settings.register_profile("swarm", simulation_settings, max_examples=100, print_blob=True)
+
+
+# --- running on every core (pytest-xdist) ----------------------------------------------------------
+# pyproject.toml's addopts run the suite with `-n auto`: one worker process per core, each test
+# sent to a free worker. Each worker is a whole pytest session of its own: it reads the options,
+# so it loads the same Hypothesis profile (pytest_configure below), and it builds the fixtures
+# its tests need. Tests share nothing across workers but the file system, and every test writes
+# only below its own tmp_path (or pytest's tmp_path_factory, which gives each worker its own
+# folders). Two things need care:
+# * a module whose tests share state goes to one worker, whole and in file order (the scheduler
+#   below): one with a module-scoped fixture (a run, a results folder filled test by test:
+#   built once, not once per worker) and the modules in SHARED_STATE_MODULES, whose tests read
+#   what earlier tests of the file left in the process;
+# * the fault-kind tally (FaultStats, below) is kept per worker; each worker hands its tally to
+#   the controller when it finishes (`workeroutput`), and the controller adds them up, so the
+#   session-wide check sees every run, as in one process.
+# (xdist's own `--dist loadgroup` with `xdist_group` marks would do the first, but it renames the
+# tests' node ids to group them, which pytest 9 no longer lets a plugin do: its groups are lost.)
+
+# Modules whose tests read process state that earlier tests of the file left (not a fixture):
+# test_stateful's liveness tally is filled by TestSwarmMachine and judged by the test after it.
+SHARED_STATE_MODULES = frozenset({"test_stateful.py"})
+_MODULE_FIXTURE = re.compile(r"""@pytest\.fixture\([^)]*scope\s*=\s*["'](?:module|package)["']""")
+
+
+@functools.cache
+def one_worker_module(path: Path) -> bool:
+    """True for a test module whose tests must run on one worker, in file order (see above)."""
+    return path.name in SHARED_STATE_MODULES or bool(_MODULE_FIXTURE.search(path.read_text(encoding="utf-8")))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """xdist's `load` distribution (what `-n` uses), except that each module of
+    :func:`one_worker_module` is one unit of work: its tests go to one worker, in file order.
+    Other `--dist` modes are xdist's own."""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    root = config.rootpath
+
+    class ModuleGroupScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::", 1)[0]
+            return module if one_worker_module(root / module) else nodeid
+
+    return ModuleGroupScheduling(config, log)
+
+
+def _is_worker(config: pytest.Config) -> bool:
+    return hasattr(config, "workerinput")
 
 
 def deselects_slow(config: pytest.Config) -> bool:
@@ -116,6 +169,19 @@ class FaultStats:
     def never_fired(self) -> list[str]:
         return [k for k in ALL_KINDS if self.fired[k] == 0]
 
+    def to_dict(self) -> dict:
+        """What a worker sends the controller (plain data: it crosses a process boundary)."""
+        return {"schedules": self.schedules, "runs": self.runs, "scheduled": dict(self.scheduled),
+                "fired": dict(self.fired), "runs_fired": dict(self.runs_fired)}
+
+    def add(self, d: dict) -> None:
+        """Add a worker's tally (:meth:`to_dict`) to this one."""
+        self.schedules += d["schedules"]
+        self.runs += d["runs"]
+        self.scheduled.update(d["scheduled"])
+        self.fired.update(d["fired"])
+        self.runs_fired.update(d["runs_fired"])
+
 
 _STATS = FaultStats()
 
@@ -174,7 +240,18 @@ def coverage_is_checked(s: FaultStats) -> bool:
     return PROFILE != "quick" and s.runs >= MIN_RUNS_FOR_COVERAGE
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error) -> None:
+    """xdist, in the controller: a worker finished; add its fault-kind tally to the session's."""
+    tally = getattr(node, "workeroutput", {}).get("fault_stats")
+    if tally:
+        _STATS.add(tally)
+
+
 def pytest_sessionfinish(session, exitstatus):
     s = _STATS
+    if _is_worker(session.config):  # hand the tally to the controller, which judges the whole session
+        session.config.workeroutput["fault_stats"] = s.to_dict()
+        return
     if coverage_is_checked(s) and s.never_fired() and session.exitstatus == 0:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED

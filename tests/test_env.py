@@ -1,9 +1,10 @@
-"""``swarm.env``: the PettingZoo parallel environment ``swarm_search_v0`` (docs/env.md).
+"""``swarm.env``: the PettingZoo parallel environment ``swarm_search_v1`` (docs/env.md).
 
 Checked against PettingZoo's own API and seed tests, and against the simulator: agents leave on
-a crash and enter when they join, an action is the waypoint the UAV flies from the first tick of
-its step, rewards are the step's ground truth (their sum over agents is the run's coverage and
-targets found), the same seed gives the same episode. Skipped without the ``rl`` extra.
+a crash and enter when they join, a restarted UAV stays an agent under the policy, an action is
+the waypoint the UAV flies from the first tick of its step, rewards are the step's ground truth
+(their sum over agents is the run's coverage and targets found), the same seed gives the same
+episode. Skipped without the ``rl`` extra.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ pytest.importorskip("gymnasium")
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 from agents.planners.dacmp.planner import DacmpPlanner
-from swarm.env import ENV_NAME, ExternalPlanner, RewardWeights, parallel_env, swarm_search_v0
+from swarm.env import ENV_NAME, ExternalPlanner, RewardWeights, parallel_env, swarm_search_v1
 from swarm.errors import APIMisuseError, UsageError
 from swarm.scenario import apply_overrides, load_scenario
 
@@ -85,9 +86,12 @@ def test_import_swarm_needs_no_pettingzoo():
 
 def test_names_and_version():
     env = parallel_env(scenario=case1())
-    assert env.metadata["name"] == ENV_NAME == "swarm_search_v0"
-    assert swarm_search_v0.parallel_env is parallel_env
+    assert env.metadata["name"] == ENV_NAME == "swarm_search_v1"
+    assert swarm_search_v1.parallel_env is parallel_env
     assert env.possible_agents == ["B1", "B2", "A1"]
+    # v1 changed what a restart does (it stays under the policy): the old name no longer imports.
+    with pytest.raises(ImportError):
+        import swarm.env.swarm_search_v0  # noqa: F401
 
 
 def test_pettingzoo_parallel_api():
@@ -97,6 +101,44 @@ def test_pettingzoo_parallel_api():
 def test_pettingzoo_parallel_api_with_crash_and_joiner():
     sc = case1(faults=[{"kind": "crash", "uav": "B1", "at_s": 30.0}], joiners=[joiner("B3", 60.0)])
     parallel_api_test(parallel_env(scenario=sc, controlled=["B"]), num_cycles=20)
+
+
+def test_pettingzoo_parallel_api_with_restart():
+    sc = case1(faults=[{"kind": "restart", "uav": "B1", "at_s": 30.0, "downtime_s": 15.0},
+                       {"kind": "crash", "uav": "B2", "at_s": 50.0}])
+    parallel_api_test(parallel_env(scenario=sc), num_cycles=20)
+
+
+def test_a_restarted_uav_stays_an_agent_under_the_policy():
+    """Issue 23: a restart gave the UAV the scenario's planner back. It stays in ``agents``
+    through its downtime (state "restarting", never terminated) and flies the policy's
+    waypoints again from the tick it is back."""
+    sc = case1(faults=[{"kind": "restart", "uav": "B1", "at_s": 30.0, "downtime_s": 15.0}])
+    env = parallel_env(scenario=sc)
+    env.reset(seed=1)
+    sim = env.sim
+    uid = sim.names["B1"]
+    first_actor = sim.actors[uid]
+    states = []
+    for _ in range(8):  # to 80 s
+        assert "B1" in env.agents
+        _obs, rewards, term, trunc, infos = env.step({a: np.array([0.3, 0.6], np.float32) for a in env.agents})
+        assert not term["B1"] and not trunc["B1"]
+        states.append((infos["B1"]["t"], infos["B1"]["state"], rewards["B1"]))
+    assert [s[:2] for s in states[2:6]] == [(30.0, "alive"), (40.0, "restarting"), (50.0, "alive"), (60.0, "alive")]
+    assert states[3][2] == 0.0  # down for the whole step [30 s, 40 s): nothing scanned, no reward
+    actor = sim.actors[uid]
+    assert actor is not first_actor  # a fresh actor (empty map) ...
+    assert actor.planner is env._planners["B1"]  # ... with the policy's planner, not DACMP's
+    # It flies the last action's waypoint: its current plan is the waypoint of the last step.
+    assert (actor.plan.wx, actor.plan.wy) == pytest.approx(infos["B1"]["waypoint"])
+    # A UAV left to the scenario's planner gets that planner back, as in any run.
+    env = parallel_env(scenario=sc, controlled=["A"])
+    env.reset(seed=1)
+    while env.agents:
+        env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    assert isinstance(env.sim.actors[env.sim.names["B1"]].planner, DacmpPlanner)
+    env.close()
 
 
 def test_pettingzoo_seed_test():

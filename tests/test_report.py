@@ -136,6 +136,94 @@ def test_report_without_animation_and_errors(reported_run, tmp_path, capsys):
     assert len(r.stderr.strip().splitlines()) == 1 and "events.msgpack: missing" in r.stderr
 
 
+@pytest.mark.slow  # renders the report twice and an animation
+def test_animate_after_report_puts_the_animation_in_it(reported_run, tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("events.msgpack", "scenario.json", "timeseries.csv", "metrics.json"):
+        shutil.copy(reported_run / name, run / name)
+    assert main(["report", str(run)]) == 0
+    out = capsys.readouterr()
+    html = (run / "report.html").read_text()
+    assert "data:image/gif" not in html and "No animation" in html and "swarm animate" in html
+    assert f"no animation in {run}" in out.err and "swarm animate" in out.err  # said on the terminal too
+    assert main(["animate", str(run), "--out", str(run / "animation.gif"), "--fps", "2", "--speed", "120"]) == 0
+    out = capsys.readouterr()
+    assert f"updated {run / 'report.html'}" in out.out
+    gif = re.findall(r'src="data:image/gif;base64,([^"]+)"', (run / "report.html").read_text())
+    assert len(gif) == 1 and base64.b64decode(gif[0]) == (run / "animation.gif").read_bytes()
+    # A folder without a report gets none from `animate`.
+    (run / "report.html").unlink()
+    assert main(["animate", str(run), "--out", str(run / "animation.gif"), "--fps", "2", "--speed", "120",
+                 "--quiet"]) == 0
+    assert not (run / "report.html").exists()
+
+
+def test_radio_row_writes_one_loss_when_it_does_not_vary():
+    from swarm.viz.report import _radio_words
+
+    assert "loss 0.1," in _radio_words({"loss_base": 0.1, "loss_at_range": 0.1}, 5000.0)
+    assert "loss 0.1," in _radio_words({"loss_base": 0.1}, None)
+    words = _radio_words({"loss_base": 0.1, "loss_at_range": 0.3}, 5000.0)
+    assert "0.1-0.1" not in words and "loss 0.1 near, 0.3 at the range limit" in words
+
+
+def test_handover_rows_split_latency_into_overlap_and_gap():
+    from swarm.viz.report import handover_rows
+
+    base = {"target": 2, "from": "B3", "to": "A4", "from_type": "B", "to_type": "A"}
+    # The owner let go at 120 s, the newcomer arrived at 152 s: logged at 152 s, latency -32 s.
+    gap, overlap = handover_rows([{**base, "t": 152.0, "latency_s": -32.0}, {**base, "t": 45.0, "latency_s": 15.0}])
+    assert gap == ("152 s", 2, "B3 (B)", "A4 (A)", "120 s", "152 s", "0 s", "32 s")
+    # The newcomer arrived at 30 s, the owner let go at 45 s: both held it for 15 s.
+    assert overlap == ("45 s", 2, "B3 (B)", "A4 (A)", "45 s", "30 s", "15 s", "0 s")
+
+
+def test_violations_are_listed_with_who_when_and_which():
+    from types import SimpleNamespace
+
+    from swarm.viz.report import _violation_section, violation_episodes
+
+    rp = SimpleNamespace(
+        names=["A1", "A2", "B1"], dt=1.0, scenario={"safety": {"min_separation_m": 100.0}},
+        # separation A1-B1 for 3 ticks, again later; A2 inside threat 0 once
+        violations=[(10.0, "separation", 0, 2), (11.0, "separation", 0, 2), (12.0, "separation", 0, 2),
+                    (11.0, "threat", 1, 0), (40.0, "separation", 0, 2)],
+        metrics={"violations": {"separation": 4, "threat": 1, "dynamics": 2},
+                 "dynamics_violations_by_uav": {"A2": {"count": 2, "first_s": 5.0, "last_s": 50.0}}})
+    eps = violation_episodes(rp)
+    assert [(e["invariant"], e["who"], e["start_s"], e["end_s"], e["ticks"]) for e in eps] == [
+        ("dynamics", "A2", 5.0, 50.0, 2),
+        ("separation", "A1 and B1", 10.0, 12.0, 3),
+        ("threat", "A2 in threat 0", 11.0, 11.0, 1),
+        ("separation", "A1 and B1", 40.0, 40.0, 1),
+    ]
+    sec = _violation_section(rp)
+    assert sec["any"] and sec["unlisted"] == "" and sec["totals"] == "separation 4, threat 1, dynamics 2"
+    assert sec["rows"][1] == ("separation", "A1 and B1", "10 s", "12 s", 3)
+    assert dict(sec["meanings"])["separation"].endswith("(100 m in this run)")
+    # A run folder from before dynamics were listed per UAV: the count it cannot place is named.
+    del rp.metrics["dynamics_violations_by_uav"]
+    assert _violation_section(rp)["unlisted"] == "2 dynamics"
+
+
+@pytest.mark.slow  # a 400 s run with every fault kind
+def test_run_report_lists_the_runs_violations(tmp_path):
+    import json
+
+    out = tmp_path / "demo"
+    assert main(["run", "demo-all-faults", "--seed", "1", "--out", str(out), "--quiet", "--no-figures"]) == 0
+    assert main(["report", str(out), "--quiet"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["violations"]["separation"] > 0  # what makes this run worth reporting on
+    html = (out / "report.html").read_text()
+    section = html.split('id="violations"')[1].split('id="uavs"')[0]
+    rows = re.findall(r"<tr><td>separation</td><td>(\w+) and (\w+)</td><td>([\d.]+) s</td><td>([\d.]+) s</td>"
+                      r"<td>(\d+)</td></tr>", section)
+    assert rows and sum(int(r[4]) for r in rows) == m["violations"]["separation"]
+    assert all(a in m["per_uav"] and b in m["per_uav"] and float(t0) <= float(t1) for a, b, t0, t1, _n in rows)
+
+
 def _sweep_summary() -> dict:
     def stat(mean, sd, half):
         return {"mean": mean, "sd": sd, "ci95": [mean - half, mean + half]}
@@ -172,6 +260,19 @@ def test_sweep_report(tmp_path):
         assert im.size[0] >= 800 and len(im.convert("RGB").getcolors(1 << 20)) > 50
     # Default output path, and a summary with no groups still gives a page.
     assert write_sweep_report(tmp_path, {"groups": []}).name == "report.html"
+
+
+def test_sweep_report_says_how_intervals_are_bounded(tmp_path):
+    summary = _two_planner_summary()
+    summary["interval"] = "Student-t 95% interval of the mean over seeds, clipped to the range the metric can take"
+    summary["groups"][0]["metrics"]["coverage"] = {"n": 2, "mean": 0.9, "sd": 0.05, "ci95": [0.45, 1.0],
+                                                   "bounds": [0.0, 1.0]}
+    html = write_sweep_report(tmp_path, summary, tmp_path / "sweep.html").read_text()
+    assert "clipped to the range the metric can take" in html.split('id="summary"')[1]
+    assert "<td>interval</td>" not in html  # a note under the table, not a setting
+    assert re.search(r'title="interval clipped at 1.000, the end of the metric&#39;s range">0.900 ± 0.050 '
+                     r'\[0.450, 1.000\]</td>', html)
+    assert html.count("interval clipped") == 1  # the other cells' intervals were not clipped
 
 
 def _stat(mean, sd=0.0, half=0.0):
@@ -329,3 +430,26 @@ def test_report_renders_in_headless_chromium(reported_run, chromium, tmp_path):
     # Measured here: ~6500 colours / 2% coloured pixels for the report, ~750 / 0.03% when broken.
     assert distinct > 3000 and saturated > 0.005, (distinct, saturated)
     assert distinct > 4 * b_distinct and saturated > 10 * b_saturated, (distinct, b_distinct, saturated, b_saturated)
+
+
+@pytest.mark.slow  # a Chromium run
+def test_wide_sweep_table_scrolls_inside_the_page(chromium, tmp_path):
+    """Issue 23: a sweep with many differing metrics made the summary table run off a 1300 px page.
+    In Chromium at that width the page itself is no wider than the window, while the table's box
+    is narrower than the table: it scrolls sideways on its own."""
+    metrics = [f"radio.metric_{i}" for i in range(14)] + ["coverage", "certainty"]
+    groups = [{"planner": planner, "settings": {"radio.loss_base": loss, "radio.range_m": 8000.0 + loss},
+               "runs": 3, "metrics": {m: _stat(1000.0 * (k + 1) + 37.0 * j, 12.0, 30.0) for k, m in enumerate(metrics)}}
+              for j, (planner, loss) in enumerate((("dacmp", 0.0), ("dacmp", 0.3), ("greedy", 0.0), ("greedy", 0.3)))]
+    html = write_sweep_report(tmp_path, {"scenario": "wide", "groups": groups}, tmp_path / "wide.html").read_text()
+    js = ('<script>window.addEventListener("load",function(){var s=document.querySelector(".scroll");'
+          'var p=document.createElement("pre");p.id="widths";p.textContent=[document.documentElement.scrollWidth,'
+          'window.innerWidth,s.scrollWidth,s.clientWidth].join(" ");document.body.appendChild(p);});</script>')
+    probe = tmp_path / "probe.html"
+    probe.write_text(html.replace("</body>", js + "</body>"))
+    r = _chromium(chromium, tmp_path, "--window-size=1300,900", "--dump-dom", probe.as_uri())
+    found = re.search(r'<pre id="widths">([^<]*)</pre>', r.stdout)
+    assert found, f"chromium did not load the page: {r.stderr[-500:]}"
+    page, window, table, box = map(int, found.group(1).split())
+    assert page <= window, (page, window)
+    assert table > box + 200, (table, box)  # the table is much wider than its box, which scrolls

@@ -53,6 +53,28 @@ def test_describe_matches_student_t():
     assert describe([7.0])["ci95"] == [7.0, 7.0]
 
 
+def test_describe_clips_the_interval_to_the_metrics_range():
+    from swarm.experiments.sweep import difference_bounds, metric_bounds
+
+    # Two seeds: t(0.975, 1) = 12.7, so the raw interval of 3 targets found out of 14 leaves [0, 14].
+    raw = describe([2.0, 4.0])
+    assert raw["ci95"][0] < 0 and raw["ci95"][1] > 14 and "bounds" not in raw
+    d = describe([2.0, 4.0], metric_bounds("targets_found", 14))
+    assert d["ci95"] == [0.0, 14.0] and d["bounds"] == [0.0, 14.0]
+    assert (d["mean"], d["sd"]) == (raw["mean"], raw["sd"])  # only the interval changes
+    # A fraction: inside [0, 1]; an end that stays inside is the t interval's own.
+    d = describe([0.97, 0.99], metric_bounds("surveillance_ratio_mean"))
+    assert d["ci95"][1] == 1.0 and d["ci95"][0] == pytest.approx(raw_lo := 0.98 - 12.706204736174694 * 0.01)
+    assert raw_lo < 0.97
+    # Counters from 0; unknown metrics unbounded; a difference of two values in [a, b] in [a-b, b-a].
+    assert metric_bounds("radio.sent") == (0.0, math.inf) and metric_bounds("violations.separation")[0] == 0.0
+    assert metric_bounds("handovers") == (0.0, math.inf) and metric_bounds("some_planner_metric") == (-math.inf, math.inf)
+    assert difference_bounds(metric_bounds("coverage")) == (-1.0, 1.0)
+    assert difference_bounds(metric_bounds("radio.sent")) == (-math.inf, math.inf)
+    # A value outside the range is shown, not clipped off: the range widens to keep it.
+    assert describe([7.0, 9.0], (0.0, 8.0))["ci95"] == [0.0, 9.0]
+
+
 def test_split_values_keeps_brackets_together():
     assert split_values("0,0.3, 0.5") == ["0", "0.3", "0.5"]
     assert split_values("[1,2],[3,4]") == ["[1,2]", "[3,4]"]
@@ -78,6 +100,16 @@ def test_sweep_summary_and_paired_comparison(small, tmp_path):
     assert (cmp["baseline"], cmp["planner"], cmp["paired_seeds"]) == ("dacmp", "greedy", 2)
     diff = cmp["difference"]["coverage"]["mean"]
     assert math.isclose(diff, by["greedy"]["metrics"]["coverage"]["mean"] - by["dacmp"]["metrics"]["coverage"]["mean"])
+    # Two seeds: every interval stays within its metric's range (issue 23), and the summary says how.
+    assert "clipped" in s["interval"]
+    total = json.loads(next(tmp_path.glob("runs/*/*/*/metrics.json")).read_text())["targets_total"]
+    for stats, (lo, hi) in [(d, (0.0, 1.0)) for g in s["groups"] for m, d in g["metrics"].items()
+                            if m in ("coverage", "certainty", "surveillance_ratio_mean")] \
+            + [(g["metrics"]["targets_found"], (0.0, total)) for g in s["groups"]] \
+            + [(d, (0.0, math.inf)) for g in s["groups"] for m, d in g["metrics"].items()
+               if m.startswith(("radio.", "violations.")) or m.startswith("handovers")] \
+            + [(cmp["difference"]["coverage"], (-1.0, 1.0))]:
+        assert lo <= stats["ci95"][0] <= stats["mean"] <= stats["ci95"][1] <= hi, stats
     csv_lines = (tmp_path / "summary.csv").read_text().splitlines()
     assert csv_lines[0].startswith("planner,metric,runs,mean,sd,ci95_low,ci95_high")
     assert any(line.startswith("greedy,coverage,2,") for line in csv_lines)

@@ -1,4 +1,4 @@
-"""``swarm_search_v0``: the simulator as a PettingZoo parallel environment (docs/env.md).
+"""``swarm_search_v1``: the simulator as a PettingZoo parallel environment (docs/env.md).
 
 Each controlled UAV is an agent named after it. One :meth:`SwarmSearchEnv.step` advances the
 simulation by one replanning period (``scenario.planner.replan_s``, in whole ticks of ``dt``).
@@ -13,6 +13,12 @@ answers every plan request with the waypoint the environment last set. At each s
 environment sets the waypoints and clears the actors' current plans (``UavActor.plan = None``:
 the actor asks for a plan at its next tick), so every action takes effect at the first tick of
 its step, even when the UAV reached its previous waypoint early and replanned in between.
+
+A ``restart`` fault gives the UAV a fresh actor with a new planner instance; the environment
+hears the ``restart`` event (emitted as the new actor is installed, before its first tick) and
+puts the agent's :class:`ExternalPlanner` on it, so a restarted agent stays under the policy.
+While it is down it stays in ``agents`` (a restart is not the end of it: PettingZoo never
+revives a terminated agent), with ``infos[agent]["state"] == "restarting"``.
 
 Observations come from the UAV's own state, its own uncertainty map and its own tracks (what it
 believes, not the truth); rewards from the ground truth of the step (the event log's ``pose``,
@@ -42,7 +48,7 @@ __all__ = ["ENV_NAME", "ExternalPlanner", "RewardWeights", "SwarmSearchEnv", "pa
 
 # The name carries a version: bump it whenever the same code driving the same scenario and seed
 # could get different observations, rewards or episodes (docs/env.md, "Versions").
-ENV_NAME = "swarm_search_v0"
+ENV_NAME = "swarm_search_v1"
 
 # Columns of an agent's "state" observation.
 STATE_FIELDS = ("x", "y", "speed", "cos_heading", "sin_heading", "mode", "time", "type_speed")
@@ -123,7 +129,7 @@ class _Step:
 
 
 class SwarmSearchEnv(ParallelEnv):
-    """The PettingZoo parallel environment ``swarm_search_v0`` (see the module docstring and
+    """The PettingZoo parallel environment ``swarm_search_v1`` (see the module docstring and
     docs/env.md). Build it with :func:`parallel_env`."""
 
     metadata = {"name": ENV_NAME, "render_modes": [], "is_parallelizable": True}
@@ -194,6 +200,7 @@ class SwarmSearchEnv(ParallelEnv):
 
         self.sim: Simulation | None = None
         self._uid: dict[str, int] = {}
+        self._agent_of: dict[int, str] = {}
         self._planners: dict[str, ExternalPlanner] = {}
         self._tally: dict[int, _Step] = {}
         self._covered: np.ndarray | None = None
@@ -261,7 +268,8 @@ class SwarmSearchEnv(ParallelEnv):
             self._planners[a] = p
         self._tally = {uid: _Step() for uid in self._uid.values()}
         self._covered = np.zeros(sim.grid.shape, dtype=bool)
-        self._unsubscribe = sim.subscribe(self._on_event, kinds={"pose", "found", "violation"})
+        self._agent_of = {uid: a for a, uid in self._uid.items()}
+        self._unsubscribe = sim.subscribe(self._on_event, kinds={"pose", "found", "violation", "restart"})
         self.agents = self._entered()
         if not self.agents:
             self._skip_to_next_agent()
@@ -282,8 +290,7 @@ class SwarmSearchEnv(ParallelEnv):
         for tally in self._tally.values():
             tally.new_cells = tally.found = tally.violations = 0
         sim.step(min(self.ticks_per_step, self._ticks_left()))
-        bodies = sim.world.uavs
-        terminated = {a: bodies[self._uid[a]].state == CRASHED for a in stepping}
+        terminated = {a: self._crashed(a) for a in stepping}
         obs = {a: self._observe(a) for a in stepping}
         rewards = {a: self._reward(a) for a in stepping}
         infos = {a: self._info(a) for a in stepping}
@@ -321,16 +328,28 @@ class SwarmSearchEnv(ParallelEnv):
         assert sim is not None
         return sim.n_ticks - int(round(sim.now / sim.dt))
 
+    def _restarting(self, agent: str) -> bool:
+        """Down for a ``restart`` fault: it will fly again (``Simulation._restarting``)."""
+        sim = self.sim
+        assert sim is not None
+        return self._uid[agent] in sim._restarting
+
+    def _crashed(self, agent: str) -> bool:
+        """Down for good: crashed, and not in a restart's downtime."""
+        sim = self.sim
+        assert sim is not None
+        return sim.world.uavs[self._uid[agent]].state == CRASHED and not self._restarting(agent)
+
     def _entered(self) -> list[str]:
-        """Controlled UAVs that fly in the next tick: alive, or pending with their join time
-        reached (they join at the start of that tick)."""
+        """Controlled UAVs in play at the next tick: alive, pending with their join time reached
+        (they join at the start of that tick), or down for a restart (they fly again)."""
         sim = self.sim
         assert sim is not None
         now = sim.now + 1e-9
         out = []
         for a in self.possible_agents:
             b = sim.world.uavs[self._uid[a]]
-            if b.state == ALIVE or (b.state == PENDING and b.join_s <= now):
+            if b.state == ALIVE or (b.state == PENDING and b.join_s <= now) or self._restarting(a):
                 out.append(a)
         return out
 
@@ -390,6 +409,13 @@ class SwarmSearchEnv(ParallelEnv):
             for uid in party:
                 if uid in tally:
                     tally[uid].violations += 1
+        elif kind == "restart":
+            # A fresh actor with the scenario's planner was just installed (before its first
+            # tick): a controlled UAV goes on under the policy, flying the agent's last waypoint.
+            agent = self._agent_of.get(event[2])
+            sim = self.sim
+            if agent is not None and sim is not None:
+                sim.actors[event[2]].planner = self._planners[agent]
 
     def _reward(self, agent: str) -> float:
         sim = self.sim
@@ -407,7 +433,8 @@ class SwarmSearchEnv(ParallelEnv):
         uid = self._uid[agent]
         t = self._tally[uid]
         b = sim.world.uavs[uid]
-        return {"t": sim.now, "state": b.state, "type": b.kind.name, "new_cells": t.new_cells,
+        state = "restarting" if self._restarting(agent) else b.state
+        return {"t": sim.now, "state": state, "type": b.kind.name, "new_cells": t.new_cells,
                 "new_area_km2": t.new_cells * sim.grid.cell_m ** 2 / _SQM_PER_KM2, "found": t.found,
                 "violations": t.violations, "waypoint": self._planners[agent].waypoint}
 
@@ -462,7 +489,7 @@ class SwarmSearchEnv(ParallelEnv):
 
 
 def parallel_env(scenario: Scenario | str | Path = "paper-case1", **options: Any) -> SwarmSearchEnv:
-    """The ``swarm_search_v0`` parallel environment on ``scenario`` (a built-in name, a path or
+    """The ``swarm_search_v1`` parallel environment on ``scenario`` (a built-in name, a path or
     a :class:`~swarm.scenario.Scenario`). Options (docs/env.md): ``controlled`` (UAV names and
     types; default all), ``planner`` and ``duration_s`` (scenario overrides), ``map_size``,
     ``map_cell_m``, ``map_samples``, ``n_tracks``, ``rewards`` (:class:`RewardWeights` or a

@@ -434,8 +434,44 @@ def _flatten(metrics: dict) -> dict[str, float]:
     return flat
 
 
-def describe(values: Sequence[float]) -> dict:
-    """Mean, sample standard deviation and the Student-t 95% interval of the mean."""
+INTERVAL_METHOD = ("Student-t 95% interval of the mean over seeds, clipped to the range the metric can take "
+                   "(fractions 0-1, counts from 0, targets found up to the targets in the area)")
+
+# The range each metric of metrics.json can take (flattened names, as summarised). Fractions
+# are in [0, 1]; counters cannot go below 0; targets_found is at most the run's targets_total
+# (filled in per group, see _bounds). Metrics not named here are left unbounded.
+_FRACTIONS = frozenset({"coverage", "certainty", "surveillance_ratio_mean"})
+_COUNTS = frozenset({"handovers", "handovers_fast_to_slow", "targets_found"})
+
+
+def metric_bounds(name: str, targets_total: float = math.inf) -> tuple[float, float]:
+    """``(low, high)``: the values metric ``name`` (flattened, e.g. ``radio.sent``) can take;
+    ``targets_total``: the most targets a run of the group has, the bound of ``targets_found``."""
+    if name in _FRACTIONS:
+        return 0.0, 1.0
+    if name == "targets_found":
+        return 0.0, float(targets_total)
+    if name in _COUNTS or name.startswith(tuple(f"{k}." for k in _NESTED)):
+        return 0.0, math.inf
+    return -math.inf, math.inf
+
+
+def difference_bounds(bounds: tuple[float, float]) -> tuple[float, float]:
+    """The range of ``x - y`` for ``x`` and ``y`` both within ``bounds``."""
+    lo, hi = bounds
+    width = hi - lo
+    return -width, width
+
+
+def describe(values: Sequence[float], bounds: tuple[float, float] | None = None) -> dict:
+    """Mean, sample standard deviation and the Student-t 95% interval of the mean.
+
+    ``bounds``: the range the values can take (:func:`metric_bounds`); the interval is clipped
+    to it and the result gets ``"bounds": [low, high]``. Clipping never loses the true mean
+    (it lies within the range too), so the interval keeps its coverage; with 2-3 seeds the
+    t interval is wide (t = 12.7 for 2 seeds) and clipped it says, honestly, how little so
+    few seeds tell. A bootstrap or percentile interval would stay inside the range too, but
+    from 2 seeds it is [min, max], which holds the mean only half the time."""
     from scipy import stats
 
     x = np.asarray(values, dtype=np.float64)
@@ -447,16 +483,27 @@ def describe(values: Sequence[float]) -> dict:
     else:
         sd, half = 0.0, math.nan
     ci = [mean - half, mean + half] if math.isfinite(half) else [mean, mean]
-    return {"n": int(n), "mean": mean, "sd": sd, "ci95": ci}
+    out: dict[str, Any] = {"n": int(n), "mean": mean, "sd": sd, "ci95": ci}
+    if bounds is not None:
+        # never clip off a value that was seen (a metric outside its range is a bug to see, not hide)
+        lo, hi = float(bounds[0]), float(bounds[1])
+        if n:
+            lo, hi = min(lo, float(x.min())), max(hi, float(x.max()))
+        out["ci95"] = [min(max(c, lo), hi) if math.isfinite(c) else c for c in ci]
+        out["bounds"] = [lo, hi]
+    return out
 
 
 def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
     """Per planner and setting: mean, sd and 95% interval of every metric over finished seeds;
     and, for each setting, each other planner compared with the first one seed by seed
-    (paired differences ``other - first`` with their 95% interval)."""
+    (paired differences ``other - first`` with their 95% interval). Intervals are clipped to
+    the range a metric (or a difference of two of its values) can take: :data:`INTERVAL_METHOD`,
+    :func:`describe`; ``"interval"`` says so in the summary."""
     out = Path(out_dir)
     groups: dict[tuple, dict] = {}
     per_seed: dict[tuple, dict[int, dict[str, float]]] = {}
+    targets: dict[tuple, float] = {}  # the most targets in a run of the group: targets_found's bound
     errors = []
     for spec in runs:
         key = (spec.planner, _settings_key(spec.settings))
@@ -465,14 +512,18 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
         mpath = out / spec.folder / "metrics.json"
         if mpath.is_file():
             g["runs"] += 1
-            per_seed.setdefault(key, {})[spec.seed] = _flatten(json.loads(mpath.read_text()))
+            metrics = json.loads(mpath.read_text())
+            per_seed.setdefault(key, {})[spec.seed] = _flatten(metrics)
+            if isinstance(metrics.get("targets_total"), (int, float)):
+                targets[key] = max(targets.get(key, 0.0), float(metrics["targets_total"]))
         elif (out / spec.folder / "error.json").is_file():
             g["failed"] += 1
             errors.append(json.loads((out / spec.folder / "error.json").read_text()).get("error", "?"))
     for key, g in groups.items():
         seeds = per_seed.get(key, {})
         names = sorted({m for v in seeds.values() for m in v})
-        g["metrics"] = {m: describe([v[m] for v in seeds.values() if m in v]) for m in names}
+        g["metrics"] = {m: describe([v[m] for v in seeds.values() if m in v], metric_bounds(m, targets.get(key, math.inf)))
+                        for m in names}
     comparisons = []
     planners = list(dict.fromkeys(s.planner for s in runs))
     settings_list = list({_settings_key(s.settings): s.settings for s in runs}.items())
@@ -487,13 +538,17 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
             comparisons.append({
                 "settings": dict(settings), "planner": other, "baseline": planners[0],
                 "paired_seeds": len(common),
-                "difference": {m: describe([theirs[s][m] - base[s][m] for s in common]) for m in names},
+                "difference": {m: describe([theirs[s][m] - base[s][m] for s in common],
+                                           difference_bounds(metric_bounds(m, max(targets.get((planners[0], skey), 0.0),
+                                                                                  targets.get((other, skey), 0.0)))))
+                               for m in names},
             })
     return {
         "runs_total": len(runs),
         "runs_finished": sum(g["runs"] for g in groups.values()),
         "runs_failed": sum(g["failed"] for g in groups.values()),
         "errors": errors,
+        "interval": INTERVAL_METHOD,
         "groups": list(groups.values()),
         "comparisons": comparisons,
     }

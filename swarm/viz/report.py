@@ -10,12 +10,15 @@ show.
 A run report holds the scenario summary, the metrics (``metrics.json``), figures — trajectories
 over the first-scan map, coverage and certainty over time (``timeseries.csv``), targets found
 and watched over time, task load per UAV (seconds in search vs surveillance, stacked, as in the
-paper's Fig. 14), radio counters — and a fault timeline (schedule windows, crashes, joins and
-every UAV's state over time). Figures use km axes, one colour per UAV and legends that list
-types instead of UAVs beyond 12 UAVs.
+paper's Fig. 14), radio counters — a fault timeline (schedule windows, crashes, joins and
+every UAV's state over time), the violations (which invariant, who, when: :func:`violation_episodes`)
+and the handovers (release and arrival times, overlap and gap: :func:`handover_rows`). Figures
+use km axes, one colour per UAV and legends that list types instead of UAVs beyond 12 UAVs.
+``swarm animate`` refreshes a run folder's report with the animation it made (:func:`refresh_report`).
 
 A sweep report holds a table of every metric that differs between groups (mean ± sd [95%
-interval], in readable units: :func:`swarm.viz.style.metric_unit`), one panel per such metric,
+interval, clipped to the metric's range by the sweep's summary], in readable units:
+:func:`swarm.viz.style.metric_unit`; wide tables scroll inside the page), one panel per such metric,
 and the paired differences of the sweep's ``comparisons`` written as "first planner − second"
 (``summary.json`` stores them as ``other − first``; the report flips them).
 """
@@ -76,8 +79,11 @@ __all__ = [
     "build_sweep_report",
     "constant_metrics",
     "find_animation",
+    "handover_rows",
     "paired_differences",
+    "refresh_report",
     "render",
+    "violation_episodes",
     "write_report",
     "write_sweep_report",
 ]
@@ -508,8 +514,8 @@ def _radio_words(radio: dict, rng: float | None) -> str:
                  f"{'' if rng is None else f', range cap {rng / 1000:g} km'}, loss floor {base:g}")
     else:
         at = radio.get("loss_at_range")
-        words = (f"range {'unlimited' if rng is None else f'{rng / 1000:g} km'}, "
-                 f"loss {base:g}-{base if at is None else at:g}")
+        loss = f"loss {base:g}" if at is None or at == base else f"loss {base:g} near, {at:g} at the range limit"
+        words = f"range {'unlimited' if rng is None else f'{rng / 1000:g} km'}, {loss}"
     return words + f", latency {radio.get('latency_s', 0):g} s" + (", authenticated frames" if radio.get("auth") else "")
 
 
@@ -573,6 +579,86 @@ def _detection_watch_rows(m: dict, rp: Replay) -> tuple[list[tuple], list[tuple]
     return target_rows, uav_rows
 
 
+# What each invariant the simulator counts (metrics.json ``violations``) means; the names are
+# those of swarm.testing.invariants' checkers of the same invariants.
+VIOLATION_MEANINGS = {
+    "separation": "two UAVs closer than safety.min_separation_m",
+    "threat": "a UAV inside a threat's circle",
+    "dynamics": "a command beyond the UAV type's limits (speed, acceleration or turn rate), clipped",
+}
+MAX_VIOLATION_ROWS = 200
+
+
+def violation_episodes(rp: Replay) -> list[dict]:
+    """The run's violations as episodes, in order of start: one per invariant and party (a pair
+    of UAVs, a UAV and a threat, a UAV's dynamics) and stretch of consecutive ticks, as
+    ``{"invariant", "who", "start_s", "end_s", "ticks"}``. Separation and threat come from the
+    event log's ``violation`` events (one per tick and party); dynamics violations are not
+    logged, only counted per UAV (metrics.json ``dynamics_violations_by_uav``: count, first and
+    last time), so each UAV's are one row spanning its first to its last."""
+    def name(uid: int) -> str:
+        return rp.names[uid] if 0 <= uid < len(rp.names) else f"UAV {uid}"
+
+    open_: dict[tuple, dict] = {}
+    done: list[dict] = []
+    for t, kind, a, b in sorted(rp.violations, key=lambda v: (v[0], v[1], v[2], v[3])):
+        key = (kind, a, b)
+        ep = open_.get(key)
+        if ep is not None and t - ep["end_s"] <= rp.dt * 1.5:
+            ep["end_s"] = t
+            ep["ticks"] += 1
+            continue
+        if ep is not None:
+            done.append(ep)
+        who = f"{name(a)} and {name(b)}" if kind == "separation" else (
+            f"{name(a)} in threat {b}" if kind == "threat" else f"{name(a)} ({b})")
+        open_[key] = {"invariant": kind, "who": who, "start_s": t, "end_s": t, "ticks": 1}
+    done.extend(open_.values())
+    for uav, d in ((rp.metrics or {}).get("dynamics_violations_by_uav") or {}).items():
+        done.append({"invariant": "dynamics", "who": str(uav), "start_s": _num(d.get("first_s")),
+                     "end_s": _num(d.get("last_s")), "ticks": int(_num(d.get("count")))})
+    return sorted(done, key=lambda e: (e["start_s"], e["invariant"], e["who"]))
+
+
+def _violation_section(rp: Replay) -> dict:
+    """What the template shows of the violations: rows, totals, and a note on what is missing."""
+    counts = (rp.metrics or {}).get("violations") or {}
+    episodes = violation_episodes(rp)
+    sep = (rp.scenario.get("safety") or {}).get("min_separation_m")
+    meanings = dict(VIOLATION_MEANINGS)
+    if isinstance(sep, (int, float)):
+        meanings["separation"] += f" ({sep:g} m in this run)"
+    rows = [(e["invariant"], e["who"], f"{e['start_s']:g} s", f"{e['end_s']:g} s", e["ticks"])
+            for e in episodes[:MAX_VIOLATION_ROWS]]
+    listed = {k: sum(e["ticks"] for e in episodes if e["invariant"] == k) for k in counts}
+    unlisted = {k: int(n) - listed.get(k, 0) for k, n in counts.items() if int(n) > listed.get(k, 0)}
+    return {
+        "rows": rows,
+        "more": max(len(episodes) - MAX_VIOLATION_ROWS, 0),
+        "totals": ", ".join(f"{k} {int(n)}" for k, n in counts.items()) or "none counted",
+        "any": any(int(n) for n in counts.values()),
+        "meanings": [(k, meanings.get(k, "")) for k in counts],
+        # e.g. a run folder written before dynamics violations were listed per UAV
+        "unlisted": ", ".join(f"{n} {k}" for k, n in unlisted.items()),
+    }
+
+
+def handover_rows(handovers: list[dict]) -> list[tuple]:
+    """The handover table's rows: time logged, target, from, to, when the owner stopped
+    watching, when the newcomer arrived, and the two non-negative parts of ``latency_s``
+    (release minus arrival): *overlap* (both held the target: the newcomer arrived before the
+    owner left) and *gap* (nobody held it: the owner left before the newcomer arrived). One of
+    them is 0; ``latency_s = overlap - gap``."""
+    rows = []
+    for h in handovers:
+        t, lat = _num(h.get("t")), _num(h.get("latency_s"))
+        released, arrived = t + min(lat, 0.0), t - max(lat, 0.0)
+        rows.append((f"{t:g} s", h.get("target"), f"{h.get('from')} ({h.get('from_type')})",
+                     f"{h.get('to')} ({h.get('to_type')})", f"{released:g} s", f"{arrived:g} s",
+                     f"{max(lat, 0.0):g} s", f"{max(-lat, 0.0):g} s"))
+    return rows
+
+
 def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
     """The HTML text of a run's report (``run_report.html.j2``)."""
     m = rp.metrics or {}
@@ -620,7 +706,8 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
         heading=title,
         run_dir=str(run_dir.resolve()),
         nav=[("figures", "figures"), ("animation", "animation"), ("faults", "faults"), ("scenario", "scenario"),
-             ("metrics", "metrics"), ("uavs", "UAVs"), ("watch", "detection and watch")],
+             ("metrics", "metrics"), ("violations", "violations"), ("uavs", "UAVs"), ("watch", "detection and watch")]
+            + ([("handovers", "handovers")] if handovers else []),
         card_items=cards,
         figures=figures,
         animation=_animation(animation),
@@ -632,8 +719,10 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
         uav_rows=uav_rows,
         uav_header=("UAV", "type", "final state", "search s", "surveillance s", "not flying s", "frames sent",
                     "frames received", "frames rejected", "plans"),
-        handover_rows=[(f"{h['t']:g} s", h["target"], f"{h['from']} ({h['from_type']})", f"{h['to']} ({h['to_type']})",
-                        f"{h['latency_s']:g} s") for h in handovers],
+        handover_rows=handover_rows(handovers),
+        handover_header=("time", "target", "from", "to", "owner stopped watching", "newcomer arrived",
+                         "overlap", "gap"),
+        violations=_violation_section(rp),
         watch_target_rows=watch_target_rows,
         watch_uav_rows=watch_uav_rows,
         slow_types=", ".join(m.get("slow_types") or []),
@@ -665,6 +754,16 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, animation: 
     text = build_run_report(rp, d, anim)
     atomic_write(out_path, text.encode("utf-8"))
     return out_path
+
+
+def refresh_report(run_dir: str | Path, animation: str | Path) -> Path | None:
+    """After an animation is made (``swarm animate``): rewrite ``RUN_DIR/report.html``, if there
+    is one, to embed ``animation``; returns its path, or None when the run folder has no report
+    (a report written elsewhere with ``--out`` is not touched)."""
+    path = Path(run_dir) / "report.html"
+    if not path.is_file():
+        return None
+    return write_report(run_dir, path, animation=animation)
 
 
 # --- sweep report -----------------------------------------------------------------------------
@@ -753,6 +852,17 @@ def _stat_text(unit, s: dict) -> str:
     if ci is not None and text != "–":
         text += f" [{unit.number(ci[0])}, {unit.number(ci[1])}]"
     return text
+
+
+def _clipped_note(unit, s: dict) -> str | None:
+    """A cell's tooltip when its interval ends at a bound of the metric's range (summary.json
+    ``bounds``): the Student-t interval went further and was clipped."""
+    ci, bounds = _ci(s), s.get("bounds")
+    if ci is None or not isinstance(bounds, (list, tuple)) or len(bounds) != 2 or not _num(s.get("sd")) > 0:
+        return None
+    lo, hi = _num(bounds[0]), _num(bounds[1])
+    ends = [f"{unit.number(b)}" for c, b in ((ci[0], lo), (ci[1], hi)) if math.isfinite(b) and c == b]
+    return f"interval clipped at {' and '.join(ends)}, the end of the metric's range" if ends else None
 
 
 def _with_unit(metric: str, unit) -> str:
@@ -886,7 +996,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
     metrics = [m for m in every if m not in constant]
     title = f"Sweep: {summary.get('scenario', sweep_dir.name)}"
     settings_rows = [(k, ", ".join(_fmt(x) for x in v) if isinstance(v, list) else _fmt(v)) for k, v in summary.items()
-                     if k not in ("groups", "comparisons")
+                     if k not in ("groups", "comparisons", "interval")
                      and (isinstance(v, (str, int, float, bool)) or v is None
                           or (isinstance(v, list) and all(isinstance(x, (str, int, float)) for x in v)))]
     units = {m: _column_unit(groups, m) for m in metrics}
@@ -895,7 +1005,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
         row: list = [g.get("planner", "?"), _settings_text(g.get("settings")) or "–", g.get("runs", "–")]
         for metric in metrics:
             s = _stat(g, metric)
-            row.append(_cell(_stat_text(units[metric], s) if s else "–", "num"))
+            row.append(_cell(_stat_text(units[metric], s) if s else "–", "num", _clipped_note(units[metric], s)))
         summary_rows.append(row)
     left_out = [f"{m} = {format_metric(m, v)}" for m, v in constant.items()]
     sweep_figure = (_figure(fig_sweep(groups, metrics), "Each metric that differs between groups: bar and dot at "
@@ -922,6 +1032,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
         sweep_figure=sweep_figure,
         differences=differences,
         order_text="first planner minus second" if first_minus_second else "second planner minus first",
+        interval_text=str(summary.get("interval") or "Student-t 95% interval of the mean over seeds"),
     )
 
 

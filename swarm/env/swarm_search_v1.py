@@ -1,7 +1,7 @@
-"""``swarm_search_v0``, by its versioned name (the PettingZoo idiom)::
+"""``swarm_search_v1``, by its versioned name (the PettingZoo idiom)::
 
-    from swarm.env import swarm_search_v0
-    env = swarm_search_v0.parallel_env(scenario="paper-case1")
+    from swarm.env import swarm_search_v1
+    env = swarm_search_v1.parallel_env(scenario="paper-case1")
 
 Importing this module pins the version: when a later version replaces it, the import fails
 instead of silently giving different episodes (docs/env.md, "Versions")."""
