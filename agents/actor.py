@@ -447,11 +447,12 @@ class UavActor:
         which for a fast UAV (1 km at 60 m/s, 2.3 km at 90 m/s) takes it out of its 2 km
         detection circle on every pass.
 
-        A target predicted inside a known no-fly zone (targets may enter one; we may not) is
-        circled from outside: the circle's centre moves out along the line from the zone's
-        centre through the target to where the circle just clears the threat guard's band
-        (a turn radius at the loiter speed plus ``threat_margin_m``, agents.apf), at the edge
-        nearest to the target (docs/modelling.md, "Assignment rules", rule 5).
+        A target predicted inside a known no-fly zone (targets may enter one; we may not), or so
+        close to one that a circle around it would cross the threat guard's band (a turn radius
+        at the loiter speed plus ``threat_margin_m``, agents.apf), is circled from outside: the
+        circle's centre moves out along the line from the zone's centre through the target to
+        where the circle just clears that band, at the edge nearest to the target
+        (docs/modelling.md, "Assignment rules", rule 5).
         """
         s = self.settings
         kind = self.kind
@@ -464,12 +465,17 @@ class UavActor:
         # brake to it in time to arrive on the circle at that speed.
         v_l = min(max(math.sqrt(r_l / s.loiter_turn_factor * GRAVITY * math.tan(kind.bank_max_rad)),
                       kind.speed_min), kind.speed_max)
-        zone = self.knowledge.inside_threat(tx, ty) if self.knowledge.threats else None
+        # The circle stays clear of the threat guard's band (a turn radius at the loiter speed
+        # plus threat_margin_m, agents.apf) around every known zone: a target inside one, or
+        # too close to one to be circled, is circled from outside, on the line from the zone's
+        # centre through it (the edge nearest to it).
+        standoff = kind.r_min(v_l) + threat_margin_m + r_l
+        zone = self.knowledge.inside_threat(tx, ty, standoff) if self.knowledge.threats else None
         if zone is not None:
             ux, uy = tx - zone.x, ty - zone.y
             n = math.hypot(ux, uy)
             ux, uy = (ux / n, uy / n) if n > 1e-9 else (1.0, 0.0)
-            out = zone.radius + kind.r_min(v_l) + threat_margin_m + r_l
+            out = zone.radius + standoff
             tx, ty, tvx, tvy = zone.x + out * ux, zone.y + out * uy, 0.0, 0.0
         ex, ey = r.x - tx, r.y - ty
         d = math.hypot(ex, ey)

@@ -88,10 +88,11 @@ class Knowledge:
             elif it.t >= tr.t:
                 tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = it.x, it.y, it.vx, it.vy, it.t, it.value
 
-    def inside_threat(self, x: float, y: float) -> KnownThreat | None:
-        """The first known threat (by id) whose circle holds ``(x, y)``, or None."""
+    def inside_threat(self, x: float, y: float, margin: float = 0.0) -> KnownThreat | None:
+        """The first known threat (by id) whose circle, widened by ``margin``, holds ``(x, y)``,
+        or None."""
         for _, th in sorted(self.threats.items()):
-            if math.hypot(x - th.x, y - th.y) < th.radius:
+            if math.hypot(x - th.x, y - th.y) < th.radius + margin:
                 return th
         return None
 

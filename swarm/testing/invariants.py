@@ -1263,8 +1263,9 @@ class NoDropChecker(_WatchChecker):
     detection radius since it began watching it): if it stops watching it, someone must be
     watching it within ``grace_s`` (a watcher that crashed is excused), unless the target is
     *lost*: no flying UAV has had it inside its detection radius for the track lifetime
-    (``planner.dacmp.track_max_age_s``, default ``1 / tau``) and it was last seen outside every
-    no-fly zone (a target inside one is kept, not lost)."""
+    (``planner.dacmp.track_max_age_s``, default ``1 / tau``) and it was last seen farther than the
+    watcher's detection radius from every no-fly zone (a target inside one, or that near one, is
+    kept, not lost)."""
 
     name = "no_drop"
 
@@ -1282,13 +1283,18 @@ class NoDropChecker(_WatchChecker):
         life = sc.planner.dacmp.track_max_age_s
         return float(life) if life is not None else 1.0 / sc.effective_tau
 
-    def _lost(self, m: int, t: float) -> bool:
+    def _lost(self, m: int, t: float, watcher: int) -> bool:
+        """Nobody has seen ``m`` for the track lifetime, and it was last seen farther than the
+        watcher's detection radius from every no-fly zone (nearer, the watcher kept outside may
+        lose a target it could otherwise follow: it keeps it, rule 5)."""
         seen = self._seen.get(m)
         if seen is None:
             return True
         t_seen, x, y = seen
-        inside = any(math.hypot(x - cx, y - cy) < r for _, cx, cy, r in self.context.threats)
-        return t - t_seen > self._track_life() - _EPS and not inside
+        k = self.context.kind(watcher)
+        reach = k.detect_radius if k is not None else 0.0
+        near = any(math.hypot(x - cx, y - cy) < r + reach for _, cx, cy, r in self.context.threats)
+        return t - t_seen > self._track_life() - _EPS and not near
 
     def _sightings(self, t: float, poses: dict[int, tuple]) -> None:
         ctx = self.context
@@ -1319,10 +1325,11 @@ class NoDropChecker(_WatchChecker):
                                  f"within {self.grace_s:g} s (not lost: seen {t0 - seen:g} s before, or last seen "
                                  f"inside a no-fly zone)", [w], target=m, now=poses.get(w, (None,) * 6)[4:6])
         for m, prev in self._prev.items():
-            if watchers.get(m) or m in self._pending or self._lost(m, t):
+            if watchers.get(m) or m in self._pending:
                 continue
             # Only a watcher that has held the target: one still on its way may turn to another.
-            alive = sorted(w for w in prev if w in self._held.get(m, ()) and w in poses and not self.excused(w, t))
+            alive = sorted(w for w in prev if w in self._held.get(m, ()) and w in poses and not self.excused(w, t)
+                           and not self._lost(m, t, w))
             if alive:
                 self._pending[m] = (t, alive[0], self._seen[m][0] if m in self._seen else -math.inf)
         self._prev = watchers

@@ -474,13 +474,13 @@ class _UavSearch:
             watched = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
             for tid, tr in sorted(view.knowledge.tracks.items()):
                 # Nobody has seen it for a while: g_m(t) is unknown. Except our own target last
-                # seen inside a no-fly zone, or heading into one (its track predicts it there: a
-                # target is usually last seen at the edge, from outside), since targets may
-                # enter one and we may not: it is not lost,
+                # seen (or predicted) inside a no-fly zone or within our detection radius of one,
+                # where we, kept outside, lose sight of a target we could otherwise follow:
+                # targets may enter a zone and we may not, so it is not lost,
                 # and we keep it until anyone sees it again (docs/modelling.md, "Assignment
                 # rules", rule 5; the actor loiters at the zone's edge nearest to it).
-                if t - tr.t > max_age and not (tid == watched and (view.knowledge.inside_threat(tr.x, tr.y)
-                                                                    or view.knowledge.inside_threat(*tr.predict(t)))):
+                if t - tr.t > max_age and not (tid == watched and (view.knowledge.inside_threat(tr.x, tr.y, R)
+                                                                    or view.knowledge.inside_threat(*tr.predict(t), R))):
                     continue
                 tx, ty = tr.predict(t)
                 if math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
