@@ -250,6 +250,26 @@ def test_handover_flags_slow_uav_that_never_takes_over():
     assert v.target == 0 and v.uavs == ("B1", "A1") and v.t == 61.0 and "none took over" in v.message
 
 
+def _kept_log(b1_sees_until: int) -> Log:
+    """B1 watches target 0 from 500 m until ``b1_sees_until``, then from 3 km (kept, unseen, as
+    from a no-fly zone's edge: rule 5); A1, 5 km off, is busy with target 1 until 300 s."""
+    log = Log(_scenario(range_m=20_000.0))
+    for t in range(0, 420):
+        log.target(t, 0, 10_000.0, 10_000.0)
+        log.target(t, 1, 30_000.0, 30_000.0)
+        log.pose(t, B1, 10_000.0, 10_500.0 if t <= b1_sees_until else 13_000.0, 60.0, 0.0, MODE_SURVEIL, 0)
+        log.pose(t, A1, 15_000.0, 10_000.0, 30.0, 0.0, *((MODE_SURVEIL, 1) if t < 300 else (MODE_SEARCH, -1)))
+    return log
+
+
+def test_handover_takeover_is_not_owed_for_a_target_nobody_has_seen_for_the_track_lifetime():
+    # From 300 s A1 is free within D, but nobody has seen target 0 since 50 s (250 s > the 200 s
+    # track lifetime): A1 cannot know where it is. Seen all along, the takeover is owed.
+    assert _check(_kept_log(50), HandoverChecker()) == []
+    (v,) = _check(_kept_log(999), HandoverChecker())
+    assert "none took over" in v.message and v.t == 361.0
+
+
 def test_handover_flags_fast_uav_that_does_not_release():
     log = _handover_log(slow_modes=_watching(10, 999), fast_modes=_watching(0, 999), slow_at=1000.0)
     (v,) = _check(log, HandoverChecker())

@@ -647,7 +647,7 @@ def case2_measures(log: RunLog, folder: Path | None = None) -> dict:
         scenario, events = load_run_log(folder)
         checker = HandoverChecker()
         violations = check_events(events, scenario, [checker])
-        opportunities = len(checker.opportunities)
+        opportunities = len({m for m, _ in checker.opportunities})  # targets offered (two fast watchers: one)
     return {
         "seed": m["seed"], "duration_s": log.end_t,
         "targets_found": m["targets_found"], "targets_total": m["targets_total"],
@@ -730,8 +730,8 @@ def case2_conditions(log: RunLog, handover_violations: Sequence[Any] = (), oppor
       60 s of the slower UAV's arrival: no ``handover`` violation of rules 2-3
       (docs/modelling.md, "Assignment rules");
     * ``handovers``: at least ``min(CASE2_MIN_HANDOVERS, opportunities)`` fast -> slow
-      handovers, where ``opportunities`` counts the (target, fast watcher) pairs that were
-      offered one;
+      handovers, where ``opportunities`` counts the targets that were offered one (a fast UAV
+      watched it with a slower one free within its ``D``, or already on its way);
     * ``released``: a released fast UAV returns to search or watches a target nobody it can
       talk to holds (rule 4: no violation of it);
     * ``safe``: no separation, threat or dynamics violation.

@@ -1093,6 +1093,7 @@ class _WatchChecker(Checker):
     """Helpers for the assignment invariants: watchers per target from the pose events."""
 
     _targets: dict[int, tuple[float, float]]  # target -> last logged (x, y), kept by the subclasses that need it
+    _seen: dict[int, tuple[float, float, float]]  # target -> last (t, x, y) inside some UAV's sensor (_sightings)
 
     @staticmethod
     def watchers(poses: dict[int, tuple]) -> dict[int, set[int]]:
@@ -1106,6 +1107,21 @@ class _WatchChecker(Checker):
     def excused(self, uid: int, t: float) -> bool:
         """A UAV under a node or sensing fault (RunContext.impaired) is not judged."""
         return self.context.impaired(uid, t, _WATCH_EXCUSED)
+
+    def _track_life(self) -> float:
+        sc = self.context.scenario
+        life = sc.planner.dacmp.track_max_age_s
+        return float(life) if life is not None else 1.0 / sc.effective_tau
+
+    def _sightings(self, t: float, poses: dict[int, tuple]) -> None:
+        """Note every target some UAV has inside its detection radius at ``t`` (``_seen``)."""
+        ctx = self.context
+        for m, (x, y) in self._targets.items():
+            for uid, p in poses.items():
+                k = ctx.kind(uid)
+                if k is not None and math.hypot(p[0] - x, p[1] - y) <= k.detect_radius:
+                    self._seen[m] = (t, x, y)
+                    break
 
     def _holds(self, uid: int, m: int, poses: dict[int, tuple]) -> bool:
         """Whether ``uid`` has target ``m`` (at its last logged position) inside its detection radius."""
@@ -1171,6 +1187,7 @@ class HandoverChecker(_WatchChecker):
         self._reported: set[tuple] = set()
         self._prev_watchers: dict[int, set[int]] = {}
         self._targets: dict[int, tuple[float, float]] = {}
+        self._seen: dict[int, tuple[float, float, float]] = {}
         #: Every (target, faster watcher) pair that was offered a takeover at some time: a free
         #: slower UAV within its D (rule 2), or one that already watches the target too.
         self.opportunities: set[tuple[int, int]] = set()
@@ -1182,6 +1199,7 @@ class HandoverChecker(_WatchChecker):
         poses = _poses(events)
         if not poses:
             return
+        self._sightings(t, poses)
         ctx = self.context
         watchers = self.watchers(poses)
         offers: set[tuple[int, int]] = set()
@@ -1212,7 +1230,10 @@ class HandoverChecker(_WatchChecker):
                                          [f, s], target=m, since=since, rule=3)
                 if slower_watching:  # an opportunity taken already (a slower UAV claimed it)
                     self.opportunities.add((m, f))
-                if slower_watching or pos is None:
+                # Nobody knows where it is (kept from a no-fly zone's edge, unseen for the track
+                # lifetime: rule 5): no slower UAV can be drawn to it, so no takeover is owed.
+                seen = self._seen.get(m)
+                if slower_watching or pos is None or seen is None or t - seen[0] > self._track_life() + _EPS:
                     continue
                 free = [s for s, p in sorted(poses.items())
                         if s != f and p[4] != MODE_SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
@@ -1278,11 +1299,6 @@ class NoDropChecker(_WatchChecker):
         self._seen: dict[int, tuple[float, float, float]] = {}  # target -> last (t, x, y) inside a sensor
         self._held: dict[int, set[int]] = {}  # target -> watchers that have held it since they began watching it
 
-    def _track_life(self) -> float:
-        sc = self.context.scenario
-        life = sc.planner.dacmp.track_max_age_s
-        return float(life) if life is not None else 1.0 / sc.effective_tau
-
     def _lost(self, m: int, t: float, watcher: int) -> bool:
         """Nobody has seen ``m`` for the track lifetime, and it was last seen farther than the
         watcher's detection radius from every no-fly zone (nearer, the watcher kept outside may
@@ -1295,15 +1311,6 @@ class NoDropChecker(_WatchChecker):
         reach = k.detect_radius if k is not None else 0.0
         near = any(math.hypot(x - cx, y - cy) < r + reach for _, cx, cy, r in self.context.threats)
         return t - t_seen > self._track_life() - _EPS and not near
-
-    def _sightings(self, t: float, poses: dict[int, tuple]) -> None:
-        ctx = self.context
-        for m, (x, y) in self._targets.items():
-            for uid, p in poses.items():
-                k = ctx.kind(uid)
-                if k is not None and math.hypot(p[0] - x, p[1] - y) <= k.detect_radius:
-                    self._seen[m] = (t, x, y)
-                    break
 
     def on_group(self, t, events):
         for e in events:
