@@ -42,13 +42,16 @@ def _violations(doc: dict) -> list:
     return check_events(result.events, scenario, handover_checkers())
 
 
+def _assert_none(violations: list) -> None:
+    assert violations == [], "\n".join(map(str, violations))
+
+
 @pytest.mark.slow  # 500 runs of 60-240 s
 @settings(max_examples=examples(500), deadline=None, suppress_health_check=_HEALTH)
 @given(scenario_documents(planners=SURVEILLING, surveillance=True, faults=False, min_uavs=2, max_uavs=4,
                           min_duration_s=60, max_duration_s=240))
 def test_no_fault_run_breaks_no_assignment_rule(doc):
-    found = _violations(doc)
-    assert found == [], "\n".join(map(str, found))
+    _assert_none(_violations(doc))
 
 
 @pytest.mark.slow  # 150 runs of 60-180 s with up to 5 faults each
@@ -56,8 +59,7 @@ def test_no_fault_run_breaks_no_assignment_rule(doc):
 @given(scenario_documents(planners=SURVEILLING, surveillance=True, fault_kinds=ALL_KINDS, min_uavs=2, max_uavs=4,
                           min_duration_s=60, max_duration_s=180))
 def test_under_faults_every_violation_names_a_fault_that_may_explain_it(doc):
-    unexplained = [v for v in _violations(doc) if not v.faults]
-    assert unexplained == [], "\n".join(map(str, unexplained))
+    _assert_none([v for v in _violations(doc) if not v.faults])
 
 
 @settings(max_examples=examples(50), deadline=None, suppress_health_check=_HEALTH)
@@ -65,8 +67,7 @@ def test_under_faults_every_violation_names_a_fault_that_may_explain_it(doc):
                           min_duration_s=60, max_duration_s=120))
 def test_no_fault_run_breaks_no_assignment_rule_short(doc):
     """The property above on shorter runs, in the quick loop too (5 examples there)."""
-    found = _violations(doc)
-    assert found == [], "\n".join(map(str, found))
+    _assert_none(_violations(doc))
 
 
 # --- the preconditions --------------------------------------------------------------------------
