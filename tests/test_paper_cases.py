@@ -5,8 +5,9 @@ slow UAVs taking targets over from fast ones, no threat or separation violation.
 joining UAV raises coverage.
 
 Case 1 (one 600 s run of 3 UAVs, under a second) is in the quick loop; Case 2 and 3 (2000 s runs
-of 10-11 UAVs, over several seeds) are marked ``slow``. Case 2 across seeds 0-19 (DACMP-SPEC
-"Reproduction targets": at least 18 of 20) runs through ``swarm paper case2 --seeds 20``.
+of 10-11 UAVs, over several seeds) are marked ``slow``. Case 2's criterion across seeds 0-19,
+judged on 4000 s runs (DACMP-SPEC "Reproduction targets": at least 18 of 20), is
+``test_case2_criterion.py``.
 """
 
 from __future__ import annotations
@@ -204,55 +205,6 @@ def test_case2_over_seeds_finds_targets_and_hands_them_over():
     assert sum(found) / len(found) >= 5.5, found
     assert sum(handovers) / len(handovers) >= 3.5, handovers
     assert min(handovers) >= 2, handovers
-
-
-# --- Case 2 across seeds ----------------------------------------------------------------------------
-CASE2_SWEEP_SEEDS = 20  # seeds 0..19
-CASE2_MIN_HOLDING = 18  # DACMP-SPEC "Reproduction targets"
-
-
-def case2_table(per_seed: list[dict]) -> str:
-    """The per-seed table of the Case 2 criterion (what the slow test prints)."""
-    from swarm.experiments.paper import CASE2_CONDITIONS
-
-    head = (f"{'seed':>4} {'found':>5} {'f->s':>4} {'opp':>3} {'sep':>3} {'thr':>3}  "
-            + " ".join(f"{k:>9}" for k in CASE2_CONDITIONS))
-    rows = [head] + [f"{m['seed']:>4} {m['targets_found']:>5} {m['handovers_fast_to_slow']:>4} "
-                     f"{m['handover_opportunities']:>3} {m['separation_violations']:>3} {m['threat_violations']:>3}  "
-                     + " ".join(f"{'yes' if m['conditions'][k] else 'NO':>9}" for k in CASE2_CONDITIONS)
-                     + "".join(f"\n       {v}" for v in m["handover_rule_violations"])
-                     for m in per_seed]
-    return "\n".join(rows)
-
-
-@pytest.mark.slow  # 20 runs of 4000 s on a pool of 2 processes: about 4-6 minutes on 2 idle cores
-@pytest.mark.xfail(strict=True, reason=(
-    "measured 16 of 20 (2026-12-04; 5 of 20 under the earlier 2000 s criterion). All six targets are found on "
-    "every seed and there is no violation on any; the four failing seeds: a target driven out of a no-fly zone on "
-    "the far side and not seen again by the end, its keeper circling the edge where it went in (8, 17); a "
-    "target found 182 s before the end while every slow UAV watches another and no UAV is free within D (6); "
-    "three fast -> slow handovers for four targets offered, the fourth released before its slow UAV arrived (6, 7)."))
-def test_case2_holds_on_at_least_18_of_20_seeds(tmp_path):
-    """DACMP-SPEC "Reproduction targets": ``swarm sweep paper-case2 --seeds 20 --planner dacmp
-    --duration 4000`` meets Case 2's criterion (swarm.experiments.paper.case2_conditions: all six
-    found; each watched by one UAV at the end, or kept from a no-fly zone's nearest edge; every
-    handover opportunity taken and released within 60 s, at least four fast -> slow handovers
-    where four were offered; released fast UAVs search or watch a free target; no violation)
-    on at least 18 of seeds 0-19. Prints the per-seed table."""
-    from swarm.experiments.common import executor_for
-    from swarm.experiments.paper import CASE2_JUDGE_S, RunLog, case2_measures
-    from swarm.experiments.sweep import plan_runs, run_sweep
-
-    runs = plan_runs(load_scenario("paper-case2"), seeds=range(CASE2_SWEEP_SEEDS), planners=["dacmp"],
-                     duration_s=CASE2_JUDGE_S)
-    with executor_for(None, 2) as ex:
-        res = run_sweep(runs, tmp_path, executor=ex)
-    assert not res.failed
-    per_seed = [case2_measures(RunLog.load(tmp_path / spec.folder), tmp_path / spec.folder) for spec in runs]
-    table = case2_table(per_seed)
-    print(table)
-    holding = sum(1 for m in per_seed if m["conditions"]["all"])
-    assert holding >= CASE2_MIN_HOLDING, f"Case 2 holds on {holding} of {CASE2_SWEEP_SEEDS}:\n{table}"
 
 
 @pytest.mark.slow
