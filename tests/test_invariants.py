@@ -291,11 +291,13 @@ def test_handover_released_fast_uav_may_watch_a_target_nobody_watches():
     assert _check(log, HandoverChecker()) == []
 
 
-def _released_onto(b2_at: tuple[float, float], target_1_at: tuple[float, float] = (20_000.0, 20_500.0)) -> Log:
-    """B1 releases target 0 to A1 at 30 s and goes on to target 1 (at ``target_1_at``), which B2
-    watches from ``b2_at``."""
+def _released_onto(b2_at: tuple[float, float], target_1_at: tuple[float, float] = (20_000.0, 20_500.0),
+                   leaves_at: int = 999) -> Log:
+    """B1 releases target 0 to A1 at 30 s and goes on to target 1 (at ``target_1_at``) until
+    ``leaves_at``, then searches; B2 watches target 1 from ``b2_at``."""
     log = _handover_log(slow_modes=_watching(10, 999),
-                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
+                        fast_modes=lambda t: (MODE_SURVEIL, 0) if t < 30 else
+                        ((MODE_SURVEIL, 1) if t < leaves_at else (MODE_SEARCH, -1)))
     for t in range(0, 121):
         log.target(t, 1, *target_1_at)  # (after _handover_log's: the last one of the tick counts)
         log.pose(t, B2, *b2_at, 60.0, 0.0, MODE_SURVEIL, 1)
@@ -304,9 +306,11 @@ def _released_onto(b2_at: tuple[float, float], target_1_at: tuple[float, float] 
 
 def test_handover_flags_released_fast_uav_that_joins_a_held_target():
     found = _check(_released_onto((20_000.0, 20_000.0)), HandoverChecker())  # B2 holds it, within radio range of B1
-    assert len(found) == 1 and "which B2 already holds" in found[0].message and found[0].t == 30.0
+    assert len(found) == 1 and "which B2 holds, for 31 s" in found[0].message and found[0].t == 61.0
     assert found[0].uavs == ("B1", "A1", "B2")
     assert _check(_released_onto((20_000.0, 20_000.0)), HandoverChecker(require_search=False)) == []
+    # Two UAVs that decide at one tick cannot know of each other: leaving within the settle time is fine.
+    assert _check(_released_onto((20_000.0, 20_000.0), leaves_at=55), HandoverChecker()) == []
 
 
 def test_handover_released_fast_uav_may_join_a_target_another_is_still_flying_to():

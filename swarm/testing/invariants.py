@@ -1179,9 +1179,13 @@ class HandoverChecker(_WatchChecker):
 
     name = "handover"
 
-    def __init__(self, takeover_s: float = 60.0, release_s: float = 60.0, require_search: bool = True):
+    def __init__(self, takeover_s: float = 60.0, release_s: float = 60.0, require_search: bool = True,
+                 settle_s: float = 30.0):
         super().__init__()
         self.takeover_s, self.release_s, self.require_search = takeover_s, release_s, require_search
+        self.settle_s = settle_s
+        # (released fast UAV, target it went on to) -> (since, target released, to whom)
+        self._joined: dict[tuple[int, int], tuple[float, int, int]] = {}
         self._offer: dict[tuple[int, int], float] = {}  # (target, fast watcher) -> since
         self._overlap: dict[tuple[int, int, int], float] = {}  # (target, fast, slow) -> since
         self._reported: set[tuple] = set()
@@ -1253,7 +1257,9 @@ class HandoverChecker(_WatchChecker):
                                     f"talk for {t - since:g} s, but none took over (bound {self.takeover_s:g} s)",
                                  [f, *free], target=m, since=since, rule=2)
         # The fast watcher that lets go after a takeover returns to search, or watches a target
-        # that nobody else watches (one it has found meanwhile, say).
+        # that nobody else it can talk to holds (one it has found meanwhile, say); one another
+        # holds it must leave within the settle time (two UAVs deciding at the same tick cannot
+        # know of each other's choice: as for single_watcher).
         if self.require_search:
             for m, prev in self._prev_watchers.items():
                 for f in prev:
@@ -1264,18 +1270,30 @@ class HandoverChecker(_WatchChecker):
                             and ctx.handover_judged(s, f)]
                     now = int(poses[f][5])
                     if took and poses[f][4] == MODE_SURVEIL and 0 <= now < PHANTOM_TARGET_ID:
-                        # (Taking a target over from a faster holder is rule 2, not a breach of rule 4.)
-                        others = sorted(w for w in watchers.get(now, ()) if w != f and ctx.can_talk(f, w, t, poses)
-                                        and self._holds(w, now, poses) and not ctx.handover_judged(f, w))
-                        if others:
-                            self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(took[0])} but went on "
-                                            f"to watch target {now}, which {', '.join(ctx.name(w) for w in others)} "
-                                            f"already holds, instead of searching or watching a target nobody it "
-                                            f"can talk to holds",
-                                         [f, took[0], *others], target=m, now_watching=now, rule=4)
+                        self._joined.setdefault((f, now), (t, m, took[0]))
+            for (f, now), (since, m, to) in list(self._joined.items()):
+                others = self._holders_besides(f, now, t, poses, watchers)
+                if not others or f not in watchers.get(now, ()) or self.excused(f, t):
+                    del self._joined[(f, now)]
+                elif t - since > self.settle_s + _EPS:
+                    del self._joined[(f, now)]
+                    self.violate(t, f"fast {ctx.name(f)} released target {m} to {ctx.name(to)} but went on to watch "
+                                    f"target {now}, which {', '.join(ctx.name(w) for w in others)} holds, for "
+                                    f"{t - since:g} s (settle time {self.settle_s:g} s), instead of searching or "
+                                    f"watching a target nobody it can talk to holds",
+                                 [f, to, *others], target=m, now_watching=now, since=since, rule=4)
         self._offer = {k: v for k, v in self._offer.items() if k in offers}
         self._overlap = {k: v for k, v in self._overlap.items() if k in overlaps}
         self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}
+
+
+    def _holders_besides(self, f: int, m: int, t: float, poses: dict[int, tuple],
+                         watchers: dict[int, set[int]]) -> list[int]:
+        """The UAVs other than ``f`` that hold ``m`` and that ``f`` can talk to, but for one of a
+        faster type ``f`` takes targets over from (that is rule 2, not a breach of rule 4)."""
+        ctx = self.context
+        return sorted(w for w in watchers.get(m, ()) if w != f and ctx.can_talk(f, w, t, poses)
+                      and self._holds(w, m, poses) and not ctx.handover_judged(f, w))
 
 
 class NoDropChecker(_WatchChecker):
@@ -1443,7 +1461,7 @@ def safety_checkers() -> list[Checker]:
 def handover_checkers(settle_s: float = 30.0, takeover_s: float = 60.0, release_s: float = 60.0,
                       grace_s: float = 10.0) -> list[Checker]:
     """The DACMP assignment invariants (planner-specific)."""
-    return [SingleWatcherChecker(settle_s), HandoverChecker(takeover_s, release_s), NoDropChecker(grace_s)]
+    return [SingleWatcherChecker(settle_s), HandoverChecker(takeover_s, release_s, settle_s=settle_s), NoDropChecker(grace_s)]
 
 
 def default_checkers(*, live: bool = False, handover: bool = False, liveness: bool = False) -> list[Checker]:
