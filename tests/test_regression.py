@@ -49,6 +49,10 @@ History:
   enough for collision avoidance to act). The paper-fig11 logs of greedy and DACMP change (UAVs
   do meet there: greedy seed 0 first differs at t = 543 s by the conflict rule, at 545 s by
   detect and avoid alone), the lawnmower's do not; see docs/paper.md for the statistics.
+- DACMP's mode rule compares a target's own term with f_S, not the sum f_t over targets (with a
+  10 km D another UAV's claim on a nearby target kept a slow UAV from taking a target over):
+  the dacmp pin and paper-case2 (seeds 0-19, 4000 s) are unchanged; the shared logic's
+  "greedy-surveillance" pin changes (it tries each target as the waypoint).
 """
 
 from __future__ import annotations
@@ -60,7 +64,7 @@ from swarm.scenario import apply_overrides, load_scenario
 
 PINNED = {
     "greedy": "28ac6a09c44b534c028ac764ff241b191238cf8874c828dda12d1a4c75244b20",  # surveillance off
-    "greedy-surveillance": "b14997da8c935deb92eaa43e76d0b6aa8901e2117ff594a4b8ad80f5957ea53a",
+    "greedy-surveillance": "c1e9934c49c2f8e14676975ea79a316f9ad86f3762b9e9cb8b0e07cf8f41be13",
     "dacmp": "e7ad249893753fce4fb2a1b8e95edc22c268e46d0afb5c62cb8827c84259cc26",
 }
 

@@ -2,9 +2,9 @@
 
 DACMP decides when a UAV watches a target and when it lets go with its fitness (eq. 16): the
 target attraction of eq. 22 less the competing repulsion of eq. 23 (``f_t``) against the search
-value (``f_S``), with its keep rule (a watcher keeps its target while ``f_t > f_S`` on the
-target itself) and its mode rule (surveillance when ``f_t > f_S`` at the chosen waypoint, of the
-target with the strongest pull there). :class:`SharedSurveillance` makes that decision for a
+value (``f_S``), with its keep rule (a watcher keeps its target while that target's own term
+beats ``f_S`` on the target itself) and its mode rule (surveillance of the target whose own
+term is the strongest at the chosen waypoint and above ``f_S``). :class:`SharedSurveillance` makes that decision for a
 UAV whose planner searches its own way (``greedy``, ``lawnmower``, ``formation``, ``levy``, or a
 user's planner that declares ``surveils = "shared"``):
 
@@ -89,11 +89,10 @@ class SharedSurveillance:
         z = np.array([[[tx for _, tx, _, _ in u.targets]], [[ty for _, _, ty, _ in u.targets]]])
         batch = _Batch(dacmp, [u], g, layers, n)
         z = batch.keep_near(z)
-        f, f_s, f_t = batch.fitness(z, kept=True)
+        f, f_s, _ = batch.fitness(z, kept=True)
         best = int(np.argmax(f[0]))  # (ties: the first target in id order)
         if not np.isfinite(f[0, best]):
             return None
         unit = dacmp.field_unit_m
-        plan = u.decide(float(z[0, 0, best]), float(z[1, 0, best]), float(f_s[0, best]), float(f_t[0, best]),
-                        unit, g.cell_m / unit)
+        plan = u.decide(float(z[0, 0, best]), float(z[1, 0, best]), float(f_s[0, best]), unit, g.cell_m / unit)
         return plan if plan.mode == MODE_SURVEIL else None

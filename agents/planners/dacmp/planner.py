@@ -24,8 +24,9 @@ Each replanning, a UAV runs a particle swarm over candidate waypoints:
 
 * infeasible particles (outside the area, inside a known threat plus margin) score ``-inf``.
 
-The UAV is in surveillance mode when, at the chosen waypoint, the target term dominates
-(``f_t > f_S``) and a target lies within ``D_i``; the watched target is the nearest one.
+The UAV is in surveillance mode when, at the chosen waypoint, a target term dominates: the
+target within ``D_i`` whose own pull there (its eq. 22 term less the eq. 23 terms of the UAVs
+standing at it) is the strongest and above ``f_S`` is the one it watches.
 With ``surveillance = false`` (paper-fig11) targets exert no pull: search only.
 """
 
@@ -257,8 +258,8 @@ class DacmpPlanner(DacmpSettings):
         its batch (``tests/test_batching.py`` checks plans and event logs).
 
         Mode switching for a UAV already in surveillance mode comes first: it keeps its target
-        ``m`` while the target term still dominates on the target itself (``f_t > f_S`` at
-        ``g_m``), with ``g_m`` (pulled to within ``r_max``) as its next waypoint, and makes no
+        ``m`` while its own term still dominates on the target itself (its own pull above
+        ``f_S`` at ``g_m``), with ``g_m`` (pulled to within ``r_max``) as its next waypoint, and makes no
         PSO draws. It lets go when a rival's claim makes the term negative there (eq. 23, see
         :meth:`rivals`) or when the track is too old to attract. Without this, two targets a
         few kilometres apart are two equal peaks of the ``1/d`` attraction (both saturate at
@@ -336,14 +337,14 @@ class DacmpPlanner(DacmpSettings):
             np.copyto(bf, f, where=better)
             gi = bf.argmax(axis=1)
         wz, best = best_z[:, rows, gi][:, :, None], bf[rows, gi]
-        _, f_s, f_t = fitness(np.repeat(wz, M, axis=2), kept=True)  # (the batch's shape: M copies)
+        _, f_s, _ = fitness(np.repeat(wz, M, axis=2), kept=True)  # (the batch's shape: M copies)
         plans = []
         for i, u in enumerate(uavs):
             if not np.isfinite(best[i]):
                 # Nothing feasible (boxed in by threats or the border): head for the area centre.
                 plans.append(Plan(g.width_m / 2, g.height_m / 2))
             else:
-                plans.append(u.decide(float(wz[0, i, 0]), float(wz[1, i, 0]), f_s[i, 0], f_t[i, 0],
+                plans.append(u.decide(float(wz[0, i, 0]), float(wz[1, i, 0]), f_s[i, 0],
                                       self.field_unit_m, g.cell_m / self.field_unit_m))
         return plans
 
@@ -513,21 +514,22 @@ class _UavSearch:
                 dj = np.maximum(np.hypot(px - wx, py - wy) / unit, floor)
                 f_t -= np.where(shared, k.w_r / (dj * v_i * v_j), 0.0)
 
-    def decide(self, wx: float, wy: float, f_s: float, f_t: float, unit: float, floor: float) -> Plan:
-        """Mode switch at the chosen waypoint (spec "mode switching"): surveillance when the
-        target term dominates (``f_t > f_S``), of the target within ``D`` whose own pull there
-        is the strongest: its eq. 22 term less the eq. 23 terms of the UAVs that stand at it
-        (``at`` of :meth:`DacmpPlanner.rivals`: its watchers within a planning step, a nearer
-        claimant of our type). Not simply the nearest target: a UAV drawn by a free target next
-        to one that another UAV keeps (one of its type, or a slower one: eq. 26-27 push it off
-        that one) declared the kept one, its nearest, and watched it beside its keeper."""
+    def decide(self, wx: float, wy: float, f_s: float, unit: float, floor: float) -> Plan:
+        """Mode switch at the chosen waypoint (spec "mode switching"): surveillance when a
+        target term dominates there, of the target within ``D`` whose own pull (:meth:`own_pull`:
+        its eq. 22 term less the eq. 23 terms of the UAVs that stand at it, ``at`` of
+        :meth:`DacmpPlanner.rivals`) is the strongest and above ``f_S``. Not the sum ``f_t``
+        over targets: with a large ``D`` a same-type UAV claiming another target nearby pushed
+        the sum below ``f_S``, and a slow UAV never took a target over from a fast one. Not
+        simply the nearest target either: a UAV drawn by a free target next to one that another
+        UAV keeps (one of its type, or a slower one: eq. 26-27 push it off that one) declared
+        the kept one, its nearest, and watched it beside its keeper."""
         mode, target = MODE_SEARCH, NO_TARGET
-        if self.targets and f_t > f_s:
-            best = 0.0
-            for i, (tid, _tx, _ty, _value) in enumerate(self.targets):
-                pull = self.own_pull(i, wx, wy, unit, floor)
-                if pull > best:
-                    mode, target, best = MODE_SURVEIL, tid, pull
+        best = f_s
+        for i, (tid, _tx, _ty, _value) in enumerate(self.targets):
+            pull = self.own_pull(i, wx, wy, unit, floor)
+            if pull > best:
+                mode, target, best = MODE_SURVEIL, tid, pull
         return Plan(wx, wy, mode, target)
 
     def own_pull(self, i: int, wx: float, wy: float, unit: float, floor: float) -> float:
