@@ -65,6 +65,16 @@ def test_with_duration_a_set_join_is_still_judged_against_the_scenarios_end(caps
     assert "uavs[10] (B6 joining at 300 s) never happens" in capsys.readouterr().err
 
 
+def test_set_edits_one_field_of_a_built_in_type(capsys):
+    """docs/scenarios.md: --set edits the scenario merged with Table 1's types, so one field of B
+    changes that field (it does not make a table of one field, which would be an error)."""
+    assert main(["run", "paper-case1", "--set", "uav_types.B.speed_max=100", "--set", "uav_types.A.daa_range_m=0",
+                 "--duration", "5", "--json"]) == 0
+    capsys.readouterr()
+    sc = load_scenario("paper-case1", overrides={"uav_types.B.speed_max": 100.0})
+    assert sc.uav_types["B"].speed_max == 100.0 and sc.uav_types["B"].w_t == 2.0 and sc.uav_types["A"].w_t == 5.0
+
+
 def test_set_and_duration_disagreeing_on_the_duration_is_one_error(capsys):
     assert main(["run", "paper-case1", "--set", "duration_s=5", "--duration", "1", "--quiet"]) == 2
     assert "give the duration once" in _one_error(capsys)

@@ -211,8 +211,17 @@ def test_violations_are_listed_with_who_when_and_which():
 def test_run_report_lists_the_runs_violations(tmp_path):
     import json
 
+    # A head-on pair that hears nothing (every frame dropped) and has no detect-and-avoid sensor:
+    # they fly into each other (demo-all-faults no longer does, with the sensor).
+    doc = tmp_path / "head-on.toml"
+    doc.write_text('name = "head-on"\nseed = 16\nduration_s = 60.0\n[area]\nwidth_m = 9000.0\nheight_m = 5000.0\n'
+                   '[planner]\nname = "greedy"\n'
+                   '[[uavs]]\nname = "B1"\ntype = "B"\nx_m = 8500.0\ny_m = 2500.0\nheading_deg = 180.0\n'
+                   '[[uavs]]\nname = "A1"\ntype = "A"\nx_m = 4500.0\ny_m = 2500.0\nheading_deg = 0.0\n'
+                   '[[faults]]\nkind = "drop"\nrate = 1.0\n')
     out = tmp_path / "demo"
-    assert main(["run", "demo-all-faults", "--seed", "1", "--out", str(out), "--quiet", "--no-figures"]) == 0
+    assert main(["run", str(doc), "--set", "uav_types.A.daa_range_m=0", "--set", "uav_types.B.daa_range_m=0",
+                 "--out", str(out), "--quiet", "--no-figures"]) == 0
     assert main(["report", str(out), "--quiet"]) == 0
     m = json.loads((out / "metrics.json").read_text())
     assert m["violations"]["separation"] > 0  # what makes this run worth reporting on

@@ -21,7 +21,7 @@ from typing import Annotated, Any, NamedTuple, Union, get_args, get_origin
 from pydantic import BaseModel, ValidationError
 
 from swarm.errors import ScenarioError
-from swarm.scenario.model import _FAULT_CLASSES, FAULT_KINDS, PlannerSettings, Scenario, _Invalid
+from swarm.scenario.model import _FAULT_CLASSES, DEFAULT_UAV_TYPES, FAULT_KINDS, PlannerSettings, Scenario, _Invalid
 from swarm.scenario.positions import document_position, found_words, key_path, value_at
 from swarm.scenario.trust import allowed, permits, refusal
 
@@ -97,8 +97,15 @@ def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
     for dotted, value in sorted((overrides or {}).items(), key=lambda item: item[0] != _PLANNER_NAME):
         if dotted == _PLANNER_NAME:
             switch_planner(doc, value)
-        else:
-            _set_path(doc, dotted, value, source)
+            continue
+        # --set edits the scenario as merged with the built-in types (docs/scenarios.md): one
+        # field of A or B changes that field, it does not make a table of one field.
+        parts = _split_key(dotted, source)
+        if len(parts) > 2 and parts[0] == "uav_types" and parts[1] in DEFAULT_UAV_TYPES:
+            types = doc.setdefault("uav_types", {})
+            if isinstance(types, dict) and parts[1] not in types:
+                types[parts[1]] = DEFAULT_UAV_TYPES[parts[1]].model_dump()
+        _set_path(doc, dotted, value, source)
     allow = allowed(allow_planner_imports, planner)
     if run_duration_s is None:
         return parse_scenario(doc, source, allow_planner_imports=allow)
