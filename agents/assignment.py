@@ -24,7 +24,9 @@ top speeds alone (target value 1):
   printed, its own Table 1 would break it: ``2.0 / 50 < 2.1 / 90`` is false. Derived from eq.
   22-23 as above, Table 1 meets it: ``2.0 / 90 < 2.1 / 50``.)
 
-Table 1's A and B meet all three. A type that breaks one is allowed (types are data), but the
+Table 1's A and B meet all three. One more is geometry, not weights: a type must be able to
+turn inside its own detection radius (at its minimum speed) to keep a watched target in sight
+(:func:`watch_break`). A type that breaks one is allowed (types are data), but the
 rule it breaks is then the weights' doing, not the planner's: the scenario validator warns, and
 the checkers do not judge it.
 """
@@ -35,11 +37,23 @@ from collections.abc import Iterable
 
 from agents.types import UavType
 
-__all__ = ["exclusion_break", "handover_break", "rule_breaks"]
+__all__ = ["exclusion_break", "handover_break", "rule_breaks", "watch_break"]
 
 
 def _g(x: float) -> str:
     return f"{x:.3g}"
+
+
+def watch_break(k: UavType) -> str | None:
+    """Why a UAV of type ``k`` cannot keep a target in sight while it watches it (its tightest
+    turn, at its minimum speed, is wider than its detection radius: every circle it can fly
+    around the target leaves the target outside its sensor part of the way), or None. Rule 5
+    (no drop) is not judged for such a type."""
+    if k.w_t > 0 and not k.r_min(k.speed_min) < k.detect_radius:
+        return (f"type {k.name}: its tightest turn ({_g(k.r_min(k.speed_min))} m at {_g(k.speed_min)} m/s) is not "
+                f"inside its detection radius ({_g(k.detect_radius)} m), so it cannot keep a target in sight "
+                f"while it circles it")
+    return None
 
 
 def exclusion_break(k: UavType) -> str | None:
@@ -79,6 +93,7 @@ def rule_breaks(kinds: Iterable[UavType], unit_m: float = 1000.0) -> list[str]:
     """Every weight condition that these types (those that fly in a scenario) break, one line
     each; empty when the assignment rules can hold (``unit_m``: the planner's field unit)."""
     ks = sorted({k.name: k for k in kinds}.values(), key=lambda k: k.name)
-    out = [m for k in ks if (m := exclusion_break(k)) is not None]
+    out = [m for k in ks if (m := watch_break(k)) is not None]
+    out += [m for k in ks if (m := exclusion_break(k)) is not None]
     out += [m for s in ks for f in ks if s is not f and (m := handover_break(s, f, unit_m)) is not None]
     return out

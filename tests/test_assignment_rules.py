@@ -20,7 +20,7 @@ import pytest
 from budget import examples
 from hypothesis import HealthCheck, given, settings
 
-from agents.assignment import exclusion_break, handover_break, rule_breaks
+from agents.assignment import exclusion_break, handover_break, rule_breaks, watch_break
 from comms.messages import MODE_SURVEIL
 from swarm import Simulation
 from swarm.scenario import DEFAULT_UAV_TYPES, parse_scenario
@@ -91,6 +91,9 @@ def test_each_precondition_is_named_when_broken():
     assert "eq. 25" in (handover_break(_kind("A", w_t=2.0, w_r=5.1), _kind("B")) or "")  # 2/50 < 5.1/90
     assert "eq. 26" in (handover_break(_kind("A"), _kind("B", w_t=4.0, w_r=2.1)) or "")  # 4/90 > 2.1/50
     assert handover_break(_kind("B"), _kind("A")) is None  # B is not the slower one
+    # A type whose tightest turn is wider than its sensor cannot keep a target in sight (rule 5).
+    assert "cannot keep a target in sight" in (watch_break(_kind("A", detect_radius_m=150.0)) or "")
+    assert watch_break(_kind("A")) is None and watch_break(_kind("B")) is None
     # Eq. 25 met by a hair (5 * 51 > 5.1 * 50 by float noise): no pull left to draw A in.
     assert "may never be drawn in" in (handover_break(_kind("A"), _kind("B", speed_max=51.0)) or "")
     assert handover_break(_kind("A"), _kind("B", speed_max=53.0)) is None  # net pull 3.8 at 10 km

@@ -105,7 +105,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.assignment import exclusion_break, handover_break
+from agents.assignment import exclusion_break, handover_break, watch_break
 from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
 from comms.messages import MODE_SURVEIL
@@ -311,6 +311,12 @@ class RunContext:
     def kind(self, uid: int) -> UavType | None:
         t = self.type_name.get(uid)
         return self.types.get(t) if t is not None else None
+
+    def watch_judged(self, uid: int) -> bool:
+        """Whether ``no_drop`` judges this UAV's type: it can turn inside its own detection radius
+        (:func:`agents.assignment.watch_break`)."""
+        k = self.kind(uid)
+        return k is not None and watch_break(k) is None
 
     def exclusion_judged(self, uid: int) -> bool:
         """Whether ``single_watcher`` judges this UAV's type: its weights meet eq. 27
@@ -1354,7 +1360,7 @@ class NoDropChecker(_WatchChecker):
                 continue
             # Only a watcher that has held the target: one still on its way may turn to another.
             alive = sorted(w for w in prev if w in self._held.get(m, ()) and w in poses and not self.excused(w, t)
-                           and not self._lost(m, t, w))
+                           and self.context.watch_judged(w) and not self._lost(m, t, w))
             if alive:
                 self._pending[m] = (t, alive[0], self._seen[m][0] if m in self._seen else -math.inf)
         self._prev = watchers
