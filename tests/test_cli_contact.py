@@ -93,6 +93,8 @@ def test_a_sweep_validates_set_with_its_duration(tmp_path):
 _WARNED = """
 name = "warned"
 duration_s = 600
+[planner]
+surveillance = false  # (with it, type C's turn, wider than its sensor, breaks rule 5: one more warning)
 [area]
 width_m = 10000
 height_m = 10000

@@ -21,6 +21,7 @@ from comms.codec import encode
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello
 from faults.schedule import Partition, fault_to_dict
 from swarm import Simulation, load_scenario
+from swarm.recorder import read_events
 from swarm.scenario import parse_scenario, scenario_from_toml
 from swarm.testing.invariants import (
     DynamicsChecker,
@@ -846,6 +847,24 @@ KNOWN_FAILURES = {
          "planner": {"name": "greedy"}, "faults": [{"kind": "pause", "uav": "B1", "start_s": 2.0, "end_s": 80.0}]},
         lambda: [ThreatClearanceChecker(excuse_node_faults=False)]),
 }
+
+
+def test_radio_a_uav_resuming_from_a_pause_may_read_a_spoofed_frame_its_mailbox_held():
+    """B1 is paused for the spoofer's whole second; it reads the spoofed frames when it resumes
+    at 2 s, as it reads members' frames held over a pause (found by the generated runs)."""
+    doc = {"name": "spoofed-while-paused", "seed": 0, "duration_s": 20.0,
+           "area": {"width_m": 5000.0, "height_m": 5000.0},
+           "uavs": [{"name": "B1", "type": "B", "x_m": 500.0, "y_m": 500.0},
+                    {"name": "B2", "type": "B", "x_m": 2500.0, "y_m": 500.0}],
+           "planner": {"name": "greedy", "surveillance": False},
+           "faults": [{"kind": "pause", "uav": "B1", "start_s": 0.0, "end_s": 2.0}, {"kind": "drop", "rate": 1.0},
+                      {"kind": "spoofer", "x_m": 0.0, "y_m": 0.0, "range_m": 7000.0, "start_s": 0.0, "end_s": 1.0,
+                       "rate_per_s": 1.0}]}
+    scenario = parse_scenario(doc)
+    with Simulation(scenario) as sim:
+        result = sim.run()
+    assert any(e[0] == "rx" and e[2] == -1 and e[1] == 2.0 for e in read_events(result.events))  # it did read one
+    assert check_events(result.events, scenario, [RadioChecker()]) == []
 
 
 def test_head_on_pair_avoids_each_other_when_they_can_talk():

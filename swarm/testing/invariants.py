@@ -797,15 +797,18 @@ class RadioChecker(Checker):
 
     def _check_spoof(self, t: float, dst: int, poses: dict[int, tuple], dt: float, max_delay: float) -> None:
         """A spoofer's frame (sender -1) is legal only at a receiver that is flying when it reads
-        it and was within an active spoofer's ``range_m`` at a possible send tick."""
+        it and was within an active spoofer's ``range_m`` at a possible send tick (for one just
+        resumed from a pause, back to the pause's start, as for members' frames)."""
         ctx = self.context
         if dst not in poses:
             self.violate(t, f"{ctx.name(dst)} read a spoofed frame while not flying", [dst], cause="receiver_down")
             return
+        held = self._resumed.get(dst)  # a UAV resuming from a pause reads what its mailbox held
+        oldest = (held[0] if held is not None else t) - dt - max_delay - _EPS
         for s, ps in reversed(self._history):
             if s > t - dt + _EPS:
                 continue
-            if s < t - dt - max_delay - _EPS:
+            if s < oldest:
                 break
             pd = ps.get(dst)
             if pd is not None and ctx.spoofed(pd, s):
