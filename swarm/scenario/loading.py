@@ -94,18 +94,7 @@ def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
         raise ScenarioError(source, "", f"invalid TOML ({exc})", "a TOML document") from None
     if planner is not None:
         switch_planner(doc, planner)
-    for dotted, value in sorted((overrides or {}).items(), key=lambda item: item[0] != _PLANNER_NAME):
-        if dotted == _PLANNER_NAME:
-            switch_planner(doc, value)
-            continue
-        # --set edits the scenario as merged with the built-in types (docs/scenarios.md): one
-        # field of A or B changes that field, it does not make a table of one field.
-        parts = _split_key(dotted, source)
-        if len(parts) > 2 and parts[0] == "uav_types" and parts[1] in DEFAULT_UAV_TYPES:
-            types = doc.setdefault("uav_types", {})
-            if isinstance(types, dict) and parts[1] not in types:
-                types[parts[1]] = DEFAULT_UAV_TYPES[parts[1]].model_dump()
-        _set_path(doc, dotted, value, source)
+    _override(doc, overrides or {}, source)
     allow = allowed(allow_planner_imports, planner)
     if run_duration_s is None:
         return parse_scenario(doc, source, allow_planner_imports=allow)
@@ -167,12 +156,7 @@ def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncat
     allowed (it was when ``scenario`` was validated), a new ``module:Class`` needs allowing."""
     source = f"{scenario.name} (with overrides)"
     doc = scenario._document()
-    ordered = sorted(overrides.items(), key=lambda item: item[0] != _PLANNER_NAME)
-    for dotted, value in ordered:
-        if dotted == _PLANNER_NAME:
-            switch_planner(doc, value)
-        else:
-            _set_path(doc, dotted, value, source)
+    _override(doc, overrides, source)
     allow = allowed(allow_planner_imports, scenario.planner.name)
     try:
         return parse_scenario(doc, source, truncated=truncated, scenario_duration_s=scenario_duration_s,
@@ -187,6 +171,23 @@ def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncat
 
 
 _PLANNER_NAME = "planner.name"
+
+
+def _override(doc: dict[str, Any], overrides: Mapping[str, Any], source: str) -> None:
+    """Set dotted keys in a scenario document (in place), ``planner.name`` first (it replaces
+    the planner, and its options follow it: :func:`switch_planner`). The document is edited as
+    merged with the built-in types (docs/scenarios.md): one field of A or B changes that field
+    of Table 1's type, it does not make a table of one field."""
+    for dotted, value in sorted(overrides.items(), key=lambda item: item[0] != _PLANNER_NAME):
+        if dotted == _PLANNER_NAME:
+            switch_planner(doc, value)
+            continue
+        parts = _split_key(dotted, source)
+        if len(parts) > 2 and parts[0] == "uav_types" and parts[1] in DEFAULT_UAV_TYPES:
+            types = doc.setdefault("uav_types", {})
+            if isinstance(types, dict) and parts[1] not in types:
+                types[parts[1]] = DEFAULT_UAV_TYPES[parts[1]].model_dump()
+        _set_path(doc, dotted, value, source)
 
 
 def switch_planner(doc: dict[str, Any], name: Any) -> None:

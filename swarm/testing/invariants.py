@@ -96,6 +96,7 @@ radio).
 
 from __future__ import annotations
 
+import abc
 import math
 from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
@@ -534,9 +535,9 @@ def _poses(events: Sequence[Sequence]) -> dict[int, tuple]:
     return {e[2]: tuple(e[3:9]) for e in events if e[0] == "pose"}
 
 
-class Checker:
-    """Base class: override :meth:`on_group` (events of one instant, in log order) and, for
-    liveness properties, :meth:`finish` (end of the run)."""
+class Checker(abc.ABC):
+    """Base class: implement :meth:`on_group` (events of one instant, in log order) and, for
+    liveness properties, override :meth:`finish` (end of the run)."""
 
     name = "checker"
     live_only = False  # True: needs the simulation (reads maps), cannot run on a log alone
@@ -562,14 +563,14 @@ class Checker:
                              "(or call bind(RunContext(scenario)) first)")
         return self.ctx
 
-    def attach(self, sim: Any) -> None:
+    def attach(self, sim: Any) -> None:  # noqa: B027  (an optional hook, empty by default)
         """Called once when a monitor attaches to a live simulation (after :meth:`bind`)."""
 
+    @abc.abstractmethod
     def on_group(self, t: float, events: list[Sequence]) -> None:
-        """The events of one tick at time ``t``; every checker must implement it."""
-        raise NotImplementedError(f"{type(self).__name__} must implement on_group")
+        """The events of one tick at time ``t``; every checker implements it."""
 
-    def finish(self, t_end: float) -> None:
+    def finish(self, t_end: float) -> None:  # noqa: B027  (an optional hook, empty by default)
         """The run ended at ``t_end`` (judge pending liveness obligations)."""
 
     def violate(self, t: float, message: str, uavs: Iterable[int] = (), target: int | None = None, **data: Any) -> None:

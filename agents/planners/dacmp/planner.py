@@ -480,8 +480,7 @@ class _UavSearch:
                 # targets may enter a zone and we may not, so it is not lost,
                 # and we keep it until anyone sees it again (docs/modelling.md, "Assignment
                 # rules", rule 5; the actor loiters at the zone's edge nearest to it).
-                if t - tr.t > max_age and not (tid == watched and (view.knowledge.inside_threat(tr.x, tr.y, R)
-                                                                    or view.knowledge.inside_threat(*tr.predict(t), R))):
+                if t - tr.t > max_age and not (tid == watched and _near_zone(view.knowledge, tr, t, R)):
                     continue
                 tx, ty = tr.predict(t)
                 if math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
@@ -545,6 +544,13 @@ class _UavSearch:
         k, v_i = self.view.kind, self.v_i
         pull = k.w_t * value / (v_i * v_i) - sum(k.w_r / (v_i * v_j) for *_, v_j, _s, at in self.rivals if at == i)
         return pull / max(d / unit, floor)
+
+
+def _near_zone(knowledge, track, t: float, reach: float) -> bool:
+    """Whether a track's last sighting or its predicted position lies inside a known no-fly
+    zone or within ``reach`` of one."""
+    return (knowledge.inside_threat(track.x, track.y, reach) is not None
+            or knowledge.inside_threat(*track.predict(t), reach) is not None)
 
 
 def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, int, int]:
