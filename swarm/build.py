@@ -8,7 +8,9 @@ and decide nothing at run time; :class:`swarm.simulation.Simulation` composes th
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -17,7 +19,9 @@ from agents.apf import ApfSettings
 from agents.knowledge import KnownThreat
 from agents.types import UavType
 from comms.radio import LinkFilter, LinkModel, Radio
-from swarm.scenario import Scenario, UavTypeSpec
+from swarm.errors import UsageError
+from swarm.scenario import Scenario, UavTypeSpec, load_scenario
+from swarm.scenario.trust import allowed
 from swarm.world import TargetMotion
 
 __all__ = ["actor_settings", "auth_key", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
@@ -87,3 +91,32 @@ def actor_settings(sc: Scenario) -> ActorSettings:
                         lookahead_s=ap.lookahead_s),
         auth_key=auth_key(sc),
     )
+
+
+def configured(scenario: Scenario | str | Path, seed: int | None, planner: str | type | None,
+                planner_options: Mapping[str, Any] | None, duration_s: float | None,
+                allow_planner_imports: bool | Iterable[str]) -> Scenario:
+    """The scenario with :class:`swarm.simulation.Simulation`'s arguments applied."""
+    # A class is named by where it lives (module:Class), as a scenario would name it.
+    name = planner if planner is None or isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario, planner=name, allow_planner_imports=allow_planner_imports)
+    overrides: dict[str, object] = {}
+    if name is not None:
+        overrides["planner.name"] = name
+    if planner_options is not None:
+        if not isinstance(planner_options, Mapping) or not all(isinstance(k, str) and k.isidentifier()
+                                                              for k in planner_options):
+            raise UsageError(f"planner_options {planner_options!r}: expected a dict of option names "
+                             f"(Python identifiers) to values")
+        overrides.update({f"planner.options.{key}": value for key, value in planner_options.items()})
+    if duration_s is not None:
+        overrides["duration_s"] = duration_s
+    if seed is not None:
+        overrides["seed"] = seed
+    if not overrides:
+        return scenario
+    from swarm.scenario import apply_overrides
+
+    return apply_overrides(scenario, overrides, truncated=duration_s is not None,
+                           allow_planner_imports=allowed(allow_planner_imports, name))

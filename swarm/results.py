@@ -7,14 +7,21 @@ Kept apart from the kernel: nothing here changes the run, it only reads it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
+from agents.actor import UavActor
 from agents.knowledge import KnownThreat
-
-if TYPE_CHECKING:
-    from swarm.simulation import Simulation
+from agents.maps.grid import Grid
+from comms.radio import Radio
+from faults.injector import FaultInjector
+from swarm.metrics import Metrics
+from swarm.observer import Observer
+from swarm.recorder import EventLog
+from swarm.scenario import Scenario
+from swarm.transmission import Transmission
+from swarm.world import Targets, World
 
 __all__ = ["RunResult", "radio_totals", "run_metrics", "run_result"]
 
@@ -36,7 +43,36 @@ class RunResult:
     scenario: dict = field(default_factory=dict)
 
 
-def radio_totals(sim: Simulation) -> dict:
+class Run(Protocol):
+    """What the results read of a simulation (:class:`swarm.simulation.Simulation` is one):
+    public parts only, so that this module does not depend on the kernel."""
+
+    scenario: Scenario
+    seed: int
+    grid: Grid
+    world: World
+    targets: Targets
+    metrics: Metrics
+    log: EventLog
+    radio: Radio
+    observer: Observer
+    transmission: Transmission
+    speed_max_by_type: dict[str, float]
+
+    @property
+    def now(self) -> float: ...
+
+    @property
+    def wall_seconds(self) -> float: ...
+
+    @property
+    def actors(self) -> dict[int, UavActor]: ...
+
+    @property
+    def injector(self) -> FaultInjector: ...
+
+
+def radio_totals(sim: Run) -> dict:
     c = sim.radio.counters
     delivered = sum(a.counters.delivered for a in sim.actors.values())
     rejected = sum(a.counters.rejected for a in sim.actors.values())
@@ -51,11 +87,11 @@ def radio_totals(sim: Simulation) -> dict:
         "bytes_sent": c.bytes_sent,
         "duplicated": c.duplicated,
         "dropped_by_cause": dict(sorted(c.dropped.items())),
-        "in_flight": sim._in_flight + queued,  # scheduled on the clock or unread in a mailbox
+        "in_flight": sim.transmission.in_flight + queued,  # scheduled on the clock or unread in a mailbox
     }
 
 
-def run_metrics(sim: Simulation) -> dict:
+def run_metrics(sim: Run) -> dict:
     """``metrics.json``: the ground-truth measures, radio and fault counters, per-UAV counters."""
     sc = sim.scenario
     t = sim.now
@@ -90,7 +126,7 @@ def run_metrics(sim: Simulation) -> dict:
         "planner": sc.planner.name,
         "seed": sim.seed,
         "sim_seconds": t,
-        "wall_seconds": round(sim._wall, 3),
+        "wall_seconds": round(sim.wall_seconds, 3),
         "coverage": m.coverage(),
         "certainty": m.certainty(t),
         "targets_found": len(m.found_t),
@@ -119,15 +155,15 @@ def run_metrics(sim: Simulation) -> dict:
     }
 
 
-def run_result(sim: Simulation) -> RunResult:
+def run_result(sim: Run) -> RunResult:
     events = sim.log.to_bytes()
     metrics = run_metrics(sim)
     return RunResult(
         metrics=metrics,
         timeseries=list(sim.metrics.rows),
         events=events,
-        paths={sim.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in sim._paths.items()},
-        target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in sim._target_paths.items()},
+        paths={sim.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in sim.observer.paths.items()},
+        target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in sim.observer.target_paths.items()},
         union_last_seen=sim.metrics.union.to_dense(),
         threats=list(sim.world.threats),
         area=(sim.grid.width_m, sim.grid.height_m),

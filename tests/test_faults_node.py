@@ -188,7 +188,7 @@ def test_maps_in_a_group_stay_a_max_of_what_they_applied_under_skew(monkeypatch)
         if not group:
             monkeypatch.setattr(simulation_module, "maps_share", lambda *_: False)
         with Simulation(sc, seed=2) as sim:
-            assert (sim._map_group is not None) == group
+            assert (sim.map_group is not None) == group
             for f in faults:
                 sim.add_fault(f)
             sim.run()

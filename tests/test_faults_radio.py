@@ -64,14 +64,15 @@ def _injector(*faults):
 
 
 def test_a_jammer_loses_copies_to_and_from_uavs_inside_at_its_rate_and_no_others():
-    inj = _injector(Jammer(x_m=0.0, y_m=0.0, radius_m=100.0, rate=0.3, start_s=1.0))
+    j = Jammer(x_m=0.0, y_m=0.0, radius_m=100.0, rate=0.3, start_s=1.0)
+    inj = _injector(j)
     xy = np.array([[0.0, 0.0], [50.0, 50.0], [500.0, 0.0], [1000.0, 0.0], [0.0, 2000.0]])
     inj.begin_tick(0.5)
     inj.set_positions(list(range(5)), xy)
-    assert inj.idle and not inj.jammed()  # before its window
+    assert inj.idle  # before its window
     inj.begin_tick(1.0)
     inj.set_positions(list(range(5)), xy)
-    assert not inj.idle and inj.jammed()[0][1] == {0, 1}
+    assert not inj.idle and inj.behaviour(j).inside == {0, 1}
     rng = np.random.default_rng(0)
     n = 20_000
     se = math.sqrt(0.3 * 0.7 / n)
@@ -105,8 +106,8 @@ def test_a_swizzle_cuts_count_uavs_one_by_one_then_restores_them_in_another_orde
     clogged_at = {}
     for t in np.arange(0.0, 80.0, 1.0):
         inj.begin_tick(float(t))
-        clogged_at[float(t)] = inj.clogged()
-    plan = inj.swizzle_plan(f)
+        clogged_at[float(t)] = inj.behaviour(f).clogged if f.active(float(t)) else frozenset()
+    plan = inj.drawn(f)
     assert plan is not None and len(plan) == 3
     cuts = sorted(c for c, _ in plan.values())
     restores = sorted(r for _, r in plan.values())
@@ -123,7 +124,7 @@ def test_a_swizzle_cuts_count_uavs_one_by_one_then_restores_them_in_another_orde
     rng = np.random.default_rng(0)
     inj.begin_tick(35.0)
     u = next(u for u in plan if plan[u][0] <= 35.0 < plan[u][1])
-    other = next(v for v in range(5) if v not in inj.clogged())
+    other = next(v for v in range(5) if v not in inj.behaviour(f).clogged)
     assert inj.filter(35.0, u, other, b"x", rng) == ([], "swizzle")
     assert inj.filter(35.0, other, u, b"x", rng) == ([], "swizzle")
 
@@ -135,9 +136,16 @@ def test_a_swizzle_of_a_pool_draws_from_it_and_at_most_its_size():
 
 
 def test_a_spoofer_sends_its_rate_with_fractions_carried_over():
-    inj = _injector(Spoofer(x_m=0.0, y_m=0.0, range_m=10.0, rate_per_s=0.3, start_s=0.0, end_s=10.0))
-    due = [sum(n for _f, n, _r, _s in inj.spoofer_due(t * 0.5, 0.5)) for t in range(30)]
-    assert sum(due[:20]) == 3 and sum(due[20:]) == 0 and inj.fired["spoofer"] == 3  # 0.3/s for 10 s
+    f = Spoofer(x_m=0.0, y_m=0.0, range_m=10.0, rate_per_s=0.3, start_s=0.0, end_s=10.0)
+    (tx,) = _injector(f).transmitters
+
+    class NoMembers:  # (the frames' count is what is tested: nobody to forge or hear them)
+        def members(self):
+            return []
+
+    xy = np.zeros((0, 2))
+    due = [tx.transmit(NoMembers(), t * 0.5, 0.5, [], xy, []) if f.active(t * 0.5) else 0 for t in range(30)]
+    assert sum(due[:20]) == 3 and sum(due[20:]) == 0  # 0.3/s for 10 s
 
 
 # --- whole runs -----------------------------------------------------------------------------------
@@ -214,7 +222,7 @@ def test_a_bridge_lets_only_the_bridge_uav_talk_across(all_four):
 def test_a_swizzle_blocks_exactly_the_clogged_uavs_while_clogged(all_four):
     sim, _m, events = all_four
     (f,) = [f for f in sim.injector.schedule.faults if isinstance(f, Swizzle)]
-    plan = sim.injector.swizzle_plan(f)
+    plan = sim.injector.drawn(f)
     assert plan is not None and len(plan) == SWIZZLE["count"]
     dt = 1.0
 

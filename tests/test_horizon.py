@@ -147,7 +147,7 @@ def test_a_horizon_keeps_far_scans_out_of_log_and_map_and_maps_agree_within_it()
         mon.finish()
         result = sim.run()
         for uid in range(4):
-            assert _heard_within(sim, uid, h, sim._paths[uid])
+            assert _heard_within(sim, uid, h, sim.observer.paths[uid])
         far = {o for o, _ in sim.actors[0].scans.scans()}
         beyond = sim.actors[0].counters.scans_beyond
         map0 = sim.actors[0].umap.to_dense()

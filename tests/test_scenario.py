@@ -262,8 +262,8 @@ def test_unknown_fault_kind(tmp_path):
     err = error_for(tmp_path, MINIMAL + '[[faults]]\nkind = "explode"\n')
     assert err.key == "faults[0].kind"
     assert err.expected == "one of: " + ", ".join(FAULT_KINDS)
-    assert err.expected == ("one of: drop, burst, partition, delay, duplicate, corrupt, crash, join, pause, restart, "
-                            "clock_skew, nav_error, sensor, jammer, bridge, swizzle, liar, spoofer")
+    assert err.expected == ("one of: drop, burst, delay, duplicate, corrupt, partition, bridge, swizzle, jammer, "
+                            "crash, join, restart, pause, clock_skew, nav_error, sensor, liar, spoofer")
 
 
 def test_fault_window_and_partition_rules(tmp_path):

@@ -329,10 +329,10 @@ class SwarmSearchEnv(ParallelEnv):
         return sim.n_ticks - int(round(sim.now / sim.dt))
 
     def _restarting(self, agent: str) -> bool:
-        """Down for a ``restart`` fault: it will fly again (``Simulation._restarting``)."""
+        """Down for a ``restart`` fault: it will fly again (``Fleet.returning``)."""
         sim = self.sim
         assert sim is not None
-        return self._uid[agent] in sim._restarting
+        return self._uid[agent] in sim.fleet.returning
 
     def _crashed(self, agent: str) -> bool:
         """Down for good: crashed, and not in a restart's downtime."""

@@ -219,7 +219,7 @@ def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict:
         "scan_log_mean": round(sum(logs) / len(logs), 1),
     }
     out["map_mb_max"] = out["map_mb_mean"] = None  # group maps share storage: no per-UAV figure
-    if sim._map_group is None:
+    if sim.map_group is None:
         mb = [a.umap.nbytes / 1e6 for a in sim.actors.values()] or [0.0]
         out["map_mb_max"] = round(max(mb), 2)
         out["map_mb_mean"] = round(sum(mb) / len(mb), 2)

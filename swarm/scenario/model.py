@@ -615,7 +615,7 @@ _COMMON_FAULT_KEYS = ("start_s", "end_s", "uavs", "links")
 
 def _fault_table(cls: type[_faults.Fault]) -> type[_Model]:
     """The ``[[faults]]`` table of the fault kind ``cls`` (a :mod:`faults.schedule` class)."""
-    names = [f.name for f in dataclasses.fields(cls)]
+    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]  # (a registered kind is a dataclass)
     common = [n for n in _COMMON_FAULT_KEYS if n in names]
     own = sorted((n for n in names if n not in common), key=lambda n: n != "at_s")
     base = (_PartitionChecks if "groups" in names else _LinkFault if issubclass(cls, _faults.LinkFault)

@@ -111,27 +111,9 @@ from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
 from comms.messages import MODE_SURVEIL
 from comms.radio import SPOOF_SENDER
-from faults.schedule import (
-    PHANTOM_TARGET_ID,
-    Bridge,
-    ClockSkew,
-    Crash,
-    Delay,
-    Fault,
-    Jammer,
-    Join,
-    Liar,
-    LinkFault,
-    NavError,
-    Partition,
-    Pause,
-    Restart,
-    Sensor,
-    Spoofer,
-    Swizzle,
-    fault_from_dict,
-    fault_to_dict,
-)
+from faults.base import PHANTOM_TARGET_ID, FaultKind
+from faults.registry import fault_from_dict, fault_to_dict
+from faults.sensing import skewed_stamps
 from swarm.errors import SwarmError, UsageError
 from swarm.outputs import read_run_dir
 from swarm.recorder import read_events
@@ -201,47 +183,20 @@ class InvariantViolation(SwarmError, AssertionError):
         super().__init__(f"{len(self.violations)} invariant violation(s):\n  " + "\n  ".join(lines))
 
 
-def describe_fault(f: Fault) -> str:
+def describe_fault(f: FaultKind) -> str:
     """A fault in a few words: kind, whom it acts on, when (``drop 0.5 on B1 10-50 s``)."""
     d = fault_to_dict(f)
     kind = d.pop("kind")
     who = d.pop("uav", None) or ",".join(d.pop("uavs", None) or ())
-    if isinstance(f, (Crash, Join)):
-        when = f"at {f.at_s:g} s"
-    elif isinstance(f, Restart):
-        when = f"at {f.at_s:g} s for {f.downtime_s:g} s"
+    lo, hi = f.span()
+    if hasattr(f, "at_s"):
+        when = f"at {lo:g} s" if hi == lo else f"at {lo:g} s for {hi - lo:g} s"
     else:
-        end = getattr(f, "end_s", math.inf)
-        when = f"{getattr(f, 'start_s', 0.0):g}-{end:g} s" if math.isfinite(end) else f"from {getattr(f, 'start_s', 0.0):g} s"
+        when = f"{lo:g}-{hi:g} s" if math.isfinite(hi) else f"from {lo:g} s"
     return " ".join(p for p in (kind, f"on {who}" if who else "", when) if p)
 
 
 # --- the run's context ---------------------------------------------------------------------------
-
-
-def skewed_stamps(faults: Iterable[Fault], duration_s: float) -> list[tuple[float, float]]:
-    """The ranges of times skewed clocks stamped (every clock skew, over its window; skews that
-    overlap on one UAV add up). Cells holding such a time are not owed to anyone, ever, by the
-    UAV that stamped them or by one that heard it: a record stamped in a receiver's future is
-    ignored, and one stamped in the past usually lands in an (origin, tick) slot of the scan log
-    that the origin's real scan of that tick already holds, so anti-entropy never resends it
-    (agents.maps.scanlog keeps one scan per origin and tick)."""
-    by_uav: dict[str, list[ClockSkew]] = {}
-    for f in faults:
-        if isinstance(f, ClockSkew) and (f.offset_s or f.drift):
-            by_uav.setdefault(f.uav, []).append(f)
-    out = []
-    for skews in by_uav.values():
-        # Between two breakpoints the clock's error is linear (a sum of the active skews' lines),
-        # so the stamps made there span the values at the two ends.
-        cuts = sorted({min(t, duration_s) for f in skews for t in (f.start_s, f.end_s)})
-        for lo, hi in zip(cuts, cuts[1:]):
-            active = [f for f in skews if f.start_s <= lo and hi <= f.end_s]
-            if not active:
-                continue
-            a_, b_ = lo + sum(f.error(lo) for f in active), hi + sum(f.error(hi) for f in active)
-            out.append((min(a_, b_) - _EPS, max(a_, b_) + _EPS))
-    return out
 
 
 def owed_map(m: np.ndarray, skewed: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -260,7 +215,7 @@ class RunContext:
     names and types (from the ``start`` and ``join`` events, or the live simulation), and the
     fault schedule (``faults`` if given, else the live simulation's, else the ``start`` event's)."""
 
-    def __init__(self, scenario: Scenario, *, sim: Any = None, faults: Iterable[Fault] | None = None):
+    def __init__(self, scenario: Scenario, *, sim: Any = None, faults: Iterable[FaultKind] | None = None):
         self.scenario = scenario
         self.sim = sim
         self.dt = scenario.dt_s
@@ -272,10 +227,9 @@ class RunContext:
         self.type_name: dict[int, str] = {}
         self.uid: dict[str, int] = {}
         self._override = list(faults) if faults is not None else None
-        self._start_faults: list[Fault] = []
-        self._partition_cache: tuple[int, list[tuple[Partition, dict[int, int]]]] = (-1, [])
+        self._start_faults: list[FaultKind] = []
         self.seed = scenario.seed  # (the start event's, if it says otherwise: a swizzle's stream)
-        self._swizzle_plans: dict[int, dict[int, tuple[float, float]]] = {}  # id(fault) -> plan
+        self._drawn: dict[int, Any] = {}  # id(fault) -> what it drew (drawn)
         self.recording: str = scenario.recording.level  # (or the start header's, below)
         for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
             self._learn(i, name, u.type)
@@ -333,137 +287,81 @@ class RunContext:
                 and handover_break(ks, kf, self.scenario.planner.dacmp.field_unit_m) is None)
 
     @property
-    def faults(self) -> list[Fault]:
+    def faults(self) -> list[FaultKind]:
         if self._override is not None:
             return self._override
         if self.sim is not None:
             return self.sim.injector.schedule.faults
         return self._start_faults
 
-    def _partitions(self) -> list[tuple[Partition, dict[int, int]]]:
-        faults = self.faults
-        n, cached = self._partition_cache
-        if n != len(faults) + len(self.uid):
-            cached = []
-            for f in faults:
-                if isinstance(f, (Partition, Bridge)):  # a bridge is the partition without its bridge UAV
-                    p = f.partition() if isinstance(f, Bridge) else f
-                    cached.append((p, {self.uid[m]: g for g, grp in enumerate(p.groups) for m in grp if m in self.uid}))
-            self._partition_cache = (len(faults) + len(self.uid), cached)
-        return cached
-
-    def swizzle_plan(self, f: Swizzle) -> dict[int, tuple[float, float]]:
-        """A swizzle's ``{uav id: (cut_s, restore_s)}``: the live simulation's, or drawn again as
-        the simulator draws it (:meth:`faults.schedule.Swizzle.plan` from the run's seed and the
-        fault's stream ``("fault", "swizzle", k)``, ``k`` its index among the swizzles; the
-        pool "every UAV" is every UAV known here)."""
+    def drawn(self, f: FaultKind) -> Any:
+        """What fault ``f`` drew for itself when it started (a swizzle's ``{uav id: (cut_s,
+        restore_s)}``): the live simulation's, or drawn again as the simulator draws it
+        (:meth:`faults.base.FaultKind.draw` from the run's seed and the fault's stream
+        ``("fault", kind, k)``, ``k`` its index among the faults of its kind; the pool "every
+        UAV" is every UAV known here)."""
         if self.sim is not None:
-            plan = self.sim.injector.swizzle_plan(f)
-            return plan if plan is not None else {}
-        plan = self._swizzle_plans.get(id(f))
-        if plan is None:
-            k = [g for g in self.faults if isinstance(g, Swizzle)].index(f)
-            pool = sorted({self.uid[n] for n in f.uavs if n in self.uid} if f.uavs else set(self.uid.values()))
-            plan = self._swizzle_plans[id(f)] = f.plan(pool, RngTree(self.seed).generator("fault", "swizzle", k))
-        return plan
-
-    def clogged(self, uid: int, t: float) -> bool:
-        """Whether a swizzle has cut every link of ``uid`` at ``t``."""
-        for f in self.faults:
-            if isinstance(f, Swizzle) and f.active(t):
-                window = self.swizzle_plan(f).get(uid)
-                if window is not None and window[0] <= t < window[1]:
-                    return True
-        return False
+            return self.sim.injector.drawn(f)
+        if id(f) not in self._drawn:
+            k = [g for g in self.faults if g.kind == f.kind].index(f)
+            self._drawn[id(f)] = f.draw(f.pool(self.uid), RngTree(self.seed).generator("fault", f.kind, k))
+        return self._drawn[id(f)]
 
     def blocked(self, src: int, dst: int, t: float) -> bool:
-        """True when an active partition or bridge blocks frames from ``src`` to ``dst`` at
-        ``t``, or a swizzle has clogged either of them."""
-        for p, group_of in self._partitions():
-            if p.active(t) and p.separates(group_of.get(src), group_of.get(dst)):
-                return True
-        return self.clogged(src, t) or self.clogged(dst, t)
+        """True when a fault cuts the link ``src -> dst`` at ``t`` (an active partition or
+        bridge between them, a swizzle that has clogged either: :meth:`FaultKind.blocks`)."""
+        return any(f.blocks(t, src, dst, self) for f in self.faults)
 
     def jammed(self, pos: Sequence[float], t: float) -> bool:
-        """Whether a jammer that loses every copy (``rate`` 1) covers position ``pos`` at ``t``."""
-        return any(isinstance(f, Jammer) and f.rate >= 1.0 and f.active(t)
-                   and math.hypot(pos[0] - f.x_m, pos[1] - f.y_m) <= f.radius_m for f in self.faults)
+        """Whether a fault loses every copy to or from position ``pos`` at ``t`` (a jammer of
+        ``rate`` 1: :meth:`FaultKind.silences`)."""
+        return any(f.silences(pos, t) for f in self.faults)
 
     def spoofed(self, pos: Sequence[float], t: float) -> bool:
-        """Whether an active spoofer's frames reach position ``pos`` at ``t``."""
-        return any(isinstance(f, Spoofer) and f.active(t)
-                   and math.hypot(pos[0] - f.x_m, pos[1] - f.y_m) <= f.range_m for f in self.faults)
+        """Whether forged frames reach position ``pos`` at ``t`` (a spoofer: :meth:`FaultKind.forges_at`)."""
+        return any(f.forges_at(pos, t) for f in self.faults)
 
-    def impaired(self, uid: int, t: float, kinds: tuple[type, ...] = (Pause, ClockSkew, NavError),
-                 after_s: float = 0.0) -> bool:
-        """Whether a node fault of ``kinds`` acts on ``uid`` at ``t``, or did until less than
-        ``after_s`` ago (a ``sensor`` fault with empty ``uavs`` acts on all). Checkers of what
-        the planner does excuse such a UAV: a paused one flies its last command blind, one with
-        a skewed clock is not heard (its stamps are in the others' future) or hears nobody, one
-        with a navigation error plans from where it is not. They judge the planner, not the
-        fault."""
+    def impaired(self, uid: int, t: float, sensing: bool = False, after_s: float = 0.0) -> bool:
+        """Whether a fault that impairs a UAV's control (pause, clock skew, navigation error;
+        with ``sensing``, also its sensing: a sensor fault) acts on ``uid`` at ``t``, or did
+        until less than ``after_s`` ago. Checkers of what the planner does excuse such a UAV: a
+        paused one flies its last command blind, one with a skewed clock is not heard (its
+        stamps are in the others' future) or hears nobody, one with a navigation error plans
+        from where it is not. They judge the planner, not the fault."""
         name = self.names.get(uid)
-        for f in self.faults:
-            if isinstance(f, kinds) and getattr(f, "start_s", 0.0) <= t < getattr(f, "end_s", 0.0) + after_s:
-                if isinstance(f, Sensor):
-                    if not f.uavs or name in f.uavs:
-                        return True
-                elif getattr(f, "uav", None) == name:
-                    return True
-        return False
+        return any((f.impairs_control or (sensing and f.impairs_sensing)) and f.acts_on(name, t, after_s)
+                   for f in self.faults)
 
-    def explaining(self, uids: Iterable[int], t0: float, t1: float) -> list[Fault]:
+    def explaining(self, uids: Iterable[int], t0: float, t1: float) -> list[FaultKind]:
         """The faults that may explain something these UAVs did between ``t0`` and ``t1``: acting
-        at some time from ``RECOVER_S`` before ``t0`` to ``t1``, on one of them (a node fault,
-        a crash, a join, a restart), on their links (a link fault on them or on everyone, a
-        swizzle), or on anyone (a partition, a bridge, a jammer, a spoofer, a liar: a liar's
-        tracks reach every UAV)."""
+        at some time from ``RECOVER_S`` before ``t0`` to ``t1`` (:meth:`FaultKind.span`) and
+        concerning one of them or anyone (:meth:`FaultKind.concerns`: a node fault on one of
+        them, a link fault on them or on everyone, a partition, a jammer, a spoofer, a liar)."""
         names = {self.names.get(u) for u in uids}
         lo = t0 - RECOVER_S
-        out: list[Fault] = []
+        out: list[FaultKind] = []
         for f in self.faults:
-            if isinstance(f, (Crash, Join)):
-                when = (f.at_s, f.at_s)
-            elif isinstance(f, Restart):
-                when = (f.at_s, f.at_s + f.downtime_s)
-            else:
-                when = (getattr(f, "start_s", 0.0), getattr(f, "end_s", math.inf))
-            if not (when[0] <= t1 + _EPS and when[1] >= lo - _EPS):
-                continue
-            if isinstance(f, (Partition, Bridge, Jammer, Spoofer, Liar)):
-                out.append(f)
-            elif isinstance(f, (LinkFault, Sensor, Swizzle)):
-                if not f.uavs or names & set(f.uavs):
-                    out.append(f)
-            elif getattr(f, "uav", None) in names:
+            when = f.span()
+            if when[0] <= t1 + _EPS and when[1] >= lo - _EPS and f.concerns(names):
                 out.append(f)
         return out
 
     def node_faults_disturb(self, t: float) -> bool:
-        """Whether a node fault keeps the maps from agreeing at ``t``: a pause (the UAV merges
-        nothing), or a clock skew until its clock's lead is over (receivers ignore scans from
-        their future: until true time reaches those stamps, nobody else has those cells)."""
-        for f in self.faults:
-            if isinstance(f, Pause) and f.active(t):
-                return True
-            if isinstance(f, ClockSkew) and f.start_s <= t:
-                lead = f.offset_s + (f.drift * (f.end_s - f.start_s) if f.drift > 0 else 0.0)  # its largest
-                if t < f.end_s + max(0.0, lead) + _EPS:
-                    return True
-        return False
+        """Whether a fault keeps the maps from agreeing at ``t`` (:meth:`FaultKind.disturbs_maps`:
+        a pause, the UAV merging nothing; a clock skew until its clock's lead is over)."""
+        return any(f.disturbs_maps(t) for f in self.faults)
 
     def skewed(self) -> list[tuple[float, float]]:
         """:func:`skewed_stamps` of this run's faults so far (for :func:`owed_map`)."""
         return skewed_stamps(self.faults, self.scenario.duration_s)
 
     def link_faults_active(self, t: float) -> bool:
-        # Spoofers too: their frames (with auth off) put scans in some maps and not others.
-        return any(isinstance(f, (LinkFault, Partition, Bridge, Swizzle, Jammer, Spoofer)) and f.active(t)
-                   for f in self.faults)
+        """Whether a fault that disturbs links (loses, delays or forges copies) is active at ``t``."""
+        return any(f.disturbs_links and f.span()[0] <= t < f.span()[1] for f in self.faults)
 
     def max_delay_s(self) -> float:
         r = self.scenario.radio
-        extra = sum(f.extra_s + f.jitter_s for f in self.faults if isinstance(f, Delay))
+        extra = sum(f.max_extra_delay_s() for f in self.faults)
         return r.latency_s + r.jitter_s + extra
 
     def in_range(self, pa: Sequence[float], pb: Sequence[float]) -> bool:
@@ -622,8 +520,8 @@ class SeparationChecker(Checker):
                     self._excused.add(pair)  # too close from the moment they were both flying
                     continue
                 ctx = self.context
-                if self.excuse_node_faults and (ctx.impaired(pair[0], t, _SAFETY_EXCUSED, RECOVER_S)
-                                                or ctx.impaired(pair[1], t, _SAFETY_EXCUSED, RECOVER_S)):
+                if self.excuse_node_faults and (ctx.impaired(pair[0], t, after_s=RECOVER_S)
+                                                or ctx.impaired(pair[1], t, after_s=RECOVER_S)):
                     self._excused.add(pair)  # a node fault's doing (until they are apart again)
                     continue
                 self._active.add(pair)
@@ -663,7 +561,7 @@ class ThreatClearanceChecker(Checker):
                 inside.add(key)
                 if key in self._active or key in self._excused:
                     continue
-                if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, _SAFETY_EXCUSED, RECOVER_S)):
+                if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, after_s=RECOVER_S)):
                     self._excused.add(key)  # (a node fault's doing: excused until it is out)
                     continue
                 self._active.add(key)
@@ -1090,12 +988,11 @@ class JoinerCatchUpChecker(_LiveChecker):
                              [uid, *nbrs], cells=int(behind.sum()), fraction=frac, joined=t_join)
 
 
-# The node faults whose UAVs the assignment checkers excuse (the safety checkers: _SAFETY_EXCUSED,
-# also for RECOVER_S after the fault: a UAV that resumes, or learns where it really is, heading
-# into a threat or another UAV at full speed needs a turn or two to get out; a U-turn of the
-# paper's fast type takes about 20 s).
-_WATCH_EXCUSED = (Pause, ClockSkew, NavError, Sensor)
-_SAFETY_EXCUSED = (Pause, ClockSkew, NavError)
+# The assignment checkers excuse a UAV whose control or sensing a fault impairs
+# (RunContext.impaired); the safety checkers excuse one whose control is impaired also for
+# RECOVER_S after the fault: a UAV that resumes, or learns where it really is, heading into a
+# threat or another UAV at full speed needs a turn or two to get out; a U-turn of the paper's
+# fast type takes about 20 s.
 RECOVER_S = 30.0
 
 
@@ -1116,7 +1013,7 @@ class _WatchChecker(Checker):
 
     def excused(self, uid: int, t: float) -> bool:
         """A UAV under a node or sensing fault (RunContext.impaired) is not judged."""
-        return self.context.impaired(uid, t, _WATCH_EXCUSED)
+        return self.context.impaired(uid, t, sensing=True)
 
     def _track_life(self) -> float:
         sc = self.context.scenario
@@ -1383,7 +1280,7 @@ class Monitor:
     each ``step``)."""
 
     def __init__(self, checkers: Iterable[Checker], scenario: Scenario | None = None, *,
-                 faults: Iterable[Fault] | None = None):
+                 faults: Iterable[FaultKind] | None = None):
         self.checkers = list(checkers)
         self.scenario = scenario
         self._faults = faults
@@ -1489,7 +1386,7 @@ def default_checkers(*, live: bool = False, handover: bool = False, liveness: bo
 
 
 def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checkers: Iterable[Checker] | None = None, *,
-                 faults: Iterable[Fault] | None = None) -> list[Violation]:
+                 faults: Iterable[FaultKind] | None = None) -> list[Violation]:
     """Run ``checkers`` over a run's events: decoded events, or the event log's bytes as
     ``RunResult.events`` and ``events.msgpack`` hold them. Returns the violations (empty: all
     invariants held).

@@ -54,8 +54,9 @@ from typing import Any
 import numpy as np
 
 from comms.messages import MODE_NAMES, MODE_SURVEIL
-from faults.schedule import ClockSkew, Crash, Fault, Pause, Restart
-from swarm.testing.invariants import InvariantViolation, Violation, owed_map, skewed_stamps
+from faults.base import FaultKind
+from faults.sensing import max_skew_at_end, skewed_stamps
+from swarm.testing.invariants import InvariantViolation, Violation, owed_map
 
 __all__ = ["LivenessReport", "RecoveryWatch", "quiesce", "quiet_period_s", "radio_loses_nothing",
            "reassign_bound_s"]
@@ -75,16 +76,7 @@ def _lat(scenario: Any) -> float:
     return float(scenario.radio.latency_s + scenario.radio.jitter_s)
 
 
-def max_skew_at_end(faults: Iterable[Fault]) -> float:
-    """The largest clock error (ahead of true time) any ``clock_skew`` fault had when it ended."""
-    worst = 0.0
-    for f in faults:
-        if isinstance(f, ClockSkew) and math.isfinite(f.end_s):
-            worst = max(worst, f.error(f.end_s), f.error(f.start_s))
-    return worst
-
-
-def quiet_period_s(scenario: Any, n_live: int, faults: Iterable[Fault] = ()) -> float:
+def quiet_period_s(scenario: Any, n_live: int, faults: Iterable[FaultKind] = ()) -> float:
     """``Q`` of the module docstring."""
     r = scenario.radio
     dt = scenario.dt_s
@@ -121,13 +113,10 @@ class RecoveryWatch:
         self.orphaned: dict[int, tuple[float, str]] = {}  # target -> (when, the lost watcher's name)
         self._hit: list[tuple[float, float, str]] = []  # (from, until, name): node faults pending
 
-    def fault(self, f: Fault) -> None:
-        if isinstance(f, Crash):
-            self._hit.append((f.at_s, math.inf, f.uav))
-        elif isinstance(f, Restart):
-            self._hit.append((f.at_s, f.at_s + f.downtime_s, f.uav))
-        elif isinstance(f, Pause):
-            self._hit.append((f.start_s, f.end_s, f.uav))
+    def fault(self, f: FaultKind) -> None:
+        away = f.absence()  # (crash, restart, pause: when its UAV does not work)
+        if away is not None:
+            self._hit.append((*away, str(getattr(f, "uav", ""))))
 
     def observe(self) -> None:
         t = self.sim.now

@@ -1,0 +1,152 @@
+"""Adversaries: a lying member (liar, a tick fault) and a spoofing outsider (spoofer, a
+transmitter of its own)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from typing import TYPE_CHECKING, ClassVar, Literal
+
+import numpy as np
+
+from comms.codec import encode
+from comms.messages import Hello, Message, ScanRecords, TrackItem, Tracks
+from comms.radio import SPOOF_SENDER, Delivery
+from faults.base import END, PHANTOM_TARGET_ID, START, UAV, FaultRng, RadioHost, TickFault, Transmitter, Windowed
+from faults.registry import register
+from faults.sensing import PHANTOM_ID_SPAN
+
+if TYPE_CHECKING:
+    from faults.tick import TickFaults
+
+# Liars' track ids count up from here (false alarms use the span below it).
+LIAR_TRACK_IDS = PHANTOM_TARGET_ID + PHANTOM_ID_SPAN
+# Scan records in each spoofed frame.
+SPOOF_SCANS = 4
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class Liar(TickFault):
+    """A Byzantine member (it holds the swarm key): it broadcasts scan records it never made
+    (``scans_per_s``, uniform over the area, stamped now, under made-up origin ids since a
+    receiver keeps one scan per origin and tick) and false target tracks (``tracks_per_s``,
+    phantom targets at uniform positions), with its beacons."""
+
+    uav: str = field(metadata=UAV)
+    start_s: float = field(default=0.0, metadata=START)
+    end_s: float = field(default=math.inf, metadata=END)
+    scans_per_s: float = field(default=1.0, metadata={"ge": 0, "le": 1000, "note": "fake scan records per s"})
+    tracks_per_s: float = field(default=0.0, metadata={"ge": 0, "le": 1000, "note": "fake tracks per s"})
+    kind: ClassVar[Literal["liar"]] = "liar"
+    tick_order: ClassVar[int] = 4
+
+    def concerns(self, names: object) -> bool:
+        return True  # its tracks reach every UAV
+
+    def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
+        """This tick's fabrications for the liar's actor: scans at uniform points of the area
+        with its detection radius, tracks of phantom targets at uniform positions. It fires
+        per fabrication sent (the actor's ``lie_sink``), not when it starts."""
+        if faults.first(index, uid):
+            faults.emit("fault_on", faults.t, self.kind, uid)
+        actor = faults.actors[uid]
+        g = faults.stream(index, self.kind, uid)
+        w, h = faults.area
+        n_scans = faults.owed((index, uid, "scans"), self.scans_per_s)
+        n_tracks = faults.owed((index, uid, "tracks"), self.tracks_per_s)
+        scans = [(x * w, y * h, actor.kind.detect_radius) for x, y in g.random((n_scans, 2)).tolist()]
+        tracks = [(faults.serial("liar", LIAR_TRACK_IDS, PHANTOM_ID_SPAN), x * w, y * h)
+                  for x, y in g.random((n_tracks, 2)).tolist()]
+        actor.lie(scans, tracks)
+        if actor.lie_sink is None:
+            actor.lie_sink = partial(faults.fired, self.kind)
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class Spoofer(Windowed):
+    """A transmitter that is not a swarm member: from ``(x_m, y_m)`` it sends ``rate_per_s``
+    well-formed frames a second, with a forged sender (``as_uav``; empty: a random member per
+    frame) and without the swarm key, to every live UAV within ``range_m``."""
+
+    x_m: float = field(metadata={"note": "m"})
+    y_m: float = field(metadata={"note": "m"})
+    range_m: float = field(metadata={"gt": 0, "note": "m"})
+    start_s: float = field(default=0.0, metadata=START)
+    end_s: float = field(default=math.inf, metadata=END)
+    rate_per_s: float = field(default=1.0, metadata={"gt": 0, "le": 1000, "note": "frames per s"})
+    as_uav: str = field(default="", metadata={"expected": "a UAV name defined in [[uavs]], or \"\" (a random member per frame)"})
+    kind: ClassVar[Literal["spoofer"]] = "spoofer"
+    # Its frames (with auth off) put scans in some maps and not others.
+    disturbs_links: ClassVar[bool] = True
+
+    def forges_at(self, pos: Sequence[float], t: float) -> bool:
+        return self.active(t) and math.hypot(pos[0] - self.x_m, pos[1] - self.y_m) <= self.range_m
+
+    def transmitter(self, fault_rng: FaultRng, rank: int) -> Transmitter:
+        return _Spoof(self, fault_rng(self.kind, rank))
+
+
+class _Spoof(Transmitter):
+    """A spoofer's own stream, its fractional frame credit and its frame counter."""
+
+    def __init__(self, fault: Spoofer, rng: np.random.Generator):
+        super().__init__(fault)
+        self.spoofer = fault
+        self.rng = rng
+        self.credit = 0.0
+        self.seq = 0
+
+    def transmit(self, host: RadioHost, t: float, dt: float, alive: Sequence[int], xy: np.ndarray,
+                 out: list[Delivery]) -> int:
+        """``rate_per_s * dt`` frames a tick, the fractions carried over (no draw: 0.3 frames a
+        tick sends one every third or fourth tick), each to every live UAV within ``range_m``,
+        arriving after the radio's latency (no link: the spoofer is not in the radio graph, and
+        its copies are neither lost nor faulted). Every draw is from the spoofer's own stream.
+        A frame: the forged sender's Hello at the spoofer's position, ScanRecords of
+        :data:`SPOOF_SCANS` disks (the forged sender's detection radius) at uniform points of
+        the area stamped ``t``, and Tracks of one phantom target (an id from
+        :data:`~faults.base.PHANTOM_TARGET_ID` up) at a uniform point; written without the
+        swarm key (the spoofer has none). Sender :data:`~comms.radio.SPOOF_SENDER` in the
+        deliveries and ``rx`` events (no member has that id): what the checkers tell a spoof by."""
+        f, rng = self.spoofer, self.rng
+        self.credit += f.rate_per_s * dt
+        n = int(self.credit + 1e-9)  # (1e-9: 0.1 * 10 ticks makes one frame, not 0.999...)
+        self.credit -= n
+        if not n:
+            return 0
+        seq = self.seq
+        self.seq += n
+        members = host.members()
+        if not members:
+            return n
+        if len(alive):
+            d = np.hypot(xy[:, 0] - f.x_m, xy[:, 1] - f.y_m)
+            hearers = [u for u, k in zip(alive, (d <= f.range_m).tolist()) if k]
+        else:
+            hearers = []
+        w, h = host.area
+        arrival = t + host.latency_s
+        c = host.counters
+        for i in range(n):
+            forged = host.uid(f.as_uav) if f.as_uav else members[int(rng.integers(len(members)))]
+            kind = host.uav_type(forged)
+            r = kind.detect_radius
+            pts = rng.uniform((0.0, 0.0), (w, h), size=(SPOOF_SCANS, 2))
+            records = [v for x, y in pts.tolist() for v in (t, x, y, r)]
+            tx, ty = rng.uniform((0.0, 0.0), (w, h)).tolist()
+            phantom = PHANTOM_TARGET_ID + int(rng.integers(1_000_000))
+            messages: list[Message] = [
+                Hello(forged, kind.name, f.x_m, f.y_m, kind.speed_min, float(rng.uniform(-math.pi, math.pi))),
+                ScanRecords(forged, tuple(records)),
+                Tracks((TrackItem(phantom, tx, ty, 0.0, 0.0, t, 1.0),)),
+            ]
+            data = encode(forged, seq + i, t, messages, key=None)
+            c.sent += len(hearers)
+            c.spoofed += len(hearers)
+            c.bytes_sent += len(data) * len(hearers)
+            out.extend(Delivery(arrival, SPOOF_SENDER, u, data) for u in hearers)
+        return n

@@ -1,0 +1,127 @@
+"""Faults on a UAV's process: crash, join, restart (once, at ``at_s``) and pause (a window)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+from faults.base import START, UAV, FaultHost, FaultKind, TickFault
+from faults.registry import register
+
+if TYPE_CHECKING:
+    from faults.tick import TickFaults
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class Crash(FaultKind):
+    """Fail-stop: the UAV stops sensing, sending, receiving and moving at ``at_s`` (one not yet
+    joined never flies)."""
+
+    uav: str = field(metadata=UAV)
+    at_s: float = field(metadata={"ge": 0})
+    kind: ClassVar[Literal["crash"]] = "crash"
+
+    def install(self, host: FaultHost, index: int) -> None:
+        uid = host.uid(self.uav)
+
+        def crash() -> None:
+            if host.state(uid) != "crashed":
+                host.fired(self.kind)
+                host.fail_stop(uid)
+
+        host.at(max(self.at_s, host.now), crash)
+
+    def absence(self) -> tuple[float, float]:
+        return (self.at_s, math.inf)
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class Join(FaultKind):
+    """The UAV enters the world at ``at_s`` (a late joiner)."""
+
+    uav: str = field(metadata=UAV)
+    at_s: float = field(metadata={"ge": 0})
+    kind: ClassVar[Literal["join"]] = "join"
+
+    def install(self, host: FaultHost, index: int) -> None:
+        host.set_join(host.uid(self.uav), self.at_s)
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class Restart(FaultKind):
+    """Crash at ``at_s``, then rejoin ``downtime_s`` later where it went down (same speed and
+    heading), with an empty memory (map, tracks, peers, scan log, planner, a new random
+    stream): a reboot that loses everything not flown. Its mailbox and counters carry over. A
+    UAV not flying at ``at_s`` is not restarted."""
+
+    uav: str = field(metadata=UAV)
+    at_s: float = field(metadata={"ge": 0})
+    downtime_s: float = field(metadata={"gt": 0, "note": "s between the crash and the rejoin"})
+    kind: ClassVar[Literal["restart"]] = "restart"
+
+    def span(self) -> tuple[float, float]:
+        return (self.at_s, self.at_s + self.downtime_s)
+
+    def absence(self) -> tuple[float, float]:
+        return self.span()
+
+    def install(self, host: FaultHost, index: int) -> None:
+        uid = host.uid(self.uav)
+        at = max(self.at_s, host.now)
+        took_down = [False]  # only the restart that took the UAV down brings it back
+
+        def down() -> None:
+            if host.state(uid) == "alive":
+                host.fail_stop(uid, back_at=at + self.downtime_s)
+                took_down[0] = True
+
+        def up() -> None:
+            if took_down[0]:
+                took_down[0] = False
+                host.fired(self.kind)
+                host.revive(uid, ("restart", index))
+
+        host.at(at, down)
+        host.at(at + self.downtime_s, up)
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class Pause(TickFault):
+    """The UAV's actor stops: no inbox, no planning, no sending, from ``start_s`` until ``end_s``.
+
+    Its airframe keeps flying its last command, and its mailbox fills and overflows (frames
+    lost as ``mailbox_full``) as a bounded mailbox does. Then it goes on where it stopped, with
+    what it knew (a process pause, Jepsen's SIGSTOP / SIGCONT). While paused it reads no
+    sensor (its scans count nowhere). A UAV on its first tick (just joined or restarted) has no
+    last command and is paused from its second."""
+
+    uav: str = field(metadata=UAV)
+    start_s: float = field(default=0.0, metadata=START)
+    end_s: float = field(metadata={"gt": 0, "note": "> start_s: when the actor resumes"})
+    kind: ClassVar[Literal["pause"]] = "pause"
+    impairs_control: ClassVar[bool] = True
+    ends_with_process: ClassVar[bool] = True
+    tick_order: ClassVar[int] = 3
+
+    def disturbs_maps(self, t: float) -> bool:
+        return self.active(t)  # a paused UAV merges nothing
+
+    def absence(self) -> tuple[float, float]:
+        return (self.start_s, self.end_s)
+
+    def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
+        if not faults.pausable(uid):
+            return  # never woken yet (just joined or restarted): no last command to fly
+        faults.paused.add(uid)
+        if faults.first(index, uid):
+            faults.emit("pause", faults.t, uid)
+            faults.fired(self.kind, 1)
+
+    def off_event(self, t: float, uid: int) -> tuple[Any, ...]:
+        return ("resume", t, uid)
+
