@@ -218,6 +218,10 @@ class FaultKind:
 
     # --- behaviour -------------------------------------------------------------------------
 
+    # Whether a scenario's loader applies it to the scenario itself (a join: the UAV's join_s),
+    # so that a simulation built from that scenario does not add it again.
+    applied_by_loader: ClassVar[bool] = False
+
     def check(self, now: float) -> str | None:
         """What is wrong with adding it at ``now`` to a running simulation, or None."""
         lo, hi = self.span()

@@ -45,6 +45,7 @@ class Join(FaultKind):
     uav: str = field(metadata=UAV)
     at_s: float = field(metadata={"ge": 0})
     kind: ClassVar[Literal["join"]] = "join"
+    applied_by_loader: ClassVar[bool] = True  # (the UAV's join_s)
 
     def install(self, host: FaultHost, index: int) -> None:
         host.set_join(host.uid(self.uav), self.at_s)

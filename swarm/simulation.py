@@ -53,7 +53,7 @@ from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
 from swarm.rng import RngTree
 from swarm.scenario import Scenario, UavSpec
-from swarm.snapshot import Snapshot, TargetSnapshot, UavSnapshot
+from swarm.snapshot import Snapshot, TargetSnapshot, UavSnapshot, take_snapshot
 from swarm.transmission import Transmission
 from swarm.world import PENDING, Targets, UavBody, World
 
@@ -154,9 +154,8 @@ class Simulation:
             self._add_uav_spec(spec)
         for f in sc.faults:
             fault = fault_from_dict(f.model_dump(mode="python"))
-            if fault.kind == "join":
-                continue  # folded into the UAV's join_s by the scenario loader
-            self.add_fault(fault)
+            if not fault.applied_by_loader:  # (a join: folded into the UAV's join_s)
+                self.add_fault(fault)
 
     @classmethod
     def from_file(cls, ref: str | Path, **kw) -> Simulation:
@@ -213,17 +212,8 @@ class Simulation:
         return self.faults.injector
 
     def snapshot(self) -> Snapshot:
-        uavs = []
-        for uid, b in sorted(self.world.uavs.items()):
-            plan = self.fleet.plans.get(uid)
-            uavs.append(UavSnapshot(uid, b.name, b.kind.name, b.state, b.x, b.y, b.v, b.theta,
-                                    self.fleet.mode_name(uid), plan.target if plan else -1,
-                                    (plan.wx, plan.wy) if plan else None))
-        tg = self.targets
-        targets = tuple(TargetSnapshot(i, tg.x[i], tg.y[i], tg.v[i], tg.theta[i], self.metrics.found_t.get(i))
-                        for i in range(len(tg)))
-        return Snapshot(self.now, tuple(uavs), targets, self.metrics.coverage(), len(self.metrics.found_t),
-                        tuple(sorted(self.radio.graph.edges())))
+        """Where everything is now (plain records: safe to keep)."""
+        return take_snapshot(self.now, self.world, self.fleet, self.metrics, self.radio.graph.edges())
 
     def uav_map(self, name: str) -> np.ndarray:
         """A copy of one UAV's own last-seen map (what it believes, not the truth)."""

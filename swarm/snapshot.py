@@ -3,7 +3,14 @@ plain frozen records, safe to keep, compare and send elsewhere."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from swarm.fleet import Fleet
+    from swarm.metrics import Metrics
+    from swarm.world import World
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,3 +46,16 @@ class Snapshot:
     coverage: float
     targets_found: int
     links: tuple[tuple[int, int], ...]
+
+
+def take_snapshot(t: float, world: World, fleet: Fleet, metrics: Metrics, links: Iterable[tuple[int, int]]) -> Snapshot:
+    """The snapshot at ``t`` of a simulation's world, actors' plans, metrics and radio links."""
+    uavs = []
+    for uid, b in sorted(world.uavs.items()):
+        plan = fleet.plans.get(uid)
+        uavs.append(UavSnapshot(uid, b.name, b.kind.name, b.state, b.x, b.y, b.v, b.theta, fleet.mode_name(uid),
+                                plan.target if plan else -1, (plan.wx, plan.wy) if plan else None))
+    tg = world.targets
+    targets = tuple(TargetSnapshot(i, tg.x[i], tg.y[i], tg.v[i], tg.theta[i], metrics.found_t.get(i))
+                    for i in range(len(tg)))
+    return Snapshot(t, tuple(uavs), targets, metrics.coverage(), len(metrics.found_t), tuple(sorted(links)))
