@@ -90,3 +90,133 @@ def test_the_kernel_names_no_fault_kind():
     source = (ROOT / "swarm" / "simulation.py").read_text()
     for kind in FAULT_KINDS:
         assert f'"{kind}"' not in source and f"'{kind}'" not in source, kind
+
+
+# --- a fault kind defined here, with no edit to the kernel, the actor or the checkers -------------
+
+import math  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+from typing import ClassVar  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from faults.base import END, START, UAV, FaultRng, Windowed  # noqa: E402
+from faults.injector import COPY_STAGES, Copy, LinkBehaviour  # noqa: E402
+from faults.registry import register, unregister  # noqa: E402
+
+
+@dataclass(frozen=True, kw_only=True)
+class Blackout(Windowed):
+    """The UAV's radio is dead in its window: every copy to or from it is lost."""
+
+    uav: str = field(metadata=UAV)
+    start_s: float = field(default=0.0, metadata=START)
+    end_s: float = field(default=math.inf, metadata=END)
+    kind: ClassVar[str] = "blackout"
+    disturbs_links: ClassVar[bool] = True  # its excuse: the maps need not agree meanwhile
+
+    def link_behaviour(self, ids, fault_rng: FaultRng, rank: int) -> LinkBehaviour:
+        return _Dead(self, ids[self.uav])
+
+
+@dataclass(frozen=True, kw_only=True)
+class UnexcusedBlackout(Blackout):
+    """The same, claiming no excuse: what the checkers make of it shows the excuse matters."""
+
+    kind: ClassVar[str] = "unexcused_blackout"
+    disturbs_links: ClassVar[bool] = False
+
+
+class _Dead(LinkBehaviour):
+    stage = COPY_STAGES + 10  # (after the built-in copy faults)
+
+    def __init__(self, fault: Blackout, uid: int):
+        super().__init__(fault)
+        self.uid = uid
+
+    def on_copy(self, c: Copy, src: int, dst: int, rng: np.random.Generator) -> bool:
+        if self.uid in (src, dst):
+            c.lost = True
+            return True
+        return False
+
+
+@pytest.fixture
+def blackouts():
+    register(Blackout)
+    register(UnexcusedBlackout)
+    yield
+    unregister("blackout")
+    unregister("unexcused_blackout")
+
+
+SCENARIO = """
+name = "blackout"
+seed = 2
+duration_s = 150.0
+[area]
+width_m = 3000.0
+height_m = 3000.0
+cell_m = 100.0
+[planner]
+name = "greedy"
+[[uavs]]
+name = "B1"
+type = "B"
+x_m = 500.0
+y_m = 500.0
+[[uavs]]
+name = "B2"
+type = "B"
+x_m = 1500.0
+y_m = 1500.0
+[[uavs]]
+name = "B3"
+type = "B"
+x_m = 2500.0
+y_m = 2500.0
+[[faults]]
+kind = "{kind}"
+uav = "B2"
+start_s = 10.0
+end_s = 120.0
+"""
+
+
+def _run_checked(tmp_path, kind):
+    from swarm.scenario import load_scenario
+    from swarm.simulation import Simulation
+    from swarm.testing.invariants import MapAgreementChecker, Monitor, RunContext
+
+    path = tmp_path / f"{kind}.toml"
+    path.write_text(SCENARIO.format(kind=kind))
+    sim = Simulation(load_scenario(path))
+    lost: list[tuple] = []
+    sim.subscribe(lambda e: lost.append(tuple(e)) if e[-1] == kind else None, kinds=["lost"])
+    monitor = Monitor([MapAgreementChecker(quiet_s=20.0, every_s=5.0)]).attach(sim)
+    while not sim.done:
+        sim.step()
+        monitor.flush()
+    violations = monitor.finish()
+    ctx = RunContext(sim.scenario, sim=sim)
+    sim.close()
+    return sim, lost, violations, ctx
+
+
+def test_a_fault_kind_defined_in_a_test_runs_from_a_scenario_file_end_to_end(tmp_path, blackouts):
+    sim, lost, violations, ctx = _run_checked(tmp_path, "blackout")
+    # It fired (counted by kind) exactly on copies to or from B2, inside its window.
+    assert sim.injector.fired["blackout"] == len(lost) > 0
+    assert all(10.0 <= e[1] < 120.0 + 1e-9 for e in lost)
+    # The checkers grant its excuse: maps need not agree while it acts, and it explains B2.
+    (f,) = sim.injector.schedule.faults
+    assert ctx.link_faults_active(50.0) and not ctx.link_faults_active(130.0)
+    assert ctx.explaining([1], 40.0, 60.0) == [f] and ctx.explaining([1], 140.0, 150.0) == []
+    assert violations == []
+
+
+def test_without_its_excuse_the_same_kind_breaks_map_agreement(tmp_path, blackouts):
+    sim, lost, violations, _ctx = _run_checked(tmp_path, "unexcused_blackout")
+    assert len(lost) > 0
+    assert violations and {v.invariant for v in violations} == {"map_agreement"}
