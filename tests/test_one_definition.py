@@ -5,6 +5,10 @@
 * APF settings: :class:`agents.apf.ApfSettings`; DACMP settings:
   :class:`agents.planners.dacmp.settings.DacmpSettings`; ``[planner.apf]`` and
   ``[planner.dacmp]`` are generated from them;
+* radio settings: :class:`comms.settings.RadioSettings`; ``[radio]`` is generated from it, the
+  actors' settings hold one, the radio's link model is made from it and takes its defaults;
+  the frame size cap (65536) is written once; the loss rules are written once for the scalar
+  and the vectorised path (:class:`comms.settings.LinkModel`);
 * the partition rule (:meth:`faults.schedule.Partition.separates`), mode names
   (:data:`comms.messages.MODE_NAMES`), UAV colours (:func:`swarm.viz.style.uav_colours`),
   atomic writes (:func:`swarm.outputs.atomic_write`).
@@ -18,11 +22,15 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from agents.actor import ActorSettings
 from agents.apf import ApfSettings as AgentApf
 from agents.planners.dacmp import DacmpPlanner, DacmpSettings
 from comms.messages import MODE_NAMES, MODE_SEARCH, MODE_SURVEIL
+from comms.settings import LinkModel, LogDistance
+from comms.settings import RadioSettings as CommsRadio
 from faults import schedule
 from faults.injector import FaultInjector
 from faults.schedule import FaultSchedule, Partition, fault_from_dict, fault_to_dict
@@ -152,6 +160,52 @@ def test_dacmp_planner_takes_every_setting_of_the_table():
         got = getattr(planner, name)
         assert (list(got) if isinstance(got, tuple) else got) == value, name
     assert DacmpPlanner.from_settings(PlannerSettings()) == DacmpPlanner()
+
+
+# --- the radio -----------------------------------------------------------------------------------
+
+
+def test_radio_table_is_the_radio_settings_dataclass():
+    _same_fields(CommsRadio, model.RadioSettings, exclude=frozenset({"log_distance"}), extra=frozenset({"log_distance"}))
+    _same_fields(LogDistance, model.LogDistanceSettings)
+    table = model.RadioSettings()
+    assert table.settings() == CommsRadio() and table.log_distance.model_dump() == dataclasses.asdict(LogDistance())
+    # What the table implies is what the dataclass implies.
+    for values in ({}, {"range_m": 2500.0, "loss_base": 0.1, "loss_at_range": 0.4, "sync_horizon_m": 8000.0},
+                   {"model": "log_distance", "range_m": 9000.0}):
+        table = model.RadioSettings(**values)
+        radio = table.settings()
+        assert radio == CommsRadio(**values)
+        assert (table.horizon_m, table.range_limit_m, table.effective_loss_at_range, table.log_distance_model()) == (
+            radio.horizon_m, radio.range_limit_m, radio.effective_loss_at_range, radio.link_model().log_distance)
+
+
+def test_the_actors_and_the_radio_take_their_radio_settings_from_the_scenario():
+    from swarm import build
+    from swarm.scenario import parse_scenario
+
+    assert ActorSettings().radio == CommsRadio() and LinkModel() == CommsRadio().link_model()
+    sc = parse_scenario({"uavs": [{"type": "B", "x_m": 100.0, "y_m": 100.0}],
+                         "radio": {"beacon_every_s": 2.0, "sync_horizon_m": 5000.0, "frame_max_bytes": 4096,
+                                   "range_m": 3000.0, "loss_base": 0.1}})
+    assert build.actor_settings(sc).radio == sc.radio.settings()
+    assert build.actor_settings(sc).radio.horizon_m == 5000.0
+    assert build.radio(sc, lambda s, d: np.random.default_rng(0), None).model == LinkModel(range_m=3000.0, loss_base=0.1)
+
+
+def test_the_frame_size_cap_is_written_once():
+    users = [p.relative_to(ROOT).as_posix() for p in _sources() if re.search(r"\b65_?536\b", p.read_text(encoding="utf-8"))]
+    assert users == ["comms/codec.py"]
+
+
+def test_the_disk_loss_rule_is_written_once():
+    # loss_base + (loss_at_range - loss_base) * f * f, f = distance / range: LinkModel._disk, which
+    # LinkModel.loss (one link) and LinkModel.losses (the radio's array of links) both call.
+    users = [p.relative_to(ROOT).as_posix() for p in _sources() if re.search(r"\*\s*f\s*\*\s*f\b", p.read_text(encoding="utf-8"))]
+    assert users == ["comms/settings.py"]
+    m = LinkModel(range_m=1000.0, loss_base=0.1, loss_at_range=0.5)
+    d = np.array([0.0, 1.0, 333.3, 999.9, 1000.0, 5000.0])
+    assert m.losses(d).tolist() == [m.loss(x) for x in d.tolist()]
 
 
 # --- rules and names written once ----------------------------------------------------------------

@@ -43,7 +43,7 @@ from pydantic import (
 from agents import apf as _apf
 from agents.planners.dacmp import settings as _dacmp
 from agents.types import DAA_RANGE_M, UavType
-from comms import radio as _radio
+from comms import settings as _radio
 from faults import schedule as _faults
 from swarm.errors import UsageError
 from swarm.scenario.positions import found_words, key_path
@@ -175,23 +175,32 @@ class _Model(BaseModel):
 
 # --- tables generated from the simulator's dataclasses ---------------------------------------
 # Metadata a dataclass field may carry: bounds (gt, ge, lt, le), a note for the error words, the
-# bounds of each item of an array (each), and the whole 'expected' text of a field that is not a
-# number. Anything else is a typo in the dataclass and fails at import.
-_METADATA_KEYS = frozenset({"gt", "ge", "lt", "le", "note", "each", "expected"})
+# bounds of each item of an array (each), inf (a number that may be infinite: TOML can write
+# `inf`), the least length of a string (min_length), and the whole 'expected' text of a field
+# that is not a number (a Literal's is "one of: ..." unless given). Anything else is a typo in
+# the dataclass and fails at import.
+_METADATA_KEYS = frozenset({"gt", "ge", "lt", "le", "note", "each", "inf", "min_length", "expected"})
+# A float that may be infinite (the model config refuses infinity everywhere else).
+_NumOrInf = Annotated[float, Strict(), AllowInfNan(True)]
 
 
-def _strict_type(tp: Any, each: dict[str, Any] | None = None) -> Any:
-    """The strict scenario type of a dataclass annotation; tuples are TOML arrays.
+def _strict_type(tp: Any, each: dict[str, Any] | None = None, inf: bool = False) -> Any:
+    """The strict scenario type of a dataclass annotation; tuples are TOML arrays, a Literal is
+    itself.
 
     The types are built at run time, so ``list[x]`` and ``tuple[x, y]`` are spelled as the
     ``types.GenericAlias`` they evaluate to (which mypy reads as a value, not a type)."""
+    if tp is float and inf:
+        return _NumOrInf
     simple = {float: Num, int: Int, bool: Bool, str: Str}
     if tp in simple:
         return simple[tp]
     origin, args = get_origin(tp), get_args(tp)
+    if origin is Literal:
+        return tp
     if origin in (Union, types.UnionType) and type(None) in args:
         (inner,) = [a for a in args if a is not type(None)]
-        return _strict_type(inner, each) | None
+        return _strict_type(inner, each, inf) | None
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         item = _strict_type(args[0])
         return types.GenericAlias(list, (Annotated[item, Field(**each)] if each else item,))
@@ -220,7 +229,7 @@ def _table_field(f: dataclasses.Field[Any], tp: Any) -> tuple[Any, Any]:
         tp, default = tp | None, None
     bounds = {k: meta[k] for k in ("gt", "ge", "lt", "le") if k in meta}
     note = meta.get("note", "")
-    annotation = _strict_type(tp, meta.get("each"))
+    annotation = _strict_type(tp, meta.get("each"), meta.get("inf", False))
     optional = get_origin(tp) in (Union, types.UnionType)
     value_type = next(a for a in get_args(tp) if a is not type(None)) if optional else tp
     if value_type is float:
@@ -231,10 +240,14 @@ def _table_field(f: dataclasses.Field[Any], tp: Any) -> tuple[Any, Any]:
         return annotation, _int(default, **bounds, note=note)
     if value_type is bool:
         return annotation, Field(default, description="true or false")
+    if get_origin(value_type) is Literal and "expected" not in meta:
+        return annotation, Field(default, description=f"one of: {', '.join(map(str, get_args(value_type)))}")
     if "expected" not in meta:
         raise TypeError(f"{f.name}: a field that is not a number needs metadata 'expected' (the words of an error)")
     if isinstance(default, tuple):  # an array: a fresh list each time
         return annotation, Field(default_factory=functools.partial(list, default), description=meta["expected"])
+    if "min_length" in meta:
+        return annotation, Field(default, min_length=meta["min_length"], description=meta["expected"])
     return annotation, Field(default, description=meta["expected"])
 
 
@@ -460,102 +473,68 @@ class ThreatSpec(_Model):
         return self.influence_m if self.influence_m is not None else self.radius_m + 3000.0
 
 
-if TYPE_CHECKING:  # the static view of a generated table: see DropFault
-    class LogDistanceSettings(_Model, _radio.LogDistance, frozen=True): ...  # type: ignore[misc]
-else:
-    # [radio.log_distance]: generated from comms.radio.LogDistance (its fields, defaults, bounds).
-    LogDistanceSettings = _table_of(_radio.LogDistance, "LogDistanceSettings")
-
-_RADIO_MODELS = ("disk", "log_distance")
-
-
-class RadioSettings(_Model):
-    """The paper says nothing about the radio; the defaults are the ideal radio used to
-    reproduce it (unlimited range, no loss, no authentication).
-
-    ``model``: ``"disk"`` (every pair within ``range_m`` linked; loss ``loss_base`` at distance 0
-    rising quadratically to ``loss_at_range`` at the range limit; ``loss_at_range`` absent = the
-    same loss at every distance, and never below ``loss_base``) or ``"log_distance"`` (loss from
-    the link budget of ``[radio.log_distance]`` and each link's shadowing, ``loss_base`` a floor
-    on every frame, ``range_m`` an optional extra cap, ``loss_at_range`` not allowed); see
-    :class:`comms.radio.LinkModel` and :class:`comms.radio.LogDistance`. ``auth``: frames carry
-    a MAC under the swarm key (``auth_key`` as UTF-8, or when absent one derived from the
-    scenario's seed: :func:`swarm.build.auth_key`), and receivers reject frames without the right one.
-    """
-
-    # inf is allowed here (and means the same as leaving it out): TOML can write `inf`.
-    range_m: Annotated[float, Strict(), AllowInfNan(True)] | None = _num(
-        None, gt=0, note="metres; inf = unlimited", optional=True
-    )
-    model: Literal["disk", "log_distance"] = Field(default="disk", description=f"one of: {', '.join(_RADIO_MODELS)}")
-    loss_base: Num = _num(0.0, ge=0, le=1)
-    # None: loss_base (loss never falls with distance; checked below when given).
-    loss_at_range: Num | None = _num(None, ge=0, le=1, note='>= loss_base; model = "disk" only', optional=True)
-    latency_s: Num = _num(0.0, ge=0)
-    jitter_s: Num = _num(0.0, ge=0)
-    bandwidth_bytes_per_s: Num | None = _num(None, gt=0, optional=True)
-    frame_max_bytes: Int = _int(65536, ge=256)
-    mailbox_capacity: Int = _int(1024, ge=1)
-    beacon_every_s: Num = _num(1.0, gt=0)
-    tracks_every_s: Num = _num(5.0, gt=0)
-    # Anti-entropy (agents.maps.scanlog): every sync_every_s a UAV's beacon carries a digest of the
-    # scans it knows from the last sync_horizon_s up to sync_settle_s ago; neighbours resend what
-    # it lacks, at most sync_max_records scans each time. sync_every_s = 0 turns it off.
-    sync_every_s: Num = _num(5.0, ge=0, note="seconds; 0 = no anti-entropy")
-    sync_settle_s: Num = _num(2.0, ge=0)
-    sync_max_records: Int = _int(4000, ge=0)
-    sync_horizon_s: Num = _num(600.0, gt=0, note="seconds; scans older than this are not resent")
-    # The knowledge horizon (agents.maps.scanlog, "Knowledge horizon"): a UAV applies, logs, relays
-    # and compares only scans whose centre lies within sync_horizon_m of itself (its own always), and
-    # answers a digest only with scans within sync_horizon_m of the digest's sender. So its map and
-    # log grow with the area around its path, not with the swarm. inf = no horizon (every heard scan).
-    # (Optional like range_m: a run folder's scenario.json writes inf as null.)
-    sync_horizon_m: Annotated[float, Strict(), AllowInfNan(True)] | None = _num(
-        None, gt=0, note="metres; inf = no horizon", optional=True
-    )
-    # Authenticated frames (comms.codec): HMAC-SHA256 truncated to 16 bytes, counted in the bytes
-    # sent. Off by default (the paper is silent). auth_key is read only with auth = true.
-    auth: Bool = Field(default=False, description="true or false")
-    auth_key: Str | None = Field(
-        default=None, min_length=1,
-        description="a non-empty string (the swarm's key), or leave it out (a key derived from the seed)",
-    )
-    log_distance: LogDistanceSettings = _table(LogDistanceSettings, "radio.log_distance")
+class _RadioChecks(_Model):
+    """Checks of ``[radio]`` beyond each field's bounds, and what the table implies (each from
+    :class:`comms.settings.RadioSettings`, the dataclass the table is generated from)."""
 
     @model_validator(mode="after")
-    def _loss_never_falls(self) -> RadioSettings:
+    def _loss_never_falls(self: _LossAtRange) -> _LossAtRange:
         at = self.loss_at_range
         if at is not None and self.model == "log_distance":
             _raise_if([_Problem(("loss_at_range",), at, 'to be left out with model = "log_distance" '
                                                         "(the link budget gives the loss; loss_base is a floor)")])
-        if at is not None and at < self.loss_base:
+        if _radio.loss_falls(self.loss_base, at):
             _raise_if([_Problem(("loss_at_range",), at,
                                 f"a number in [{_fmt(self.loss_base)}, 1] (>= loss_base: loss never falls with distance), "
                                 "or leave it out")])
         return self
 
+    def settings(self) -> _radio.RadioSettings:
+        """This table as the radio's :class:`~comms.settings.RadioSettings` (what the actors and the
+        radio are built with)."""
+        values = self.model_dump()
+        return _radio.RadioSettings(**{**values, "log_distance": _radio.LogDistance(**values["log_distance"])})
+
     @property
     def effective_loss_at_range(self) -> float:
         """The disk model's loss at the range limit (``loss_base`` when ``loss_at_range`` is absent)."""
-        return self.loss_base if self.loss_at_range is None else self.loss_at_range
+        return self.settings().effective_loss_at_range
 
     def log_distance_model(self) -> _radio.LogDistance | None:
-        """``[radio.log_distance]`` as the radio's :class:`~comms.radio.LogDistance` when
+        """``[radio.log_distance]`` as the radio's :class:`~comms.settings.LogDistance` when
         ``model = "log_distance"``; None for the disk model."""
-        if self.model != "log_distance":
-            return None
-        return _radio.LogDistance(**self.log_distance.model_dump())
+        return self.settings().link_model().log_distance
 
     @property
     def horizon_m(self) -> float:
         """The knowledge horizon as a number: ``sync_horizon_m``, math.inf when absent (none)."""
-        return math.inf if self.sync_horizon_m is None else self.sync_horizon_m
+        return self.settings().horizon_m
 
     @property
     def range_limit_m(self) -> float:
         """How far links reach, as a number (math.inf when unlimited): ``range_m``, and with the
-        log-distance model at most its link budget's range (:attr:`comms.radio.LinkModel.radius_m`)."""
-        return _radio.LinkModel(range_m=self.range_m, log_distance=self.log_distance_model()).radius_m
+        log-distance model at most its link budget's range (:attr:`comms.settings.LinkModel.radius_m`)."""
+        return self.settings().range_limit_m
+
+
+class _LossAtRange(Protocol):
+    @property
+    def model(self) -> str: ...
+    @property
+    def loss_base(self) -> float: ...
+    @property
+    def loss_at_range(self) -> float | None: ...
+
+
+if TYPE_CHECKING:  # the static view of generated tables: see DropFault
+    class LogDistanceSettings(_Model, _radio.LogDistance, frozen=True): ...  # type: ignore[misc]
+    class RadioSettings(_RadioChecks, _radio.RadioSettings, frozen=True): ...  # type: ignore[misc]
+else:
+    # [radio.log_distance] and [radio]: generated from comms.settings.LogDistance and
+    # comms.settings.RadioSettings (their fields, defaults, bounds).
+    LogDistanceSettings = _table_of(_radio.LogDistance, "LogDistanceSettings")
+    RadioSettings = _table_of(_radio.RadioSettings, "RadioSettings", base=_RadioChecks, exclude=("log_distance",),
+                              extra={"log_distance": (LogDistanceSettings, _table(LogDistanceSettings, "radio.log_distance"))})
 
 
 # --- faults --------------------------------------------------------------------------------
