@@ -20,7 +20,7 @@ import numpy as np
 # one is required, here and in a scenario's [[faults]] table) and the bounds a value must keep.
 # Field metadata carries the bounds (``ge``, ``gt``, ``le``, ``lt``), a ``note`` on the unit or
 # meaning, and for a field that is not a number the ``expected`` words of an error message.
-# swarm.scenario.model builds its [[faults]] tables from these classes, so the bounds are checked
+# swarm.scenario.generated builds its [[faults]] tables from these classes, so the bounds are checked
 # when a scenario loads; faults made in Python are taken as given (a test may want an extreme).
 _START = {"ge": 0}
 _END = {"gt": 0, "note": "> start_s; absent = until the end"}  # math.inf: absent from a scenario

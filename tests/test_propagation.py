@@ -23,7 +23,7 @@ from comms.settings import LinkModel, LogDistance
 from swarm import Simulation
 from swarm.errors import ScenarioError
 from swarm.scenario import apply_overrides, load_scenario, parse_scenario
-from swarm.scenario import model as scenario_model
+from swarm.scenario import generated as scenario_model
 
 
 def link_rng(seed: int):
