@@ -47,6 +47,7 @@ from comms.messages import (
     Threats,
     TrackItem,
 )
+from comms.settings import RadioSettings
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
 _TRACKS_PER_FRAME = 400
@@ -130,9 +131,6 @@ class ActorOutput:
 class ActorSettings:
     dt: float = 1.0
     replan_s: float = 10.0
-    beacon_every_s: float = 1.0
-    tracks_every_s: float = 5.0
-    frame_max_bytes: int = 65536
     surveillance: bool = True
     peer_timeout_s: float = 5.0
     # A watcher circles its target at max(loiter_radius_factor * R_s, loiter_turn_factor * its
@@ -142,14 +140,12 @@ class ActorSettings:
     loiter_gain: float = 1.0
     # ... and feels the threats' repulsion (eq. 30) with apf.k_rep times this (see UavActor.act).
     loiter_threat_weight: float = 0.15
-    sync_every_s: float = 5.0  # anti-entropy digest period (0: off); see agents.maps.scanlog
-    sync_settle_s: float = 2.0  # the digest covers scans up to this long ago (in flight: not missing)
-    sync_max_records: int = 4000  # scans resent in answer to one digest
-    sync_horizon_s: float = 600.0  # scans older than this are neither kept nor compared
-    # The knowledge horizon (agents.maps.scanlog): heard scans centred farther than this from the
-    # UAV are neither applied nor logged, and digests are answered with scans within it of the
-    # digest's sender only. inf: no horizon.
-    sync_horizon_m: float = math.inf
+    # The scenario's [radio] settings (comms.settings.RadioSettings, their one definition): the
+    # frame size cap, the beacon and tracks periods, and anti-entropy (sync_*: agents.maps.scanlog),
+    # with its knowledge horizon (horizon_m: heard scans centred farther than this from the UAV
+    # are neither applied nor logged, and digests are answered with scans within it of the
+    # digest's sender only).
+    radio: RadioSettings = field(default_factory=RadioSettings)
     apf: ApfSettings = field(default_factory=ApfSettings)
     # The swarm key ([radio] auth): frames are sent with their MAC and heard frames without the
     # right one are rejected (comms.codec). None: no authentication.
@@ -198,16 +194,17 @@ class UavActor:
         # Its own map; in a MapGroup (agents.maps.mapgroup) it shares storage with the others' maps
         # (the same cells as a map of its own).
         self.umap = map_group.new_map() if map_group is not None else UncertaintyMap(grid, tau)
-        self.scans = ScanLog(settings.dt, settings.sync_horizon_s)
-        self._log_scans = settings.sync_every_s > 0  # without anti-entropy nothing reads the log
-        # Squared knowledge horizon (None: none) and where the UAV is this tick (set by observe).
-        h = settings.sync_horizon_m
+        radio = settings.radio
+        self.scans = ScanLog(settings.dt, radio.sync_horizon_s)
+        self._log_scans = radio.sync_every_s > 0  # without anti-entropy nothing reads the log
+        # The knowledge horizon, its square (None: none), and where the UAV is this tick (set by observe).
+        h = self._horizon_m = radio.horizon_m
         self._horizon2 = None if math.isinf(h) else h * h
         self._here = (0.0, 0.0)
         self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
         self._next_digest = -math.inf
         self._digest_start = 0  # where the next digest begins when one frame cannot hold it all
-        self._scans_per_frame = max(1, (settings.frame_max_bytes - _FRAME_SLACK) // _SCAN_BYTES)
+        self._scans_per_frame = max(1, (radio.frame_max_bytes - _FRAME_SLACK) // _SCAN_BYTES)
         # A scan is applied and logged only if it is plausible: a radius up to the area's size and
         # a centre at most that far outside the area (absurd numbers would make the disk's bounds
         # overflow). Own scans obey the same rule, so every logged scan is one peers accept.
@@ -215,7 +212,7 @@ class UavActor:
         # Shared by the simulation's actors so each broadcast frame is decoded once (a pure
         # memo: the same bytes give the same immutable Frame).
         # (A shared decoder decodes with the swarm's key, as settings.auth_key.)
-        self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=settings.frame_max_bytes,
+        self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=radio.frame_max_bytes,
                                                                           key=settings.auth_key)
         self._cache = decoder
         # Sent through a shared decoder with the swarm's key, a frame is remembered there as
@@ -600,12 +597,12 @@ class UavActor:
         every one answers.
         """
         replies: list[tuple[int, bytes]] = []
-        budget = self.settings.sync_max_records
+        budget = self.settings.radio.sync_max_records
         per_frame = self._scans_per_frame
         timeout = self.settings.peer_timeout_s
         peers = self.knowledge.peers
         n = sum(1 for p in peers.values() if t - p.t_pose <= timeout)
-        horizon = self.settings.sync_horizon_m
+        horizon = self._horizon_m
         for dg in self._digests:
             if n > _ANSWERERS and _answer_hash(self.uid, dg.uav, dg.t_cut) % n >= _ANSWERERS:
                 continue
@@ -644,7 +641,7 @@ class UavActor:
 
     def _outbox(self, r: SensorReading, plan: Plan) -> list[bytes]:
         t = r.t
-        s = self.settings
+        s = self.settings.radio
         frames: list[bytes] = []
         if t >= self._next_beacon:
             # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).

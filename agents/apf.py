@@ -53,7 +53,7 @@ class ApfSettings:
 
     The one definition of these settings: a scenario's ``[planner.apf]`` table is built from
     this class (fields, defaults and the bounds in each field's metadata) by
-    :mod:`swarm.scenario.model`, except ``min_separation_m`` (the scenario's
+    :mod:`swarm.scenario.generated`, except ``min_separation_m`` (the scenario's
     ``safety.min_separation_m``, which the invariant checkers read too) and
     ``threat_margin_m`` (not a scenario setting).
     """

@@ -1,5 +1,6 @@
-"""What crosses the radio: message types, the msgpack codec (CRC, schema check), the radio
-graph with its link model (disk or log-distance), bounded mailboxes, and the root error :class:`SwarmError`.
+"""What crosses the radio: message types, the msgpack codec (CRC, schema check), the radio's
+settings and link models (disk or log-distance), the radio graph, bounded mailboxes, and the root
+error :class:`SwarmError`.
 
 The bottom of the import graph: ``comms`` imports nothing else of ours.
 """
@@ -9,7 +10,8 @@ from comms.errors import SwarmError
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox, MailboxStats
 from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
-from comms.radio import Delivery, LinkFilter, LinkModel, LogDistance, Radio, RadioCounters
+from comms.radio import Delivery, LinkFilter, Radio, RadioCounters
+from comms.settings import LinkModel, LogDistance, RadioSettings
 
 __all__ = [
     "AuthError",
@@ -26,6 +28,7 @@ __all__ = [
     "MailboxStats",
     "Radio",
     "RadioCounters",
+    "RadioSettings",
     "ScanDigest",
     "ScanRecords",
     "SwarmError",

@@ -31,139 +31,12 @@ from typing import NamedTuple, Protocol
 import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.special import expit
 
-# A link whose mean margin is below -(edge_sigmas * sigma + _EDGE_WIDTHS * width) dB is no edge:
-# even shadowing edge_sigmas sigma above its mean leaves it losing > 98% of its frames.
-_EDGE_WIDTHS = 4.0
+from comms.settings import LinkModel, LogDistance
 
-
-@dataclass(frozen=True, slots=True)
-class LogDistance:
-    """Log-distance path loss with log-normal shadowing, and a logistic frame loss in the margin.
-
-    The received power of a frame on a link ``d`` metres long (``d`` at least 1 m) is::
-
-        rx_dbm = tx_power_dbm + antenna_gain_db - ref_loss_db - 10 * exponent * log10(d) + X
-
-    ``X`` the link's shadowing (dB): normal, mean 0, sd ``sigma_db``, slowly varying (a Gauss-Markov
-    process, exact at the frames' times: ``X' = rho X + sigma sqrt(1 - rho^2) N(0, 1)`` with
-    ``rho = exp(-dt / corr_s)``), drawn from the directed link's own stream. The frame is lost
-    with probability ``1 / (1 + exp(margin / width_db))``, ``margin = rx_dbm - sensitivity_dbm``:
-    half the frames at the sensitivity, 10% at 2.2 widths above it, 1% at 4.6.
-
-    The defaults are a small UAV's 2.4 GHz radio in open air (air-to-air, line of sight):
-    20 dBm out, 0 dBi antennas, -90 dBm sensitivity; the free-space exponent 2 and 40.05 dB at
-    1 m (free space at 2.4 GHz, 20 log10(4 pi f / c)); 3 dB of shadowing. Measurement campaigns
-    of small-UAV links in open field report exponents of 2.0-2.3 and shadowing of 2.5-5 dB (the
-    campaigns surveyed in Khawaja et al., "A Survey of Air-to-Ground Propagation Channel Modeling
-    for Unmanned Aerial Vehicles", IEEE Communications Surveys & Tutorials, 2019). The correlation
-    time (5 s: a few hundred metres of relative flight) is our choice. Half the frames get through
-    at :attr:`median_range_m` (3.1 km with the defaults); the radio graph's edges reach
-    :attr:`range_m` (14 km).
-
-    The one definition of these settings: a scenario's ``[radio.log_distance]`` table is built
-    from this class by :mod:`swarm.scenario.model`.
-    """
-
-    tx_power_dbm: float = field(default=20.0, metadata={"note": "dBm"})
-    antenna_gain_db: float = field(default=0.0, metadata={"note": "dB, the transmit and receive antennas' gains together"})
-    ref_loss_db: float = field(default=40.05, metadata={"ge": 0, "note": "dB of path loss at 1 m"})
-    exponent: float = field(default=2.0, metadata={"gt": 0, "le": 10, "note": "path-loss exponent; 2 = free space"})
-    sigma_db: float = field(default=3.0, metadata={"ge": 0, "le": 30, "note": "dB, sd of the log-normal shadowing"})
-    corr_s: float = field(default=5.0, metadata={"gt": 0, "note": "seconds, correlation time of the shadowing"})
-    sensitivity_dbm: float = field(default=-90.0, metadata={"note": "dBm, where half the frames are lost"})
-    width_db: float = field(default=1.0, metadata={"gt": 0, "note": "dB, scale of the logistic loss curve"})
-    edge_sigmas: float = field(default=3.0, metadata={"ge": 0, "le": 10,
-                                                      "note": "shadowing sds the radio graph reaches below the sensitivity"})
-
-    @property
-    def budget_db(self) -> float:
-        """The mean margin at 1 m (dB above the sensitivity)."""
-        return self.tx_power_dbm + self.antenna_gain_db - self.ref_loss_db - self.sensitivity_dbm
-
-    def margin_db(self, distance: float) -> float:
-        """The mean margin (no shadowing) of a link ``distance`` metres long."""
-        return self.budget_db - 10.0 * self.exponent * math.log10(max(distance, 1.0))
-
-    def frame_loss(self, margin_db: float) -> float:
-        """The loss probability of a frame received ``margin_db`` above the sensitivity."""
-        z = margin_db / self.width_db
-        if z >= 0.0:  # (two forms: neither exp overflows)
-            e = math.exp(-z)
-            return e / (1.0 + e)
-        return 1.0 / (1.0 + math.exp(z))
-
-    def _distance_at(self, margin_db: float) -> float:
-        return max(1.0, math.pow(10.0, min((self.budget_db - margin_db) / (10.0 * self.exponent), 300.0)))
-
-    @property
-    def median_range_m(self) -> float:
-        """Where the mean margin is 0: half the frames lost (without shadowing)."""
-        return self._distance_at(0.0)
-
-    @property
-    def range_m(self) -> float:
-        """The radio graph's reach: where the mean margin is ``-(edge_sigmas * sigma_db + 4 *
-        width_db)`` dB (beyond it a link loses > 98% of its frames even with shadowing
-        ``edge_sigmas`` sd above its mean)."""
-        return self._distance_at(-(self.edge_sigmas * self.sigma_db + _EDGE_WIDTHS * self.width_db))
-
-
-@dataclass(frozen=True, slots=True)
-class LinkModel:
-    """Range limit, loss and latency of every link (the scenario's ``[radio]`` table).
-
-    Two propagation models. The *disk* model (``log_distance`` None): every pair within
-    ``range_m`` is linked, and a frame is lost with probability
-    ``loss_base + (loss_at_range - loss_base) * (d / range_m)^2`` (``loss_base`` at distance 0,
-    ``loss_at_range`` at the range limit; ``loss_base`` everywhere when the range is unlimited).
-    ``loss_at_range`` defaults to ``loss_base`` (the same loss at every distance) and may not be
-    below it: loss never falls with distance. The *log-distance* model (:class:`LogDistance`):
-    the loss comes from the link budget and the link's shadowing, with ``loss_base`` as a floor
-    that hits every frame independently (``loss = loss_base + (1 - loss_base) * link loss``);
-    the pairs linked are those within the budget's :attr:`LogDistance.range_m` and within
-    ``range_m`` if that is given too; ``loss_at_range`` is not used (the scenario refuses it).
-    """
-
-    range_m: float | None = None  # None: unlimited
-    loss_base: float = 0.0  # loss probability at distance 0
-    loss_at_range: float | None = None  # loss probability at the range limit (quadratic in between); None: loss_base
-    latency_s: float = 0.0
-    jitter_s: float = 0.0
-    bandwidth_bytes_per_s: float | None = None  # per sender; None: unlimited
-    log_distance: LogDistance | None = None  # None: the disk model
-
-    def __post_init__(self) -> None:
-        at = self.loss_at_range
-        if at is None:  # (so LinkModel(loss_base=p) == LinkModel(loss_base=p, loss_at_range=p))
-            object.__setattr__(self, "loss_at_range", self.loss_base)
-        elif at < self.loss_base and self.log_distance is None:
-            raise ValueError(f"loss_at_range ({at}) < loss_base ({self.loss_base}): loss must not fall with distance")
-
-    @property
-    def range_loss(self) -> float:
-        """The disk model's loss at the range limit: ``loss_at_range`` (``loss_base`` if given as None)."""
-        return self.loss_base if self.loss_at_range is None else self.loss_at_range
-
-    @property
-    def radius_m(self) -> float:
-        """How far links reach (math.inf: unlimited): ``range_m``, and for the log-distance model
-        at most its link budget's :attr:`LogDistance.range_m`."""
-        r = math.inf if self.range_m is None else self.range_m
-        return r if self.log_distance is None else min(r, self.log_distance.range_m)
-
-    def loss(self, distance: float) -> float:
-        """The loss probability of a link ``distance`` metres long (log-distance: at its mean,
-        without shadowing)."""
-        ld = self.log_distance
-        if ld is not None:
-            return self.loss_base + (1.0 - self.loss_base) * ld.frame_loss(ld.margin_db(distance))
-        if self.range_m is None or not math.isfinite(self.range_m):
-            return self.loss_base
-        f = min(distance / self.range_m, 1.0)
-        return self.loss_base + (self.range_loss - self.loss_base) * f * f
-
+# LinkModel and LogDistance are defined in comms.settings (with RadioSettings, the [radio] table);
+# they are named here too, where the radio's users have always found them.
+__all__ = ["Delivery", "LinkFilter", "LinkModel", "LogDistance", "Radio", "RadioCounters", "SPOOF_SENDER"]
 
 # networkx's adjacency dict-of-dicts (node -> neighbour -> edge data), read directly in the hot
 # paths below: Graph._adj, which the stubs leave out (it is private; Graph.adj is a view of it).
@@ -229,9 +102,7 @@ class Radio:
         self._all_pair_ids: list[tuple[int, int]] = []  # unlimited range: the edges, in pair order
         self._all_pairs: tuple[int, tuple[np.ndarray, np.ndarray]] = (-1, (np.empty(0, np.int64),) * 2)
         # Every link's loss probability is 0: no per-link draw is ever made for loss.
-        self._lossless = model.log_distance is None and model.loss_base == 0.0 and (
-            model.range_m is None or not math.isfinite(model.range_m) or model.range_loss == 0.0
-        )
+        self._lossless = model.lossless
         # The log-distance model's shadowing per directed link: (time of its last value, dB).
         self._shadow: dict[tuple[int, int], tuple[float, float]] = {}
 
@@ -266,11 +137,11 @@ class Radio:
             ii, jj = self._all_pairs[1]
             dxy = xy[ii] - xy[jj]
             d = np.hypot(dxy[:, 0], dxy[:, 1])
-            loss_base = model.loss_base
+            uniform = model.loss(0.0)  # (unlimited range: the same at every distance)
             for (u, v), dd in zip(self._all_pair_ids, d.tolist()):
                 edge = adj[u][v]
                 edge["distance"] = dd
-                edge["loss"] = loss_base
+                edge["loss"] = uniform
             self._refill_tokens(ids, dt)
             return
         empty = np.empty(0, np.int64)
@@ -291,17 +162,9 @@ class Radio:
         if unlimited:
             self._all_pair_ids = list(zip(a.tolist(), b.tolist()))
         d = np.hypot(xy[ii, 0] - xy[jj, 0], xy[ii, 1] - xy[jj, 1])
-        # LinkModel.loss, vectorised: the disk model's with the same operations in the same order,
-        # the log-distance model's (expit for its two-form logistic) to rounding.
-        margin = None
-        if ld is not None:  # (the margin is kept on the edge: broadcast adds the shadowing)
-            margin = ld.budget_db - 10.0 * ld.exponent * np.log10(np.maximum(d, 1.0))
-            loss = model.loss_base + (1.0 - model.loss_base) * expit(-margin / ld.width_db)
-        elif unlimited:
-            loss = np.full(len(d), model.loss_base)
-        else:
-            f = np.minimum(d / rng_m, 1.0)
-            loss = model.loss_base + (model.range_loss - model.loss_base) * f * f
+        # (the log-distance margin is kept on the edge: broadcast adds the shadowing)
+        margin = ld.margins_db(d) if ld is not None else None
+        loss = model.losses(d, margin)
         codes = (a << 32) | b
         old = self._edge_codes
         same_edges = len(old) == len(codes) and np.array_equal(old, codes)
@@ -387,8 +250,7 @@ class Radio:
             else:
                 t, x = state
             self._shadow[key] = (t, x)
-        base = self.model.loss_base
-        return base + (1.0 - base) * ld.frame_loss(margin_db + x)
+        return self.model.floored(ld.frame_loss(margin_db + x))
 
     # --- transmission -----------------------------------------------------------------------
 

@@ -18,7 +18,7 @@ from agents.actor import ActorSettings
 from agents.apf import ApfSettings
 from agents.knowledge import KnownThreat
 from agents.types import UavType
-from comms.radio import LinkFilter, LinkModel, Radio
+from comms.radio import LinkFilter, Radio
 from swarm.errors import UsageError
 from swarm.scenario import Scenario, UavTypeSpec, load_scenario
 from swarm.scenario.trust import allowed
@@ -48,10 +48,7 @@ def threats(sc: Scenario) -> list[KnownThreat]:
 def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], link_filter: LinkFilter) -> Radio:
     """The radio graph with the scenario's link model; ``link_rng(src, dst)`` gives a directed
     link's own random stream, ``link_filter`` (the fault injector) sees every frame copy."""
-    r = sc.radio
-    model = LinkModel(r.range_m, r.loss_base, r.loss_at_range, r.latency_s, r.jitter_s, r.bandwidth_bytes_per_s,
-                      log_distance=r.log_distance_model())
-    return Radio(model, link_rng=link_rng, link_filter=link_filter)
+    return Radio(sc.radio.settings().link_model(), link_rng=link_rng, link_filter=link_filter)
 
 
 def auth_key(sc: Scenario) -> bytes | None:
@@ -67,21 +64,14 @@ def auth_key(sc: Scenario) -> bytes | None:
 
 
 def actor_settings(sc: Scenario) -> ActorSettings:
-    """What every UAV actor of the run is configured with (timers, anti-entropy, loitering, APF)."""
-    r = sc.radio
+    """What every UAV actor of the run is configured with (the scenario's [radio] settings: frame
+    cap, timers, anti-entropy; loitering, APF)."""
     p = sc.planner
     ap = p.apf
     return ActorSettings(
         dt=sc.dt_s,
         replan_s=p.replan_s,
-        beacon_every_s=r.beacon_every_s,
-        tracks_every_s=r.tracks_every_s,
-        sync_every_s=r.sync_every_s,
-        sync_settle_s=r.sync_settle_s,
-        sync_max_records=r.sync_max_records,
-        sync_horizon_s=r.sync_horizon_s,
-        sync_horizon_m=r.horizon_m,
-        frame_max_bytes=r.frame_max_bytes,
+        radio=sc.radio.settings(),
         surveillance=p.surveillance,
         loiter_radius_factor=p.loiter_radius_factor,
         loiter_turn_factor=p.loiter_turn_factor,

@@ -11,8 +11,7 @@ import pytest
 from swarm import cli
 from swarm.experiments import bench
 from swarm.recorder import read_events
-from swarm.scenario import load_scenario
-from swarm.scenario.model import RadioSettings
+from swarm.scenario import RadioSettings, load_scenario
 from swarm.simulation import Simulation
 
 FIELDS = {"case", "scenario", "planner", "uavs", "sim_seconds", "wall_seconds", "realtime_factor", "cpu_seconds",

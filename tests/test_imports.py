@@ -1,6 +1,7 @@
 """Importing the simulator never needs Hypothesis (only swarm.testing's strategies and state
-machine do, and say so; its checkers do not), and
-the import graph points one way: agents, comms and faults never import swarm."""
+machine do, and say so; its checkers do not), the import graph points one way (agents, comms
+and faults never import swarm), and it has no circles (checked package by package where there
+are none: swarm.scenario, agents, comms, faults)."""
 
 from __future__ import annotations
 
@@ -59,3 +60,103 @@ def test_lower_packages_never_import_swarm():
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom) and node.module:
                 assert node.module.split(".")[0] not in ("agents", "faults"), f"{path}: imports {node.module}"
+
+
+# --- import circles --------------------------------------------------------------------------------
+
+
+def _our_sources() -> dict[str, str]:
+    """Module name -> source of every module of ours (a package is its ``__init__``)."""
+    sources = {}
+    for package in ("swarm", "agents", "comms", "faults"):
+        for path in (ROOT / package).rglob("*.py"):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            sources[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path.read_text(encoding="utf-8")
+    return sources
+
+
+def _runtime_imports(tree: ast.AST) -> list[str]:
+    """Every module named by an import that runs (at the top or inside a function; not under
+    ``if TYPE_CHECKING:``, which only the type checker reads)."""
+    found: list[str] = []
+
+    def visit(node: ast.AST) -> None:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for child in node.orelse:
+                visit(child)
+            return
+        if isinstance(node, ast.Import):
+            found.extend(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.append(node.module)
+            found.extend(f"{node.module}.{a.name}" for a in node.names)  # (a submodule imported by name)
+        for child in ast.iter_child_nodes(node):
+            visit(child)
+
+    visit(tree)
+    return found
+
+
+def import_circles(prefix: str, sources: dict[str, str] | None = None) -> list[list[str]]:
+    """The import circles among the modules whose names start with ``prefix`` (strongly connected
+    components of more than one module), from ``sources`` (default: ours)."""
+    sources = _our_sources() if sources is None else sources
+
+    def owner(name: str) -> str | None:
+        while name and name not in sources:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    inside = sorted(m for m in sources if m == prefix or m.startswith(prefix + "."))
+    graph: dict[str, set[str]] = {m: set() for m in inside}
+    for m in inside:
+        for name in _runtime_imports(ast.parse(sources[m])):
+            target = owner(name)
+            if target in graph and target != m:
+                graph[m].add(target)
+    # Tarjan's strongly connected components.
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+
+    def connect(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    for v in inside:
+        if v not in index:
+            connect(v)
+    return circles
+
+
+@pytest.mark.parametrize("prefix", ["swarm.scenario", "agents", "comms", "faults"])
+def test_no_import_circle(prefix):
+    assert import_circles(prefix) == []
+
+
+def test_import_circles_are_found_at_any_depth_but_not_through_type_checking():
+    sources = {
+        "p": "",
+        "p.a": "from p.b import x\n",
+        "p.b": "def f():\n    from p.c import y\n",  # an import inside a function still runs
+        "p.c": "import p.a\n",
+        "p.d": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from p.e import z\n",
+        "p.e": "from p.d import w\n",
+    }
+    assert import_circles("p", sources) == [["p.a", "p.b", "p.c"]]

@@ -5,6 +5,10 @@
 * APF settings: :class:`agents.apf.ApfSettings`; DACMP settings:
   :class:`agents.planners.dacmp.settings.DacmpSettings`; ``[planner.apf]`` and
   ``[planner.dacmp]`` are generated from them;
+* radio settings: :class:`comms.settings.RadioSettings`; ``[radio]`` is generated from it, the
+  actors' settings hold one, the radio's link model is made from it and takes its defaults;
+  the frame size cap (65536) is written once; the loss rules are written once for the scalar
+  and the vectorised path (:class:`comms.settings.LinkModel`);
 * the partition rule (:meth:`faults.schedule.Partition.separates`), mode names
   (:data:`comms.messages.MODE_NAMES`), UAV colours (:func:`swarm.viz.style.uav_colours`),
   atomic writes (:func:`swarm.outputs.atomic_write`).
@@ -18,16 +22,20 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from agents.actor import ActorSettings
 from agents.apf import ApfSettings as AgentApf
 from agents.planners.dacmp import DacmpPlanner, DacmpSettings
 from comms.messages import MODE_NAMES, MODE_SEARCH, MODE_SURVEIL
+from comms.settings import LinkModel, LogDistance
+from comms.settings import RadioSettings as CommsRadio
 from faults import schedule
 from faults.injector import FaultInjector
 from faults.schedule import FaultSchedule, Partition, fault_from_dict, fault_to_dict
-from swarm.scenario import model
-from swarm.scenario.model import PlannerSettings, SafetySettings
+from swarm.scenario import generated
+from swarm.scenario.tables import PlannerSettings, SafetySettings
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("swarm", "agents", "comms", "faults")
@@ -80,16 +88,16 @@ def _same_fields(source: type, table, exclude: frozenset[str] = frozenset(), ext
 
 
 def test_fault_kinds_are_those_of_faults_schedule_in_its_order():
-    assert model.FAULT_KINDS == tuple(schedule.FAULT_KINDS)
+    assert generated.FAULT_KINDS == tuple(schedule.FAULT_KINDS)
     assert {cls.kind for cls in schedule.FAULT_KINDS.values()} == set(schedule.FAULT_KINDS)
 
 
 @pytest.mark.parametrize("kind", list(schedule.FAULT_KINDS))
 def test_each_fault_table_has_the_dataclass_fields_defaults_and_bounds(kind):
-    cls, table = schedule.FAULT_KINDS[kind], model._FAULT_CLASSES[kind]
+    cls, table = schedule.FAULT_KINDS[kind], generated.FAULT_TABLES[kind]
     _same_fields(cls, table, extra=frozenset({"kind"}))
     assert table.model_fields["kind"].default == kind
-    assert table.__name__ == f"{cls.__name__}Fault" and getattr(model, table.__name__) is table
+    assert table.__name__ == f"{cls.__name__}Fault" and getattr(generated, table.__name__) is table
 
 
 def _required_values(cls: type) -> dict:
@@ -105,7 +113,7 @@ def test_a_fault_goes_through_the_scenario_unchanged(kind):
     """Python API -> scenario table -> Python API gives the same fault (what a run records)."""
     cls = schedule.FAULT_KINDS[kind]
     fault = cls(**_required_values(cls))
-    table = model._FAULT_CLASSES[kind].model_validate(fault_to_dict(fault))
+    table = generated.FAULT_TABLES[kind].model_validate(fault_to_dict(fault))
     again = fault_from_dict(table.model_dump(mode="python"))
     assert again == fault
     assert fault_to_dict(again) == fault_to_dict(fault)
@@ -117,25 +125,25 @@ def test_a_fault_without_its_required_fields_is_refused_in_python_too():
         for name in required:
             with pytest.raises(TypeError):
                 cls(**{k: v for k, v in required.items() if k != name})
-        assert set(required) == {n for n, f in model._FAULT_CLASSES[kind].model_fields.items() if f.is_required()}
+        assert set(required) == {n for n, f in generated.FAULT_TABLES[kind].model_fields.items() if f.is_required()}
 
 
 # --- APF and DACMP settings ----------------------------------------------------------------------
 
 
 def test_apf_table_is_the_agents_settings_less_what_comes_from_elsewhere():
-    _same_fields(AgentApf, model.ApfSettings, exclude=frozenset(APF_NOT_IN_TABLE))
+    _same_fields(AgentApf, generated.ApfSettings, exclude=frozenset(APF_NOT_IN_TABLE))
     # min_separation_m comes from [safety]: one default for both.
     names = {f.name: f for f in dataclasses.fields(AgentApf)}
     assert SafetySettings().min_separation_m == names["min_separation_m"].default
     # What the table gives, with [safety]'s separation, builds the agents' settings.
-    table = model.ApfSettings()
+    table = generated.ApfSettings()
     built = AgentApf(**table.model_dump(), min_separation_m=SafetySettings().min_separation_m)
     assert built == AgentApf()
 
 
 def test_dacmp_table_is_the_planner_settings():
-    _same_fields(DacmpSettings, model.DacmpSettings)
+    _same_fields(DacmpSettings, generated.DacmpSettings)
     names = {f.name for f in dataclasses.fields(DacmpSettings)}
     assert names <= {f.name for f in dataclasses.fields(DacmpPlanner)}, "the planner is built on DacmpSettings"
     assert issubclass(DacmpPlanner, DacmpSettings)
@@ -146,12 +154,58 @@ def test_dacmp_planner_takes_every_setting_of_the_table():
               "c2_start": 0.6, "c2_end": 2.2, "ring_mean_factor": 1.2, "ring_sd_factor": 0.4, "ring_max_factor": 2.0,
               "heading_sd_rad": 1.0, "eta": 0.7, "field_unit_m": 500.0, "threat_margin_m": 250.0,
               "track_max_age_s": 99.0, "level_weights": [1.0, 2.0, 3.0]}
-    assert set(values) == set(model.DacmpSettings.model_fields), "update the test values with the new field"
+    assert set(values) == set(generated.DacmpSettings.model_fields), "update the test values with the new field"
     planner = DacmpPlanner.from_settings(PlannerSettings(dacmp=values), levels=3)
     for name, value in values.items():
         got = getattr(planner, name)
         assert (list(got) if isinstance(got, tuple) else got) == value, name
     assert DacmpPlanner.from_settings(PlannerSettings()) == DacmpPlanner()
+
+
+# --- the radio -----------------------------------------------------------------------------------
+
+
+def test_radio_table_is_the_radio_settings_dataclass():
+    _same_fields(CommsRadio, generated.RadioSettings, exclude=frozenset({"log_distance"}), extra=frozenset({"log_distance"}))
+    _same_fields(LogDistance, generated.LogDistanceSettings)
+    table = generated.RadioSettings()
+    assert table.settings() == CommsRadio() and table.log_distance.model_dump() == dataclasses.asdict(LogDistance())
+    # What the table implies is what the dataclass implies.
+    for values in ({}, {"range_m": 2500.0, "loss_base": 0.1, "loss_at_range": 0.4, "sync_horizon_m": 8000.0},
+                   {"model": "log_distance", "range_m": 9000.0}):
+        table = generated.RadioSettings(**values)
+        radio = table.settings()
+        assert radio == CommsRadio(**values)
+        assert (table.horizon_m, table.range_limit_m, table.effective_loss_at_range, table.log_distance_model()) == (
+            radio.horizon_m, radio.range_limit_m, radio.effective_loss_at_range, radio.link_model().log_distance)
+
+
+def test_the_actors_and_the_radio_take_their_radio_settings_from_the_scenario():
+    from swarm import build
+    from swarm.scenario import parse_scenario
+
+    assert ActorSettings().radio == CommsRadio() and LinkModel() == CommsRadio().link_model()
+    sc = parse_scenario({"uavs": [{"type": "B", "x_m": 100.0, "y_m": 100.0}],
+                         "radio": {"beacon_every_s": 2.0, "sync_horizon_m": 5000.0, "frame_max_bytes": 4096,
+                                   "range_m": 3000.0, "loss_base": 0.1}})
+    assert build.actor_settings(sc).radio == sc.radio.settings()
+    assert build.actor_settings(sc).radio.horizon_m == 5000.0
+    assert build.radio(sc, lambda s, d: np.random.default_rng(0), None).model == LinkModel(range_m=3000.0, loss_base=0.1)
+
+
+def test_the_frame_size_cap_is_written_once():
+    users = [p.relative_to(ROOT).as_posix() for p in _sources() if re.search(r"\b65_?536\b", p.read_text(encoding="utf-8"))]
+    assert users == ["comms/codec.py"]
+
+
+def test_the_disk_loss_rule_is_written_once():
+    # loss_base + (loss_at_range - loss_base) * f * f, f = distance / range: LinkModel._disk, which
+    # LinkModel.loss (one link) and LinkModel.losses (the radio's array of links) both call.
+    users = [p.relative_to(ROOT).as_posix() for p in _sources() if re.search(r"\*\s*f\s*\*\s*f\b", p.read_text(encoding="utf-8"))]
+    assert users == ["comms/settings.py"]
+    m = LinkModel(range_m=1000.0, loss_base=0.1, loss_at_range=0.5)
+    d = np.array([0.0, 1.0, 333.3, 999.9, 1000.0, 5000.0])
+    assert m.losses(d).tolist() == [m.loss(x) for x in d.tolist()]
 
 
 # --- rules and names written once ----------------------------------------------------------------
@@ -197,11 +251,11 @@ def test_files_are_replaced_atomically_in_one_place():
 
 
 def test_the_type_checkers_view_of_the_generated_fault_tables_matches_what_runs():
-    # swarm/scenario/model.py declares the generated tables for mypy under TYPE_CHECKING; a
+    # swarm/scenario/generated.py declares the generated tables for mypy under TYPE_CHECKING; a
     # kind added or rebased at run time must be declared there too.
     import ast
 
-    tree = ast.parse(Path(model.__file__).read_text())
+    tree = ast.parse(Path(generated.__file__).read_text())
     static: dict[str, tuple[str, str]] = {}
     for node in ast.walk(tree):
         if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
@@ -209,10 +263,10 @@ def test_the_type_checkers_view_of_the_generated_fault_tables_matches_what_runs(
                 if isinstance(item, ast.ClassDef) and item.name.endswith("Fault"):
                     bases = [b.id if isinstance(b, ast.Name) else ast.unparse(b) for b in item.bases]
                     static[item.name] = (bases[0], bases[1])
-    runtime = {cls.__name__: cls for cls in model._FAULT_CLASSES.values()}
+    runtime = {cls.__name__: cls for cls in generated.FAULT_TABLES.values()}
     assert set(static) == set(runtime)
     for name, (validator_base, dataclass_ref) in static.items():
         cls = runtime[name]
         assert cls.__bases__[0].__name__ == validator_base, name
-        kind = next(k for k, c in model._FAULT_CLASSES.items() if c is cls)
+        kind = next(k for k, c in generated.FAULT_TABLES.items() if c is cls)
         assert dataclass_ref == f"_faults.{schedule.FAULT_KINDS[kind].__name__}", name

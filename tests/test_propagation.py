@@ -18,11 +18,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_one_definition import _same_fields
 
-from comms.radio import Delivery, LinkModel, LogDistance, Radio
+from comms.radio import Delivery, Radio
+from comms.settings import LinkModel, LogDistance
 from swarm import Simulation
 from swarm.errors import ScenarioError
 from swarm.scenario import apply_overrides, load_scenario, parse_scenario
-from swarm.scenario import model as scenario_model
+from swarm.scenario import generated as scenario_model
 
 
 def link_rng(seed: int):

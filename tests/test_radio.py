@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 from comms.codec import FrameError, decode, encode
 from comms.mailbox import Mailbox
 from comms.messages import Hello, Intent, ScanRecords
-from comms.radio import Delivery, LinkModel, Radio
+from comms.radio import Delivery, Radio
+from comms.settings import LinkModel
 from faults.injector import FaultInjector
 from faults.schedule import Burst, Corrupt, Delay, Drop, Duplicate, FaultSchedule, Partition
 

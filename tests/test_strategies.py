@@ -17,7 +17,8 @@ from budget import examples
 from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
 
-from comms.radio import LinkModel, Radio
+from comms.radio import Radio
+from comms.settings import LinkModel
 from faults.schedule import (
     FAULT_KINDS,
     Bridge,

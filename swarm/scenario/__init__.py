@@ -1,21 +1,21 @@
-"""Scenarios: the data that describes one run (:mod:`.model`), how it is loaded from TOML and
-overridden with ``--set`` (:mod:`.loading`), how errors name positions (:mod:`.positions`),
-the warnings about values that run but look unintended (:mod:`.warnings`), and the built-in
-scenario files (``builtin/``)."""
+"""Scenarios: the data that describes one run.
 
-from swarm.scenario.loading import (
-    apply_overrides,
-    builtin_scenarios,
-    load_scenario,
-    parse_assignment,
-    parse_scenario,
-    scenario_from_toml,
-)
-from swarm.scenario.model import (
-    DEFAULT_UAV_TYPES,
+* :mod:`.model`: :class:`Scenario`, its checks across tables, and how a document becomes one
+  (:func:`parse_scenario`, :func:`apply_overrides`);
+* :mod:`.tables`: the hand-written tables (the world, ``[planner]``, ``[safety]``, ``[metrics]``,
+  ``[recording]``); :mod:`.generated`: the tables generated from the simulator's dataclasses
+  (``[radio]``, ``[[faults]]``, ``[planner.dacmp]``, ``[planner.apf]``); :mod:`.fields`: the
+  building blocks of both, and the generator;
+* :mod:`.loading`: built-in scenarios and TOML files; :mod:`.overrides`: dotted keys (``--set``);
+* :mod:`.translation` and :mod:`.positions`: errors that name the key, what was found and what
+  was expected, the first in document order;
+* :mod:`.trust`: which ``module:Class`` planners may be imported; :mod:`.warnings`: values that
+  run but look unintended; ``builtin/``: the built-in scenario files.
+"""
+
+from swarm.scenario.generated import (
     FAULT_KINDS,
     ApfSettings,
-    Area,
     BurstFault,
     CorruptFault,
     CrashFault,
@@ -24,18 +24,24 @@ from swarm.scenario.model import (
     DropFault,
     DuplicateFault,
     Fault,
+    JoinFault,
+    PartitionFault,
+    RadioSettings,
+)
+from swarm.scenario.loading import builtin_scenarios, load_scenario, scenario_from_toml
+from swarm.scenario.model import Scenario, apply_overrides, parse_scenario
+from swarm.scenario.overrides import parse_assignment
+from swarm.scenario.tables import (
+    DEFAULT_UAV_TYPES,
+    Area,
     FleetSpec,
     GreedySettings,
-    JoinFault,
     MapSettings,
     MetricsSettings,
-    PartitionFault,
     PlacedTarget,
     PlannerSettings,
-    RadioSettings,
     RecordingSettings,
     SafetySettings,
-    Scenario,
     TargetSettings,
     ThreatSpec,
     UavSpec,

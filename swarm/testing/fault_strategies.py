@@ -34,7 +34,7 @@ from collections.abc import Callable, Sequence
 
 from hypothesis import strategies as st
 
-from comms.radio import LinkModel
+from comms.settings import LinkModel
 from faults.schedule import (
     FAULT_KINDS,
     Bridge,
@@ -480,7 +480,7 @@ def fault_schedules(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, *, 
 @st.composite
 def link_models(draw: st.DrawFn, *, min_range_m: float = 1000.0, max_range_m: float = 20_000.0, lossy: bool = True,
                 max_latency_s: float = 2.0, bandwidth: bool = True) -> LinkModel:
-    """A :class:`~comms.radio.LinkModel`; shrinks to the ideal radio (unlimited range, no loss,
+    """A :class:`~comms.settings.LinkModel`; shrinks to the ideal radio (unlimited range, no loss,
     no latency). Ranges are whole metres; loss grows from ``loss_base`` at distance 0 to
     ``loss_at_range`` at the range limit."""
     range_m = draw(st.one_of(st.none(), st.integers(int(min_range_m), int(max_range_m)).map(float)))

@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.actor import ActorSettings
 from comms.messages import MODE_NAMES, MODE_SURVEIL
 from faults.base import FaultKind
 from faults.sensing import max_skew_at_end, skewed_stamps
@@ -62,7 +63,7 @@ __all__ = ["LivenessReport", "RecoveryWatch", "quiesce", "quiet_period_s", "radi
            "reassign_bound_s"]
 
 _EPS = 1e-6
-PEER_TIMEOUT_S = 5.0  # agents.actor.ActorSettings.peer_timeout_s (not a scenario setting)
+PEER_TIMEOUT_S = ActorSettings().peer_timeout_s  # (not a scenario setting)
 
 
 def radio_loses_nothing(scenario: Any) -> bool:

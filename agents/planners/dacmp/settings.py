@@ -2,7 +2,7 @@
 
 :class:`~agents.planners.dacmp.planner.DacmpPlanner` is built on this class (it adds what a run
 gives it: the map's pyramid levels and the other UAV types' speeds and radii), and a scenario's
-``[planner.dacmp]`` table is generated from it by :mod:`swarm.scenario.model`: same fields, same
+``[planner.dacmp]`` table is generated from it by :mod:`swarm.scenario.generated`: same fields, same
 defaults, and the bounds in each field's metadata (``ge``, ``gt``, ``le``, ``lt``, a ``note`` on
 the unit; ``each``: bounds of every item of an array; ``expected``: the words of an error about a
 value that is not a number). The scenario also checks what needs more than this table:
