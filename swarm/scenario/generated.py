@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Annotated, Literal, Protocol, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Protocol, Union
 
 from pydantic import Field, model_validator
 
@@ -178,8 +178,8 @@ _COMMON_FAULT_KEYS = ("start_s", "end_s", "uavs", "links")
 
 
 def _fault_table(cls: type[_faults.Fault]) -> type[Table]:
-    """The ``[[faults]]`` table of the fault kind ``cls`` (a :mod:`faults.schedule` class)."""
-    names = [f.name for f in dataclasses.fields(cls)]
+    """The ``[[faults]]`` table of the fault kind ``cls`` (a registered dataclass)."""
+    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]  # (a registered kind is a dataclass)
     common = [n for n in _COMMON_FAULT_KEYS if n in names]
     own = sorted((n for n in names if n not in common), key=lambda n: n != "at_s")
     base = (_PartitionChecks if "groups" in names else _LinkFault if issubclass(cls, _faults.LinkFault)
@@ -188,9 +188,32 @@ def _fault_table(cls: type[_faults.Fault]) -> type[Table]:
                      extra={"kind": (Literal[cls.kind], cls.kind)})
 
 
-# One table per kind of faults.schedule, in its order (the order error messages list them).
+# One table per registered fault kind (faults.registry), in its order (the order error messages
+# list them). A kind registered after this module is imported (a user's, a test's) gets its
+# table from sync_fault_tables(), which the scenario calls before it validates a document.
 FAULT_TABLES: dict[str, type[Table]] = {kind: _fault_table(cls) for kind, cls in _faults.FAULT_KINDS.items()}
-FAULT_KINDS: tuple[str, ...] = tuple(FAULT_TABLES)
+FAULT_KINDS: tuple[str, ...] = tuple(FAULT_TABLES)  # (the built-in kinds, as this module was imported)
+_TABLE_OF: dict[str, type] = dict(_faults.FAULT_KINDS)  # kind -> the class its table was made from
+
+
+def sync_fault_tables() -> bool:
+    """Make :data:`FAULT_TABLES` follow the registry (tables for kinds registered since, none
+    for kinds unregistered); True if it changed (in place: every reference stays good)."""
+    registry = _faults.FAULT_KINDS
+    if _TABLE_OF == registry:
+        return False
+    tables = {kind: FAULT_TABLES[kind] if _TABLE_OF.get(kind) is cls else _fault_table(cls)
+              for kind, cls in registry.items()}
+    FAULT_TABLES.clear()
+    FAULT_TABLES.update(tables)
+    _TABLE_OF.clear()
+    _TABLE_OF.update(registry)
+    return True
+
+
+def fault_union() -> Any:
+    """The ``[[faults]]`` item type: the union of :data:`FAULT_TABLES`, told apart by ``kind``."""
+    return Annotated[Union[tuple(FAULT_TABLES.values())], Field(discriminator="kind")]  # noqa: UP007
 
 if TYPE_CHECKING:
     # What mypy sees of the generated tables (here and for [planner.dacmp], [planner.apf]). It
@@ -246,7 +269,7 @@ else:
     LiarFault = FAULT_TABLES["liar"]
     SpooferFault = FAULT_TABLES["spoofer"]
 
-    Fault = Annotated[Union[tuple(FAULT_TABLES.values())], Field(discriminator="kind")]  # noqa: UP007
+    Fault = fault_union()
 
 
 # --- planner -------------------------------------------------------------------------------

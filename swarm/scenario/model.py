@@ -25,11 +25,12 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic.fields import FieldInfo
 
 from faults import schedule as _faults
 from swarm.errors import ScenarioError, UsageError
 from swarm.scenario.fields import Int, Num, Problem, Str, Table, fmt, int_field, num_field, raise_if, table_field
-from swarm.scenario.generated import FAULT_KINDS, Fault, JoinFault, RadioSettings
+from swarm.scenario.generated import FAULT_KINDS, Fault, JoinFault, RadioSettings, fault_union, sync_fault_tables
 from swarm.scenario.overrides import PLANNER_NAME_KEY, set_keys
 from swarm.scenario.positions import found_words
 from swarm.scenario.tables import (
@@ -328,11 +329,23 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated
     if isinstance(name, str) and not permits(allow, name):
         raise ScenarioError(source, PLANNER_NAME_KEY, *refusal(name))
     context = {"truncated": truncated, "scenario_duration_s": scenario_duration_s, "allow_planners": allow}
+    _follow_fault_registry()
     try:
         return Scenario.model_validate(data, context=context)
     except ValidationError as exc:
         # from None: our message says everything; pydantic's would only repeat it less clearly.
         raise first_error(exc, doc, source, Scenario) from None
+
+
+def _follow_fault_registry() -> None:
+    """A fault kind registered since the last document (faults.registry.register) is a valid
+    ``[[faults]]`` kind from now on: the scenario model is rebuilt with its table."""
+    if sync_fault_tables():
+        field = Scenario.model_fields["faults"]
+        new = FieldInfo.from_annotation(list[fault_union()])  # type: ignore[misc, arg-type]
+        new.default_factory, new.description = field.default_factory, field.description
+        Scenario.model_fields["faults"] = new
+        Scenario.model_rebuild(force=True)
 
 
 def _default_name(source: str) -> str:

@@ -18,7 +18,7 @@ from pydantic import BaseModel, ValidationError
 
 from swarm.errors import ScenarioError
 from swarm.scenario.fields import Invalid
-from swarm.scenario.generated import FAULT_KINDS, FAULT_TABLES
+from swarm.scenario.generated import FAULT_TABLES
 from swarm.scenario.positions import document_position, found_words, key_path, value_at
 
 __all__ = ["first_error"]
@@ -120,7 +120,7 @@ def _issues(root: type[BaseModel], err: Any, doc: Any) -> list[_Issue]:
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         tag = value.get("kind") if isinstance(value, dict) else None
         found = found_words(tag) if kind == "union_tag_invalid" else "nothing (the key is missing)"
-        return [_Issue((*where.path, "kind"), found, f"one of: {', '.join(FAULT_KINDS)}")]
+        return [_Issue((*where.path, "kind"), found, f"one of: {', '.join(FAULT_TABLES)}")]
     return [_Issue(where.path, found_words(value), expected)]
 
 
