@@ -28,12 +28,13 @@ from agents.apf import ApfSettings, apf_command
 from agents.inbox import Heard, check_frame
 from agents.knowledge import Knowledge, KnownThreat, Peer, Track
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
-from agents.maps.grid import Grid
+from agents.maps.grid import Disk, Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.types import GRAVITY, UavType
+from agents.zones import Keepout
 from comms.codec import AuthError, FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -150,6 +151,13 @@ class ActorSettings:
     # The swarm key ([radio] auth): frames are sent with their MAC and heard frames without the
     # right one are rejected (comms.codec). None: no authentication.
     auth_key: bytes | None = None
+    # Geographic scenarios (issue 26; empty / None otherwise, and then nothing below runs):
+    # polygon no-fly zones and the area's boundary, known before take-off (agents.zones), which
+    # the APF repels and guards like the circles; and the cells outside the area polygon as one
+    # disk-like mask, stamped into the map as seen at every tick before planning, so that q = 0
+    # there: nothing to search (the pyramids, guide points and every planner read q).
+    zones: tuple[Keepout, ...] = ()
+    outside: Disk | None = None
 
 
 @dataclass(slots=True)
@@ -299,6 +307,8 @@ class UavActor:
         d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
         if d is not None:
             self.umap.stamp(d, t)
+        if self.settings.outside is not None:  # (issue 26: outside the area polygon, always "seen")
+            self.umap.stamp(self.settings.outside, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
         if self._log_scans and self._plausible(r.x, r.y, radius):
             self.scans.add(self.uid, t, r.x, r.y, radius)
@@ -399,7 +409,7 @@ class UavActor:
             apf = replace(apf, k_rep=apf.k_rep * s.loiter_threat_weight)
         others = self._others(r, k.recent_peers(t, s.peer_timeout_s))
         a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
-                               list(k.threats.values()), others, apf, s.dt)
+                               list(k.threats.values()), others, apf, s.dt, s.zones)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
         replies = self._answer_digests(t) if self._digests else []
@@ -474,6 +484,10 @@ class UavActor:
             ux, uy = (ux / n, uy / n) if n > 1e-9 else (1.0, 0.0)
             out = zone.radius + standoff
             tx, ty, tvx, tvy = zone.x + out * ux, zone.y + out * uy, 0.0, 0.0
+        for z in s.zones:  # (issue 26) a polygon zone: the same stand-off, along its normal
+            rho, ux, uy = z.clearance(tx, ty)
+            if rho < standoff:
+                tx, ty, tvx, tvy = tx + (standoff - rho) * ux, ty + (standoff - rho) * uy, 0.0, 0.0
         ex, ey = r.x - tx, r.y - ty
         d = math.hypot(ex, ey)
         gamma = math.atan2(ey, ex) if d > 1e-6 else r.theta - math.pi / 2

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,7 +25,11 @@ from swarm.scenario import Scenario, UavTypeSpec, load_scenario
 from swarm.scenario.trust import allowed
 from swarm.world import TargetMotion
 
-__all__ = ["actor_settings", "auth_key", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
+if TYPE_CHECKING:
+    from agents.maps.grid import Grid
+    from swarm.geo.geography import Geography
+
+__all__ = ["actor_settings", "auth_key", "geography", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
 
 
 def uav_type_from_spec(name: str, spec: UavTypeSpec) -> UavType:
@@ -63,9 +68,26 @@ def auth_key(sc: Scenario) -> bytes | None:
     return hashlib.sha256(f"uav-swarm-sim swarm key {sc.seed}".encode()).digest()
 
 
-def actor_settings(sc: Scenario) -> ActorSettings:
+def geography(sc: Scenario, grid: Grid) -> Geography | None:
+    """The run's areas and zones as polygons (issue 26), or None without ``[geo]`` and
+    ``[[no_fly]]`` (then pyproj and shapely are never imported)."""
+    if sc.geo is None and not sc.no_fly:
+        return None
+    from swarm.geo.geography import geography as build_geography
+
+    return build_geography(sc, grid)
+
+
+def actor_settings(sc: Scenario, geo: Geography | None = None) -> ActorSettings:
     """What every UAV actor of the run is configured with (the scenario's [radio] settings: frame
-    cap, timers, anti-entropy; loitering, APF)."""
+    cap, timers, anti-entropy; loitering, APF; with ``geo``, the zones and the outside mask)."""
+    settings = _actor_settings(sc)
+    if geo is not None:
+        settings = replace(settings, zones=geo.keepouts, outside=geo.outside)
+    return settings
+
+
+def _actor_settings(sc: Scenario) -> ActorSettings:
     p = sc.planner
     ap = p.apf
     return ActorSettings(

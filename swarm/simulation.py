@@ -107,6 +107,11 @@ class Simulation:
         self.targets = Targets(build.target_motion(sc))
         self.world = World(self.grid, self.targets, build.threats(sc))
         self.metrics = Metrics(self.grid, self.tau)
+        # (issue 26) Polygon areas and no-fly zones: None for a scenario without them.
+        self.geography = build.geography(sc, self.grid)
+        if self.geography is not None:
+            self.world.zones = self.geography.zones
+            self.metrics.inside = self.geography.inside
         self.observer = Observer(self.world, self.metrics, self.log, self.dt, sc.recording.level == "summary",
                                  sc.safety.min_separation_m)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
@@ -117,7 +122,7 @@ class Simulation:
                                         sc.radio.horizon_m) else None)
         # Each broadcast frame decoded once (with the swarm key, if [radio] auth).
         self._decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc))
-        self.fleet = Fleet(sc, self.world, self.grid, self.tau, self.rng, self.log, build.actor_settings(sc),
+        self.fleet = Fleet(sc, self.world, self.grid, self.tau, self.rng, self.log, build.actor_settings(sc, self.geography),
                            self._decoder, self.map_group, batch_planning,
                            lost=lambda src, dst, n, cause: self.transmission.lose(self.clock.now, src, dst, n, cause))
         self.fleet.types = self.types
@@ -144,11 +149,14 @@ class Simulation:
         tm = sc.targets
         for p in tm.placed:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
+        area = self.geography.area if self.geography is not None else None
         for _ in range(tm.count):
             g = self.rng.generator("target", len(self.targets))
+            x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
+            while area is not None and area.clearance(x, y)[0] < 0.0:  # (issue 26: inside the area polygon)
+                x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
             self._add_target_rng(
-                float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m)),
-                float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, tm.speed_max)), tm.value, g,
+                x, y, float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, tm.speed_max)), tm.value, g,
             )
         for spec in sc.uavs:
             self._add_uav_spec(spec)

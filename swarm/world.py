@@ -163,6 +163,8 @@ class World:
         self.targets = targets
         self.threats = threats
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
+        # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
+        self.zones: list = []
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
         self.dynamics_by_uav: dict[int, list[float]] = {}
 
@@ -276,6 +278,10 @@ class World:
             d = np.hypot(xy[:, 0] - th.x, xy[:, 1] - th.y) if len(ids) else np.zeros(0)
             for i in np.flatnonzero(d < th.radius).tolist():
                 found.append(("threat", ids[i], th.threat))
+        for z in self.zones:  # (issue 26) inside a polygon: every UAV at once
+            if len(ids):
+                for i in np.flatnonzero(z.contains_many(xy[:, 0], xy[:, 1])).tolist():
+                    found.append(("threat", ids[i], z.zone))
         for kind, _, _ in found:
             self.violations[kind] += 1
         return found

@@ -223,6 +223,15 @@ class RunContext:
         self.range_m = scenario.radio.range_limit_m
         self.min_separation_m = scenario.safety.min_separation_m
         self.threats = [(i, th.x_m, th.y_m, th.radius_m) for i, th in enumerate(scenario.threats)]
+        # (issue 26) Polygon no-fly zones (agents.zones.Keepout, ids after the circles'): judged
+        # by the threat checker with their signed distance, as the circles are.
+        self.zones: list[Any] = []
+        if scenario.no_fly:
+            from swarm.geo.frame import frame_for
+            from swarm.geo.geography import zone_keepouts
+
+            geo = scenario.geo
+            self.zones = zone_keepouts(scenario, frame_for(geo.crs, geo.area, scenario.area.cell_m) if geo else None)
         self.names: dict[int, str] = {}
         self.type_name: dict[int, str] = {}
         self.uid: dict[str, int] = {}
@@ -557,19 +566,25 @@ class ThreatClearanceChecker(Checker):
                 d = math.hypot(p[0] - x, p[1] - y)
                 if d >= r:
                     continue
-                key = (uid, k)
-                inside.add(key)
-                if key in self._active or key in self._excused:
-                    continue
-                if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, after_s=RECOVER_S)):
-                    self._excused.add(key)  # (a node fault's doing: excused until it is out)
-                    continue
-                self._active.add(key)
-                self.violate(t, f"{ctx.name(uid)} is {r - d:.1f} m inside threat {k} (radius {r:g} m)",
-                             [uid], threat=k, depth_m=r - d)
+                self._inside(t, ctx, uid, k, inside, f"{r - d:.1f} m inside threat {k} (radius {r:g} m)", r - d)
+            for z in ctx.zones:  # (issue 26) polygon zones: the depth is minus the signed clearance
+                depth = -z.clearance(p[0], p[1])[0]
+                if depth > 0.0:
+                    self._inside(t, ctx, uid, z.zone, inside, f"{depth:.1f} m inside no-fly polygon {z.zone}", depth)
         self._active &= inside
         self._excused &= inside
         self._prev = set(poses)
+
+    def _inside(self, t, ctx, uid: int, k: int, inside: set[tuple[int, int]], words: str, depth: float) -> None:
+        key = (uid, k)
+        inside.add(key)
+        if key in self._active or key in self._excused:
+            return
+        if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, after_s=RECOVER_S)):
+            self._excused.add(key)  # (a node fault's doing: excused until it is out)
+            return
+        self._active.add(key)
+        self.violate(t, f"{ctx.name(uid)} is {words}", [uid], threat=k, depth_m=depth)
 
 
 class DynamicsChecker(Checker):
