@@ -1,7 +1,7 @@
 """Invariants of a run, as a library: check a finished run's event log, or a simulation live.
 
-Each invariant is a *checker*: an object fed the run's events in order (the ``[kind, t, ...]``
-arrays of :mod:`swarm.recorder`) that collects :class:`Violation` records saying what went
+Each invariant is a *checker*: an object fed the run's events in order (the records of
+:mod:`swarm.events`) that collects :class:`Violation` records saying what went
 wrong, when, and which UAVs / target. A :class:`Monitor` feeds several checkers at once, from a
 log or live from ``sim.subscribe``::
 
@@ -109,14 +109,14 @@ import numpy as np
 from agents.assignment import exclusion_break, handover_break, watch_break
 from agents.dynamics import integrate, wrap_angle
 from agents.types import UavType
-from comms.messages import MODE_SURVEIL
+from comms.messages import MODE_NAMES, MODE_SURVEIL
 from comms.radio import SPOOF_SENDER
 from faults.base import PHANTOM_TARGET_ID, FaultKind
 from faults.registry import fault_from_dict, fault_to_dict
 from faults.sensing import skewed_stamps
+from swarm import events as event_schema
 from swarm.errors import SwarmError, UsageError
 from swarm.outputs import read_run_dir
-from swarm.recorder import read_events
 from swarm.rng import RngTree
 from swarm.scenario import Scenario, parse_scenario
 
@@ -243,18 +243,17 @@ class RunContext:
         if type_name is not None:
             self.type_name[uid] = type_name
 
-    def on_event(self, ev: Sequence) -> None:
-        kind = ev[0]
-        if kind == "start":
-            header = ev[2]
+    def on_event(self, ev: event_schema.Event) -> None:
+        if isinstance(ev, event_schema.Start):
+            header = ev.header
             for uid, name, type_name in header.get("uavs", []):
                 self._learn(uid, name, type_name)
             self._start_faults = [fault_from_dict(d) for d in header.get("faults", [])]
             if isinstance(header.get("seed"), int):
                 self.seed = header["seed"]
             self.recording = str(header.get("recording", self.recording))
-        elif kind in ("join", "restart"):
-            uid, name = ev[2], ev[3]
+        elif isinstance(ev, (event_schema.Join, event_schema.Restart)):
+            uid, name = ev.uav, ev.uav_name
             type_name = self.type_name.get(uid)
             if self.sim is not None and uid in self.sim.world.uavs:
                 type_name = self.sim.world.uavs[uid].kind.name
@@ -428,9 +427,13 @@ class RunContext:
 # --- checkers ------------------------------------------------------------------------------------
 
 
-def _poses(events: Sequence[Sequence]) -> dict[int, tuple]:
-    """uid -> (x, y, v, theta, mode, target) of the pose events in a group."""
-    return {e[2]: tuple(e[3:9]) for e in events if e[0] == "pose"}
+# A pose's mode when the UAV watches a target (poses carry mode names: swarm.events).
+SURVEIL = MODE_NAMES[MODE_SURVEIL]
+
+
+def _poses(events: Sequence[event_schema.Event]) -> dict[int, tuple]:
+    """uid -> (x, y, v, theta, mode name, target) of the pose events in a group."""
+    return {e.uav: (e.x, e.y, e.v, e.theta, e.mode, e.target) for e in events if isinstance(e, event_schema.Pose)}
 
 
 class Checker(abc.ABC):
@@ -465,7 +468,7 @@ class Checker(abc.ABC):
         """Called once when a monitor attaches to a live simulation (after :meth:`bind`)."""
 
     @abc.abstractmethod
-    def on_group(self, t: float, events: list[Sequence]) -> None:
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         """The events of one tick at time ``t``; every checker implements it."""
 
     def finish(self, t_end: float) -> None:  # noqa: B027  (an optional hook, empty by default)
@@ -643,17 +646,17 @@ class RadioChecker(Checker):
         ctx = self.context
         dt = ctx.dt
         for e in events:
-            if e[0] == "pause":
-                start, open_ = self._paused.get(e[2], (float(e[1]), 0))
-                self._paused[e[2]] = (start, open_ + 1)
-            elif e[0] == "resume" and e[2] in self._paused:
-                start, open_ = self._paused.pop(e[2])
+            if e.kind == "pause":
+                start, open_ = self._paused.get(e.uav, (float(e.t), 0))
+                self._paused[e.uav] = (start, open_ + 1)
+            elif e.kind == "resume" and e.uav in self._paused:
+                start, open_ = self._paused.pop(e.uav)
                 if open_ > 1:
-                    self._paused[e[2]] = (start, open_ - 1)  # another pause still holds it
+                    self._paused[e.uav] = (start, open_ - 1)  # another pause still holds it
                 else:
-                    self._resumed[e[2]] = (start, float(e[1]))
-            elif e[0] == "crash":
-                self._paused.pop(e[2], None)
+                    self._resumed[e.uav] = (start, float(e.t))
+            elif e.kind == "crash":
+                self._paused.pop(e.uav, None)
         for uid in [u for u, (_, tr) in self._resumed.items() if t > tr + dt + _EPS]:
             del self._resumed[uid]  # it has read what it held (its first tick after the resume)
         poses = _poses(events)
@@ -663,11 +666,11 @@ class RadioChecker(Checker):
             floor = min([t, *(s for s, _ in self._paused.values()), *(s for s, _ in self._resumed.values())])
             while self._history and self._history[0][0] < floor - dt - max_delay - dt - _EPS:
                 self._history.popleft()
-        rx = [e for e in events if e[0] == "rx"]
+        rx = [e for e in events if e.kind == "rx"]
         if not rx:
             return
         for e in rx:
-            src, dst = e[2], e[3]
+            src, dst = e.src, e.dst
             if src == SPOOF_SENDER:
                 self._check_spoof(t, dst, poses, dt, max_delay)
                 continue
@@ -815,7 +818,7 @@ class MapMonotonicityChecker(_LiveChecker):
             self._last[uid] = cur
 
     def on_group(self, t, events):
-        if any(e[0] == "pose" for e in events):
+        if any(e.kind == "pose" for e in events):
             self._snapshot(t)
 
 
@@ -849,7 +852,7 @@ class MapAgreementChecker(_LiveChecker):
         self._note_overflow()
         ctx = self.context
         members = frozenset(poses)
-        quiet_now = (members == self._members and not any(e[0] in ("crash", "join", "restart") for e in events)
+        quiet_now = (members == self._members and not any(e.kind in ("crash", "join", "restart") for e in events)
                      and not ctx.link_faults_active(t) and not ctx.node_faults_disturb(t) and ctx.connected(poses)
                      and (self.allow_radio_loss or not self._radio_lossy()))
         if not quiet_now:
@@ -953,8 +956,8 @@ class JoinerCatchUpChecker(_LiveChecker):
         ctx = self.context
         poses = _poses(events)
         for e in events:
-            if (e[0] == "join" and e[1] > 0) or e[0] == "restart":  # a restarted UAV rejoins empty
-                uid = e[2]
+            if (e.kind == "join" and e.t > 0) or e.kind == "restart":  # a restarted UAV rejoins empty
+                uid = e.uav
                 j = sim.world.uavs[uid]
                 nbrs = tuple(u for u, b in sorted(sim.world.uavs.items())
                              if u != uid and b.state == "alive"
@@ -962,7 +965,7 @@ class JoinerCatchUpChecker(_LiveChecker):
                 if nbrs:
                     maps = self._maps(nbrs)
                     skewed = ctx.skewed()
-                    self._pending[uid] = (float(e[1]), np.maximum.reduce([owed_map(m, skewed) for m in maps.values()]), nbrs)
+                    self._pending[uid] = (float(e.t), np.maximum.reduce([owed_map(m, skewed) for m in maps.values()]), nbrs)
         if not poses:
             return
         self._note_overflow()
@@ -1007,7 +1010,7 @@ class _WatchChecker(Checker):
         out: dict[int, set[int]] = {}
         for uid, p in poses.items():
             # (A phantom target, a false alarm's or a liar's, is not a target: nothing to judge.)
-            if p[4] == MODE_SURVEIL and 0 <= p[5] < PHANTOM_TARGET_ID:
+            if p[4] == SURVEIL and 0 <= p[5] < PHANTOM_TARGET_ID:
                 out.setdefault(int(p[5]), set()).add(uid)
         return out
 
@@ -1105,8 +1108,8 @@ class HandoverChecker(_WatchChecker):
 
     def on_group(self, t, events):
         for e in events:
-            if e[0] == "target":
-                self._targets[e[2]] = (e[3], e[4])
+            if isinstance(e, event_schema.Target):
+                self._targets[e.target] = (e.x, e.y)
         poses = _poses(events)
         if not poses:
             return
@@ -1147,7 +1150,7 @@ class HandoverChecker(_WatchChecker):
                 if slower_watching or pos is None or seen is None or t - seen[0] > self._track_life() + _EPS:
                     continue
                 free = [s for s, p in sorted(poses.items())
-                        if s != f and p[4] != MODE_SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
+                        if s != f and p[4] != SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
                         and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f)
                         and math.hypot(p[0] - pos[0], p[1] - pos[1]) < k_s.influence_radius
                         and ctx.can_talk(f, s, t, poses)]
@@ -1176,7 +1179,7 @@ class HandoverChecker(_WatchChecker):
                             and (k_f := ctx.kind(f)) is not None and k_s.speed_max < k_f.speed_max
                             and ctx.handover_judged(s, f)]
                     now = int(poses[f][5])
-                    if took and poses[f][4] == MODE_SURVEIL and 0 <= now < PHANTOM_TARGET_ID:
+                    if took and poses[f][4] == SURVEIL and 0 <= now < PHANTOM_TARGET_ID:
                         self._joined.setdefault((f, now), (t, m, took[0]))
             for (f, now), (since, m, to) in list(self._joined.items()):
                 others = self._holders_besides(f, now, t, poses, watchers)
@@ -1239,8 +1242,8 @@ class NoDropChecker(_WatchChecker):
 
     def on_group(self, t, events):
         for e in events:
-            if e[0] == "target":
-                self._targets[e[2]] = (e[3], e[4])
+            if isinstance(e, event_schema.Target):
+                self._targets[e.target] = (e.x, e.y)
         poses = _poses(events)
         if not poses:
             return
@@ -1289,7 +1292,8 @@ class Monitor:
             for c in self.checkers:
                 c.bind(self.ctx)
         self._t: float | None = None
-        self._group: list[Sequence] = []
+        self._group: list[event_schema.Event] = []
+        self._decode = event_schema.Decoder()  # (for events given as the log's arrays)
         self._unsubscribe = None
         self.t_end = 0.0
         self.events = 0
@@ -1310,14 +1314,18 @@ class Monitor:
             self._unsubscribe()
             self._unsubscribe = None
 
-    def feed(self, ev: Sequence) -> None:
+    def feed(self, ev: event_schema.Event | Sequence[Any]) -> None:
+        """One event: a record of :mod:`swarm.events`, or an array as the log holds it
+        (``[kind, t, ...]``: decoded here, so a hand-written log can be checked)."""
         if self.ctx is None:
             raise UsageError("Monitor needs the run's scenario: Monitor(checkers, scenario) or .attach(sim)")
+        if not isinstance(ev, event_schema.Event):
+            ev = self._decode(ev)
         self.events += 1
         self.ctx.on_event(ev)
-        if ev[0] == "start":
+        if ev.kind == "start":
             return
-        t = float(ev[1])
+        t = float(ev.t)
         if self._t is not None and t != self._t:
             self.flush()
         self._t = t
@@ -1385,10 +1393,11 @@ def default_checkers(*, live: bool = False, handover: bool = False, liveness: bo
     return out
 
 
-def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checkers: Iterable[Checker] | None = None, *,
-                 faults: Iterable[FaultKind] | None = None) -> list[Violation]:
-    """Run ``checkers`` over a run's events: decoded events, or the event log's bytes as
-    ``RunResult.events`` and ``events.msgpack`` hold them. Returns the violations (empty: all
+def check_events(events: Iterable[event_schema.Event | Sequence[Any]] | bytes, scenario: Scenario,
+                 checkers: Iterable[Checker] | None = None, *, faults: Iterable[FaultKind] | None = None) -> list[Violation]:
+    """Run ``checkers`` over a run's events: records (:func:`swarm.events.read_events`), arrays
+    as the log holds them, or the event log's bytes as ``RunResult.events`` and
+    ``events.msgpack`` hold them. Returns the violations (empty: all
     invariants held).
 
     By default, every checker a log can judge, with its default parameters:
@@ -1400,7 +1409,7 @@ def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checker
     a planner of your own that watches targets by other rules, pass
     ``checkers=default_checkers()``: the first four."""
     if isinstance(events, (bytes, bytearray, memoryview)):
-        events = read_events(bytes(events))
+        events = event_schema.read_events(bytes(events))
     checkers = list(checkers) if checkers is not None else default_checkers(handover=True)
     live = [c.name for c in checkers if c.live_only]
     if live:
@@ -1412,7 +1421,7 @@ def check_events(events: Iterable[Sequence] | bytes, scenario: Scenario, checker
 
 
 def load_run_log(out_dir: str | Path, *, allow_planner_imports: bool | Iterable[str] = False
-                 ) -> tuple[Scenario, list[list]]:
+                 ) -> tuple[Scenario, list[event_schema.Event]]:
     """The validated scenario (``scenario.json``) and the events (``events.msgpack``) of a
     ``swarm run --out`` folder (read by :func:`swarm.outputs.read_run_dir`). A run folder is data:
     a ``module:Class`` planner in its ``scenario.json`` is refused unless allowed here
@@ -1420,4 +1429,4 @@ def load_run_log(out_dir: str | Path, *, allow_planner_imports: bool | Iterable[
     run = read_run_dir(out_dir)
     scenario = parse_scenario(run.scenario, str(run.path / "scenario.json"), truncated=True,  # may be cut short
                               allow_planner_imports=allow_planner_imports)
-    return scenario, list(read_events(run.events))
+    return scenario, list(event_schema.read_events(run.events))
