@@ -1,22 +1,31 @@
 """The event log: every notable thing a run does, as msgpack, hashed as it is written.
 
-An event is a flat array ``[kind, t, field, ...]`` (kinds and fields are listed in the README).
-Events of one tick are packed together at the end of the tick into one growing byte buffer and
-fed to SHA-256, so the hash is of exactly the bytes written to ``events.msgpack``. Nothing in
-an event comes from the wall clock or from Python's ``hash``: the same scenario and seed give
-the same bytes in any process.
+An event is a flat array ``[kind, t, field, ...]``; :mod:`swarm.events` defines every kind and
+its fields once (and reads logs back: :func:`swarm.events.read_events`). Events of one tick are
+packed together at the end of the tick into one growing byte buffer and fed to SHA-256, so the
+hash is of exactly the bytes written to ``events.msgpack``. Nothing in an event comes from the
+wall clock or from Python's ``hash``: the same scenario and seed give the same bytes in any
+process.
 
-Subscribers (the embedding API) get each event live as ``callback(event_tuple)``.
+The simulation emits plain tuples (cheapest to build and pack). Subscribers (the embedding
+API) get each event live as a record of :mod:`swarm.events`, with UAV and mode names; the
+conversion happens only when someone subscribes, once per event whatever the number of
+subscribers.
 """
 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
+from typing import Any, ClassVar
 
 import msgpack
 
-Event = tuple
+from swarm.events import NAMING_KINDS, Decoder, Event, check_kinds, check_wire, read_events, wire_kind
+
+__all__ = ["EventLog", "read_events"]  # read_events lives in swarm.events (kept here for older code)
+
+Callback = Callable[[Event], None]
 
 
 def _array_header_size(n: int) -> int:
@@ -25,20 +34,26 @@ def _array_header_size(n: int) -> int:
 
 
 class EventLog:
+    # Tests turn this on to check every event written against the schema (swarm.events).
+    check_schema: ClassVar[bool] = False
+
     def __init__(self) -> None:
-        self._pending: list[Event] = []
+        self._pending: list[tuple[Any, ...]] = []
         self._buf = bytearray()
         self._sha = hashlib.sha256()
         self._packer = msgpack.Packer(use_bin_type=True)
-        self._subs: list[tuple[Callable[[Event], None], frozenset[str] | None]] = []
+        self._subs: list[tuple[Callback, frozenset[str] | None]] = []
+        # Turns tuples into records for subscribers; made by the first subscribe() (so a log
+        # nobody subscribes to converts nothing), knowing the UAV names logged before it.
+        self._decoder: Decoder | None = None
         self.count = 0
 
-    def emit(self, *event) -> None:
+    def emit(self, *event: Any) -> None:
         self._pending.append(event)
         if self._subs:
             self._notify(event)
 
-    def extend(self, events: list[Event]) -> None:
+    def extend(self, events: list[tuple[Any, ...]]) -> None:
         """``emit(*e)`` for each event tuple of ``events``, in order (one call for many)."""
         if not self._subs:
             self._pending.extend(events)
@@ -48,11 +63,18 @@ class EventLog:
             append(event)
             self._notify(event)
 
-    def _notify(self, event: Event) -> None:
-        kind = event[0]
+    def _notify(self, event: tuple[Any, ...]) -> None:
+        decode = self._decoder
+        assert decode is not None  # (made by subscribe)
+        kind = wire_kind(event)
+        # One record per event, shared by the subscribers that want it; the events that name
+        # UAVs are decoded even if nobody wants them, to keep the decoder's names current.
+        record = decode(event) if kind in NAMING_KINDS else None
         for cb, kinds in self._subs:
             if kinds is None or kind in kinds:
-                cb(event)
+                if record is None:
+                    record = decode(event)
+                cb(record)
 
     @property
     def total(self) -> int:
@@ -64,6 +86,9 @@ class EventLog:
         pending = self._pending
         if not pending:
             return
+        if self.check_schema:
+            for event in pending:
+                check_wire(event)
         n = len(pending)
         # One pack() call for the whole tick: a msgpack array of the events is its header
         # followed by each event packed on its own, so dropping the header leaves exactly the
@@ -74,9 +99,27 @@ class EventLog:
         self._buf += chunk
         self._sha.update(chunk)
 
-    def subscribe(self, callback: Callable[[Event], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
-        entry = (callback, frozenset(kinds) if kinds is not None else None)
+    def subscribe(self, callback: Callback, kinds: Iterable[str] | None = None) -> Callable[[], None]:
+        """Call ``callback(record)`` for each event logged from now on (only ``kinds``, if given:
+        names of :data:`swarm.events.KINDS`); returns an unsubscribe function. A subscriber
+        added before the first flush (the end of the first tick) first gets the events logged
+        so far: the ``start`` header, which the simulation logs when it is built."""
+        wanted = check_kinds(kinds)
+        decode = self._decoder
+        if decode is None or not self._subs:
+            # The UAV names logged while nobody listened: from the bytes and the pending events.
+            decode = self._decoder = Decoder(live=True)
+            for record in read_events(bytes(self._buf), NAMING_KINDS):
+                decode.learn(record)
+            for event in self._pending:
+                if wire_kind(event) in NAMING_KINDS:
+                    decode(event)
+        catch_up = [decode(e) for e in self._pending] if self.count == 0 else []
+        entry = (callback, wanted)
         self._subs.append(entry)
+        for record in catch_up:
+            if wanted is None or record.kind in wanted:
+                callback(record)
 
         def unsubscribe() -> None:
             if entry in self._subs:
@@ -91,41 +134,3 @@ class EventLog:
     def sha256(self) -> str:
         self.flush()
         return self._sha.hexdigest()
-
-
-# Where events hold UAV ids (positions in the event array, kind first): read_events(names=True)
-# turns them into names with the start header's id -> name table. A violation's second party
-# is a UAV only for separation (for threat it is the threat's id).
-UAV_FIELDS: dict[str, tuple[int, ...]] = {
-    "pose": (2,), "mode": (2,), "found": (3,), "release": (3,), "handover": (3, 4), "rx": (2, 3),
-    "lost": (2, 3), "join": (2,), "crash": (2,),
-}
-
-
-def uav_names(header: dict) -> dict[int, str]:
-    """The id -> name table of a run's ``start`` event (``header = events[0][2]``)."""
-    return {int(uid): str(name) for uid, name, *_type in header.get("uavs", [])}
-
-
-def read_events(data: bytes, *, names: bool = False) -> Iterator[list]:
-    """Iterate the events of an ``events.msgpack`` file's bytes (or ``RunResult.events``).
-
-    ``names=True``: UAV ids are replaced by UAV names (see :data:`UAV_FIELDS`), using the
-    ``start`` header and the ``join`` events of UAVs added while the run went on."""
-    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
-    unpacker.feed(data)
-    if not names:
-        yield from unpacker
-        return
-    table: dict[int, str] = {}
-    for event in unpacker:
-        kind = event[0]
-        if kind == "start":
-            table.update(uav_names(event[2]))
-        elif kind == "join":
-            table[event[2]] = event[3]
-        for i in UAV_FIELDS.get(kind, ()):
-            event[i] = table.get(event[i], event[i])
-        if kind == "violation" and event[2] == "separation":
-            event[3], event[4] = table.get(event[3], event[3]), table.get(event[4], event[4])
-        yield event

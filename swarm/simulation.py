@@ -44,6 +44,7 @@ from swarm import build
 from swarm.clock import TICK, Clock
 from swarm.driving import LoopBinding
 from swarm.errors import APIMisuseError, UsageError
+from swarm.events import Event
 from swarm.faulting import RunFaults
 from swarm.fleet import Fleet
 from swarm.memory import check_memory
@@ -227,8 +228,10 @@ class Simulation:
         """A copy of one UAV's own last-seen map (what it believes, not the truth)."""
         return self.actors[self._uid(name)].umap.to_dense()
 
-    def subscribe(self, callback: Callable[[tuple], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
-        """Call ``callback(event)`` for each event (optionally only some kinds); returns an unsubscribe function."""
+    def subscribe(self, callback: Callable[[Event], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
+        """Call ``callback(event)`` for each event as it is logged, a record of :mod:`swarm.events`
+        with UAV and mode names (optionally only some kinds); returns an unsubscribe function.
+        Subscribed before the first tick, it gets the ``start`` header first."""
         return self.log.subscribe(callback, kinds)
 
     def _uid(self, name: str) -> int:

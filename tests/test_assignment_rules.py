@@ -21,7 +21,7 @@ from budget import examples
 from hypothesis import HealthCheck, given, settings
 
 from agents.assignment import exclusion_break, handover_break, rule_breaks, watch_break
-from comms.messages import MODE_SURVEIL
+from comms.messages import MODE_NAMES, MODE_SURVEIL
 from swarm import Simulation
 from swarm.scenario import DEFAULT_UAV_TYPES, parse_scenario
 from swarm.scenario.warnings import scenario_warnings
@@ -143,13 +143,13 @@ def test_a_watcher_keeps_a_target_inside_a_no_fly_zone_and_loiters_at_its_edge()
            "uavs": [{"name": "A1", "type": "A", "x_m": 5500.0, "y_m": 10_000.0, "heading_deg": 0.0}]}
     with Simulation(parse_scenario(doc)) as sim:
         result = sim.run()
-    from swarm.recorder import read_events
+    from swarm.events import read_events
 
-    poses = [e for e in read_events(result.events) if e[0] == "pose" and e[1] >= 100]
-    deep = [e for e in read_events(result.events) if e[0] == "target" and 150 <= e[1] <= 400
-            and math.hypot(e[3] - 10_000.0, e[4] - 10_000.0) < 2000.0 - 1500.0]
+    poses = [e for e in read_events(result.events, {"pose"}) if e.t >= 100]
+    deep = [e for e in read_events(result.events, {"target"}) if 150 <= e.t <= 400
+            and math.hypot(e.x - 10_000.0, e.y - 10_000.0) < 2000.0 - 1500.0]
     assert len(deep) > 100  # out of A1's sight (1.5 km) from outside the zone for minutes
-    assert all((e[7], e[8]) == (MODE_SURVEIL, 0) for e in poses if e[1] <= 400)
-    edge = [math.hypot(e[3] - 10_000.0, e[4] - 10_000.0) - 2000.0 for e in poses]
-    assert min(edge) > 0 and max(e for e, p in zip(edge, poses) if p[1] >= 200) < 3000.0
+    assert all((e.mode, e.target) == (MODE_NAMES[MODE_SURVEIL], 0) for e in poses if e.t <= 400)
+    edge = [math.hypot(e.x - 10_000.0, e.y - 10_000.0) - 2000.0 for e in poses]
+    assert min(edge) > 0 and max(d for d, p in zip(edge, poses) if p.t >= 200) < 3000.0
     assert result.metrics["violations"]["threat"] == 0

@@ -9,8 +9,8 @@ import math
 import pytest
 
 from swarm import cli
+from swarm.events import read_events
 from swarm.experiments import bench
-from swarm.recorder import read_events
 from swarm.scenario import RadioSettings, load_scenario
 from swarm.simulation import Simulation
 
@@ -62,7 +62,7 @@ def test_uav_ticks_counts_the_uavs_alive_in_each_tick():
     # paper-case3: 10 UAVs from 0 s, an 11th joins at 300 s.
     with Simulation("paper-case3", duration_s=305.0) as sim:
         result = sim.run()
-    poses = sum(1 for e in read_events(result.events) if e[0] == "pose")
+    poses = sum(1 for _ in read_events(result.events, {"pose"}))
     assert bench.uav_ticks(result) == poses
     assert 10 * 305 < poses < 11 * 305
 

@@ -7,8 +7,8 @@ import pytest
 
 from swarm import APIMisuseError, Simulation
 from swarm.cli import main
+from swarm.events import read_events
 from swarm.outputs import write_run
-from swarm.recorder import read_events
 
 
 def test_write_run_from_the_api_is_a_folder_swarm_report_accepts(tmp_path, capsys):
@@ -36,11 +36,11 @@ def test_events_read_back_with_names():
     with Simulation("paper-case1", duration_s=10.0) as sim:
         result = sim.run()
     names = {"B1", "B2", "A1"}
-    events = list(read_events(result.events, names=True))
-    assert {e[2] for e in events if e[0] == "pose"} == names
-    assert all(e[2] in names and e[3] in names for e in events if e[0] == "rx")
-    raw = list(read_events(result.events))
-    assert {e[2] for e in raw if e[0] == "pose"} == {0, 1, 2}
+    events = list(read_events(result.events))
+    assert {e.uav_name for e in events if e.kind == "pose"} == names
+    assert all(e.src_name in names and e.dst_name in names for e in events if e.kind == "rx")
+    assert {e.uav for e in events if e.kind == "pose"} == {0, 1, 2}  # the ids stay
+    assert {e.uav_name for e in read_events(result.events, names=False) if e.kind == "pose"} == {None}
 
 
 def test_check_events_takes_what_run_result_events_holds_and_schedules_iterate():

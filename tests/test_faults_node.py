@@ -25,7 +25,8 @@ from faults.schedule import (
     fault_to_dict,
 )
 from swarm import Simulation
-from swarm.recorder import read_events
+from swarm import events as ev
+from swarm.events import read_events
 from swarm.scenario import parse_scenario
 from swarm.testing.invariants import JoinerCatchUpChecker, Monitor, check_events, default_checkers
 from tests.conftest import DATA
@@ -54,7 +55,7 @@ def _run(faults, duration_s: float = 120.0, planner: str = "greedy", seed: int =
         for f in faults:
             sim.add_fault(f)
         result = sim.run()
-    return sc, result, [tuple(e) for e in read_events(result.events)]
+    return sc, result, list(read_events(result.events))
 
 
 def _clean(sc, result, faults) -> None:
@@ -69,17 +70,17 @@ def test_pause_stops_the_actor_and_fills_its_mailbox():
     f = Pause(uav="B1", start_s=20.0, end_s=60.0)
     sc, result, events = _run([f], mailbox_capacity=20)
     assert result.metrics["faults_applied"] == {"pause": 1}
-    assert [e for e in events if e[0] in ("pause", "resume")] == [("pause", 20.0, B1), ("resume", 60.0, B1)]
+    assert [e for e in events if e.kind in ("pause", "resume")] == [ev.Pause(20.0, B1, "B1"), ev.Resume(60.0, B1, "B1")]
     # Nothing heard from it (a frame sent at 19 s arrives by 20 s), nothing read by it.
-    assert not [e for e in events if e[0] == "rx" and e[2] == B1 and 21.0 <= e[1] < 60.0]
-    assert not [e for e in events if e[0] == "rx" and e[3] == B1 and 20.0 <= e[1] < 60.0]
+    assert not [e for e in events if e.kind == "rx" and e.src == B1 and 21.0 <= e.t < 60.0]
+    assert not [e for e in events if e.kind == "rx" and e.dst == B1 and 20.0 <= e.t < 60.0]
     # Its mailbox overflowed, and it read what it held when it resumed.
-    full = [e for e in events if e[0] == "lost" and e[5] == "mailbox_full"]
-    assert full and {e[3] for e in full} == {B1}
-    assert sum(1 for e in events if e[0] == "rx" and e[3] == B1 and e[1] == 60.0) == 20
+    full = [e for e in events if e.kind == "lost" and e.cause == "mailbox_full"]
+    assert full and {e.dst for e in full} == {B1}
+    assert sum(1 for e in events if e.kind == "rx" and e.dst == B1 and e.t == 60.0) == 20
     # It kept flying (a pose every tick, the last plan) on its last command.
-    poses = [e for e in events if e[0] == "pose" and e[2] == B1 and 20.0 <= e[1] < 60.0]
-    assert len(poses) == 40 and len({(e[7], e[8]) for e in poses}) == 1
+    poses = [e for e in events if e.kind == "pose" and e.uav == B1 and 20.0 <= e.t < 60.0]
+    assert len(poses) == 40 and len({(e.mode, e.target) for e in poses}) == 1
     assert result.metrics["per_uav"]["B1"]["mailbox_dropped_full"] == len(full)
     _clean(sc, result, [f])
 
@@ -88,7 +89,7 @@ def test_a_pause_on_a_uav_that_is_down_does_nothing():
     faults = [Restart(uav="B1", at_s=10.0, downtime_s=40.0), Pause(uav="B1", start_s=20.0, end_s=30.0)]
     sc, result, events = _run(faults)
     assert result.metrics["faults_applied"] == {"pause": 0, "restart": 1}
-    assert not [e for e in events if e[0] in ("pause", "resume")]
+    assert not [e for e in events if e.kind in ("pause", "resume")]
 
 
 # --- restart ----------------------------------------------------------------------------------
@@ -122,25 +123,25 @@ def test_restart_rejoins_with_an_empty_memory_where_it_went_down():
         monitor.flush()
         result = sim.result()
         monitor.finish()
-    events = [tuple(e) for e in read_events(result.events)]
-    assert [e for e in events if e[0] in ("crash", "restart")] == [
-        ("crash", 30.0, B1, "B1"), ("restart", 40.0, B1, "B1", *last)]
+    events = list(read_events(result.events))
+    assert [e for e in events if e.kind in ("crash", "restart")] == [
+        ev.Crash(30.0, B1, "B1"), ev.Restart(40.0, B1, "B1", *last)]
     assert result.metrics["faults_applied"] == {"restart": 1}
     assert monitor.violations == []
     assert monitor.by_name("joiner_catch_up").checks == 1  # it caught up with its neighbours
     # It sends again (the radio checker accepts it: failed only between crash and restart).
-    assert [e for e in events if e[0] == "rx" and e[2] == B1 and e[1] > 41.0]
+    assert [e for e in events if e.kind == "rx" and e.src == B1 and e.t > 41.0]
     _clean(sc, result, [f])
     # Its first life drew what it drew without the fault (the new life has a stream of its own).
     _, base, base_events = _run([])
-    assert [e for e in events[1:] if e[1] < 30.0] == [e for e in base_events[1:] if e[1] < 30.0]
+    assert [e for e in events[1:] if e.t < 30.0] == [e for e in base_events[1:] if e.t < 30.0]
 
 
 def test_restart_of_a_uav_not_flying_does_nothing():
     sc, result, events = _run([Restart(uav="B1", at_s=10.0, downtime_s=5.0),
                                Restart(uav="B1", at_s=12.0, downtime_s=5.0)])  # down at 12 s: ignored
     assert result.metrics["faults_applied"] == {"restart": 1}
-    assert [e[0] for e in events if e[0] in ("crash", "restart")] == ["crash", "restart"]
+    assert [e.kind for e in events if e.kind in ("crash", "restart")] == ["crash", "restart"]
 
 
 # --- clock skew -------------------------------------------------------------------------------
@@ -160,20 +161,20 @@ def test_a_clock_ahead_is_ignored_and_never_pins_a_receivers_cells():
         result = sim.result()
     assert result.metrics["faults_applied"] == {"clock_skew": 1}
     assert ignored[B2] > 0  # its frames, stamped in B2's future (A1 and A2 are at the edge of its range)
-    assert ("fault_on", 10.0, "clock_skew", B1) in [tuple(e) for e in read_events(result.events)]
+    assert ev.FaultOn(10.0, "clock_skew", B1, "B1") in list(read_events(result.events))
 
 
 def test_a_clock_behind_is_heard_and_hears_nobody():
     f = ClockSkew(uav="B1", start_s=10.0, end_s=40.0, offset_s=-5.0, drift=-0.1)
     sc, result, events = _run([f], duration_s=60.0)
     assert result.metrics["faults_applied"] == {"clock_skew": 1}
-    assert ("fault_off", 40.0, "clock_skew", B1) in events
+    assert ev.FaultOff(40.0, "clock_skew", B1, "B1") in events
     per = result.metrics["per_uav"]
     assert per["B1"]["messages_ignored"] > 0  # the others' frames are in its future
     assert all(per[n]["messages_ignored"] == 0 for n in ("B2", "A1", "A2"))
     # Its frames are accepted: every rx of a frame of B1 in the window was merged.
-    heard = [e for e in events if e[0] == "rx" and e[2] == B1 and 12.0 <= e[1] < 40.0]
-    assert heard and all(e[5] for e in heard)
+    heard = [e for e in events if e.kind == "rx" and e.src == B1 and 12.0 <= e.t < 40.0]
+    assert heard and all(e.accepted for e in heard)
     _clean(sc, result, [f])
 
 
@@ -244,7 +245,7 @@ def test_a_blind_sensor_finds_no_target_and_false_alarms_are_not_targets():
     assert base.metrics["targets_found"] > 0
     blind = Sensor(p_detect=0.0, false_alarm_rate=0.2)
     sc, result, events = _run([blind], duration_s=200.0)
-    assert result.metrics["targets_found"] == 0 and not [e for e in events if e[0] == "found"]
+    assert result.metrics["targets_found"] == 0 and not [e for e in events if e.kind == "found"]
     assert result.metrics["faults_applied"]["sensor"] > 0
     _clean(sc, result, [blind])
 
@@ -333,6 +334,6 @@ def test_faults_added_while_running():
         with pytest.raises(Exception, match="in the past"):
             sim.add_fault(Restart(uav="A1", at_s=5.0, downtime_s=3.0))
         result = sim.run()
-    events = [tuple(e) for e in read_events(result.events)]
-    assert [e for e in events if e[0] in ("pause", "resume")] == [("pause", 10.0, B1), ("resume", 20.0, B1)]
-    assert Counter(e[0] for e in events)["restart"] == 1
+    events = list(read_events(result.events))
+    assert [e for e in events if e.kind in ("pause", "resume")] == [ev.Pause(10.0, B1, "B1"), ev.Resume(20.0, B1, "B1")]
+    assert Counter(e.kind for e in events)["restart"] == 1

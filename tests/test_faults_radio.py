@@ -17,7 +17,7 @@ from faults.injector import FaultInjector
 from faults.schedule import FAULT_KINDS, Bridge, FaultSchedule, Jammer, Partition, Spoofer, Swizzle, fault_from_dict
 from swarm import Simulation
 from swarm.errors import ScenarioError, UsageError
-from swarm.recorder import read_events
+from swarm.events import read_events
 from swarm.rng import RngTree
 from swarm.scenario import load_scenario, parse_scenario
 from swarm.testing.invariants import RadioChecker, check_events
@@ -43,14 +43,14 @@ def run(sc):
 
 
 def lost(events, cause):
-    return [e for e in events if e[0] == "lost" and e[5] == cause]
+    return [e for e in events if e.kind == "lost" and e.cause == cause]
 
 
 def poses_at(events):
     out: dict[float, dict[int, tuple[float, float]]] = {}
     for e in events:
-        if e[0] == "pose":
-            out.setdefault(e[1], {})[e[2]] = (e[3], e[4])
+        if e.kind == "pose":
+            out.setdefault(e.t, {})[e.uav] = (e.x, e.y)
     return out
 
 
@@ -162,7 +162,7 @@ def test_every_radio_kind_fires_and_is_counted_as_its_lost_copies(all_four):
     assert all(fired[k] > 0 for k in ("jammer", "bridge", "swizzle", "spoofer")), fired
     for cause in ("jammer", "bridge", "swizzle"):
         assert fired[cause] == len(lost(events, cause)) == m["radio"]["dropped_by_cause"][cause]
-    spoofed = [e for e in events if e[0] == "rx" and e[2] == -1]
+    spoofed = [e for e in events if e.kind == "rx" and e.src == -1]
     assert spoofed and sim.radio.counters.spoofed >= len(spoofed)
     r = m["radio"]
     assert r["sent"] + r["duplicated"] == r["delivered"] + r["dropped"] + r["rejected"] + r["in_flight"]
@@ -173,7 +173,7 @@ def test_jammer_losses_are_of_copies_touching_the_circle_within_its_window(all_f
     poses = poses_at(events)
     j = JAMMER
     for e in lost(events, "jammer"):
-        t, src, dst = e[1], e[2], e[3]
+        t, src, dst = e.t, e.src, e.dst
         assert j["start_s"] <= t < j["end_s"]
         assert any(math.hypot(poses[t][u][0] - j["x_m"], poses[t][u][1] - j["y_m"]) <= j["radius_m"]
                    for u in (src, dst))
@@ -192,13 +192,13 @@ def test_a_jammer_loses_about_its_rate_of_copies_from_uavs_inside_and_none_of_ot
         return p is not None and math.hypot(p[0] - j["x_m"], p[1] - j["y_m"]) <= j["radius_m"]
 
     jam = lost(events, "jammer")
-    assert all(inside(e[1], e[2]) or inside(e[1], e[3]) for e in jam)
-    from_inside = sum(1 for e in jam if inside(e[1], e[2]))
-    read = sum(1 for e in events if e[0] == "rx" and inside(e[1] - 1.0, e[2]))
+    assert all(inside(e.t, e.src) or inside(e.t, e.dst) for e in jam)
+    from_inside = sum(1 for e in jam if inside(e.t, e.src))
+    read = sum(1 for e in events if e.kind == "rx" and inside(e.t - 1.0, e.src))
     n = from_inside + read
     print(f"jammer rate {j['rate']}: {from_inside} of {n} copies from inside lost ({from_inside / n:.3f})")
     assert n > 200 and abs(from_inside / n - j["rate"]) < 4 * math.sqrt(0.25 / n), (from_inside, read)
-    outside = [e for e in events if e[0] == "rx" and not inside(e[1] - 1.0, e[2]) and not inside(e[1] - 1.0, e[3])]
+    outside = [e for e in events if e.kind == "rx" and not inside(e.t - 1.0, e.src) and not inside(e.t - 1.0, e.dst)]
     assert outside  # copies between UAVs outside the circle get through (none is lost: see above)
 
 
@@ -209,14 +209,14 @@ def test_a_bridge_lets_only_the_bridge_uav_talk_across(all_four):
     g1 = {uid[n] for n in BRIDGE["groups"][1]} - {uid[BRIDGE["bridge"]]}
     b = uid[BRIDGE["bridge"]]
     dt = 1.0
-    window = [e for e in events if e[0] == "rx" and BRIDGE["start_s"] <= e[1] - dt < BRIDGE["end_s"]]
-    across = [e for e in window if (e[2] in g0 and e[3] in g1) or (e[2] in g1 and e[3] in g0)]
+    window = [e for e in events if e.kind == "rx" and BRIDGE["start_s"] <= e.t - dt < BRIDGE["end_s"]]
+    across = [e for e in window if (e.src in g0 and e.dst in g1) or (e.src in g1 and e.dst in g0)]
     assert not across
-    assert any(e[2] == b and e[3] in g0 for e in window) and any(e[2] in g0 and e[3] == b for e in window)
+    assert any(e.src == b and e.dst in g0 for e in window) and any(e.src in g0 and e.dst == b for e in window)
     for e in lost(events, "bridge"):
-        assert {e[2], e[3]} & g0 and {e[2], e[3]} & g1 and b not in (e[2], e[3])
+        assert {e.src, e.dst} & g0 and {e.src, e.dst} & g1 and b not in (e.src, e.dst)
     # Before and after the window the groups talk directly.
-    assert any(e[0] == "rx" and e[2] in g0 and e[3] in g1 and e[1] - dt >= BRIDGE["end_s"] for e in events)
+    assert any(e.kind == "rx" and e.src in g0 and e.dst in g1 and e.t - dt >= BRIDGE["end_s"] for e in events)
 
 
 def test_a_swizzle_blocks_exactly_the_clogged_uavs_while_clogged(all_four):
@@ -230,14 +230,14 @@ def test_a_swizzle_blocks_exactly_the_clogged_uavs_while_clogged(all_four):
         return u in plan and plan[u][0] <= t < plan[u][1]
 
     for e in lost(events, "swizzle"):
-        assert clogged(e[2], e[1]) or clogged(e[3], e[1])
+        assert clogged(e.src, e.t) or clogged(e.dst, e.t)
     for e in events:
-        if e[0] == "rx" and e[2] >= 0:
-            assert not (clogged(e[2], e[1] - dt) or clogged(e[3], e[1] - dt)), e
+        if e.kind == "rx" and e.src >= 0:
+            assert not (clogged(e.src, e.t - dt) or clogged(e.dst, e.t - dt)), e
     # Each clogged UAV was cut and heard again after its restore.
     for u, (_cut, restore) in plan.items():
-        assert any(e[1] - dt < restore for e in lost(events, "swizzle") if u in (e[2], e[3]))
-        assert any(e[0] == "rx" and e[2] == u and e[1] - dt >= restore for e in events)
+        assert any(e.t - dt < restore for e in lost(events, "swizzle") if u in (e.src, e.dst))
+        assert any(e.kind == "rx" and e.src == u and e.t - dt >= restore for e in events)
 
 
 def test_the_radio_checker_accepts_the_run_and_catches_it_against_the_wrong_faults(all_four):
@@ -263,12 +263,12 @@ def test_spoofed_frames_reach_only_uavs_in_range_while_active(all_four):
     _sim, m, events = all_four
     poses = poses_at(events)
     s = SPOOFER
-    rx = [e for e in events if e[0] == "rx" and e[2] == -1]
+    rx = [e for e in events if e.kind == "rx" and e.src == -1]
     for e in rx:
-        p = poses[e[1] - 1.0][e[3]]
-        assert math.hypot(p[0] - s["x_m"], p[1] - s["y_m"]) <= s["range_m"] and e[1] - 1.0 >= s["start_s"]
+        p = poses[e.t - 1.0][e.dst]
+        assert math.hypot(p[0] - s["x_m"], p[1] - s["y_m"]) <= s["range_m"] and e.t - 1.0 >= s["start_s"]
     # Without auth they are accepted (well-formed frames) ...
-    assert all(e[5] for e in rx) and m["radio"]["rejected_auth"] == 0
+    assert all(e.accepted for e in rx) and m["radio"]["rejected_auth"] == 0
     # ... and count as fired per frame sent: rate_per_s over the active seconds.
     assert m["faults_applied"]["spoofer"] == int(s["rate_per_s"] * (DOC["duration_s"] - s["start_s"]))
 
@@ -284,8 +284,8 @@ def test_with_auth_every_spoofed_frame_is_rejected_and_no_map_changes():
         a.subscribe(rx.append, ["rx"])
         ma, mb = a.run().metrics, b.run().metrics
         assert ma["faults_applied"]["spoofer"] > 0
-        spoofed = [e for e in rx if e[2] == -1]
-        assert spoofed and not any(e[5] for e in spoofed)  # every one rejected ...
+        spoofed = [e for e in rx if e.src == -1]
+        assert spoofed and not any(e.accepted for e in spoofed)  # every one rejected ...
         assert ma["radio"]["rejected_auth"] == len(spoofed) and mb["radio"]["rejected_auth"] == 0  # ... for its MAC
         for n, grid in _maps(a).items():
             assert np.array_equal(grid, b.uav_map(n)), n

@@ -163,7 +163,7 @@ def _fuzz_live(n_frames: int, seed: int, planner: str) -> tuple[int, int]:
     rx_rejected: list = []
     fed = expected_rejects = 0
     with Simulation(parse_scenario(doc)) as sim:
-        sim.subscribe(lambda e: rx_rejected.append(e) if e[5] is False else None, kinds={"rx"})
+        sim.subscribe(lambda e: rx_rejected.append(e) if e.accepted is False else None, kinds={"rx"})
         before = {u: a.counters.rejected for u, a in sim.actors.items()}
         per_tick = max(1, n_frames // int(sim.duration_s))
         while not sim.done:

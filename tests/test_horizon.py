@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 from agents.maps.grid import Grid
 from agents.maps.scanlog import ScanLog, within
 from agents.maps.umap import UncertaintyMap
+from swarm.events import Lost, Radio, Rx, read_events
 from swarm.experiments import bench
-from swarm.recorder import read_events
 from swarm.scenario import apply_overrides, parse_scenario
 from swarm.simulation import Simulation
 from swarm.testing.invariants import JoinerCatchUpChecker, MapAgreementChecker, Monitor, RadioChecker, check_events
@@ -224,28 +224,28 @@ def test_a_summary_log_counts_what_a_frames_log_lists_and_is_deterministic():
     assert a.events == b.events and a.metrics["event_log_sha256"] == b.metrics["event_log_sha256"]
     frames = list(read_events(runs["frames"][0].events))
     summary = list(read_events(a.events))
-    assert summary[0][2]["recording"] == "summary" and "recording" not in frames[0][2]
-    assert not {e[0] for e in summary} & {"rx", "lost"}
+    assert summary[0].header["recording"] == "summary" and "recording" not in frames[0].header
+    assert not {e.kind for e in summary} & {"rx", "lost"}
     # Everything but the radio's events is the same (the level changes no decision).
-    assert [e for e in frames[1:] if e[0] not in ("rx", "lost")] == [e for e in summary[1:] if e[0] != "radio"]
+    assert [e for e in frames[1:] if e.kind not in ("rx", "lost")] == [e for e in summary[1:] if e.kind != "radio"]
     # Each tick's radio event holds that tick's totals (lost copies from delivery at the next tick).
     rx: dict[float, list[int]] = {}
     lost: dict[str, list[int]] = {}
     for e in frames:
-        if e[0] == "rx":
-            c = rx.setdefault(e[1], [0, 0, 0])
+        if isinstance(e, Rx):
+            c = rx.setdefault(e.t, [0, 0, 0])
             c[0] += 1
-            c[1] += not e[5]
-            c[2] += e[4]
-        elif e[0] == "lost":
-            c = lost.setdefault(e[5], [0, 0])
+            c[1] += not e.accepted
+            c[2] += e.bytes
+        elif isinstance(e, Lost):
+            c = lost.setdefault(e.cause, [0, 0])
             c[0] += 1
-            c[1] += e[4]
-    radio = [e for e in summary if e[0] == "radio"]
-    assert {e[1]: e[2:5] for e in radio if e[2]} == rx
+            c[1] += e.bytes
+    radio = [e for e in summary if isinstance(e, Radio)]
+    assert {e.t: [e.read, e.rejected, e.bytes_read] for e in radio if e.read} == rx
     total: dict[str, list[int]] = {}
     for e in radio:
-        for cause, (n, nbytes) in e[5].items():
+        for cause, (n, nbytes) in e.lost.items():
             c = total.setdefault(cause, [0, 0])
             c[0] += n
             c[1] += nbytes

@@ -21,7 +21,7 @@ from comms.codec import encode
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello
 from faults.schedule import Partition, fault_to_dict
 from swarm import Simulation, load_scenario
-from swarm.recorder import read_events
+from swarm.events import read_events
 from swarm.scenario import parse_scenario, scenario_from_toml
 from swarm.testing.invariants import (
     DynamicsChecker,
@@ -710,11 +710,11 @@ def test_checks_a_run_folder_written_by_swarm_run(tmp_path, small_scenario_path)
     out = tmp_path / "run"
     assert main(["run", str(small_scenario_path), "--duration", "90", "--quiet", "--no-figures", "--out", str(out)]) == 0
     scenario, events = load_run_log(out)
-    assert scenario.duration_s == 90.0 and events[0][0] == "start"
+    assert scenario.duration_s == 90.0 and events[0].kind == "start"
     assert check_events(events, scenario, [ThreatClearanceChecker(), DynamicsChecker(), RadioChecker()]) == []
-    doctored = [list(e) for e in events]
-    i = next(i for i, e in enumerate(doctored) if e[0] == "rx" and e[1] >= 60)
-    doctored[i][2], doctored[i][3] = doctored[i][3], 99  # a frame to a UAV that does not exist
+    doctored = list(events)
+    i = next(i for i, e in enumerate(doctored) if e.kind == "rx" and e.t >= 60)
+    doctored[i] = dataclasses.replace(doctored[i], src=doctored[i].dst, dst=99)  # a frame to a UAV that does not exist
     assert check_events(doctored, scenario, [RadioChecker()])
 
 
@@ -863,7 +863,7 @@ def test_radio_a_uav_resuming_from_a_pause_may_read_a_spoofed_frame_its_mailbox_
     scenario = parse_scenario(doc)
     with Simulation(scenario) as sim:
         result = sim.run()
-    assert any(e[0] == "rx" and e[2] == -1 and e[1] == 2.0 for e in read_events(result.events))  # it did read one
+    assert any(e.src == -1 and e.t == 2.0 for e in read_events(result.events, {"rx"}))  # it did read one
     assert check_events(result.events, scenario, [RadioChecker()]) == []
 
 
@@ -897,7 +897,7 @@ def test_paper_case1_keeps_the_assignment_invariants():
     watch_ticks = []
     with reproducible(scenario):
         with Simulation(scenario) as sim:
-            sim.subscribe(lambda e: watch_ticks.append(e[2]) if e[7] == MODE_SURVEIL else None, kinds={"pose"})
+            sim.subscribe(lambda e: watch_ticks.append(e.uav) if e.mode == "surveil" else None, kinds={"pose"})
             monitor = _run_live(sim, default_checkers(live=True, handover=True))
         assert monitor.violations == [], "\n".join(map(str, monitor.violations))
     assert len(watch_ticks) >= 600, f"only {len(watch_ticks)} UAV-seconds in surveillance mode: the handover checks saw little"

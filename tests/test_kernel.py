@@ -192,8 +192,8 @@ def _run_checked(tmp_path, kind):
     path = tmp_path / f"{kind}.toml"
     path.write_text(SCENARIO.format(kind=kind))
     sim = Simulation(load_scenario(path))
-    lost: list[tuple] = []
-    sim.subscribe(lambda e: lost.append(tuple(e)) if e[-1] == kind else None, kinds=["lost"])
+    lost: list = []
+    sim.subscribe(lambda e: lost.append(e) if e.cause == kind else None, kinds=["lost"])
     monitor = Monitor([MapAgreementChecker(quiet_s=20.0, every_s=5.0)]).attach(sim)
     while not sim.done:
         sim.step()
@@ -208,7 +208,7 @@ def test_a_fault_kind_defined_in_a_test_runs_from_a_scenario_file_end_to_end(tmp
     sim, lost, violations, ctx = _run_checked(tmp_path, "blackout")
     # It fired (counted by kind) exactly on copies to or from B2, inside its window.
     assert sim.injector.fired["blackout"] == len(lost) > 0
-    assert all(10.0 <= e[1] < 120.0 + 1e-9 for e in lost)
+    assert all(10.0 <= e.t < 120.0 + 1e-9 and "B2" in (e.src_name, e.dst_name) for e in lost)
     # The checkers grant its excuse: maps need not agree while it acts, and it explains B2.
     (f,) = sim.injector.schedule.faults
     assert ctx.link_faults_active(50.0) and not ctx.link_faults_active(130.0)

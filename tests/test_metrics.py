@@ -122,7 +122,7 @@ def test_detection_and_watch_measures_agree_with_the_event_log_on_paper_case1():
     import math
 
     from swarm import Simulation
-    from swarm.recorder import read_events
+    from swarm.events import read_events
 
     with Simulation("paper-case1", planner="greedy") as sim:
         r = sim.run()
@@ -131,20 +131,20 @@ def test_detection_and_watch_measures_agree_with_the_event_log_on_paper_case1():
     m = r.metrics
     found, pose, target = {}, {}, {}
     for ev in read_events(r.events):
-        if ev[0] == "found":
-            found.setdefault(ev[2], ev[1])
-        elif ev[0] == "pose":
-            pose.setdefault(ev[1], {})[ev[2]] = (ev[3], ev[4], ev[7], ev[8])
-        elif ev[0] == "target":
-            target.setdefault(ev[1], {})[ev[2]] = (ev[3], ev[4])
+        if ev.kind == "found":
+            found.setdefault(ev.target, ev.t)
+        elif ev.kind == "pose":
+            pose.setdefault(ev.t, {})[ev.uav] = (ev.x, ev.y, ev.mode, ev.target)
+        elif ev.kind == "target":
+            target.setdefault(ev.t, {})[ev.target] = (ev.x, ev.y)
     t_end = m["sim_seconds"]
     assert m["time_to_first_detection_s"] == {str(k): found.get(k) for k in range(2)}
     held = {k: [] for k in found}  # per found target: (t, uid) of each hold
     surveil = dict.fromkeys(kind, 0)
     for t, uavs in pose.items():
         for uid, (x, y, mode, tgt) in uavs.items():
-            surveil[uid] += mode == 1
-            if mode == 1 and tgt in held and t >= found[tgt]:
+            surveil[uid] += mode == "surveil"
+            if mode == "surveil" and tgt in held and t >= found[tgt]:
                 tx, ty = target[t][tgt]
                 if math.hypot(tx - x, ty - y) <= radius[uid]:
                     held[tgt].append((t, uid))

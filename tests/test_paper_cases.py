@@ -17,9 +17,11 @@ import math
 
 import pytest
 
-from comms.messages import MODE_SURVEIL
+from comms.messages import MODE_NAMES, MODE_SURVEIL
 from swarm import Simulation, load_scenario
-from swarm.recorder import read_events
+from swarm.events import Pose, Target, read_events
+
+SURVEIL = MODE_NAMES[MODE_SURVEIL]  # poses carry mode names
 
 
 @pytest.fixture(scope="module")
@@ -31,12 +33,12 @@ def case1():
 
 
 def _watch_intervals(events, names):
-    """(uav name, target) -> seconds spent in surveillance mode of that target (pose events:
-    ``pose, t, uav, x, y, v, theta, mode, target``, one per UAV per 1 s tick)."""
+    """(uav name, target) -> seconds spent in surveillance mode of that target (pose events,
+    one per UAV per 1 s tick)."""
     seconds: dict[tuple[str, int], float] = {}
     for e in events:
-        if e[0] == "pose" and e[7] == MODE_SURVEIL:
-            key = (names[e[2]], e[8])
+        if e.kind == "pose" and e.mode == SURVEIL:
+            key = (names[e.uav], e.target)
             seconds[key] = seconds.get(key, 0.0) + 1.0
     return seconds
 
@@ -44,19 +46,19 @@ def _watch_intervals(events, names):
 def test_case1_slow_uav_takes_target_1_over_and_the_fast_finder_returns_to_search(case1):
     result, names, events = case1
     m = result.metrics
-    found = {e[2]: names[e[3]] for e in events if e[0] == "found"}
+    found = {e.target: e.uav_name for e in events if e.kind == "found"}
     assert found[0] == "B1"  # target 1 (id 0) is found by fast UAV 1, as in Fig. 12a
     handovers = [h for h in m["handover_list"] if h["target"] == 0]
     assert handovers and handovers[0]["from"] == "B1" and handovers[0]["to"] == "A1"
     t_hand = handovers[0]["t"]
     last = {}
     for e in events:
-        if e[0] == "pose":
-            last[names[e[2]]] = (e[7], e[8])
-    assert last["A1"] == (MODE_SURVEIL, 0)  # the slow UAV ends up watching target 1
-    assert last["B1"][0] != MODE_SURVEIL  # ... and the fast one is searching again
-    b1_after = [e for e in events if e[0] == "pose" and names[e[2]] == "B1" and e[1] > t_hand + 30]
-    assert b1_after and all(e[7] != MODE_SURVEIL for e in b1_after)
+        if e.kind == "pose":
+            last[e.uav_name] = (e.mode, e.target)
+    assert last["A1"] == (SURVEIL, 0)  # the slow UAV ends up watching target 1
+    assert last["B1"][0] != SURVEIL  # ... and the fast one is searching again
+    b1_after = [e for e in events if e.kind == "pose" and e.uav_name == "B1" and e.t > t_hand + 30]
+    assert b1_after and all(e.mode != SURVEIL for e in b1_after)
     assert m["surveillance_ratio"]["0"] > 0.5
     assert m["violations"] == {"separation": 0, "threat": 0, "dynamics": 0}
 
@@ -89,18 +91,18 @@ def _case_run(scenario: str, seed: int | None = None) -> dict:
         radius = {b.name: b.kind.detect_radius for b in sim.world.uavs.values()}
         speed = {b.name: b.kind.speed_max for b in sim.world.uavs.values()}
     events = list(read_events(result.events))
-    handover_ticks = {e[1] for e in events if e[0] == "handover"}
-    t_end = max(e[1] for e in events if e[0] == "pose")
+    handover_ticks = {e.t for e in events if e.kind == "handover"}
+    t_end = max(e.t for e in events if e.kind == "pose")
     poses: dict[float, dict[str, tuple]] = {}  # t -> name -> (x, y, mode, target), at handovers and the end
     targets: dict[float, dict[int, tuple]] = {}
     modes: dict[str, list[tuple]] = {}  # name -> [(t, mode, target)] every tick
     for e in events:
-        if e[0] == "pose":
-            modes.setdefault(names[e[2]], []).append((e[1], e[7], e[8]))
-            if e[1] in handover_ticks or e[1] == t_end:
-                poses.setdefault(e[1], {})[names[e[2]]] = (e[3], e[4], e[7], e[8])
-        elif e[0] == "target" and (e[1] in handover_ticks or e[1] == t_end):
-            targets.setdefault(e[1], {})[e[2]] = (e[3], e[4])
+        if isinstance(e, Pose):
+            modes.setdefault(names[e.uav], []).append((e.t, e.mode, e.target))
+            if e.t in handover_ticks or e.t == t_end:
+                poses.setdefault(e.t, {})[names[e.uav]] = (e.x, e.y, e.mode, e.target)
+        elif isinstance(e, Target) and (e.t in handover_ticks or e.t == t_end):
+            targets.setdefault(e.t, {})[e.target] = (e.x, e.y)
     return {"metrics": result.metrics, "timeseries": result.timeseries, "radius": radius, "speed": speed,
             "poses": poses, "targets": targets, "modes": modes, "t_end": t_end}
 
@@ -111,7 +113,7 @@ def _watchers_at_end(run: dict) -> dict[int, list[tuple[str, bool]]]:
     t = run["t_end"]
     out: dict[int, list[tuple[str, bool]]] = {m: [] for m in run["targets"][t]}
     for name, (x, y, mode, target) in sorted(run["poses"][t].items()):
-        if mode == MODE_SURVEIL and target >= 0:
+        if mode == SURVEIL and target >= 0:
             tx, ty = run["targets"][t][target]
             out[target].append((name, math.hypot(x - tx, y - ty) <= run["radius"][name]))
     return out
@@ -126,7 +128,7 @@ def _lets_go(run: dict, h: dict, for_s: float = 60.0) -> bool:
     """The old watcher of handover ``h`` does not watch that target from the handover on, for
     ``for_s`` seconds (it may find and watch another one)."""
     after = [(mode, target) for t, mode, target in run["modes"][h["from"]] if h["t"] <= t <= h["t"] + for_s]
-    return bool(after) and (MODE_SURVEIL, h["target"]) not in after
+    return bool(after) and (SURVEIL, h["target"]) not in after
 
 
 @pytest.fixture(scope="module")
@@ -171,7 +173,7 @@ def test_case2_slow_uavs_take_at_least_four_targets_over_from_fast_ones(case2):
         # A handover is an arrival: the slow UAV watches the target and has it in its sensor.
         x, y, mode, target = case2["poses"][h["t"]][h["to"]]
         tx, ty = case2["targets"][h["t"]][h["target"]]
-        assert (mode, target) == (MODE_SURVEIL, h["target"])
+        assert (mode, target) == (SURVEIL, h["target"])
         assert math.hypot(x - tx, y - ty) <= case2["radius"][h["to"]]
         # ... and the fast one has let the target go (it is free to find and watch another).
         assert _lets_go(case2, h), h

@@ -22,7 +22,7 @@ from agents.planners.levy import LevyPlanner, pareto_step
 from agents.planners.reference import Track, dubins_length, dubins_shortest
 from swarm import Simulation, SimulationError, load_scenario
 from swarm.errors import ScenarioError
-from swarm.recorder import read_events
+from swarm.events import read_events
 from swarm.scenario import apply_overrides
 from swarm.testing.invariants import DynamicsChecker, ThreatClearanceChecker, check_events
 from swarm.testing.strategies import reproducible, scenarios

@@ -41,7 +41,7 @@ from faults.schedule import (
     uav_names,
 )
 from swarm import Simulation
-from swarm.recorder import read_events
+from swarm.events import read_events
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, UavTypeSpec, load_scenario, parse_scenario, scenario_from_toml
 from swarm.testing.fault_strategies import (
     ALL_KINDS,

@@ -40,6 +40,7 @@ from pettingzoo import ParallelEnv
 from agents.planners.base import Plan, PlanView
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 from swarm.errors import APIMisuseError, UsageError
+from swarm.events import Event, Found, Pose, Restart, Violation
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 from swarm.simulation import Simulation
 from swarm.world import ALIVE, CRASHED, PENDING
@@ -384,15 +385,14 @@ class SwarmSearchEnv(ParallelEnv):
         self._planners[agent].waypoint = clip_to_area(b.x + fwd * c - left * s, b.y + fwd * s + left * c, self.area_m)
         sim.actors[uid].plan = None  # replan at its next tick: the new waypoint takes effect now
 
-    def _on_event(self, event: tuple) -> None:
-        kind = event[0]
+    def _on_event(self, event: Event) -> None:
         tally = self._tally
-        if kind == "pose":
+        if isinstance(event, Pose):
             sim = self.sim
             covered = self._covered
             assert sim is not None and covered is not None
-            uid, x, y = event[2], event[3], event[4]
-            d = sim.grid.disk_stamp(x, y, sim.world.uavs[uid].kind.detect_radius)  # the scan just made (a memo hit)
+            uid = event.uav
+            d = sim.grid.disk_stamp(event.x, event.y, sim.world.uavs[uid].kind.detect_radius)  # the scan just made (a memo hit)
             if d is None:
                 return
             block = covered[d.rows, d.cols]
@@ -400,22 +400,21 @@ class SwarmSearchEnv(ParallelEnv):
             if uid in tally:
                 tally[uid].new_cells += int(np.count_nonzero(new))
             block |= d.mask
-        elif kind == "found":
-            uid = event[3]
-            if uid in tally:
-                tally[uid].found += 1
-        elif kind == "violation":
-            party = (event[3], event[4]) if event[2] == "separation" else (event[3],)
+        elif isinstance(event, Found):
+            if event.uav in tally:
+                tally[event.uav].found += 1
+        elif isinstance(event, Violation):
+            party = (event.uav, event.other) if event.invariant == "separation" else (event.uav,)
             for uid in party:
                 if uid in tally:
                     tally[uid].violations += 1
-        elif kind == "restart":
+        elif isinstance(event, Restart):
             # A fresh actor with the scenario's planner was just installed (before its first
             # tick): a controlled UAV goes on under the policy, flying the agent's last waypoint.
-            agent = self._agent_of.get(event[2])
+            agent = self._agent_of.get(event.uav)
             sim = self.sim
             if agent is not None and sim is not None:
-                sim.actors[event[2]].planner = self._planners[agent]
+                sim.actors[event.uav].planner = self._planners[agent]
 
     def _reward(self, agent: str) -> float:
         sim = self.sim

@@ -44,7 +44,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from matplotlib.artist import Artist
@@ -53,6 +53,7 @@ from matplotlib.patches import Patch
 
 from comms.messages import MODE_SURVEIL
 from swarm.errors import UsageError
+from swarm.events import MODE_CODES, Handover, Mode, read_columns, records
 from swarm.experiments.common import (
     executor_for,
     expected_duration,
@@ -66,7 +67,6 @@ from swarm.experiments.common import (
 )
 from swarm.experiments.sweep import SweepResult, describe, plan_runs, run_sweep
 from swarm.outputs import read_json, read_run_dir
-from swarm.recorder import read_events
 from swarm.scenario import apply_overrides, load_scenario
 from swarm.viz.style import uav_colours
 
@@ -470,6 +470,16 @@ def _stays_above_from(t: np.ndarray, a: np.ndarray, b: np.ndarray, after: float 
     return max(start, after) if after is not None and start < after else start
 
 
+def _split_rows(rows: np.ndarray, keys: Sequence[int]) -> dict[int, np.ndarray]:
+    """``rows`` grouped by ``keys`` (one per row), each group in log order, the groups in the
+    order their keys first appear."""
+    k = np.asarray(keys, dtype=np.int64)
+    order = np.argsort(k, kind="stable")
+    bounds = np.flatnonzero(np.diff(k[order])) + 1
+    groups = {int(k[idx[0]]): rows[idx] for idx in np.split(order, bounds) if len(idx)}
+    return {key: groups[key] for key in dict.fromkeys(k.tolist())}
+
+
 @dataclass
 class RunLog:
     """What the figures and the table need from one run folder's event log."""
@@ -481,8 +491,8 @@ class RunLog:
     dt: float
     poses: dict[int, np.ndarray]      # uid -> rows (t, x, y, mode, target)
     targets: dict[int, np.ndarray]    # target id -> rows (t, x, y)
-    modes: list[tuple]                # (t, uid, mode, target) on every change
-    handovers: list[tuple]            # (t, target, from uid, to uid)
+    modes: list[Mode]                 # on every change of a UAV's mode or target
+    handovers: list[Handover]
     found: dict[int, tuple]           # target -> (t, uid)
     joins: dict[int, float]
     crashes: dict[int, float]
@@ -494,44 +504,40 @@ class RunLog:
         run = read_run_dir(folder)
         metrics = read_json(run.path / "metrics.json")
         scenario = run.scenario
+        cols = read_columns(run.events, ("start", "pose", "target", "mode", "handover", "found", "join", "crash"))
+        header = cols["start"]["header"][0] if cols["start"]["header"] else {}
+        dt = float(header.get("dt", scenario.get("dt_s", 1.0)))
         names: dict[int, str] = {}
         types: dict[int, str] = {}
-        poses: dict[int, list] = {}
-        targets: dict[int, list] = {}
-        modes, handovers = [], []
-        found: dict[int, tuple] = {}
-        joins: dict[int, float] = {}
+        for uid, name, typ in header.get("uavs", []):
+            names[uid] = name
+            types[uid] = typ
+        j = cols["join"]
+        joins = dict(zip(j["uav"], j["t"]))
+        names.update(zip(j["uav"], j["uav_name"]))
         crashes: dict[int, float] = {}
-        dt = float(scenario.get("dt_s", 1.0))
-        for e in read_events(run.events):
-            k = e[0]
-            if k == "pose":
-                poses.setdefault(e[2], []).append((e[1], e[3], e[4], e[7], e[8]))
-            elif k == "target":
-                targets.setdefault(e[2], []).append((e[1], e[3], e[4]))
-            elif k == "mode":
-                modes.append((e[1], e[2], e[3], e[4]))
-            elif k == "handover":
-                handovers.append((e[1], e[2], e[3], e[4]))
-            elif k == "found":
-                found.setdefault(e[2], (e[1], e[3]))
-            elif k == "join":
-                joins[e[2]] = e[1]
-                names[e[2]] = e[3]
-            elif k == "crash":
-                crashes.setdefault(e[2], e[1])
-            elif k == "start":
-                dt = float(e[2].get("dt", dt))
-                for uid, name, typ in e[2]["uavs"]:
-                    names[uid] = name
-                    types[uid] = typ
+        for t, uid in zip(cols["crash"]["t"], cols["crash"]["uav"]):
+            crashes.setdefault(uid, t)
+        found: dict[int, tuple] = {}
+        for t, m, uid in zip(cols["found"]["t"], cols["found"]["target"], cols["found"]["uav"]):
+            found.setdefault(m, (t, uid))
+        p = cols["pose"]
+        pose_rows = np.column_stack([np.asarray(p["t"], dtype=np.float64), np.asarray(p["x"], dtype=np.float64),
+                                     np.asarray(p["y"], dtype=np.float64),
+                                     np.asarray([MODE_CODES[m] for m in p["mode"]], dtype=np.float64),
+                                     np.asarray(p["target"], dtype=np.float64)]).reshape(-1, 5)
+        g = cols["target"]
+        target_rows = np.column_stack([np.asarray(g[k], dtype=np.float64) for k in ("t", "x", "y")]).reshape(-1, 3)
+        poses = _split_rows(pose_rows, p["uav"])
+        targets = _split_rows(target_rows, g["target"])
+        modes = cast("list[Mode]", records("mode", cols["mode"]))
+        handovers = cast("list[Handover]", records("handover", cols["handover"]))
         for uid, name in names.items():  # UAVs added during the run: type from the scenario
             if uid not in types:
                 types[uid] = next((u["type"] for u in scenario["uavs"] if u["name"] == name), "?")
         return cls(
             names=names, types=types, type_specs=scenario["uav_types"], end_t=float(metrics["sim_seconds"]), dt=dt,
-            poses={u: np.array(v, dtype=np.float64) for u, v in poses.items()},
-            targets={m: np.array(v, dtype=np.float64) for m, v in targets.items()},
+            poses=poses, targets=targets,
             modes=modes, handovers=handovers, found=found, joins=joins, crashes=crashes, metrics=metrics,
             threats=scenario.get("threats", []),
         )
@@ -585,11 +591,11 @@ class RunLog:
         if start > 0:
             segs.append((0.0, start, "pending", -1))
         end = self.crashes.get(uid, self.end_t)
-        changes = [(t, mode, tg) for t, u, mode, tg in self.modes if u == uid]
-        for i, (t, mode, tg) in enumerate(changes):
-            t_next = changes[i + 1][0] if i + 1 < len(changes) else end
-            if t_next > t:
-                segs.append((t, min(t_next, end), "surveil" if mode == MODE_SURVEIL else "search", tg))
+        changes = [e for e in self.modes if e.uav == uid]
+        for i, e in enumerate(changes):
+            t_next = changes[i + 1].t if i + 1 < len(changes) else end
+            if t_next > e.t:
+                segs.append((e.t, min(t_next, end), e.mode, e.target))
         if uid in self.crashes:
             segs.append((end, self.end_t, "down", -1))
         return segs
@@ -602,9 +608,9 @@ def case1_measures(log: RunLog) -> dict:
     the end, and how long fast UAV B1 (paper: UAV 1) spent on target 2 (watched by B2)."""
     watchers = log.watchers_at_end()
     name = log.names
-    ho = [{"t": t, "target": m + 1, "from": name.get(a, str(a)), "to": name.get(b, str(b)),
-           "to_slow": log.is_slow(b), "from_fast": not log.is_slow(a)}
-          for t, m, a, b in log.handovers]
+    ho: list[dict[str, Any]] = [{"t": e.t, "target": e.target + 1, "from": name.get(e.from_uav, str(e.from_uav)),
+           "to": name.get(e.to_uav, str(e.to_uav)), "to_slow": log.is_slow(e.to_uav), "from_fast": not log.is_slow(e.from_uav)}
+          for e in log.handovers]
     to_slow_t1 = [h for h in ho if h["target"] == 1 and h["to_slow"]]
     if to_slow_t1 and 0 in log.targets:
         h = to_slow_t1[0]
@@ -656,8 +662,8 @@ def case2_measures(log: RunLog, folder: Path | None = None) -> dict:
         "watched_end_by_more_than_one": sum(1 for w in watchers.values() if len(w) > 1),
         "watchers_end": {str(k + 1): [{"uav": n, "in_range": r} for n, r in w] for k, w in sorted(watchers.items())},
         "handovers": m["handovers"], "handovers_fast_to_slow": m["handovers_fast_to_slow"],
-        "handover_list": [{"t": t, "target": tg + 1, "from": name.get(a, str(a)), "to": name.get(b, str(b))}
-                          for t, tg, a, b in log.handovers],
+        "handover_list": [{"t": e.t, "target": e.target + 1, "from": name.get(e.from_uav, str(e.from_uav)),
+                           "to": name.get(e.to_uav, str(e.to_uav))} for e in log.handovers],
         "threat_violations": m["violations"]["threat"], "separation_violations": m["violations"]["separation"],
         "coverage": m["coverage"],
         "handover_opportunities": opportunities,
@@ -741,7 +747,7 @@ def case2_conditions(log: RunLog, handover_violations: Sequence[Any] = (), oppor
     m = log.metrics
     watchers = log.watchers_at_end()
     rules = [v.data.get("rule") for v in handover_violations]
-    fast_to_slow = [h for h in log.handovers if log.speed_max(h[2]) > log.speed_max(h[3])]
+    fast_to_slow = [h for h in log.handovers if log.speed_max(h.from_uav) > log.speed_max(h.to_uav)]
     out = {
         "found": m["targets_found"] == m["targets_total"],
         "watched": len(watchers) == m["targets_total"]
@@ -833,15 +839,15 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
             means.append(d["mean"])
             errs.append([d["mean"] - d["ci95"][0], d["ci95"][1] - d["mean"]])
             ns.append(d["n"])
-        e = np.array(errs).T
-        ax.bar(x - 0.2, means, 0.38, yerr=e, capsize=5, color=[PLANNER_COLOUR.get(p, "tab:gray") for p in planners],
+        bars = np.array(errs).T  # (2, planners): below and above each mean
+        ax.bar(x - 0.2, means, 0.38, yerr=bars, capsize=5, color=[PLANNER_COLOUR.get(p, "tab:gray") for p in planners],
                alpha=0.8, label="ours (measured, mean, 95% CI)")
         paper_i = [i for i, p in enumerate(planners) if p in quoted[key]]
         ax.bar(x[paper_i] + 0.2, [quoted[key][planners[i]] for i in paper_i], 0.38, color="white",
                edgecolor=[PLANNER_COLOUR[planners[i]] for i in paper_i], hatch="//", label="paper (quoted, 2000 s)")
         for i, (m, n) in enumerate(zip(means, ns)):
             if math.isfinite(m):
-                top_i = m + (e[1][i] if math.isfinite(e[1][i]) else 0.0)
+                top_i = m + (bars[1][i] if math.isfinite(bars[1][i]) else 0.0)
                 ax.text(x[i] - 0.2, top_i, f"{m:.3g}\nn={n}", ha="center", va="bottom", fontsize=7)
             if i in paper_i:
                 ax.text(x[i] + 0.2, quoted[key][planners[i]], f"{quoted[key][planners[i]]:g}",
@@ -853,7 +859,7 @@ def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
         dur = ", ".join(f"{d:g} s" for d in sorted(durations)) or "-"
         ax.set_title(f"{ylabel} (ours at {dur})", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
-        top = np.nanmax([*(np.array(means) + e[1]), *(quoted[key][planners[i]] for i in paper_i)])
+        top = np.nanmax([*(np.array(means) + bars[1]), *(quoted[key][planners[i]] for i in paper_i)])
         ax.set_ylim(0, 1.3 * top)
         ax.legend(fontsize=7, loc="upper center", ncol=2)
     return save_figure(fig, path)
@@ -877,15 +883,16 @@ def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
         ax.plot(p[:, 0], d, "-", color=c, lw=1.2, label=f"{name} (type {log.types.get(uid, '?')})")
         on = (p[:, 3] == MODE_SURVEIL) & (p[:, 4] == target)
         ax.plot(p[:, 0], np.where(on, d, np.nan), "-", color=c, lw=4, alpha=0.45)
-        for t, u, mode, tg in log.modes:
-            if u != uid or t <= 0:
+        for e in log.modes:
+            if e.uav != uid or e.t <= 0:
                 continue
-            i = min(int(np.searchsorted(p[:, 0], t)), len(p) - 1)
-            if mode == MODE_SURVEIL:
-                ax.plot(t, d[i], "^", color=c, mec="black", mew=0.6, ms=7)
-                ax.annotate(f"T{tg + 1}", (t, d[i]), textcoords="offset points", xytext=(3, 5), fontsize=7, color=c)
+            i = min(int(np.searchsorted(p[:, 0], e.t)), len(p) - 1)
+            if e.mode == "surveil":
+                ax.plot(e.t, d[i], "^", color=c, mec="black", mew=0.6, ms=7)
+                ax.annotate(f"T{e.target + 1}", (e.t, d[i]), textcoords="offset points", xytext=(3, 5), fontsize=7,
+                            color=c)
             else:
-                ax.plot(t, d[i], "v", color=c, mec="black", mew=0.6, ms=7)
+                ax.plot(e.t, d[i], "v", color=c, mec="black", mew=0.6, ms=7)
     styles = iter([(0, (1, 2)), (0, (4, 2)), (0, (6, 2, 1, 2)), (0, (1, 4))])
     for typ, spec in sorted(log.type_specs.items()):
         if any(log.types.get(u) == typ for u in log.poses):
@@ -896,10 +903,11 @@ def case1_distance(log: RunLog, path: Path, target: int = 0) -> Path:
         ax.axvline(t, color="black", ls="--", lw=0.8)
         ax.annotate(f"target {target + 1} found by {log.names.get(u, u)}", (t, 1), xycoords=("data", "axes fraction"),
                     rotation=90, va="top", ha="right", fontsize=7)
-    for t, m, a, b in log.handovers:
-        if m == target:
-            ax.axvline(t, color="black", ls=":", lw=1.0)
-            ax.annotate(f"handover {log.names.get(a, a)} → {log.names.get(b, b)}", (t, 1),
+    for ho in log.handovers:
+        if ho.target == target:
+            ax.axvline(ho.t, color="black", ls=":", lw=1.0)
+            ax.annotate(f"handover {log.names.get(ho.from_uav, ho.from_uav)} → {log.names.get(ho.to_uav, ho.to_uav)}",
+                        (ho.t, 1),
                         xycoords=("data", "axes fraction"), rotation=90, va="top", ha="right", fontsize=7)
     handles, labels = ax.get_legend_handles_labels()
     handles += [Line2D([], [], color="grey", lw=4, alpha=0.45),
@@ -937,9 +945,9 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
             ax.broken_barh([(a, b - a)], (y - 0.35, 0.7), facecolors=MODE_COLOUR[mode], edgecolor="none")
             if mode == "surveil" and tg >= 0 and b - a >= 0.03 * log.end_t:
                 ax.text((a + b) / 2, y, f"T{tg + 1}", ha="center", va="center", fontsize=7)
-    for t, _m, a, b in log.handovers:
-        if a in ypos and b in ypos:
-            ax.annotate("", xy=(t, ypos[b]), xytext=(t, ypos[a]),
+    for e in log.handovers:
+        if e.from_uav in ypos and e.to_uav in ypos:
+            ax.annotate("", xy=(e.t, ypos[e.to_uav]), xytext=(e.t, ypos[e.from_uav]),
                         arrowprops={"arrowstyle": "->", "color": "black", "lw": 0.8})
     for t, u in log.found.values():
         if u in ypos:

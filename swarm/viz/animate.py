@@ -426,7 +426,7 @@ class _Scene:
         self.targets.set_sizes([110 if f == "#2ca02c" else 70 for f in face] if face else [70])
 
     def _faults(self, t: float, pos: np.ndarray, flying: np.ndarray) -> None:
-        recent = [e for e in self.events if e[0] <= t + 1e-9 and t - e[0] < self.flash_s]
+        recent = [note for note in self.events if note[0] <= t + 1e-9 and t - note[0] < self.flash_s]  # (t, text, kind, uid)
         if recent:
             age = t - recent[-1][0]
             alpha = 1.0 - 0.6 * age / self.flash_s

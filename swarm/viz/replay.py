@@ -24,6 +24,7 @@ import numpy as np
 
 from comms.messages import MODE_NAMES, MODE_SEARCH, MODE_SURVEIL
 from comms.radio import LogDistance
+from swarm.events import MODE_CODES, read_columns
 from swarm.outputs import RunDirError, check_run_dir, read_json, read_run_dir
 
 __all__ = [
@@ -39,6 +40,10 @@ __all__ = [
     "replay_from_bytes",
     "stamp_poses",
 ]
+
+
+# The kinds a replay reads.
+_REPLAYED = ("start", "pose", "target", "rx", "lost", "found", "crash", "join", "handover", "violation")
 
 
 @dataclass(frozen=True)
@@ -195,45 +200,23 @@ def load_run(run_dir: str | Path) -> Replay:
 
 def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
     """Build a :class:`Replay` from an event log's bytes and the scenario dict that ran."""
-    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
-    unpacker.feed(data)
-    header: dict = {}
-    poses: list = []
-    targets: list = []
-    rx: list = []
-    lost: list = []
-    causes: dict[str, int] = {}
+    cols = read_columns(data, _REPLAYED)
+    starts = cols["start"]["header"]
+    header: dict = starts[0] if starts else {}
+    pose, tgt, rx, lost = cols["pose"], cols["target"], cols["rx"], cols["lost"]
     found: dict[int, tuple[float, int]] = {}
-    crashes: list = []
-    joins: list = []
-    handovers: list = []
-    violations: list = []
-    join_names: dict[int, str] = {}
-    t_max = 0.0
-    for ev in unpacker:
-        kind = ev[0]
-        if kind == "pose":
-            poses.append(ev[1:])
-        elif kind == "target":
-            targets.append(ev[1:5])
-        elif kind == "rx":
-            rx.append((ev[1], ev[2], ev[3], bool(ev[5])))
-        elif kind == "lost":
-            lost.append((ev[1], ev[2], ev[3], causes.setdefault(ev[5], len(causes))))
-        elif kind == "start":
-            header = ev[2]
-        elif kind == "found":
-            found.setdefault(int(ev[2]), (float(ev[1]), int(ev[3])))
-        elif kind == "crash":
-            crashes.append((float(ev[1]), int(ev[2])))
-        elif kind == "join":
-            joins.append((float(ev[1]), int(ev[2])))
-            join_names[int(ev[2])] = ev[3]
-        elif kind == "handover":
-            handovers.append((float(ev[1]), int(ev[2]), int(ev[3]), int(ev[4])))
-        elif kind == "violation":
-            violations.append((float(ev[1]), str(ev[2]), int(ev[3]), int(ev[4])))
-        t_max = max(t_max, float(ev[1]))
+    for t, m, u in zip(cols["found"]["t"], cols["found"]["target"], cols["found"]["uav"]):
+        found.setdefault(int(m), (float(t), int(u)))
+    j = cols["join"]
+    joins = [(float(t), int(u)) for t, u in zip(j["t"], j["uav"])]
+    join_names = {int(u): name for u, name in zip(j["uav"], j["uav_name"])}
+    c = cols["crash"]
+    crashes = [(float(t), int(u)) for t, u in zip(c["t"], c["uav"])]
+    h = cols["handover"]
+    handovers = [(float(t), int(m), int(a), int(b)) for t, m, a, b in zip(h["t"], h["target"], h["from_uav"], h["to_uav"])]
+    v = cols["violation"]
+    violations = [(float(t), str(k), int(a), int(b)) for t, k, a, b in zip(v["t"], v["invariant"], v["uav"], v["other"])]
+    t_max = max((float(max(col["t"])) for col in cols.values() if col["t"]), default=0.0)
     dt = float(header.get("dt", scenario.get("dt_s", 1.0)))
 
     names: dict[int, str] = {}
@@ -245,13 +228,13 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
     for uid, name in join_names.items():
         names.setdefault(uid, name)
         types.setdefault(uid, spec_type.get(name, "?"))
-    pose_arr = np.array(poses, dtype=float).reshape(-1, 8)  # t, uid, x, y, v, theta, mode, target
-    n_u = max([len(names)] + [int(pose_arr[:, 1].max()) + 1 if len(pose_arr) else 0])
+    pose_uav = np.asarray(pose["uav"], dtype=np.int64)
+    n_u = max([len(names)] + [int(pose_uav.max()) + 1 if len(pose_uav) else 0])
     for uid in range(n_u):
         names.setdefault(uid, f"U{uid}")
         types.setdefault(uid, "?")
-    tg_arr = np.array(targets, dtype=float).reshape(-1, 4)  # t, id, x, y
-    n_tg = max(int(header.get("targets", 0)), int(tg_arr[:, 1].max()) + 1 if len(tg_arr) else 0,
+    tg_id = np.asarray(tgt["target"], dtype=np.int64)
+    n_tg = max(int(header.get("targets", 0)), int(tg_id.max()) + 1 if len(tg_id) else 0,
                max(found, default=-1) + 1)
     n_t = int(round(t_max / dt)) + 1
 
@@ -260,32 +243,30 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
     theta = np.full((n_t, n_u), np.nan)
     mode = np.full((n_t, n_u), -1, dtype=np.int8)
     target = np.full((n_t, n_u), -1, dtype=np.int32)
-    if len(pose_arr):
-        ti = np.rint(pose_arr[:, 0] / dt).astype(np.int64)
-        ui = pose_arr[:, 1].astype(np.int64)
-        x[ti, ui] = pose_arr[:, 2]
-        y[ti, ui] = pose_arr[:, 3]
-        theta[ti, ui] = pose_arr[:, 5]
-        mode[ti, ui] = pose_arr[:, 6].astype(np.int8)
-        target[ti, ui] = pose_arr[:, 7].astype(np.int32)
+    if len(pose_uav):
+        ti = np.rint(np.asarray(pose["t"], dtype=float) / dt).astype(np.int64)
+        x[ti, pose_uav] = pose["x"]
+        y[ti, pose_uav] = pose["y"]
+        theta[ti, pose_uav] = pose["theta"]
+        mode[ti, pose_uav] = [MODE_CODES[m] for m in pose["mode"]]
+        target[ti, pose_uav] = pose["target"]
     tx = np.full((n_t, n_tg), np.nan)
     ty = np.full((n_t, n_tg), np.nan)
-    if len(tg_arr):
-        ti = np.rint(tg_arr[:, 0] / dt).astype(np.int64)
-        ki = tg_arr[:, 1].astype(np.int64)
-        tx[ti, ki] = tg_arr[:, 2]
-        ty[ti, ki] = tg_arr[:, 3]
+    if len(tg_id):
+        ti = np.rint(np.asarray(tgt["t"], dtype=float) / dt).astype(np.int64)
+        tx[ti, tg_id] = tgt["x"]
+        ty[ti, tg_id] = tgt["y"]
     found_t = np.full(n_tg, np.inf)
     for k, (t, _u) in found.items():
         found_t[k] = t
 
-    def columns(rows: list, names_: tuple[str, ...], dtypes: tuple) -> dict[str, np.ndarray]:
-        if not rows:
-            return {n: np.empty(0, dtype=dt_) for n, dt_ in zip(names_, dtypes)}
-        cols = list(zip(*rows))
-        out = {n: np.asarray(c, dtype=dt_) for n, c, dt_ in zip(names_, cols, dtypes)}
+    def columns(source: dict[str, list], names_: tuple[str, ...], dtypes: tuple) -> dict[str, np.ndarray]:
+        out = {n: np.asarray(source[n], dtype=dt_) for n, dt_ in zip(names_, dtypes)}
         order = np.argsort(out["t"], kind="stable")
         return {n: a[order] for n, a in out.items()}
+
+    causes: dict[str, int] = {}
+    lost_cause = [causes.setdefault(cause, len(causes)) for cause in lost["cause"]]
 
     return Replay(
         header=header,
@@ -303,7 +284,7 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
         handovers=handovers,
         violations=violations,
         rx=columns(rx, ("t", "src", "dst", "accepted"), (float, np.int32, np.int32, bool)),
-        lost=columns(lost, ("t", "src", "dst", "cause"), (float, np.int32, np.int32, np.int16)),
+        lost=columns({**lost, "cause": lost_cause}, ("t", "src", "dst", "cause"), (float, np.int32, np.int32, np.int16)),
         lost_causes=list(causes),
         faults=list(header.get("faults", [])),
     )
@@ -352,7 +333,7 @@ def fault_events(rp: Replay) -> list[tuple[float, str, str, int]]:
     for t, uid in rp.joins:
         if t > 0:
             out.append((t, f"{rp.names[uid]} joined", "join", uid))
-    out.sort(key=lambda e: e[0])
+    out.sort(key=lambda notice: notice[0])
     return out
 
 

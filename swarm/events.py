@@ -1,0 +1,654 @@
+"""The event log's schema: every event kind once, as a typed record, with its fields in log order.
+
+On disk (``events.msgpack``, :mod:`swarm.recorder`) an event is a flat msgpack array
+``[kind, t, field, ...]``. This module is the one place that knows which field sits where:
+each kind is a record class below whose fields are, in order, the array's items after the
+kind (``t`` first), then the fields derived when reading:
+
+* a UAV id field gets the UAV's name beside it, at the end (``uav`` -> ``uav_name``, ``src`` ->
+  ``src_name``, ...), from the ``start`` header and the ``join`` and ``restart`` events; the
+  ids stay (``None`` for a name nobody gave: a spoofer's ``src`` -1);
+* a mode is written as a code (``comms.messages.MODE_NAMES``) and read as its name
+  (``"search"``, ``"surveil"``).
+
+Units are in the annotations (:class:`Meta`: ``Seconds`` is simulated seconds since the run
+began, ``Metres`` are from the area's south-west corner, ``Radians`` a heading from east,
+counter-clockwise). ``KINDS`` is the schema as data: the recorder checks written events
+against it (:attr:`swarm.recorder.EventLog.check_schema`), the readers decode through it
+(:func:`read_events`, :func:`read_columns`, :class:`Decoder`) and the Parquet export builds its
+columns from it (:mod:`swarm.export`). docs/outputs.md's table of kinds is
+:func:`markdown_table`.
+
+Records are slots dataclasses, not tuples: a reader names the field it wants (``e.x``), and
+indexing a record by position fails loudly instead of reading the wrong field. They are not
+frozen: a frozen dataclass costs four times as much to build (1.2 against 0.3 microseconds for
+a pose), and live subscribers and full-log readers build one per event. Treat them as read-only.
+The simulation itself still writes plain tuples (a tuple is three times cheaper than a record,
+and the bytes are the same); nothing is converted unless someone subscribes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from operator import itemgetter
+from typing import Annotated, Any, ClassVar
+
+import msgpack
+
+from comms.messages import MODE_NAMES
+from swarm.errors import SwarmError, UsageError
+
+__all__ = [
+    "KINDS",
+    "MODE_CODES",
+    "Crash",
+    "Decoder",
+    "Event",
+    "EventLogError",
+    "EventRecords",
+    "FaultOff",
+    "FaultOn",
+    "FieldSpec",
+    "Found",
+    "Handover",
+    "Join",
+    "KindSpec",
+    "Lost",
+    "Meta",
+    "Mode",
+    "Pause",
+    "Pose",
+    "Radio",
+    "Release",
+    "Restart",
+    "Resume",
+    "Rx",
+    "Start",
+    "Target",
+    "Violation",
+    "check_wire",
+    "markdown_table",
+    "read_columns",
+    "read_events",
+    "records",
+    "to_wire",
+    "uav_names",
+    "wire_kind",
+]
+
+
+class EventLogError(SwarmError, ValueError):
+    """Bytes or an array that are not an event log this version can read (an unknown kind, an
+    event with the wrong number of fields, a field of the wrong type)."""
+
+
+# --- field annotations ----------------------------------------------------------------------------
+
+VALUE, UAV, MODE, NAME = "value", "uav", "mode", "name"
+
+
+@dataclass(frozen=True, slots=True)
+class Meta:
+    """What an annotation says about a field besides its Python type.
+
+    ``unit``: the SI symbol of a quantity (``None`` for ids, names and labels). ``role``:
+    ``"uav"`` a UAV id (it gets a name field); ``"mode"`` a mode, a code in the log and a name
+    in a record; ``"name"`` a name derived when reading, of the id field ``of`` (only when the
+    field ``when[0]`` equals ``when[1]``: a violation's second party is a UAV only for
+    separation). ``label``: what a value without a unit is, for the docs."""
+
+    unit: str | None = None
+    role: str = VALUE
+    of: str | None = None
+    when: tuple[str, str] | None = None
+    label: str = ""  # what the value is, for the docs when it has no unit
+
+
+Seconds = Annotated[float, Meta("s")]  # simulated seconds since the run began
+Metres = Annotated[float, Meta("m")]  # from the area's south-west corner (x east, y north)
+MetresPerSecond = Annotated[float, Meta("m/s")]
+Radians = Annotated[float, Meta("rad")]  # a heading: from east, counter-clockwise
+ByteCount = Annotated[int, Meta("B")]  # bytes of frames on the air (MACs included)
+FrameCount = Annotated[int, Meta("frames")]
+UavId = Annotated[int, Meta(role=UAV)]  # a UAV's id: its index in the start header (-1: a spoofer)
+TargetId = Annotated[int, Meta(label="target id")]  # a target's id (its index)
+PlanTarget = Annotated[int, Meta(label="target id, -1: none")]  # the target a plan watches
+ModeName = Annotated[str, Meta(role=MODE)]  # "search" or "surveil"
+UavName = Annotated[str, Meta(label="UAV name")]  # written in the event itself
+
+
+def _name_of(field: str, when: tuple[str, str] | None = None) -> Meta:
+    return Meta(role=NAME, of=field, when=when)
+
+
+# --- the records ------------------------------------------------------------------------------------
+
+
+@dataclass(slots=True)
+class Event:
+    """Every record: its ``kind`` (a class constant, the array's first item) and time ``t``."""
+
+    kind: ClassVar[str] = ""
+    t: Seconds
+
+
+@dataclass(slots=True)
+class Start(Event):
+    """The run's header, first in every log (scenario, seed, planner, UAVs, fault schedule)."""
+
+    kind: ClassVar[str] = "start"
+    # scenario, seed, planner, dt (s), uavs [[id, name, type], ...], targets and threats
+    # (counts), faults (the schedule, as fault tables), and "recording" when not "frames".
+    header: Annotated[dict[str, Any], Meta(label="table")]
+
+    @property
+    def uavs(self) -> dict[int, str]:
+        """UAV id -> name of the UAVs the run began with."""
+        return uav_names(self.header)
+
+
+@dataclass(slots=True)
+class Pose(Event):
+    """A flying UAV's state at a tick, once per tick per flying UAV."""
+
+    kind: ClassVar[str] = "pose"
+    uav: UavId
+    x: Metres
+    y: Metres
+    v: MetresPerSecond  # airspeed
+    theta: Radians  # heading
+    mode: ModeName  # its plan's mode
+    target: PlanTarget
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Target(Event):
+    """A target's true position, every target every tick."""
+
+    kind: ClassVar[str] = "target"
+    target: TargetId
+    x: Metres
+    y: Metres
+
+
+@dataclass(slots=True)
+class Mode(Event):
+    """A UAV's plan changed mode or target (logged before its pose of that tick)."""
+
+    kind: ClassVar[str] = "mode"
+    uav: UavId
+    mode: ModeName
+    target: PlanTarget
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Found(Event):
+    """A target first reported by a UAV's sensor (once per target)."""
+
+    kind: ClassVar[str] = "found"
+    target: TargetId
+    uav: UavId
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Release(Event):
+    """The UAV that held a target stopped watching it and nobody holds it now."""
+
+    kind: ClassVar[str] = "release"
+    target: TargetId
+    uav: UavId  # the owner that let go
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Handover(Event):
+    """A target passed from one watching UAV to another (docs/modelling.md)."""
+
+    kind: ClassVar[str] = "handover"
+    target: TargetId
+    from_uav: UavId
+    to_uav: UavId
+    from_name: Annotated[str | None, _name_of("from_uav")]
+    to_name: Annotated[str | None, _name_of("to_uav")]
+
+
+@dataclass(slots=True)
+class Rx(Event):
+    """A frame copy a UAV read from its mailbox (recording level "frames")."""
+
+    kind: ClassVar[str] = "rx"
+    src: UavId  # the sender (-1: a spoofer)
+    dst: UavId  # the reader
+    bytes: ByteCount
+    accepted: Annotated[bool, Meta(label="false: rejected")]  # malformed or failing its MAC
+    src_name: Annotated[str | None, _name_of("src")]
+    dst_name: Annotated[str | None, _name_of("dst")]
+
+
+@dataclass(slots=True)
+class Lost(Event):
+    """A frame copy lost, with its cause (recording level "frames")."""
+
+    kind: ClassVar[str] = "lost"
+    src: UavId  # the sender (-1: a spoofer)
+    dst: UavId  # the UAV it was for
+    bytes: ByteCount
+    # loss, bandwidth, receiver_down, mailbox_full, or the fault that took it: partition,
+    # bridge, swizzle, jammer, drop, burst
+    cause: Annotated[str, Meta(label="why, below")]
+    src_name: Annotated[str | None, _name_of("src")]
+    dst_name: Annotated[str | None, _name_of("dst")]
+
+
+@dataclass(slots=True)
+class Radio(Event):
+    """A tick's radio totals since the previous one (recording level "summary" only)."""
+
+    kind: ClassVar[str] = "radio"
+    read: FrameCount  # frame copies read
+    rejected: FrameCount  # of those, malformed or failing their MAC
+    bytes_read: ByteCount
+    lost: Annotated[dict[str, list[int]], Meta(label="cause: [copies, bytes]")]  # causes sorted
+
+
+@dataclass(slots=True)
+class Join(Event):
+    """A UAV began to fly (at the start, or later: a join fault or add_uav)."""
+
+    kind: ClassVar[str] = "join"
+    uav: UavId
+    uav_name: UavName
+    x: Metres
+    y: Metres
+
+
+@dataclass(slots=True)
+class Crash(Event):
+    """A UAV went down (a crash, or the first half of a restart)."""
+
+    kind: ClassVar[str] = "crash"
+    uav: UavId
+    uav_name: UavName
+
+
+@dataclass(slots=True)
+class Violation(Event):
+    """A safety rule broken at a tick: two UAVs too close, or a UAV inside a threat."""
+
+    kind: ClassVar[str] = "violation"
+    invariant: Annotated[str, Meta(label="separation or threat")]
+    uav: UavId
+    other: Annotated[int, Meta(label="UAV id or threat index")]  # separation: the other UAV; threat: the threat
+    uav_name: Annotated[str | None, _name_of("uav")]
+    other_name: Annotated[str | None, _name_of("other", ("invariant", "separation"))]  # None for a threat
+
+
+@dataclass(slots=True)
+class Pause(Event):
+    """A pause fault stopped a UAV's process (its airframe flies its last command)."""
+
+    kind: ClassVar[str] = "pause"
+    uav: UavId
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Resume(Event):
+    """A paused UAV's process runs again."""
+
+    kind: ClassVar[str] = "resume"
+    uav: UavId
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Restart(Event):
+    """A restarted UAV flies again with a fresh process, where it went down."""
+
+    kind: ClassVar[str] = "restart"
+    uav: UavId
+    uav_name: UavName
+    x: Metres
+    y: Metres
+
+
+@dataclass(slots=True)
+class FaultOn(Event):
+    """A node or sensing fault began to act on a UAV (clock_skew, nav_error, sensor, liar)."""
+
+    kind: ClassVar[str] = "fault_on"
+    fault: Annotated[str, Meta(label="fault kind")]
+    uav: UavId
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class FaultOff(Event):
+    """A node or sensing fault's window closed for a UAV it acted on."""
+
+    kind: ClassVar[str] = "fault_off"
+    fault: Annotated[str, Meta(label="fault kind")]
+    uav: UavId
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+# The kinds in the order docs/outputs.md lists them.
+_RECORDS: tuple[type[Event], ...] = (
+    Start, Pose, Target, Mode, Found, Release, Handover, Rx, Lost, Radio, Join, Crash, Violation,
+    Pause, Resume, Restart, FaultOn, FaultOff,
+)
+
+
+# --- the schema as data -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class FieldSpec:
+    """One field of a record: its name, Python type (``float``, ``int``, ``str``, ``bool`` or
+    ``dict``), whether it may be ``None``, and its :class:`Meta`."""
+
+    name: str
+    py_type: type
+    nullable: bool
+    meta: Meta
+
+    @property
+    def unit(self) -> str | None:
+        return self.meta.unit
+
+    @property
+    def role(self) -> str:
+        return self.meta.role
+
+    @property
+    def written(self) -> bool:
+        """In the log's array (else derived when reading: a name)."""
+        return self.meta.role != NAME
+
+    @property
+    def wire_type(self) -> type:
+        """The type of its value in the log (a mode is written as its int code)."""
+        return int if self.meta.role == MODE else self.py_type
+
+
+@dataclass(frozen=True, slots=True)
+class KindSpec:
+    """One event kind: its record class and fields (``fields``: all, in record order; ``wire``:
+    those written, in array order after the kind; ``derived``: the names added when reading)."""
+
+    kind: str
+    cls: type[Event]
+    fields: tuple[FieldSpec, ...]
+    wire: tuple[FieldSpec, ...]
+    derived: tuple[FieldSpec, ...]
+    # Decoding plan (array indices, kind at 0): mode codes to names; per derived name, the id's
+    # index and the condition (index, value) under which it names a UAV.
+    mode_at: tuple[int, ...]
+    name_at: tuple[tuple[int, int | None, str | None], ...]
+    tables_at: tuple[int, ...]  # dict fields (a live decoder copies them)
+
+    @property
+    def arity(self) -> int:
+        """Items of its array in the log, the kind included."""
+        return 1 + len(self.wire)
+
+    @property
+    def doc(self) -> str:
+        return (self.cls.__doc__ or "").strip().splitlines()[0]
+
+
+def _field_spec(name: str, hint: Any) -> FieldSpec:
+    meta = Meta()
+    if typing.get_origin(hint) is Annotated:
+        meta = next((m for m in hint.__metadata__ if isinstance(m, Meta)), meta)
+        hint = hint.__origin__
+    nullable = False
+    args = typing.get_args(hint)
+    if type(None) in args:
+        nullable = True
+        (hint,) = [a for a in args if a is not type(None)]
+    base = typing.get_origin(hint) or hint  # dict[str, Any] -> dict
+    return FieldSpec(name, base, nullable, meta)
+
+
+def _kind_spec(cls: type[Event]) -> KindSpec:
+    hints = typing.get_type_hints(cls, include_extras=True)
+    fields = tuple(_field_spec(f.name, hints[f.name]) for f in dataclasses.fields(cls))
+    wire = tuple(f for f in fields if f.written)
+    derived = tuple(f for f in fields if not f.written)
+    # Written fields first, names after: a record's leading fields are the array's items.
+    assert fields == wire + derived, f"{cls.__name__}: derived fields must come after the written ones"
+    index = {f.name: 1 + i for i, f in enumerate(wire)}
+    name_at = []
+    for f in derived:
+        when = f.meta.when
+        # (a field that holds a UAV id only sometimes says when)
+        assert f.meta.of in index and (when or fields[index[f.meta.of] - 1].role == UAV), f"{cls.__name__}.{f.name}"
+        name_at.append((index[f.meta.of], index[when[0]] if when else None, when[1] if when else None))
+    return KindSpec(cls.kind, cls, fields, wire, derived, tuple(index[f.name] for f in wire if f.role == MODE),
+                    tuple(name_at), tuple(index[f.name] for f in wire if f.py_type is dict))
+
+
+#: kind -> its schema, in the order docs/outputs.md lists them.
+KINDS: dict[str, KindSpec] = {cls.kind: _kind_spec(cls) for cls in _RECORDS}
+
+# Kinds that teach a reader UAV names (the start header; join and restart carry the name).
+NAMING_KINDS = frozenset({"start", "join", "restart"})
+
+#: Mode name -> the code the log writes (for readers that keep modes in numeric arrays).
+MODE_CODES: dict[str, int] = {name: code for code, name in MODE_NAMES.items()}
+
+#: The kind of an event array as the simulation emits it (``wire_kind(("pose", 1.0, ...))``).
+wire_kind: typing.Callable[[Sequence[Any]], str] = itemgetter(0)
+
+
+def uav_names(header: Mapping[str, Any]) -> dict[int, str]:
+    """The id -> name table of a run's ``start`` header."""
+    return {int(uid): str(name) for uid, name, *_type in header.get("uavs", [])}
+
+
+def check_kinds(kinds: Iterable[str] | None) -> frozenset[str] | None:
+    """``kinds`` as a set, refusing a name that is not an event kind (``None``: every kind)."""
+    if kinds is None:
+        return None
+    wanted = frozenset([kinds] if isinstance(kinds, str) else kinds)
+    unknown = sorted(wanted - KINDS.keys())
+    if unknown:
+        raise UsageError(f"unknown event kind(s) {', '.join(map(repr, unknown))}; the kinds are {', '.join(KINDS)}")
+    return wanted
+
+
+# --- decoding -------------------------------------------------------------------------------------
+
+
+def _spec_of(wire: Sequence[Any]) -> KindSpec:
+    try:
+        spec = KINDS[wire[0]]
+    except (KeyError, IndexError, TypeError):
+        head = wire[0] if isinstance(wire, (list, tuple)) and wire else wire
+        raise EventLogError(f"not an event: {head!r} is not an event kind (the kinds are {', '.join(KINDS)})") from None
+    if len(wire) != spec.arity:
+        raise EventLogError(f"a {spec.kind!r} event has {spec.arity} items ([kind, {', '.join(f.name for f in spec.wire)}]), "
+                            f"this one {len(wire)}: {list(wire)!r:.200}")
+    return spec
+
+
+class Decoder:
+    """Turns event arrays into records, in log order, learning UAV names as it goes (from the
+    ``start`` header and ``join`` / ``restart`` events). ``names=False``: name fields stay
+    ``None`` (ids only). ``live=True`` (the recorder's, for subscribers): a record's tables (the
+    start header, a radio event's losses) are copies as the log will hold them (lists for
+    tuples), so a subscriber sees what a reader of the file sees and cannot change what is
+    written."""
+
+    def __init__(self, *, names: bool = True, live: bool = False) -> None:
+        self.names: dict[int, str] = {}
+        self._with_names = names
+        self._live = live
+
+    def __call__(self, wire: Sequence[Any]) -> Event:
+        spec = _spec_of(wire)
+        if self._live and spec.tables_at:
+            wire = list(wire)
+            for i in spec.tables_at:
+                wire[i] = msgpack.unpackb(msgpack.packb(wire[i], use_bin_type=True), raw=False, strict_map_key=False)
+        if spec.mode_at or spec.name_at:
+            args = list(wire)
+            for i in spec.mode_at:
+                code = args[i]
+                try:
+                    args[i] = MODE_NAMES[code]
+                except (KeyError, TypeError):
+                    raise EventLogError(f"a {spec.kind!r} event has mode {code!r}, not one of {MODE_NAMES}") from None
+            table = self.names if self._with_names else {}
+            for id_at, cond_at, cond in spec.name_at:
+                args.append(table.get(args[id_at]) if cond_at is None or args[cond_at] == cond else None)
+            record = spec.cls(*args[1:])
+        else:
+            record = spec.cls(*wire[1:])
+        if spec.kind in NAMING_KINDS:
+            self.learn(record)
+        return record
+
+    def learn(self, record: Event) -> None:
+        if isinstance(record, Start):
+            self.names.update(record.uavs)
+        elif isinstance(record, (Join, Restart)):
+            self.names[record.uav] = record.uav_name
+
+
+def to_wire(record: Event) -> tuple[Any, ...]:
+    """The array a record is written as: ``(kind, t, ...)`` (mode names back to codes; the
+    derived names dropped)."""
+    spec = KINDS[record.kind]
+    values = [getattr(record, f.name) for f in spec.wire]
+    for i in spec.mode_at:
+        values[i - 1] = MODE_CODES[values[i - 1]]
+    return (spec.kind, *values)
+
+
+def check_wire(wire: Sequence[Any]) -> None:
+    """Raise :class:`EventLogError` unless ``wire`` is an event array as the schema defines it:
+    a known kind, its number of items, and each field of its type (``float`` fields: a float)."""
+    spec = _spec_of(wire)
+    for f, value in zip(spec.wire, wire[1:]):
+        want = f.wire_type
+        ok = (isinstance(value, want) and not (want is int and isinstance(value, bool))) or (value is None and f.nullable)
+        if not ok:
+            raise EventLogError(f"a {spec.kind!r} event's {f.name} should be {want.__name__}, "
+                                f"found {type(value).__name__} {value!r:.80}: {list(wire)!r:.200}")
+
+
+def _unpacker(data: bytes) -> msgpack.Unpacker:
+    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
+    unpacker.feed(data)
+    return unpacker
+
+
+class EventRecords:
+    """The records of an event log's bytes (:func:`read_events`). Iterating decodes the bytes
+    afresh each time, so it can be read twice (or ``list()``-ed once, to keep the records)."""
+
+    def __init__(self, data: bytes, kinds: Iterable[str] | None = None, *, names: bool = True) -> None:
+        self._data = bytes(data)
+        self._kinds = check_kinds(kinds)
+        self._names = names
+
+    def __iter__(self) -> Iterator[Event]:
+        decode = Decoder(names=self._names)
+        wanted = self._kinds
+        for wire in _unpacker(self._data):
+            if wanted is None:
+                yield decode(wire)
+            elif wire_kind(wire) in wanted:
+                yield decode(wire)
+            elif wire_kind(wire) in NAMING_KINDS:
+                decode(wire)  # (names for the kinds asked for)
+
+    def __repr__(self) -> str:
+        kinds = "every kind" if self._kinds is None else ", ".join(sorted(self._kinds))
+        return f"<EventRecords of {len(self._data)} bytes: {kinds}>"
+
+
+def read_events(data: bytes, kinds: Iterable[str] | None = None, *, names: bool = True) -> EventRecords:
+    """The events of an ``events.msgpack`` file's bytes (or ``RunResult.events``) as records
+    (:class:`Pose`, :class:`Found`, ...), in log order; only ``kinds`` if given. Re-iterable:
+    each ``for`` decodes the bytes again. UAV names come from the ``start`` header and the
+    ``join`` / ``restart`` events (``names=False``: ids only, the name fields ``None``)."""
+    return EventRecords(data, kinds, names=names)
+
+
+def read_columns(data: bytes, kinds: Iterable[str] | None = None) -> dict[str, dict[str, list[Any]]]:
+    """The event log by kind, as columns: ``{kind: {field: values}}`` with the fields of the
+    kind's record (derived names and mode names included), every kind asked for present (with
+    empty columns when the log has none). Cheaper than records for bulk reading (replays,
+    exports): no object per event. Names come from the whole log (a UAV's id never changes
+    name)."""
+    wanted = check_kinds(kinds)
+    chosen = [k for k in KINDS if wanted is None or k in wanted]
+    rows: dict[str, list[Sequence[Any]]] = {k: [] for k in chosen}
+    learn = Decoder()
+    for wire in _unpacker(data):
+        spec = _spec_of(wire)
+        if spec.kind in NAMING_KINDS:
+            learn(wire)
+        bucket = rows.get(spec.kind)
+        if bucket is not None:
+            bucket.append(wire)
+    table = learn.names
+    out: dict[str, dict[str, list[Any]]] = {}
+    for kind in chosen:
+        spec = KINDS[kind]
+        got = rows[kind]
+        items = list(zip(*got)) if got else [() for _ in range(spec.arity)]
+        columns: dict[str, list[Any]] = {f.name: list(items[i]) for i, f in enumerate(spec.wire, start=1)}
+        for i in spec.mode_at:
+            name = spec.wire[i - 1].name
+            try:
+                columns[name] = [MODE_NAMES[c] for c in columns[name]]
+            except KeyError as exc:
+                raise EventLogError(f"a {kind!r} event has mode {exc.args[0]!r}, not one of {MODE_NAMES}") from None
+        for f, (id_at, cond_at, cond) in zip(spec.derived, spec.name_at):
+            ids = items[id_at]
+            if cond_at is None:
+                columns[f.name] = [table.get(u) for u in ids]
+            else:
+                columns[f.name] = [table.get(u) if c == cond else None for u, c in zip(ids, items[cond_at])]
+        out[kind] = columns
+    return out
+
+
+def records(kind: str, columns: Mapping[str, Sequence[Any]]) -> list[Event]:
+    """The records of one kind from its columns (as :func:`read_columns` gives them)."""
+    spec = KINDS[kind]
+    return [spec.cls(*row) for row in zip(*(columns[f.name] for f in spec.fields))]
+
+
+# --- documentation ----------------------------------------------------------------------------------
+
+
+def _describe(f: FieldSpec) -> str:
+    if f.role == UAV:
+        note = "UAV id"
+    elif f.role == MODE:
+        note = "search or surveil"
+    else:
+        note = f.unit or f.meta.label
+    return f"`{f.name}`" + (f" ({note})" if note else "")
+
+
+def markdown_table() -> str:
+    """The kinds and their fields as the Markdown table docs/outputs.md shows (a test keeps the
+    two the same)."""
+    lines = ["| kind | when | fields in log order (unit) | added when read |", "|---|---|---|---|"]
+    for spec in KINDS.values():
+        written = ", ".join(_describe(f) for f in spec.wire)
+        derived = ", ".join(f"`{f.name}`" for f in spec.derived) or "-"
+        lines.append(f"| `{spec.kind}` | {spec.doc} | {written} | {derived} |")
+    return "\n".join(lines) + "\n"
