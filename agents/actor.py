@@ -96,6 +96,20 @@ class SensedTarget:
     value: float
 
 
+@dataclass(frozen=True, slots=True)
+class EnergyReading:
+    """What a UAV with an energy budget knows of it this tick (issue 26, swarm.mission): where
+    home is; ``leave``: its energy left is down to what it needs to fly home against the wind,
+    plus the reserve and the hand-over allowance (a watcher hands its target over first);
+    ``must_go``: down to home plus the reserve (it turns home now)."""
+
+    home_x: float
+    home_y: float
+    leave: bool
+    must_go: bool
+    cruise_mps: float  # the airspeed it flies home at (its type's minimum-power speed)
+
+
 # Another UAV as the detect-and-avoid sensor gives it: (uav id, x, y, vx, vy).
 SensedUav = tuple[int, float, float, float, float]
 
@@ -116,6 +130,7 @@ class SensorReading:
     targets: list[SensedTarget]
     threats: list[KnownThreat]
     uavs: list[SensedUav] | None = None
+    energy: EnergyReading | None = None  # (issue 26: only UAVs with an energy budget)
 
 
 @dataclass(slots=True)
@@ -230,6 +245,11 @@ class UavActor:
         self._bounds = (self._max_scan_r, grid.width_m, grid.height_m, settings.dt)  # agents.inbox.check_frame's
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
+        # (issue 26) Endurance: flying home (no replanning on the way), the target it handed
+        # over, and the waypoint it announces while handing over (home: it is leaving).
+        self.homebound = False
+        self.handed_target = NO_TARGET
+        self._announce: tuple[float, float] | None = None
         self.counters = ActorCounters()
         self._next_replan = -math.inf
         self._next_beacon = -math.inf
@@ -319,11 +339,45 @@ class UavActor:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
         for th in r.threats:
             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+        if r.energy is not None and self._energy(r):
+            return None  # homebound: no replanning on the way home
         if self.plan is None or t >= self._next_replan or self._reached(r):
             s = self.settings
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
                             self.grid, s.replan_s, s.surveillance, self.plan)
         return None
+
+    def _energy(self, r: SensorReading) -> bool:
+        """(issue 26) Endurance: True while flying home. A watcher whose energy says leave
+        announces home as its waypoint (the others no longer count it at its target, so the
+        shared surveillance logic draws another UAV in) and keeps circling until a peer watches
+        its target or its energy says go; then it releases the target and turns home."""
+        e = r.energy
+        assert e is not None
+        if self.homebound or not (e.leave or e.must_go):
+            return self.homebound
+        plan = self.plan
+        watching = plan is not None and plan.mode == MODE_SURVEIL
+        if watching and not e.must_go:
+            assert plan is not None
+            t, timeout = r.t, self.settings.peer_timeout_s
+            if not any(p.mode == MODE_SURVEIL and p.target == plan.target and t - p.t_intent <= timeout
+                       for p in self.knowledge.peers.values() if p.uav != self.uid):
+                self._announce = (e.home_x, e.home_y)
+                return False
+        self.homebound = True
+        self.handed_target = plan.target if watching and plan is not None else NO_TARGET
+        self.plan = Plan(e.home_x, e.home_y)
+        self._announce = None
+        return True
+
+    def relaunch(self) -> None:
+        """(issue 26) Back in the air from the base with what it knew: plan afresh."""
+        self.homebound = False
+        self.handed_target = NO_TARGET
+        self._announce = None
+        self.plan = None
+        self._next_replan = -math.inf
 
     # --- a liar (the liar fault; swarm.node_faults) ----------------------------------------
 
@@ -398,6 +452,8 @@ class UavActor:
         k = self.knowledge
         plan = cast(Plan, self.plan)  # (set: observe() asks for a plan while there is none)
         speed = self.kind.speed_max
+        if self.homebound and r.energy is not None:  # (issue 26) home at the minimum-power speed
+            speed = r.energy.cruise_mps
         goal_x, goal_y = plan.wx, plan.wy
         apf = s.apf
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
@@ -661,7 +717,7 @@ class UavActor:
             # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).
             msgs: list[Message | Packed] = [
                 pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
-                pack_intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
+                pack_intent(self.uid, *(self._announce or (plan.wx, plan.wy)), plan.mode, plan.target),
             ]
             room = s.frame_max_bytes - _FRAME_SLACK - _SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:
@@ -698,4 +754,4 @@ class UavActor:
         return frames
 
 
-__all__ = ["ActorOutput", "ActorSettings", "SensedTarget", "SensedUav", "SensorReading", "UavActor", "NO_TARGET"]
+__all__ = ["ActorOutput", "ActorSettings", "EnergyReading", "SensedTarget", "SensedUav", "SensorReading", "UavActor", "NO_TARGET"]

@@ -108,11 +108,7 @@ class Simulation:
         self.targets = Targets(build.target_motion(sc))
         self.world = World(self.grid, self.targets, build.threats(sc))
         self.metrics = Metrics(self.grid, self.tau)
-        # (issue 26) Polygon areas and no-fly zones: None for a scenario without them.
-        self.geography = build.geography(sc, self.grid)
-        if self.geography is not None:
-            self.world.zones = self.geography.zones
-            self.metrics.inside = self.geography.inside
+        self.geography = build.geography(sc, self.grid, self.world, self.metrics)  # (issue 26: polygons; None without)
         self.observer = Observer(self.world, self.metrics, self.log, self.dt, sc.recording.level == "summary",
                                  sc.safety.min_separation_m)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
@@ -135,6 +131,7 @@ class Simulation:
         self.faults.radio = self.radio
         self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
         self._populate(sc)
+        self.mission = build.mission(self)  # (issue 26: wind, endurance, hooked into self.faults; None without)
         self.clock.schedule(0.0, self._tick, TICK)
         self.log.emit("start", 0.0, {
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
@@ -150,15 +147,9 @@ class Simulation:
         tm = sc.targets
         for p in tm.placed:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
-        area = self.geography.area if self.geography is not None else None
         for _ in range(tm.count):
             g = self.rng.generator("target", len(self.targets))
-            x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
-            while area is not None and area.clearance(x, y)[0] < 0.0:  # (issue 26: inside the area polygon)
-                x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
-            self._add_target_rng(
-                x, y, float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, tm.speed_max)), tm.value, g,
-            )
+            self._add_target_rng(*build.random_start(g, sc, self.geography), tm.value, g)
         for spec in sc.uavs:
             self._add_uav_spec(spec)
         for f in sc.faults:

@@ -165,6 +165,8 @@ class World:
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
         # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
         self.zones: list = []
+        # The wind of this tick (issue 26, swarm.mission; None: still air): every UAV drifts with it.
+        self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
         self.dynamics_by_uav: dict[int, list[float]] = {}
 
@@ -266,6 +268,9 @@ class World:
             seen[0] += 1
             seen[2] = t
         b.x, b.y, b.v, b.theta = integrate(b.x, b.y, b.v, b.theta, a, omega, dt)
+        if self.wind is not None:  # (issue 26) ground velocity = air velocity + wind
+            b.x += self.wind[0] * dt
+            b.y += self.wind[1] * dt
 
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
         """Count separation and threat-clearance violations now; returns them for the log."""

@@ -263,7 +263,7 @@ def test_unknown_fault_kind(tmp_path):
     assert err.key == "faults[0].kind"
     assert err.expected == "one of: " + ", ".join(FAULT_KINDS)
     assert err.expected == ("one of: drop, burst, delay, duplicate, corrupt, partition, bridge, swizzle, jammer, "
-                            "crash, join, restart, pause, clock_skew, nav_error, sensor, liar, spoofer")
+                            "crash, join, restart, pause, clock_skew, nav_error, sensor, liar, spoofer, battery")
 
 
 def test_fault_window_and_partition_rules(tmp_path):

@@ -102,6 +102,8 @@ def _lonlat_items(data: dict) -> list[tuple[tuple[str | int, ...], dict]]:
         items = data.get(table)
         if isinstance(items, list):
             out += [((table, i), item) for i, item in enumerate(items) if _has_lonlat(item)]
+    if _has_lonlat(data.get("endurance")):  # the home base
+        out.append((("endurance",), data["endurance"]))
     targets = data.get("targets")
     placed = targets.get("placed") if isinstance(targets, dict) else None
     if isinstance(placed, list):
@@ -172,6 +174,8 @@ def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
         for table in ("uavs", "threats"):
             if isinstance(data.get(table), list):
                 data[table] = [dict(x) if isinstance(x, dict) else x for x in data[table]]
+        if isinstance(data.get("endurance"), dict):
+            data["endurance"] = dict(data["endurance"])
         if isinstance(data.get("targets"), dict):
             data["targets"] = dict(data["targets"])
             if isinstance(data["targets"].get("placed"), list):

@@ -32,6 +32,7 @@ from swarm.errors import ScenarioError, UsageError
 from swarm.scenario.fields import Int, Num, Problem, Str, Table, fmt, int_field, num_field, raise_if, table_field
 from swarm.scenario.generated import FAULT_KINDS, Fault, JoinFault, RadioSettings, fault_union, sync_fault_tables
 from swarm.scenario.geo import GeoSettings, NoFlySpec, geo_problems, resolve_geography
+from swarm.scenario.mission import EnduranceSettings, WindSettings, endurance_problems
 from swarm.scenario.overrides import PLANNER_NAME_KEY, set_keys
 from swarm.scenario.positions import found_words
 from swarm.scenario.tables import (
@@ -89,6 +90,9 @@ class Scenario(Table):
     # polygon no-fly zones. Absent (the default), nothing geographic runs or is imported.
     geo: GeoSettings | None = Field(default=None, description="a table [geo]: the area as a polygon in a CRS")
     no_fly: list[NoFlySpec] = Field(default_factory=list, description="an array of tables [[no_fly]] (polygon no-fly zones)")
+    # Wind and endurance (issue 26, swarm.scenario.mission, swarm.mission): absent, nothing runs.
+    wind: WindSettings | None = Field(default=None, description="a table [wind]")
+    endurance: EnduranceSettings | None = Field(default=None, description="a table [endurance]")
 
     @model_validator(mode="before")
     @classmethod
@@ -235,6 +239,8 @@ class Scenario(Table):
         problems += self._runnable_problems(join_end)
         if self.geo is not None or self.no_fly:  # (issue 26: polygons simple, positions inside the area)
             problems += geo_problems(self)
+        if self.endurance is not None:  # (issue 26: types, the base, budgets that reach the area)
+            problems += endurance_problems(self)
         return problems
 
     def _runnable_problems(self, join_end: float | None) -> list[Problem]:

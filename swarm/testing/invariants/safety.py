@@ -115,6 +115,7 @@ class DynamicsChecker(Checker):
         super().__init__()
         self.tol_m = tol_m
         self._prev: dict[int, tuple] = {}
+        self._wind: tuple[float, float] | None = None  # (issue 26) the last group's wind event
 
     def on_group(self, t, events):
         poses = poses_of(events)
@@ -122,6 +123,10 @@ class DynamicsChecker(Checker):
             return
         ctx = self.context
         dt = ctx.dt
+        # (issue 26) With [wind] the log has the wind of each tick: the position follows from
+        # the speed and heading plus the wind of the tick before (the limits are air-relative).
+        wind_before = self._wind
+        self._wind = next(((e.wx, e.wy) for e in events if e.kind == "wind"), None)
         for uid, p in poses.items():
             kind = ctx.kind(uid)
             prev = self._prev.get(uid)
@@ -144,6 +149,8 @@ class DynamicsChecker(Checker):
                 self.violate(t, f"turn rate {omega:.6g} rad/s beyond {w_max:.6g} (turn radius below r_min)",
                              [uid], omega=omega)
             px, py, _, _ = integrate(x0, y0, v0, th0, a, omega, dt)
+            if wind_before is not None:
+                px, py = px + wind_before[0] * dt, py + wind_before[1] * dt
             err = math.hypot(px - x1, py - y1)
             if err > self.tol_m + 1e-9 * (abs(x1) + abs(y1)):
                 self.violate(t, f"moved {err:.3g} m away from where its speed and heading take it", [uid], error_m=err)
