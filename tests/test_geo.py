@@ -198,3 +198,28 @@ def test_geojson_outputs_open_and_lie_inside(tmp_path):
     for feat in targets["features"]:
         assert area.buffer(1e-6).contains(shapely.geometry.shape(feat["geometry"]).representative_point())
     assert math.isfinite(json.loads((tmp_path / "metrics.json").read_text())["geo"]["scale_error_max"])
+
+
+def test_geo_coast_has_what_the_issue_asks():
+    sc = load_scenario("geo-coast")
+    assert 15 <= len(sc.geo.area) - 1 <= 40 and sc.geo.crs == "EPSG:4326"
+    assert len(sc.no_fly) == 1 and "Holtenau" in sc.no_fly[0].name
+    assert sc.wind is not None and sc.wind.gust_sigma_mps > 0
+    assert sc.endurance is not None and set(sc.endurance.types) == {"A", "B"}
+    assert {u.type for u in sc.uavs} == {"A", "B"} and sc.planner.surveillance
+    assert {f.kind for f in sc.faults} == {"battery", "crash"}
+
+
+@pytest.mark.slow
+def test_swarm_run_geo_coast_exits_0(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "coast"
+    proc = subprocess.run([sys.executable, "-m", "swarm", "run", "geo-coast", "--duration", "300", "--no-figures",
+                           "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    for name in ("paths.geojson", "targets.geojson", "zones.geojson", "metrics.json"):
+        assert (out / name).is_file(), name
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["violations"]["threat"] == 0 and m["faults_applied"].get("battery", 0) == 0  # (at 600 s: not yet)
