@@ -89,7 +89,7 @@ class GeoFrame:
                                                                    np.asarray(y, dtype=np.float64) + self.y0)
         return np.asarray(lon), np.asarray(lat)
 
-    def ring_to_local(self, ring: Sequence[Sequence[float]]) -> np.ndarray:
+    def ring_to_local(self, ring: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
         pts = np.asarray(ring, dtype=np.float64).reshape(-1, 2)
         x, y = self.to_local(pts[:, 0], pts[:, 1])
         return np.column_stack([x, y])
