@@ -114,3 +114,19 @@ def test_nothing_new_runs_without_the_tables():
     sim, result = run(doc(duration_s=20.0))
     assert sim.mission is None and sim.geography is None and sim.world.wind is None
     assert "endurance" not in result.metrics and "wind" not in result.metrics
+
+
+@pytest.mark.slow
+def test_resilience_battery_axis_plans_budgets_that_send_uavs_home():
+    from swarm.experiments.resilience import AXES, battery_point, plan_axis
+    from swarm.scenario import apply_overrides, load_scenario
+
+    assert "battery" in AXES
+    sc = load_scenario("paper-fig11")
+    runs = plan_axis("battery", sc, seeds=[0], planners=["greedy"], duration_s=900.0)
+    assert [dict(r.settings)["battery.capacity_frac"] for r in runs] == [0.0, 1.0, 0.5, 0.35, 0.25]
+    assert battery_point(sc, 0.0) == {}
+    small = apply_overrides(sc, battery_point(sc, 0.25))
+    with Simulation(small, planner="greedy", duration_s=900.0) as sim:
+        m = sim.run().metrics
+    assert m["endurance"]["lost_to_energy"] == 0 and m["endurance"]["sorties"] > len(sc.uavs)
