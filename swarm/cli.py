@@ -1,4 +1,4 @@
-"""The ``swarm`` command line: run, validate and list scenarios.
+"""The ``swarm`` command line: run, validate and list scenarios (and sweep, export, report...).
 
 Only this module prints and exits. A user mistake (bad scenario, unknown name, bad option)
 prints one ``error:`` line and exits with status 2, never a traceback.
@@ -545,6 +545,18 @@ def _cmd_report(args) -> int:
     return 0
 
 
+def _cmd_export(args) -> int:
+    from swarm.export import export_parquet
+
+    result = export_parquet(args.folder, args.out)
+    if not args.quiet:
+        what = f"{result.runs} runs" if result.runs > 1 else "1 run"
+        print(f"wrote {len(result.rows)} Parquet tables of {what} to {result.out}")
+        for name, n in result.rows.items():
+            print(f"  {name}.parquet  {n:,} rows")
+    return 0
+
+
 def _add_executor_args(parser: argparse.ArgumentParser, scheduler_help: str) -> None:
     """``--workers K`` or ``--scheduler ADDRESS`` (see :func:`_dask_executor`)."""
     where = parser.add_mutually_exclusive_group()
@@ -686,6 +698,14 @@ def build_parser() -> argparse.ArgumentParser:
                      help="animation to embed (default: RUNDIR/animation.mp4 or .gif if present)")
     rep.add_argument("--quiet", action="store_true", help="do not print the path written")
     rep.set_defaults(func=_cmd_report)
+
+    ex = sub.add_parser("export", help="write a run or sweep folder's events, time series and paths as Parquet tables")
+    ex.add_argument("folder", help="a run folder (`swarm run --out`) or a sweep folder (`swarm sweep --out`)")
+    ex.add_argument("--format", choices=["parquet"], default="parquet",
+                    help="parquet: one table per event kind, timeseries and paths (needs the parquet extra)")
+    ex.add_argument("--out", default=None, metavar="DIR", help="output folder (default: FOLDER/parquet)")
+    ex.add_argument("--quiet", action="store_true", help="do not print the tables written")
+    ex.set_defaults(func=_cmd_export)
     return p
 
 

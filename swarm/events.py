@@ -408,12 +408,14 @@ _RECORDS: tuple[type[Event], ...] = (
 @dataclass(frozen=True, slots=True)
 class FieldSpec:
     """One field of a record: its name, Python type (``float``, ``int``, ``str``, ``bool`` or
-    ``dict``), whether it may be ``None``, and its :class:`Meta`."""
+    ``dict``), whether it may be ``None``, its :class:`Meta`, and the full annotation without
+    them (``dict[str, list[int]]``: what a table's column type is made from)."""
 
     name: str
     py_type: type
     nullable: bool
     meta: Meta
+    annotation: Any
 
     @property
     def unit(self) -> str | None:
@@ -471,7 +473,7 @@ def _field_spec(name: str, hint: Any) -> FieldSpec:
         nullable = True
         (hint,) = [a for a in args if a is not type(None)]
     base = typing.get_origin(hint) or hint  # dict[str, Any] -> dict
-    return FieldSpec(name, base, nullable, meta)
+    return FieldSpec(name, base, nullable, meta, hint)
 
 
 def _kind_spec(cls: type[Event]) -> KindSpec:
@@ -641,30 +643,35 @@ def read_events(data: bytes, kinds: Iterable[str] | None = None, *, names: bool 
     return EventRecords(data, kinds, names=names)
 
 
-def read_columns(data: bytes, kinds: Iterable[str] | None = None) -> dict[str, dict[str, list[Any]]]:
+def read_columns(data: bytes, kinds: Iterable[str] | None = None, *, positions: bool = False
+                 ) -> dict[str, dict[str, list[Any]]]:
     """The event log by kind, as columns: ``{kind: {field: values}}`` with the fields of the
     kind's record (derived names and mode names included), every kind asked for present (with
     empty columns when the log has none). Cheaper than records for bulk reading (replays,
     exports): no object per event. Names come from the whole log (a UAV's id never changes
-    name)."""
+    name). ``positions``: also ``"seq"`` first, each event's index in the log (0: ``start``),
+    which orders events across kinds."""
     wanted = check_kinds(kinds)
     chosen = [k for k in KINDS if wanted is None or k in wanted]
     rows: dict[str, list[Sequence[Any]]] = {k: [] for k in chosen}
+    seq: dict[str, list[int]] = {k: [] for k in chosen}
     learn = Decoder()
-    for wire in _unpacker(data):
+    for i, wire in enumerate(_unpacker(data)):
         spec = _spec_of(wire)
         if spec.kind in NAMING_KINDS:
             learn(wire)
         bucket = rows.get(spec.kind)
         if bucket is not None:
             bucket.append(wire)
+            seq[spec.kind].append(i)
     table = learn.names
     out: dict[str, dict[str, list[Any]]] = {}
     for kind in chosen:
         spec = KINDS[kind]
         got = rows[kind]
         items = list(zip(*got)) if got else [() for _ in range(spec.arity)]
-        columns: dict[str, list[Any]] = {f.name: list(items[i]) for i, f in enumerate(spec.wire, start=1)}
+        columns: dict[str, list[Any]] = {"seq": seq[kind]} if positions else {}
+        columns.update({f.name: list(items[i]) for i, f in enumerate(spec.wire, start=1)})
         for i in spec.mode_at:
             name = spec.wire[i - 1].name
             try:

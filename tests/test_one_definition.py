@@ -241,7 +241,8 @@ def test_uav_colours_come_from_style():
     # tab20 is the palette of 11-20 UAVs (tab10 also colours planners in sweep reports).
     users = [p.relative_to(ROOT).as_posix() for p in _sources() if "tab20" in p.read_text(encoding="utf-8")]
     assert users == ["swarm/viz/style.py"]
-    for name in ("swarm/viz/plots.py", "swarm/viz/animate.py", "swarm/viz/report.py", "swarm/experiments/paper.py"):
+    for name in ("swarm/viz/plots.py", "swarm/viz/animate.py", "swarm/viz/report/run_figures.py",
+                 "swarm/experiments/paper/figures.py"):
         assert "uav_colours(" in (ROOT / name).read_text(encoding="utf-8"), name
 
 

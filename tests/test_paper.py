@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from swarm.cli import main
-from swarm.experiments.paper import EXPERIMENTS, FIG11_PLANNERS, _stays_above_from, fig11_planners, write_table
+from swarm.experiments.paper import EXPERIMENTS, FIG11_PLANNERS, fig11_planners, stays_above_from, write_table
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = ["--duration", "60", "--workers", "2", "--quiet"]
@@ -153,11 +153,11 @@ def test_unreadable_results_are_flagged_not_fatal(tmp_path):
     assert case1 and all("unreadable case1/results.json" in r["ours_measured"] for r in case1)
 
 
-def test_stays_above_from():
+def teststays_above_from():
     t = np.array([100.0, 200.0, 300.0, 400.0, 500.0])
-    assert _stays_above_from(t, np.array([0, 1, 0, 2, 2.0]), np.zeros(5), 250.0) == 400.0
-    assert _stays_above_from(t, np.array([1, 1, 1, 1, 1.0]), np.zeros(5), 250.0) == 250.0
-    assert _stays_above_from(t, np.array([1, 1, 1, 1, 0.0]), np.zeros(5), 250.0) is None
+    assert stays_above_from(t, np.array([0, 1, 0, 2, 2.0]), np.zeros(5), 250.0) == 400.0
+    assert stays_above_from(t, np.array([1, 1, 1, 1, 1.0]), np.zeros(5), 250.0) == 250.0
+    assert stays_above_from(t, np.array([1, 1, 1, 1, 0.0]), np.zeros(5), 250.0) is None
 
 
 def test_bad_seeds_is_a_usage_error(tmp_path, capsys):

@@ -160,7 +160,7 @@ def test_animate_after_report_puts_the_animation_in_it(reported_run, tmp_path, c
 
 
 def test_radio_row_writes_one_loss_when_it_does_not_vary():
-    from swarm.viz.report import _radio_words
+    from swarm.viz.report.run_report import _radio_words
 
     assert "loss 0.1," in _radio_words({"loss_base": 0.1, "loss_at_range": 0.1}, 5000.0)
     assert "loss 0.1," in _radio_words({"loss_base": 0.1}, None)
@@ -182,7 +182,7 @@ def test_handover_rows_split_latency_into_overlap_and_gap():
 def test_violations_are_listed_with_who_when_and_which():
     from types import SimpleNamespace
 
-    from swarm.viz.report import _violation_section, violation_episodes
+    from swarm.viz.report.run_report import _violation_section, violation_episodes
 
     rp = SimpleNamespace(
         names=["A1", "A2", "B1"], dt=1.0, scenario={"safety": {"min_separation_m": 100.0}},
@@ -308,7 +308,7 @@ def _two_planner_summary() -> dict:
 
 
 def test_sweep_report_leaves_out_metrics_that_never_differ(tmp_path, monkeypatch):
-    from swarm.viz import report
+    from swarm.viz.report import sweep_report as report
 
     drawn = []
     real = report.fig_sweep

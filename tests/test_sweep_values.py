@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from swarm.cli import main
 from swarm.experiments.sweep import load_runs, slug, strict_json
-from swarm.viz.report import _fmt
+from swarm.viz.report import fmt
 
 
 def _strict(path):
@@ -67,6 +67,6 @@ values = st.recursive(
 
 @given(values)
 def test_every_value_formats_and_encodes(value):
-    assert isinstance(_fmt(value), str)
+    assert isinstance(fmt(value), str)
     json.dumps(strict_json(value), allow_nan=False)
     assert isinstance(slug([("k", value)]), str)
