@@ -39,6 +39,7 @@ from comms.codec import AuthError, FrameError, Packed, decode, encode, pack_hell
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
+    MODE_SEARCH,
     MODE_SURVEIL,
     NO_TARGET,
     Message,
@@ -246,10 +247,10 @@ class UavActor:
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
         # (issue 26) Endurance: flying home (no replanning on the way), the target it handed
-        # over, and the waypoint it announces while handing over (home: it is leaving).
+        # over, and whether it is handing one over (its beacons then say it searches).
         self.homebound = False
         self.handed_target = NO_TARGET
-        self._announce: tuple[float, float] | None = None
+        self._releasing = False
         self.counters = ActorCounters()
         self._next_replan = -math.inf
         self._next_beacon = -math.inf
@@ -349,9 +350,10 @@ class UavActor:
 
     def _energy(self, r: SensorReading) -> bool:
         """(issue 26) Endurance: True while flying home. A watcher whose energy says leave
-        announces home as its waypoint (the others no longer count it at its target, so the
-        shared surveillance logic draws another UAV in) and keeps circling until a peer watches
-        its target or its energy says go; then it releases the target and turns home."""
+        announces that it searches (its beacons' intent: the others see its target free, so
+        DACMP's own mode rule draws the nearest suitable UAV in) while it keeps circling and
+        sending the target's track, until a peer watches the target or its energy says go;
+        then it lets go and turns home."""
         e = r.energy
         assert e is not None
         if self.homebound or not (e.leave or e.must_go):
@@ -363,19 +365,19 @@ class UavActor:
             t, timeout = r.t, self.settings.peer_timeout_s
             if not any(p.mode == MODE_SURVEIL and p.target == plan.target and t - p.t_intent <= timeout
                        for p in self.knowledge.peers.values() if p.uav != self.uid):
-                self._announce = (e.home_x, e.home_y)
+                self._releasing = True
                 return False
         self.homebound = True
         self.handed_target = plan.target if watching and plan is not None else NO_TARGET
         self.plan = Plan(e.home_x, e.home_y)
-        self._announce = None
+        self._releasing = False
         return True
 
     def relaunch(self) -> None:
         """(issue 26) Back in the air from the base with what it knew: plan afresh."""
         self.homebound = False
         self.handed_target = NO_TARGET
-        self._announce = None
+        self._releasing = False
         self.plan = None
         self._next_replan = -math.inf
 
@@ -717,7 +719,8 @@ class UavActor:
             # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).
             msgs: list[Message | Packed] = [
                 pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
-                pack_intent(self.uid, *(self._announce or (plan.wx, plan.wy)), plan.mode, plan.target),
+                pack_intent(self.uid, plan.wx, plan.wy, *((MODE_SEARCH, NO_TARGET) if self._releasing
+                                                          else (plan.mode, plan.target))),
             ]
             room = s.frame_max_bytes - _FRAME_SLACK - _SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:

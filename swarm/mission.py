@@ -16,7 +16,8 @@ Energy. A UAV of a type with an energy budget drains ``P(v) dt`` a tick at its a
 whether its energy left is down to what it needs to fly home (at its minimum-power speed,
 against the mean wind's component, plus ``reserve_frac`` of its capacity): ``must_go``; or to
 that plus the energy of ``handover_s`` of flight at its speed: ``leave``, where a watcher hands
-its target over first (:meth:`agents.actor.UavActor._energy`). Within ``land_radius_m`` of the
+its target over first (its beacons say it searches while it keeps circling, until a peer
+watches the target: :meth:`agents.actor.UavActor._energy`). Within ``land_radius_m`` of the
 base a returning UAV lands (it no longer flies, senses or sends), is turned around in
 ``turnaround_s`` (a full battery) and launches again from the base towards the area's centre,
 with its memory. A UAV whose energy runs out in flight is lost (``energy_out``, then a crash):

@@ -130,3 +130,22 @@ def test_resilience_battery_axis_plans_budgets_that_send_uavs_home():
     with Simulation(small, planner="greedy", duration_s=900.0) as sim:
         m = sim.run().metrics
     assert m["endurance"]["lost_to_energy"] == 0 and m["endurance"]["sorties"] > len(sc.uavs)
+
+
+def test_a_watcher_hands_its_target_over_before_it_goes_home():
+    """A1 watches a target; when its energy says leave, its beacons say it searches while it keeps
+    circling; A2 (same type, just launched nearby) is drawn in by DACMP's own rules and watches
+    the target; only then does A1 turn home. The assignment invariants hold throughout."""
+    d = {"duration_s": 600.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
+         "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
+                  {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 420.0}],
+         "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
+         "endurance": {"x_m": 5000.0, "y_m": 5000.0, "turnaround_s": 60.0, "handover_s": 120.0,
+                       "types": {"A": {"capacity_wh": 260.0}}}}
+    sim, result = run(d)
+    events = list(read_events(result.events))
+    rtb = next(e for e in events if e.kind == "rtb" and e.uav_name == "A1")
+    assert rtb.target == 0  # it was watching target 0 when it left ...
+    took = [e.t for e in events if e.kind == "mode" and e.uav_name == "A2" and e.mode == "surveil" and e.target == 0]
+    assert took and took[0] <= rtb.t  # ... and A2 watched it before A1 turned home
+    assert [str(v) for v in check_events(result.events, sim.scenario)] == []
