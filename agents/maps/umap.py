@@ -216,12 +216,12 @@ class UncertaintyMap:
                 self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
-            memo = d._vmemo  # Disk.values() memo, inlined (the per-receiver hot path)
+            memo = d.values_memo  # = d.values(t) when it matches, without the call (the per-receiver hot path)
             np.maximum(view, memo[1] if memo[0] == t and memo[1] is not None else d.values(t), out=view)
             return
         tiles = self._tiles
         shape = self.tile_shape
-        smemo = d._smemo  # Disk.stamps() memo, inlined (the per-receiver hot path)
+        smemo = d.stamps_memo  # = d.stamps(...) when it matches, without the call (the per-receiver hot path)
         pieces = smemo[2] if smemo[1] == t and smemo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
         for key, start, stop, values in pieces:
             tile = tiles.get(key)

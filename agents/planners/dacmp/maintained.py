@@ -57,7 +57,7 @@ pyramid costs memory in proportion to the tiles the map has allocated (about 0.4
 not to the area.
 
 The planner reads the levels only in a window around each UAV
-(:class:`agents.planners.dacmp.planner._Layers`): eq. 19 is ``sum(lambda) - s sum_l lambda_l
+(:class:`agents.planners.dacmp.planner.Layers`): eq. 19 is ``sum(lambda) - s sum_l lambda_l
 P_l`` at the particles' cells.
 """
 

@@ -33,7 +33,7 @@ import numpy as np
 from agents.planners.dacmp.planner import _INTENT_MAX_AGE_S, DacmpPlanner
 
 if TYPE_CHECKING:
-    from agents.planners.dacmp.planner import _UavSearch
+    from agents.planners.dacmp.planner import UavSearch
     from agents.planners.registry import PlannerContext
 
 __all__ = ["DacmpSpreadPlanner"]
@@ -57,7 +57,7 @@ class DacmpSpreadPlanner(DacmpPlanner):
         planner = cast("DacmpSpreadPlanner", super().from_context(context))  # from_settings builds cls
         return dataclasses.replace(planner, spread_weight=float(spread_weight))
 
-    def crowding(self, uavs: list[_UavSearch], points: int) -> _Crowding | None:
+    def crowding(self, uavs: list[UavSearch], points: int) -> _Crowding | None:
         """The factor on ``f_Sl`` (module docstring) for these UAVs, or None when none hears a peer."""
         if self.spread_weight == 0:
             return None
