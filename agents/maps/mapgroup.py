@@ -280,13 +280,13 @@ class GroupMap(UncertaintyMap):
                 np.maximum(view, d.values(t)[a - d.iy0 : z - d.iy0, b - d.ix0 : e - d.ix0], out=view)
         return out
 
-    def _cells(self, ix, iy) -> np.ndarray:
+    def _cells(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
         ix, iy = np.broadcast_arrays(np.asarray(ix), np.asarray(iy))
         if (self._extra is None or self._built == self._writes or ix.ndim == 0 or ix.dtype.kind not in "iu"
                 or iy.dtype.kind not in "iu" or (ix.size and (ix.min() < 0 or iy.min() < 0))):
             self._materialize()  # (whole cells for the unusual cases: index checks as usual)
             return super()._cells(ix, iy)
-        seen = self._group.base_cells[iy, ix]  # a new array (fancy indexing)
+        seen: np.ndarray = self._group.base_cells[iy, ix]  # a new array (fancy indexing)
         for d, t in self._extra.values():
             r, c = iy - d.iy0, ix - d.ix0
             inside = (r >= 0) & (r < d.iy1 - d.iy0) & (c >= 0) & (c < d.ix1 - d.ix0)

@@ -35,12 +35,14 @@ from __future__ import annotations
 import bisect
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 
+from agents.knowledge import Knowledge, KnownThreat, Track
+from agents.maps.grid import Grid
 from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.dacmp.maintained import MaintainedPyramid
@@ -53,6 +55,14 @@ if TYPE_CHECKING:
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0
+
+
+class PlannerTable(Protocol):
+    """A scenario's ``[planner]`` table as :meth:`DacmpPlanner.from_settings` reads it: its
+    ``dacmp`` table, with the fields of :class:`DacmpSettings` (arrays as lists)."""
+
+    @property
+    def dacmp(self) -> object: ...
 
 
 @dataclass(frozen=True)
@@ -76,7 +86,7 @@ class DacmpPlanner(DacmpSettings):
                                  context.detect_radius_by_type)
 
     @classmethod
-    def from_settings(cls, planner_settings, levels: int = 7,
+    def from_settings(cls, planner_settings: PlannerTable, levels: int = 7,
                       speed_max_by_type: dict[str, float] | None = None,
                       detect_radius_by_type: dict[str, float] | None = None) -> DacmpPlanner:
         """The planner of a scenario's ``[planner]`` table: its ``dacmp`` table has the fields of
@@ -98,7 +108,8 @@ class DacmpPlanner(DacmpSettings):
         if self.level_weights is None:
             return np.full(n, 1.0 / n)
         w = np.asarray(self.level_weights[:n], dtype=np.float64)
-        return w / w.sum()
+        weights: np.ndarray = w / w.sum()
+        return weights
 
     @staticmethod
     def guide_point(q: np.ndarray, regions: tuple[int, int], cell_m: float, x: float, y: float,
@@ -282,7 +293,7 @@ class DacmpPlanner(DacmpSettings):
                 plans[i] = plan
         return cast("list[Plan]", plans)  # every None (a UAV to plan afresh) got its PSO plan
 
-    def keep(self, u: UavSearch, g, layers: Layers) -> Plan | None:
+    def keep(self, u: UavSearch, g: Grid, layers: Layers) -> Plan | None:
         """The surveillance-mode rule of :meth:`plan_many` for one UAV (None: plan afresh)."""
         mine = u.view.plan
         if mine is None or mine.mode != MODE_SURVEIL:
@@ -301,7 +312,7 @@ class DacmpPlanner(DacmpSettings):
                 return None
         return None
 
-    def _pso(self, uavs: list[UavSearch], g, layers: Layers) -> list[Plan]:
+    def _pso(self, uavs: list[UavSearch], g: Grid, layers: Layers) -> list[Plan]:
         """Particle swarms of several UAVs in lockstep (their draws made by :meth:`UavSearch.draw`)."""
         U, M, n_it = len(uavs), self.particles, self.iterations
         batch = Batch(self, uavs, g, layers, M)
@@ -357,11 +368,11 @@ class Batch:
     same-shape operands than when it has to broadcast a column, and the numbers are the same.
     """
 
-    def __init__(self, planner: DacmpPlanner, uavs: list[UavSearch], grid, layers: Layers, points: int):
+    def __init__(self, planner: DacmpPlanner, uavs: list[UavSearch], grid: Grid, layers: Layers, points: int):
         self.planner, self.uavs, self.grid, self.layers = planner, uavs, grid, layers
         shape = (len(uavs), points)
 
-        def column(values) -> np.ndarray:
+        def column(values: Sequence[float]) -> np.ndarray:
             return np.repeat(np.array(values, dtype=np.float64)[:, None], points, axis=1)
 
         self.p0 = np.stack([column([u.view.x for u in uavs]), column([u.view.y for u in uavs])])
@@ -436,10 +447,11 @@ class Batch:
         d = z - self.p0
         dist = np.hypot(d[0], d[1])
         scale = np.where(dist > self.r_max, self.r_max / np.maximum(dist, 1e-9), 1.0)
-        kept = self.p0 + d * scale
+        kept: np.ndarray = self.p0 + d * scale
         # = np.clip(kept, 0.0, self.area), without its Python-level overhead.
         np.maximum(kept, 0.0, out=kept)
-        return np.minimum(kept, self.area, out=kept)
+        np.minimum(kept, self.area, out=kept)
+        return kept
 
 
 @dataclass
@@ -455,7 +467,7 @@ class UavSearch:
     slot: int  # the UAV's index in the Layers of the plan_many call (its map's pyramid)
     targets: list[tuple[int, float, float, float]]
     rivals: list[tuple[float, float, float, tuple[int, ...], int]]  # DacmpPlanner.rivals
-    threats: list
+    threats: list[KnownThreat]
     guide: tuple[float, float] | None = None  # set by Layers
     ring_radius: np.ndarray | None = None  # draw(): only a UAV that runs PSO draws these
     ring_angle: np.ndarray | None = None
@@ -546,7 +558,7 @@ class UavSearch:
         return pull / max(d / unit, floor)
 
 
-def _near_zone(knowledge, track, t: float, reach: float) -> bool:
+def _near_zone(knowledge: Knowledge, track: Track, t: float, reach: float) -> bool:
     """Whether a track's last sighting or its predicted position lies inside a known no-fly
     zone or within ``reach`` of one."""
     return (knowledge.inside_threat(track.x, track.y, reach) is not None
@@ -665,6 +677,7 @@ class Layers:
         idx += base
         terms = self.flat.take(idx).astype(np.float64) * lam  # lambda_l * P_l (float64: same-type multiply)
         # A reduction over the first axis adds whole rows, one level after the other.
-        p = np.add.reduce(terms, axis=0, initial=0.0)
+        p: np.ndarray = np.add.reduce(terms, axis=0, initial=0.0)
         p *= s
-        return np.subtract(self.lam_total, p, out=p)
+        np.subtract(self.lam_total, p, out=p)
+        return p

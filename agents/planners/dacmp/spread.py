@@ -99,4 +99,5 @@ class _Crowding:
         s = np.clip((px * self.dx + py * self.dy) / self.len2, 0.0, 1.0)  # nearest point of the segment
         u = np.minimum(np.hypot(px - s * self.dx, py - s * self.dy) / self.two_r, 1.0)
         overlap = (2.0 / math.pi) * (np.arccos(u) - u * np.sqrt(1.0 - u * u))
-        return np.maximum(1.0 - self.weight * overlap.sum(axis=1), 0.0)
+        crowding: np.ndarray = np.maximum(1.0 - self.weight * overlap.sum(axis=1), 0.0)
+        return crowding
