@@ -589,7 +589,7 @@ class UavActor:
         # What it accepts of a frame (agents.inbox.check_frame) is the same for every receiver
         # at this tick: checked once, kept beside the shared decoded frame.
         bounds, grid = self._bounds, self.grid
-        derived = cache._derived.get if cache is not None else None  # = cache.derived, without the call
+        derived = cache.derived if cache is not None else None
         delivered = ignored = strange = beyond = 0
         horizon2 = self._horizon2
         here_x, here_y = self._here

@@ -4,7 +4,7 @@ A broadcast frame reaches hundreds of UAVs in a dense swarm as the same bytes, d
 (:class:`comms.framecache.DecodeCache`). Checking its numbers (:func:`check_frame`) depends only
 on the frame, the receiver's clock ``t`` and the area's bounds, which every receiver in a tick
 shares, so the result (:class:`Heard`) is memoised beside the decoded frame
-(:meth:`DecodeCache.derived`) and each receiver (:meth:`agents.actor.UavActor._drain_inbox`)
+(:attr:`DecodeCache.derived`) and each receiver (:meth:`agents.actor.UavActor._drain_inbox`)
 only does what depends on its own state: its knowledge horizon, its scan log, its map, its
 peers. A pure function of ``(frame, t, bounds)``: the memo changes how often it runs, never
 what a receiver gets.

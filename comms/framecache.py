@@ -15,14 +15,17 @@ only changes how often the codec runs, never what a receiver gets: a hit returns
 decoding those bytes would give, a miss decodes them.
 
 Beside each frame the cache keeps one value derived from it by its receivers
-(:meth:`DecodeCache.keep`, :meth:`DecodeCache.derived`; the actors keep what they accept of the
+(:meth:`DecodeCache.keep`, :attr:`DecodeCache.derived`; the actors keep what they accept of the
 frame at the tick's time, :func:`agents.inbox.check_frame`): also a pure memo, dropped with its
 frame.
+
+The receivers' fast paths are plain dict lookups, bound once: :attr:`DecodeCache.lookup` (the
+frame of some bytes) and :attr:`DecodeCache.derived` (the value kept for them).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from itertools import islice
 
 from comms.codec import DEFAULT_MAX_BYTES, Frame, Packed, decode, encode_decoded
@@ -32,7 +35,10 @@ DECODE_CACHE_SIZE = 8192
 
 
 class DecodeCache:
-    __slots__ = ("max_bytes", "key", "size", "_frames", "_derived", "decoded", "lookup")
+    __slots__ = ("max_bytes", "key", "size", "_frames", "_derived", "decoded", "lookup", "derived")
+
+    lookup: Callable[[bytes], Frame | None]
+    derived: Callable[[bytes], object | None]
 
     def __init__(self, max_bytes: int = DEFAULT_MAX_BYTES, size: int = DECODE_CACHE_SIZE, key: bytes | None = None):
         self.max_bytes = max_bytes
@@ -41,9 +47,11 @@ class DecodeCache:
         self._frames: dict[bytes, Frame] = {}
         self._derived: dict[bytes, object] = {}  # bytes -> a value derived from the frame: see keep()
         self.decoded = 0  # frames actually run through the codec
-        # lookup(data) -> the cached Frame or None, without decoding (``data`` must be bytes):
-        # the receivers' fast path, a plain dict lookup.
+        # lookup(data) -> the cached Frame or None, without decoding (``data`` must be bytes);
+        # derived(data) -> the value kept for the frame of ``data`` (keep()), or None. The
+        # receivers' fast paths: plain dict lookups.
         self.lookup = self._frames.get
+        self.derived = self._derived.get
 
     def decode(self, data: bytes) -> Frame:
         """:func:`comms.codec.decode` ``(data, max_bytes, key)``, memoised for ``bytes`` that decode."""
@@ -75,10 +83,6 @@ class DecodeCache:
                 del frames[k]
                 derived.pop(k, None)
         frames[data] = frame
-
-    def derived(self, data: bytes) -> object | None:
-        """The value kept for the frame of ``data`` (:meth:`keep`), or None."""
-        return self._derived.get(data)
 
     def keep(self, data: bytes, value: object) -> None:
         """Keep ``value``, derived from the frame of ``data`` (a cached frame), in place of any

@@ -24,9 +24,9 @@ and never beyond range (for the log-distance model: the range its link budget im
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, MutableMapping
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast
 
 import networkx as nx
 import numpy as np
@@ -36,11 +36,34 @@ from comms.settings import LinkModel, LogDistance
 
 # LinkModel and LogDistance are defined in comms.settings (with RadioSettings, the [radio] table);
 # they are named here too, where the radio's users have always found them.
-__all__ = ["Delivery", "LinkFilter", "LinkModel", "LogDistance", "Radio", "RadioCounters", "SPOOF_SENDER"]
+__all__ = ["Adjacency", "Delivery", "LinkFilter", "LinkModel", "LogDistance", "Radio", "RadioCounters", "RadioGraph",
+           "SPOOF_SENDER"]
 
-# networkx's adjacency dict-of-dicts (node -> neighbour -> edge data), read directly in the hot
-# paths below: Graph._adj, which the stubs leave out (it is private; Graph.adj is a view of it).
-_Adjacency = dict[int, dict[int, dict[str, float]]]
+# networkx's adjacency dict-of-dicts: node -> neighbour -> edge data (RadioGraph.edge_data).
+Adjacency = dict[int, dict[int, dict[str, float]]]
+
+if TYPE_CHECKING:
+    _Graph = nx.Graph[int]
+else:
+    _Graph = nx.Graph
+
+
+class RadioGraph(_Graph):
+    """The radio's graph: a ``networkx.Graph`` (nodes are live UAV ids, edges carry ``distance``
+    and ``loss``, and ``margin_db`` with the log-distance model) that names its adjacency
+    dict-of-dicts, :attr:`edge_data`, so that the radio's hot paths read and update edge data
+    with plain dict operations instead of through ``Graph.adj``'s read-only views (networkx's
+    own subclassing hook, ``adjlist_outer_dict_factory``, makes the graph keep it)."""
+
+    def __init__(self, incoming_graph_data: Any = None, **attr: Any):
+        # node -> neighbour -> edge data: the graph's own storage (not a copy), live
+        self.edge_data: Adjacency = {}
+        super().__init__(incoming_graph_data, **attr)
+
+    def adjlist_outer_dict_factory(self) -> MutableMapping[str, Any]:
+        """The outermost dict of the adjacency structure (networkx calls this once, in
+        ``Graph.__init__``): :attr:`edge_data`. (Typed as the networkx stubs type every factory.)"""
+        return cast("MutableMapping[str, Any]", self.edge_data)
 
 
 # The sender of a spoofer's frames in deliveries and ``rx`` events: no member has this id (they
@@ -93,7 +116,8 @@ class Radio:
         self._link_rng_factory = link_rng
         self._link_rngs: dict[tuple[int, int], np.random.Generator] = {}
         self.filter = link_filter
-        self.graph: nx.Graph[int] = nx.Graph()
+        self.graph = RadioGraph()
+        self._edges = self.graph.edge_data  # (the graph's own: read and updated in place)
         self.counters = RadioCounters()
         self._tokens: dict[int, float] = {}
         self._neighbours: dict[int, list[int]] = {}
@@ -117,7 +141,7 @@ class Radio:
         scratch (same nodes, edges and attributes).
         """
         g = self.graph
-        adj: _Adjacency = g._adj  # type: ignore[attr-defined]  # the edge data dicts themselves (see _Adjacency)
+        adj = self._edges  # the edge data dicts themselves
         same_ids = ids == self._ids
         if not same_ids:  # (else the nodes are those of the last update: nobody came or went)
             alive = set(ids)
@@ -264,7 +288,7 @@ class Radio:
         """
         nbrs = self._neighbours.get(src)
         if to is not None and nbrs:
-            nbrs = [to] if to in self.graph._adj[src] else None  # type: ignore[attr-defined]  # see _Adjacency
+            nbrs = [to] if to in self._edges[src] else None
         if not nbrs:
             return
         c = self.counters
@@ -290,7 +314,7 @@ class Radio:
             new = tuple.__new__  # = Delivery(...), without the namedtuple's Python-level __new__
             out.extend([new(Delivery, (arrival, src, dst, data)) for dst in nbrs])
             return
-        adj: dict[int, dict[str, float]] = self.graph._adj[src]  # type: ignore[attr-defined]  # see _Adjacency
+        adj = self._edges[src]
         if flt is None and ld is None:
             # No fault acts: only the link's own loss and jitter draw (in that order).
             base = model.latency_s + 0.0

@@ -160,3 +160,29 @@ def test_import_circles_are_found_at_any_depth_but_not_through_type_checking():
         "p.e": "from p.d import w\n",
     }
     assert import_circles("p", sources) == [["p.a", "p.b", "p.c"]]
+
+
+# --- privates stay inside their class ----------------------------------------------------------
+
+# Reads of another object's private attribute in agents, comms and faults that are allowed: an
+# instance of the same class (a map merging or copying another map, a pyramid batching the work of
+# several). Another class's internals are read through a public name (issue 24: the radio's
+# RadioGraph.edge_data, DecodeCache.derived, Disk.values_memo / stamps_memo, MapGroup.base_cells
+# and the extra scans a MapGroup keeps for its members, DacmpPlanner.keep / search_weights / scratch).
+SAME_CLASS = {
+    "agents/maps/umap.py": {"new._tiles", "new._changes", "new._nty", "new._ntx", "other._materialize", "other._tiles"},
+    "agents/maps/mapgroup.py": {"super()._cells"},
+    "agents/planners/dacmp/maintained.py": {"plane._tiles", "MaintainedPyramid._recompute", "w.pyr._sum_chunks",
+                                            "p._changed", "w.pyr._e_keys"},
+}
+
+
+def test_no_private_read_of_another_class():
+    found: dict[str, set[str]] = {}
+    for package in ("agents", "comms", "faults"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                        and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))):
+                    found.setdefault(path.relative_to(ROOT).as_posix(), set()).add(ast.unparse(node))
+    assert found == SAME_CLASS

@@ -33,7 +33,7 @@ from agents.maps.mapgroup import MapGroup
 from agents.maps.umap import UncertaintyMap
 from agents.planners.dacmp import maintained
 from agents.planners.dacmp.maintained import SPAN, MaintainedPyramid, base_time
-from agents.planners.dacmp.planner import DacmpPlanner, _Layers
+from agents.planners.dacmp.planner import DacmpPlanner, Layers
 from agents.planners.dacmp.pyramid import gaussian_pyramid, level_index, level_shapes
 
 TOL = 2e-6
@@ -256,13 +256,13 @@ def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weig
     grid = Grid(nx * 100.0, ny * 100.0, 100.0)
     planner = DacmpPlanner(levels=levels, level_weights=tuple(rng.uniform(0.1, 3.0, 9)) if weights else None)
     views = _views(rng, grid, 3)
-    _Layers(planner, [types.SimpleNamespace(view=v, r_max=r_max, targets=[]) for v in views])  # other numbers in the buffers
+    Layers(planner, [types.SimpleNamespace(view=v, r_max=r_max, targets=[]) for v in views])  # other numbers in the buffers
     views = _views(rng, grid, n)
     target = (7, float(rng.uniform(-500, grid.width_m + 500)), float(rng.uniform(-500, grid.height_m + 500)), 1.0)
     uavs = [types.SimpleNamespace(view=v, r_max=r_max, targets=[target] if i % 2 else []) for i, v in enumerate(views)]
-    layers = _Layers(planner, uavs)
+    layers = Layers(planner, uavs)
     # Points where a particle can be: within r_max of its UAV, in the area (keep_near), and the
-    # UAV's target, wherever it is (DacmpPlanner._keep scores it).
+    # UAV's target, wherever it is (DacmpPlanner.keep scores it).
     ang, dist = rng.uniform(0, 2 * math.pi, (n, 17)), rng.uniform(0, 1, (n, 17)) * np.minimum(r_max, 1e5)
     p0 = np.array([[v.x for v in views], [v.y for v in views]])[:, :, None]
     pts = p0 + dist * np.stack([np.cos(ang), np.sin(ang)])
@@ -278,7 +278,7 @@ def test_layers_give_the_reference_level_sums_and_guides(nx, ny, n, levels, weig
         q = v.umap.uncertainty(v.t)
         pyr = gaussian_pyramid(q, levels + 1)
         search = list(enumerate(pyr))[1:] or [(0, pyr[0])]
-        w = planner._weights(len(search))
+        w = planner.search_weights(len(search))
         want = np.zeros(17)
         for w_l, (lv, g) in zip(w, search):
             rows, cols = np.minimum(level_index(iy[i], lv), g.shape[0] - 1), np.minimum(level_index(ix[i], lv), g.shape[1] - 1)

@@ -22,9 +22,9 @@ def test_embedding_example_runs():
     assert out.returncode == 0, out.stderr
     lines = out.stdout.strip().splitlines()
     assert lines[0].startswith("t=120 s coverage=")
-    assert lines[1].startswith("[(")  # the found events, by UAV name
-    assert "'B2': 'crashed'" in lines[2] and "'A9': 'alive'" in lines[2]
-    assert "'crash': 1" in lines[3] and "'drop':" in lines[3]
+    assert "'B2': 'crashed'" in lines[1] and "'A9': 'alive'" in lines[1]
+    assert "'crash': 1" in lines[2] and "'drop':" in lines[2]
+    assert lines[3].startswith("[(")  # the found events, by UAV name
 
 
 def test_ci_runs_the_readme_test_command():

@@ -36,7 +36,7 @@ DiskKey = tuple[float, float, float]  # (x, y, radius) of a scan: what a Disk is
 # cols_in_tile, mask_piece, box_slices).
 Stamp = tuple[int, int, int, np.ndarray]
 Piece = tuple[int, slice, slice, np.ndarray, tuple[slice, slice]]
-# Disk._smemo before the first stamps(): its t (NaN) equals no t, so it never hits.
+# Disk.stamps_memo before the first stamps(): its t (NaN) equals no t, so it never hits.
 _NO_STAMPS: Final[tuple[tuple[int, int], float, list[Stamp]]] = ((0, 0), math.nan, [])
 
 
@@ -73,7 +73,8 @@ class Disk:
     scan. ``pieces(tile_h, tile_w, ntx)`` splits it over tiles of a tiled map (memoised).
     """
 
-    __slots__ = ("iy0", "iy1", "ix0", "ix1", "rows", "cols", "mask", "_near", "_pieces", "_vmemo", "_smemo", "key")
+    __slots__ = ("iy0", "iy1", "ix0", "ix1", "rows", "cols", "mask", "_near", "_pieces", "values_memo", "stamps_memo",
+                 "key")
 
     def __init__(self, iy0: int, iy1: int, ix0: int, ix1: int, mask: np.ndarray,
                  near: tuple[int, int] | tuple[np.ndarray, np.ndarray], key: DiskKey | None = None):
@@ -88,10 +89,14 @@ class Disk:
         mask.flags.writeable = False
         self.mask = mask
         self._pieces: dict[tuple[int, int], list[Piece]] = {}
-        # Memos, each one tuple replaced whole (never seen half-updated): (t, values(t)) and
-        # (tile shape, t, stamps). t as given: a float compares fast, float32(t) is derived.
-        self._vmemo: tuple[float, np.ndarray] | tuple[None, None] = (None, None)
-        self._smemo: tuple[tuple[int, int], float, list[Stamp]] = _NO_STAMPS
+        # Memos, each one tuple replaced whole (never seen half-updated): values_memo is
+        # (t, values(t)) of the last values() call ((None, None) before it), stamps_memo
+        # (tile shape, t, stamps(...)) of the last stamps() call. t as given: a float compares
+        # fast, float32(t) is derived. Public, not to be written (keep_values() seeds the first):
+        # a map applying a heard scan reads them to skip the call when they match (the
+        # per-receiver hot path, UncertaintyMap.stamp).
+        self.values_memo: tuple[float, np.ndarray] | tuple[None, None] = (None, None)
+        self.stamps_memo: tuple[tuple[int, int], float, list[Stamp]] = _NO_STAMPS
 
     def _nearest(self) -> tuple[int, int]:
         near = self._near
@@ -103,7 +108,7 @@ class Disk:
         """``where(mask, float32(t), -inf)`` over the box (float32, read-only): ``maximum(box,
         values(t))`` is the scan. Memoised for the last ``t`` (a record is applied by many maps
         at its own t)."""
-        memo = self._vmemo
+        memo = self.values_memo
         if memo[0] == t and memo[1] is not None:
             return memo[1]
         # = np.where(mask, float32(t), -inf), built by filling: about a third cheaper on a box
@@ -112,8 +117,13 @@ class Disk:
         v.fill(-np.inf)
         v[self.mask] = t
         v.flags.writeable = False
-        self._vmemo = (t, v)
+        self.values_memo = (t, v)
         return v
+
+    def keep_values(self, t: float, values: np.ndarray) -> None:
+        """Remember ``values`` (read-only, made elsewhere: :meth:`Grid.prefetch_disks`) as
+        :meth:`values` at ``t``."""
+        self.values_memo = (t, values)
 
     def stamps(self, th: int, tw: int, ntx: int, t: float, bands: np.ndarray | None = None) -> list[Stamp]:
         """The scan at ``t`` for a map of flat ``th * tw`` tiles: ``[(tile_key, start, stop,
@@ -122,7 +132,7 @@ class Disk:
         those rows outside the disk get ``-inf`` (no change). Memoised for the last tile shape
         and ``t`` (a record is applied by many maps at its own t). ``bands`` (from
         :meth:`Grid.prefetch_disks`): the values already laid out over the touched tile columns."""
-        memo = self._smemo
+        memo = self.stamps_memo
         if memo[1] == t and memo[0] == (th, tw):
             return memo[2]
         iy0, iy1, ix0, ix1 = self.iy0, self.iy1, self.ix0, self.ix1
@@ -150,7 +160,7 @@ class Disk:
                 c0, c1 = max(ix0, tx * tw) - ix0, min(ix1, (tx + 1) * tw) - ix0
                 if item(nr, min(max(near_c, c0), c1 - 1)):
                     st.append((ty * ntx + tx, (r0 + base) * tw, (r1 + base) * tw, bands[b, r0:r1].reshape(-1)))
-        self._smemo = ((th, tw), t, st)
+        self.stamps_memo = ((th, tw), t, st)
         return st
 
     def pieces(self, th: int, tw: int, ntx: int) -> list[Piece]:
@@ -353,7 +363,7 @@ class Grid:
                 ix0i, ix1i = int(ix0[i]), int(ix1[i]) + 1
                 d = Disk(int(iy0[i]), int(iy1[i]) + 1, ix0i, ix1i, mask[k], (near_r[k], near_c[k]), todo[i])
                 if values is not None:
-                    d._vmemo = (cast(float, t), values[k])  # (t is not None: values were made for it)
+                    d.keep_values(cast(float, t), values[k])  # (t is not None: values were made for it)
                     if bands is not None:
                         th, tw = cast("tuple[int, int]", tiles)  # (not None: bands were made for them)
                         d.stamps(th, tw, ntx, cast(float, t), bands[k, : (ix1i - 1) // tw - ix0i // tw + 1])

@@ -29,7 +29,7 @@ scan (moving a scan into the base changes no member's cells), so the boxes it re
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 
@@ -64,7 +64,11 @@ class MapGroup:
 
     def __init__(self, grid: Grid, tau: float, dt: float):
         self.base = UncertaintyMap(grid, tau, tile="dense")
-        self.members: list[_Member] = []
+        # The base's cells: a live read-only view (the base is a dense map written in place).
+        self.base_cells = self.base.to_dense_view()
+        # Each member (in the order they joined) and its extra scans: the very dict the member
+        # reads its cells from (the group moves scans out of it into the base).
+        self._members: dict[GroupMap, Extra] = {}
         self.dt = dt
         # Scans some but not all members have: key -> members holding it, and the group clock
         # when it was first stamped (insertion order is that order).
@@ -78,18 +82,24 @@ class MapGroup:
         self.clock = -np.inf  # the latest scan time stamped into a member
         self.left = 0  # members that left (for tests and benchmarks)
 
+    @property
+    def members(self) -> list[GroupMap]:
+        """The member maps, in the order they joined (those that left are not)."""
+        return list(self._members)
+
     def new_map(self) -> UncertaintyMap:
         """A map for a new UAV: a member while the base is empty, else an ordinary map."""
         if self._in_base or self._holders:
             return UncertaintyMap(self.base.grid, self.base.tau)
-        m = GroupMap(self)
-        self.members.append(cast("_Member", m))
+        extra: Extra = {}
+        m = GroupMap(self, extra)
+        self._members[m] = extra
         return m
 
     # --- called by members ------------------------------------------------------------------
 
-    def _add(self, extra: Extra, key: ScanKey, d: Disk, t: float) -> None:
-        """A member whose extra scans are ``extra`` stamped the scan ``key``."""
+    def stamped(self, extra: Extra, key: ScanKey, d: Disk, t: float) -> None:
+        """A member whose extra scans are ``extra`` stamped the scan ``key`` (disk ``d`` at ``t``)."""
         if key in extra:
             return
         if t > self.clock:
@@ -101,7 +111,7 @@ class MapGroup:
         if n is not None or not self._known(key, d, t):
             extra[key] = (d, t)
             n = 1 if n is None else n + 1
-            if n >= len(self.members):
+            if n >= len(self._members):
                 self._to_base(key)
             else:
                 if n == 1:
@@ -115,7 +125,7 @@ class MapGroup:
         changes nothing)."""
         if t >= self.clock - KNOWN_TICKS * self.dt:
             return key in self._in_base  # every recent scan of the base is listed
-        view = self.base._tiles[0][d.rows, d.cols]
+        view = self.base_cells[d.rows, d.cols]
         return bool((view >= d.values(t)).all())  # (-inf outside the disk: always true there)
 
     def _to_base(self, key: ScanKey) -> None:
@@ -128,8 +138,8 @@ class MapGroup:
             oldest = self.clock - KNOWN_TICKS * self.dt
             self._in_base = {k: t for k, t in in_base.items() if t >= oldest}
             self._prune_at = max(_PRUNE_AT, 2 * len(self._in_base))  # (amortised: a big swarm keeps more)
-        for m in self.members:  # (never empty here: every member has the scan)
-            d, t = m._extra.pop(key)
+        for extra in self._members.values():  # (never empty here: every member has the scan)
+            d, t = extra.pop(key)
         self.base.stamp(d, t)
 
     def _expire(self) -> None:
@@ -142,19 +152,20 @@ class MapGroup:
             key, t0 = next(iter(since.items()))
             if t0 >= limit:
                 return
-            lacking = [m for m in self.members if key not in m._extra]
-            having = [m for m in self.members if key in m._extra]
+            lacking = [m for m, extra in self._members.items() if key not in extra]
+            having = [m for m, extra in self._members.items() if key in extra]
             for m in (lacking if len(lacking) <= len(having) else having):
-                self._leave(m)  # (settles the scan: to the base, or dropped with its last holder)
+                self.release(m)  # (settles the scan: to the base, or dropped with its last holder)
 
-    def _leave(self, member: GroupMap) -> None:
-        """Give ``member`` an array of its own and take it out of the group."""
-        if member._extra is None:
+    def release(self, member: GroupMap) -> None:
+        """Give ``member`` an array of its own (:meth:`GroupMap.detach`) and take it out of the
+        group (nothing if it is not a member)."""
+        extra = self._members.pop(member, None)
+        if extra is None:
             return
-        member._own_array()
-        self.members.remove(cast("_Member", member))
+        member.detach()
         self.left += 1
-        for key in member._extra:
+        for key in extra:
             n = self._holders.get(key)
             if n is None:
                 continue
@@ -163,10 +174,9 @@ class MapGroup:
             else:  # its last holder left: no member waits for it any more
                 del self._holders[key]
                 self._since.pop(key, None)
-        member._extra = None
         # With one member fewer, scans the others all have go to the base.
-        for key in [k for k, n in self._holders.items() if n >= len(self.members)]:
-            if self.members:
+        for key in [k for k, n in self._holders.items() if n >= len(self._members)]:
+            if self._members:
                 self._to_base(key)
             else:
                 self._holders.pop(key)
@@ -183,7 +193,7 @@ class GroupMap(UncertaintyMap):
 
     __slots__ = ("_group", "_extra", "_writes", "_built")
 
-    def __init__(self, group: MapGroup):
+    def __init__(self, group: MapGroup, extra: Extra):
         base = group.base
         self.grid, self.tau = base.grid, base.tau
         self.tile_shape, self.dense = base.tile_shape, True
@@ -193,7 +203,7 @@ class GroupMap(UncertaintyMap):
         self.derived = None
         self._writes = 0  # stamps while a member: the built cells are current while it is unchanged
         self._group = group
-        self._extra: Extra | None = {}  # key -> (disk, t); None: left
+        self._extra: Extra | None = extra  # key -> (disk, t), kept with the group; None: left
         self._built = -1  # _writes when the buffer was built
 
     @property
@@ -215,7 +225,7 @@ class GroupMap(UncertaintyMap):
         if self._changes is not None:
             self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         self._writes += 1
-        self._group._add(self._extra, (d.key, t), d, t)
+        self._group.stamped(self._extra, (d.key, t), d, t)
 
     def scan_disk(self, d: Disk, t: float) -> int:
         self._leave()
@@ -231,7 +241,14 @@ class GroupMap(UncertaintyMap):
 
     def _leave(self) -> None:
         if self._extra is not None:
-            self._group._leave(self)
+            self._group.release(self)
+
+    def detach(self) -> None:
+        """Stop being a member: build the cells into an array of its own (from then on an
+        ordinary map). The group calls this when it lets the map go (:meth:`MapGroup.release`)."""
+        if self._extra is not None:
+            self._own_array()
+            self._extra = None
 
     # --- cells ------------------------------------------------------------------------------
 
@@ -240,7 +257,7 @@ class GroupMap(UncertaintyMap):
         buf = self._tiles.get(0)
         if buf is None:
             buf = self._tiles[0] = np.empty(self.grid.shape, np.float32)
-        np.copyto(buf, self._group.base._tiles[0])
+        np.copyto(buf, self._group.base_cells)
         for d, t in cast("Extra", self._extra).values():  # (a member's: not None)
             view = buf[d.rows, d.cols]
             np.maximum(view, d.values(t), out=view)
@@ -253,7 +270,7 @@ class GroupMap(UncertaintyMap):
     def region(self, rows: slice, cols: slice) -> np.ndarray:
         if self._extra is None or self._built == self._writes:
             return super().region(rows, cols)
-        out = self._group.base._tiles[0][rows, cols].copy()
+        out = self._group.base_cells[rows, cols].copy()
         r0, c0 = rows.start, cols.start
         for d, t in self._extra.values():
             a, z = max(rows.start, d.iy0), min(rows.stop, d.iy1)
@@ -263,25 +280,16 @@ class GroupMap(UncertaintyMap):
                 np.maximum(view, d.values(t)[a - d.iy0 : z - d.iy0, b - d.ix0 : e - d.ix0], out=view)
         return out
 
-    def _cells(self, ix, iy) -> np.ndarray:
+    def _cells(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
         ix, iy = np.broadcast_arrays(np.asarray(ix), np.asarray(iy))
         if (self._extra is None or self._built == self._writes or ix.ndim == 0 or ix.dtype.kind not in "iu"
                 or iy.dtype.kind not in "iu" or (ix.size and (ix.min() < 0 or iy.min() < 0))):
             self._materialize()  # (whole cells for the unusual cases: index checks as usual)
             return super()._cells(ix, iy)
-        seen = self._group.base._tiles[0][iy, ix]  # a new array (fancy indexing)
+        seen: np.ndarray = self._group.base_cells[iy, ix]  # a new array (fancy indexing)
         for d, t in self._extra.values():
             r, c = iy - d.iy0, ix - d.ix0
             inside = (r >= 0) & (r < d.iy1 - d.iy0) & (c >= 0) & (c < d.ix1 - d.ix0)
             if inside.any():
                 seen[inside] = np.maximum(seen[inside], d.values(t)[r[inside], c[inside]])
         return seen
-
-
-if TYPE_CHECKING:
-
-    class _Member(GroupMap):
-        """A :class:`GroupMap` in :attr:`MapGroup.members`: one that has not left, so its extra
-        scans are a dict (``_extra`` becomes None only once it is out of the list)."""
-
-        _extra: Extra

@@ -22,6 +22,9 @@ invisible. Cells of edge tiles lying outside the grid stay ``-inf`` (writes are 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import SupportsInt
+
 import numpy as np
 
 from agents.maps.grid import Disk, Grid
@@ -216,12 +219,12 @@ class UncertaintyMap:
                 self._changed(d.iy0, d.iy1, d.ix0, d.ix1)
         if self.dense:
             view = self._tiles[0][d.rows, d.cols]
-            memo = d._vmemo  # Disk.values() memo, inlined (the per-receiver hot path)
+            memo = d.values_memo  # = d.values(t) when it matches, without the call (the per-receiver hot path)
             np.maximum(view, memo[1] if memo[0] == t and memo[1] is not None else d.values(t), out=view)
             return
         tiles = self._tiles
         shape = self.tile_shape
-        smemo = d._smemo  # Disk.stamps() memo, inlined (the per-receiver hot path)
+        smemo = d.stamps_memo  # = d.stamps(...) when it matches, without the call (the per-receiver hot path)
         pieces = smemo[2] if smemo[1] == t and smemo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
         for key, start, stop, values in pieces:
             tile = tiles.get(key)
@@ -310,7 +313,7 @@ class UncertaintyMap:
 
     # --- reads ------------------------------------------------------------------------------
 
-    def _check_window(self, window) -> tuple[int, int, int, int]:
+    def _check_window(self, window: Iterable[SupportsInt]) -> tuple[int, int, int, int]:
         try:
             ix0, iy0, w, h = (int(v) for v in window)
         except (TypeError, ValueError):
@@ -375,7 +378,7 @@ class UncertaintyMap:
         return self._q(t, last_seen, out)
 
     def _q(self, t: float, last_seen: np.ndarray, out: np.ndarray | None) -> np.ndarray:
-        age = np.subtract(np.float32(t), last_seen, out=out, dtype=np.float32)
+        age: np.ndarray = np.subtract(np.float32(t), last_seen, out=out, dtype=np.float32)
         np.multiply(age, np.float32(-self.tau), out=age)
         np.exp(age, out=age)
         np.subtract(np.float32(1.0), age, out=age)
@@ -410,10 +413,12 @@ class UncertaintyMap:
             return v
         return self._gather(cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start)
 
-    def _cells(self, ix, iy) -> np.ndarray:
+    def _cells(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+        """Last-seen times of cells ``(iy, ix)`` (integer arrays; 0-d ones give a numpy scalar)."""
         self._materialize()
         if self.dense:
-            return self._tiles[0][iy, ix]
+            cells: np.ndarray = self._tiles[0][iy, ix]
+            return cells
         ny, nx = self.grid.shape
         ix, iy = np.broadcast_arrays(np.asarray(ix), np.asarray(iy))
         for a, n, name in ((ix, nx, "ix"), (iy, ny, "iy")):

@@ -56,7 +56,7 @@ def pareto_step(rng: np.random.Generator, mu: float, minimum: float, cap: float)
     """One step length: Pareto with density ``~ l^-mu`` above ``minimum`` (survival
     ``(l / minimum)^-(mu - 1)``), cut to ``cap``. One draw from ``rng``."""
     u = float(rng.random())
-    return min(minimum * (1.0 - u) ** (-1.0 / (mu - 1.0)), cap)
+    return min(minimum * math.pow(1.0 - u, -1.0 / (mu - 1.0)), cap)  # (1 - u > 0: the same C pow as **)
 
 
 class LevyPlanner:

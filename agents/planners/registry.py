@@ -38,6 +38,7 @@ from __future__ import annotations
 import difflib
 import importlib
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any, cast
@@ -160,9 +161,9 @@ def resolve_planner(name: str) -> type:
     raise PlannerError(f"unknown planner {name!r}; expected one of {', '.join(known)}, or module:Class{hint}")
 
 
-def _maker(cls: type) -> tuple[Any, bool]:
+def _maker(cls: type) -> tuple[Callable[..., object], bool]:
     """The callable that builds an instance, and whether it takes the context first."""
-    maker = getattr(cls, "from_context", None)
+    maker: Callable[..., object] | None = getattr(cls, "from_context", None)
     return (maker, True) if maker is not None else (cls, False)
 
 
@@ -234,6 +235,7 @@ def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -
                            f"{type(exc).__name__}: {exc}") from exc
     if not callable(getattr(planner, "plan", None)):
         raise PlannerError(f"planner {name!r}: {cls.__name__} has no plan(view) method")
+    built = cast(Planner, planner)  # (a user's class, duck-typed: its plan method checked just above)
     surveils = surveils_of(cls)
     if context.settings is not None and getattr(context.settings, "surveillance", False):
         if surveils is False:
@@ -241,5 +243,5 @@ def build_planner(name: str, options: dict[str, Any], context: PlannerContext) -
         if surveils == "shared":
             from agents.planners.surveillance import SharedSurveillance
 
-            return SharedSurveillance.of(planner, context)
-    return planner
+            return SharedSurveillance.of(built, context)
+    return built

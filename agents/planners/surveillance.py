@@ -9,12 +9,12 @@ UAV whose planner searches its own way (``greedy``, ``lawnmower``, ``formation``
 user's planner that declares ``surveils = "shared"``):
 
 * already watching target ``m`` (its current plan is in surveillance mode of ``m``): DACMP's
-  keep rule, unchanged (``DacmpPlanner._keep``): keep ``m`` with ``g_m`` pulled to within one
+  keep rule, unchanged (``DacmpPlanner.keep``): keep ``m`` with ``g_m`` pulled to within one
   planning step as the waypoint, or let go;
 * otherwise, for the known targets in scope (``DacmpPlanner``'s: tracks fresh enough, within
   ``D + 2 R_s``), the candidate waypoints are the targets themselves pulled to within one
   planning step (where DACMP's particle swarm looks over the ring around the UAV); the best of
-  them by eq. 16 goes through DACMP's mode rule (``_UavSearch.decide``): surveillance of the
+  them by eq. 16 goes through DACMP's mode rule (``UavSearch.decide``): surveillance of the
   target with the strongest pull, or nothing;
 * no watch: the wrapped planner's own search plan.
 
@@ -24,7 +24,7 @@ watcher at its target, the nearer same-type claimant keeps it), its keep rule an
 each type's ``w_t``, ``w_r``. A fix there is a fix here. While watching, the wrapped planner is
 not asked: a pattern planner goes back to its pattern afterwards the way it rejoins after an
 avoidance manoeuvre. Search-mode draws from the UAV's stream are the search planner's; the
-decision adds the guide point's tie draw (``_Layers``) only while a target is in scope.
+decision adds the guide point's tie draw (``Layers``) only while a target is in scope.
 
 With ``planner.surveillance = false`` nothing of this runs (the registry does not wrap), so a
 search planner's runs are exactly what they were.
@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from agents.planners.base import Plan, Planner, PlanView
-from agents.planners.dacmp.planner import DacmpPlanner, _Batch, _Layers, _UavSearch
+from agents.planners.dacmp.planner import Batch, DacmpPlanner, Layers, UavSearch
 from comms.messages import MODE_SURVEIL
 
 if TYPE_CHECKING:
@@ -78,16 +78,16 @@ class SharedSurveillance:
     def watch(self, view: PlanView) -> Plan | None:
         """A plan in surveillance mode if DACMP's rules have this UAV watch a target, else None."""
         dacmp, g = self.dacmp, view.grid
-        u = _UavSearch.build(dacmp, view, 0)
+        u = UavSearch.build(dacmp, view, 0)
         if not u.targets:
             return None
-        layers = _Layers(dacmp, [u])  # (the UAV's guide point: f_Sg of eq. 20)
-        kept = dacmp._keep(u, g, layers)
+        layers = Layers(dacmp, [u])  # (the UAV's guide point: f_Sg of eq. 20)
+        kept = dacmp.keep(u, g, layers)
         if kept is not None:
             return kept
         n = len(u.targets)
         z = np.array([[[tx for _, tx, _, _ in u.targets]], [[ty for _, _, ty, _ in u.targets]]])
-        batch = _Batch(dacmp, [u], g, layers, n)
+        batch = Batch(dacmp, [u], g, layers, n)
         z = batch.keep_near(z)
         f, f_s, _ = batch.fitness(z, kept=True)
         best = int(np.argmax(f[0]))  # (ties: the first target in id order)

@@ -156,7 +156,8 @@ def _field_from(f: dataclasses.Field[Any], tp: Any) -> tuple[Any, Any]:
 
     No default: required. ``math.inf``: absent from the scenario (``None``, "leave it out"), as a
     fault's ``end_s``. Numbers get their ``description`` (the 'expected' words of an error) from
-    :func:`_num` / :func:`_int`, booleans "true or false", other fields from ``expected``."""
+    :func:`num_field` / :func:`int_field`, booleans "true or false", a Literal "one of: ...", other
+    fields from ``expected``."""
     meta = dict(f.metadata)
     unknown = set(meta) - _METADATA_KEYS
     if unknown:

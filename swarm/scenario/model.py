@@ -61,7 +61,8 @@ _FLOAT32_MAX = 3.4028235e38
 
 
 class Scenario(Table):
-    """Everything one run needs. Build it with :func:`load_scenario` or :func:`parse_scenario`."""
+    """Everything one run needs. Build it with :func:`~swarm.scenario.loading.load_scenario` or
+    :func:`parse_scenario`."""
 
     name: Str = Field(default="scenario", description="a string")
     description: Str = Field(default="", description="a string")
@@ -383,8 +384,9 @@ def apply_overrides(scenario: Scenario, overrides: Mapping[str, Any], *, truncat
     it, except late joiners, which must join before ``scenario_duration_s``, the scenario's
     own end, if given (not judged otherwise); see :func:`parse_scenario`.
 
-    ``planner.name`` is applied first and replaces the planner as :func:`~swarm.scenario.overrides.switch_planner` does
-    (its options follow it), so ``planner.options.KEY`` overrides are the new planner's.
+    ``planner.name`` is applied first and replaces the planner as
+    :func:`~swarm.scenario.overrides.switch_planner` does (its options follow it), so
+    ``planner.options.KEY`` overrides are the new planner's.
     ``allow_planner_imports``: as :func:`parse_scenario`; the scenario's own planner stays
     allowed (it was when ``scenario`` was validated), a new ``module:Class`` needs allowing."""
     source = f"{scenario.name} (with overrides)"

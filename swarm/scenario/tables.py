@@ -299,7 +299,8 @@ class PlannerSettings(Table):
         # Nothing a scenario names is imported unless the user allowed it (swarm.scenario.trust);
         # what is imported is checked to be a planner class, and the options against its
         # signature, before anything in it is called (agents.planners.registry).
-        from agents.planners.registry import PlannerError, option_problems, surveillance_problem
+        from agents.planners.base import PlannerError
+        from agents.planners.registry import option_problems, surveillance_problem
         from swarm.scenario.trust import permits, refusal
 
         allow = info.context.get("allow_planners") if info.context else None

@@ -136,7 +136,7 @@ class DubinsPoses:
         self.r = r
         self.inv_r = 1.0 / r
         if shape is not None:
-            def full(a, shape):
+            def full(a: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
                 return np.ascontiguousarray(np.broadcast_to(a, shape))
 
             self.c, self.s, self.inv_r = (full(a, (2, *shape)) for a in (self.c, self.s, self.inv_r))
@@ -149,7 +149,8 @@ class DubinsPoses:
         return np.where(self.free, np.hypot(d[0], d[1]), turning)
 
 
-def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
+def _lengths(d: np.ndarray, c: float | np.ndarray, s: float | np.ndarray, r: float | np.ndarray,
+             inv_r: float | np.ndarray) -> np.ndarray:
     """The closed form of the module docstring, for stacked offsets ``d = (dx, dy)`` (each at
     least 1-d) from the start and the start's ``cos``, ``sin``, ``r`` and ``1 / r`` (scalars, or
     arrays broadcasting into the offsets' shape). Temporaries are updated in place and the two
@@ -157,7 +158,9 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
     # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
     xy = c * d  # (c dx, c dy)
     sd = s * d  # (s dx, s dy)
-    x, y = xy
+    x: np.ndarray
+    y: np.ndarray
+    x, y = xy  # (views: the in-place steps below update xy)
     x += sd[1]  # c dx + s dy
     y -= sd[0]  # c dy - s dx
     np.abs(y, out=y)
@@ -183,7 +186,7 @@ def _lengths(d: np.ndarray, c, s, r, inv_r) -> np.ndarray:
     ahead = x > 0.0
     ahead &= alpha > math.pi
     alpha[ahead] = 0.0
-    out = alpha
+    out: np.ndarray = alpha
     out += t
 
     # --- CC (RL) for points strictly inside the left turning circle (usually none).

@@ -57,7 +57,7 @@ pyramid costs memory in proportion to the tiles the map has allocated (about 0.4
 not to the area.
 
 The planner reads the levels only in a window around each UAV
-(:class:`agents.planners.dacmp.planner._Layers`): eq. 19 is ``sum(lambda) - s sum_l lambda_l
+(:class:`agents.planners.dacmp.planner.Layers`): eq. 19 is ``sum(lambda) - s sum_l lambda_l
 P_l`` at the particles' cells.
 """
 
@@ -100,7 +100,7 @@ def e_of(last_seen: np.ndarray, tau: float, t0: float) -> np.ndarray:
     arg = np.subtract(last_seen, np.float32(t0), dtype=np.float32)
     arg *= np.float32(tau)
     np.clip(arg, np.float32(-EXP_MIN), np.float32(EXP_MIN), out=arg)
-    e = np.exp(arg, out=arg)
+    e: np.ndarray = np.exp(arg, out=arg)
     # Times 1 (seen: exact) or 0 (never seen: E is positive, so +0.0): cheaper than a masked
     # copy, most of a tile's cells being never seen.
     e *= last_seen != NEVER
@@ -257,7 +257,8 @@ class SeenPlane(Plane):
     def load_many(loads: list[tuple[SeenPlane, list[int]]]) -> None:
         """:meth:`load` of each plane's keys, one :func:`e_of` call for all planes of the same
         ``tau``, ``t0`` and tile shape (element-wise: each tile gets the values of its own load)."""
-        groups: dict[tuple[float, float, tuple[int, int]], tuple[list[tuple[dict, int]], list[np.ndarray]]] = {}
+        Tiles = dict[int, np.ndarray | None]  # (a plane's loaded E tiles: None where the map has none)
+        groups: dict[tuple[float, float, tuple[int, int]], tuple[list[tuple[Tiles, int]], list[np.ndarray]]] = {}
         for plane, keys in loads:
             tiles, tile_of = plane._tiles, plane.umap.tile
             todo, seen = groups.setdefault((plane.umap.tau, plane.t0, plane.tile), ([], []))

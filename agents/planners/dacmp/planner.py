@@ -35,12 +35,14 @@ from __future__ import annotations
 import bisect
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 
+from agents.knowledge import Knowledge, KnownThreat, Track
+from agents.maps.grid import Grid
 from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.dacmp.maintained import MaintainedPyramid
@@ -55,6 +57,14 @@ if TYPE_CHECKING:
 _INTENT_MAX_AGE_S = 15.0
 
 
+class PlannerTable(Protocol):
+    """A scenario's ``[planner]`` table as :meth:`DacmpPlanner.from_settings` reads it: its
+    ``dacmp`` table, with the fields of :class:`DacmpSettings` (arrays as lists)."""
+
+    @property
+    def dacmp(self) -> object: ...
+
+
 @dataclass(frozen=True)
 class DacmpPlanner(DacmpSettings):
     """The planner: its settings (:class:`DacmpSettings`, keyword arguments) and what the run
@@ -67,7 +77,7 @@ class DacmpPlanner(DacmpSettings):
     detect_radius_by_type: dict[str, float] = field(default_factory=dict)
     name: str = "dacmp"
     # Work arrays reused from one replanning to the next (not a setting: not compared or shown).
-    _scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
+    scratch: Scratch = field(default_factory=Scratch, init=False, repr=False, compare=False)
 
     @classmethod
     def from_context(cls, context: PlannerContext) -> DacmpPlanner:
@@ -76,7 +86,7 @@ class DacmpPlanner(DacmpSettings):
                                  context.detect_radius_by_type)
 
     @classmethod
-    def from_settings(cls, planner_settings, levels: int = 7,
+    def from_settings(cls, planner_settings: PlannerTable, levels: int = 7,
                       speed_max_by_type: dict[str, float] | None = None,
                       detect_radius_by_type: dict[str, float] | None = None) -> DacmpPlanner:
         """The planner of a scenario's ``[planner]`` table: its ``dacmp`` table has the fields of
@@ -93,12 +103,13 @@ class DacmpPlanner(DacmpSettings):
 
     # --- pieces of the fitness --------------------------------------------------------------
 
-    def _weights(self, n: int) -> np.ndarray:
+    def search_weights(self, n: int) -> np.ndarray:
         """lambda_1..lambda_n of eq. 19 (n < L when the map is too small for L layers)."""
         if self.level_weights is None:
             return np.full(n, 1.0 / n)
         w = np.asarray(self.level_weights[:n], dtype=np.float64)
-        return w / w.sum()
+        weights: np.ndarray = w / w.sum()
+        return weights
 
     @staticmethod
     def guide_point(q: np.ndarray, regions: tuple[int, int], cell_m: float, x: float, y: float,
@@ -237,7 +248,7 @@ class DacmpPlanner(DacmpSettings):
                 out.append((wx, wy, v_j, scope, at))
         return out
 
-    def crowding(self, uavs: list[_UavSearch], points: int) -> Callable[[np.ndarray], np.ndarray] | None:
+    def crowding(self, uavs: list[UavSearch], points: int) -> Callable[[np.ndarray], np.ndarray] | None:
         """A factor on eq. 19's ``f_Sl`` at the points ``z`` of these UAVs (``(2, UAVs, points)``
         to ``(UAVs, points)``), or None. The paper's DACMP has none; variants beyond the paper
         do (:mod:`agents.planners.dacmp.spread`)."""
@@ -252,7 +263,7 @@ class DacmpPlanner(DacmpSettings):
         Each UAV keeps its own map, pyramid, guide point, targets, rivals, threats and random
         stream (its draws are made from its own generator, in the order the one-UAV algorithm
         makes them); only array operations are shared: the PSO's, on arrays of shape
-        ``(2, UAVs, particles)``, and the pyramid steps of the smaller levels (:class:`_Layers`).
+        ``(2, UAVs, particles)``, and the pyramid steps of the smaller levels (:class:`Layers`).
         Numpy's element-wise operations give each element the same value whatever array it sits
         in, and each pyramid row is the same BLAS call, so a UAV's decision does not depend on
         its batch (``tests/test_batching.py`` checks plans and event logs).
@@ -269,11 +280,11 @@ class DacmpPlanner(DacmpSettings):
         if type(self).plan is not DacmpPlanner.plan:  # a subclass with its own plan(): honour it
             return [self.plan(v) for v in views]
         g = views[0].grid
-        uavs = [_UavSearch.build(self, v, slot) for slot, v in enumerate(views)]
-        layers = _Layers(self, uavs)  # (sets every UAV's guide point)
+        uavs = [UavSearch.build(self, v, slot) for slot, v in enumerate(views)]
+        layers = Layers(self, uavs)  # (sets every UAV's guide point)
         plans: list[Plan | None] = [None] * len(uavs)
         for i, u in enumerate(uavs):
-            plans[i] = self._keep(u, g, layers)
+            plans[i] = self.keep(u, g, layers)
         search = [i for i, p in enumerate(plans) if p is None]
         for i in search:
             uavs[i].draw(self)
@@ -282,7 +293,7 @@ class DacmpPlanner(DacmpSettings):
                 plans[i] = plan
         return cast("list[Plan]", plans)  # every None (a UAV to plan afresh) got its PSO plan
 
-    def _keep(self, u: _UavSearch, g, layers: _Layers) -> Plan | None:
+    def keep(self, u: UavSearch, g: Grid, layers: Layers) -> Plan | None:
         """The surveillance-mode rule of :meth:`plan_many` for one UAV (None: plan afresh)."""
         mine = u.view.plan
         if mine is None or mine.mode != MODE_SURVEIL:
@@ -290,7 +301,7 @@ class DacmpPlanner(DacmpSettings):
         for i, (tid, tx, ty, _v) in enumerate(u.targets):
             if tid == mine.target:
                 z = np.array([[[tx]], [[ty]]])
-                batch = _Batch(self, [u], g, layers, 1)
+                batch = Batch(self, [u], g, layers, 1)
                 _, f_s, _ = batch.fitness(z)
                 # This target's own term, not the whole f_t there: another target within D of
                 # g_m adds its pull to f_t at g_m, and a UAV whose own target was kept by a
@@ -301,15 +312,15 @@ class DacmpPlanner(DacmpSettings):
                 return None
         return None
 
-    def _pso(self, uavs: list[_UavSearch], g, layers: _Layers) -> list[Plan]:
-        """Particle swarms of several UAVs in lockstep (their draws made by :meth:`_UavSearch.draw`)."""
+    def _pso(self, uavs: list[UavSearch], g: Grid, layers: Layers) -> list[Plan]:
+        """Particle swarms of several UAVs in lockstep (their draws made by :meth:`UavSearch.draw`)."""
         U, M, n_it = len(uavs), self.particles, self.iterations
-        batch = _Batch(self, uavs, g, layers, M)
+        batch = Batch(self, uavs, g, layers, M)
         fitness, keep_near = batch.fitness, batch.keep_near
         rows = np.arange(U)
         # Positions and velocities as (axis, UAV, particle): x and y rows share every operation.
         # Particles in the ring outside the detection radius (section 3.1). Every UAV here has
-        # made its draws (_UavSearch.draw), so none of these arrays is None.
+        # made its draws (UavSearch.draw), so none of these arrays is None.
         radius = np.abs(np.stack(cast("list[np.ndarray]", [u.ring_radius for u in uavs])))
         angle = np.stack(cast("list[np.ndarray]", [u.ring_angle for u in uavs]))
         z = keep_near(batch.p0 + radius * np.stack([np.cos(angle), np.sin(angle)]))
@@ -349,7 +360,7 @@ class DacmpPlanner(DacmpSettings):
         return plans
 
 
-class _Batch:
+class Batch:
     """The fitness (eq. 16) and the particle bound of several UAVs, on ``(2, UAVs, points)``
     arrays of positions (x row, then y row), ``points`` per UAV.
 
@@ -357,11 +368,11 @@ class _Batch:
     same-shape operands than when it has to broadcast a column, and the numbers are the same.
     """
 
-    def __init__(self, planner: DacmpPlanner, uavs: list[_UavSearch], grid, layers: _Layers, points: int):
+    def __init__(self, planner: DacmpPlanner, uavs: list[UavSearch], grid: Grid, layers: Layers, points: int):
         self.planner, self.uavs, self.grid, self.layers = planner, uavs, grid, layers
         shape = (len(uavs), points)
 
-        def column(values) -> np.ndarray:
+        def column(values: Sequence[float]) -> np.ndarray:
             return np.repeat(np.array(values, dtype=np.float64)[:, None], points, axis=1)
 
         self.p0 = np.stack([column([u.view.x for u in uavs]), column([u.view.y for u in uavs])])
@@ -436,14 +447,15 @@ class _Batch:
         d = z - self.p0
         dist = np.hypot(d[0], d[1])
         scale = np.where(dist > self.r_max, self.r_max / np.maximum(dist, 1e-9), 1.0)
-        kept = self.p0 + d * scale
+        kept: np.ndarray = self.p0 + d * scale
         # = np.clip(kept, 0.0, self.area), without its Python-level overhead.
         np.maximum(kept, 0.0, out=kept)
-        return np.minimum(kept, self.area, out=kept)
+        np.minimum(kept, self.area, out=kept)
+        return kept
 
 
 @dataclass
-class _UavSearch:
+class UavSearch:
     """One UAV's share of a (batched) DACMP plan: everything that is its own."""
 
     view: PlanView
@@ -452,18 +464,18 @@ class _UavSearch:
     r_min: float
     D: float
     v_i: float
-    slot: int  # the UAV's index in the _Layers of the plan_many call (its map's pyramid)
+    slot: int  # the UAV's index in the Layers of the plan_many call (its map's pyramid)
     targets: list[tuple[int, float, float, float]]
     rivals: list[tuple[float, float, float, tuple[int, ...], int]]  # DacmpPlanner.rivals
-    threats: list
-    guide: tuple[float, float] | None = None  # set by _Layers
+    threats: list[KnownThreat]
+    guide: tuple[float, float] | None = None  # set by Layers
     ring_radius: np.ndarray | None = None  # draw(): only a UAV that runs PSO draws these
     ring_angle: np.ndarray | None = None
     pso_draws: np.ndarray | None = None  # (iterations, 3, particles): r1, r2 and Q of eq. 15
 
     @classmethod
-    def build(cls, planner: DacmpPlanner, view: PlanView, slot: int) -> _UavSearch:
-        """Everything but the map work (done for the whole batch by :class:`_Layers`)."""
+    def build(cls, planner: DacmpPlanner, view: PlanView, slot: int) -> UavSearch:
+        """Everything but the map work (done for the whole batch by :class:`Layers`)."""
         k = view.kind
         R = k.detect_radius
         t = view.t
@@ -536,7 +548,7 @@ class _UavSearch:
         repulsion of the UAVs that stand at it (``at`` of :meth:`DacmpPlanner.rivals`: its
         watchers within a planning step, a nearer claimant of our type); 0 beyond ``D``.
         Attraction and those repulsions share the distance to ``g_m``. Both the mode switch
-        (:meth:`decide`) and the keep rule (:meth:`DacmpPlanner._keep`) judge a target by it."""
+        (:meth:`decide`) and the keep rule (:meth:`DacmpPlanner.keep`) judge a target by it."""
         _tid, tx, ty, value = self.targets[i]
         d = math.hypot(wx - tx, wy - ty)
         if d >= self.D:
@@ -546,7 +558,7 @@ class _UavSearch:
         return pull / max(d / unit, floor)
 
 
-def _near_zone(knowledge, track, t: float, reach: float) -> bool:
+def _near_zone(knowledge: Knowledge, track: Track, t: float, reach: float) -> bool:
     """Whether a track's last sighting or its predicted position lies inside a known no-fly
     zone or within ``reach`` of one."""
     return (knowledge.inside_threat(track.x, track.y, reach) is not None
@@ -563,7 +575,7 @@ def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, 
 @functools.lru_cache(maxsize=64)
 def _cell_parts(ny: int, nx: int, search: tuple[int, ...], shapes: tuple[tuple[int, int], ...],
                 widths: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """``_Layers.row_part`` and ``col_part`` of a grid and window widths (read-only)."""
+    """``Layers.row_part`` and ``col_part`` of a grid and window widths (read-only)."""
     row_part = np.stack([np.minimum(level_index(np.arange(ny), l), shapes[l][0] - 1) * wd for l, wd in zip(search, widths)])
     col_part = np.stack([np.minimum(level_index(np.arange(nx), l), shapes[l][1] - 1) for l in search])
     row_part.flags.writeable = False
@@ -579,7 +591,7 @@ def _sub_areas(h: int, w: int, ny: int, nx: int) -> tuple[tuple[int, ...], tuple
     return tuple(rows.tolist()), tuple(cols.tolist())
 
 
-class _Layers:
+class Layers:
     """The map work of one :meth:`DacmpPlanner.plan_many` call: every UAV's global guide point
     and the eq. 19 layers its particles can reach.
 
@@ -587,19 +599,19 @@ class _Layers:
     s P_l``, recomputed only where the map changed since its last plan). Eq. 19 sums layers
     1..L (a map too small for even one layer falls back on G_0). For the particles, each UAV's
     ``P_l`` are copied, only in a window around the UAV (every cell within ``r_max`` of it, one
-    cell of margin, and the cells of its targets, which :meth:`DacmpPlanner._keep` scores), into
+    cell of margin, and the cells of its targets, which :meth:`DacmpPlanner.keep` scores), into
     one flat float32 buffer, level by level and UAV by UAV within a level, so that the level
     sums of all particles of all UAVs are one gather (:meth:`level_sum`). The buffer is bounded
     by the windows, not by the map: a 42 M-cell map costs what a small one does.
     """
 
-    def __init__(self, planner: DacmpPlanner, uavs: list[_UavSearch]):
+    def __init__(self, planner: DacmpPlanner, uavs: list[UavSearch]):
         views = [u.view for u in uavs]
         g = views[0].grid
         n = self.count = len(views)
         shapes = level_shapes(g.shape, planner.levels + 1)  # G_0 .. G_L
         self.search = search = list(range(1, len(shapes))) or [0]
-        lam = planner._weights(len(search))
+        lam = planner.search_weights(len(search))
         self.lam = lam[:, None, None]
         self.lam_total = float(np.add.reduce(lam, initial=0.0))
         pyramids = [MaintainedPyramid.of(v.umap, planner.levels) for v in views]
@@ -628,7 +640,7 @@ class _Layers:
         widths = (win[:, :, 3] - win[:, :, 2] + 1).max(axis=1)  # one width per level: one row table
         sizes = heights * widths[:, None]
         starts = np.cumsum(np.concatenate([[0], sizes.ravel()]))[:-1].reshape(sizes.shape)
-        self.flat = planner._scratch.get("layers", (int(sizes.sum()),))
+        self.flat = planner.scratch.get("layers", (int(sizes.sum()),))
         for j, l in enumerate(search):
             wd = int(widths[j])
             for i, pyr in enumerate(pyramids):
@@ -665,6 +677,7 @@ class _Layers:
         idx += base
         terms = self.flat.take(idx).astype(np.float64) * lam  # lambda_l * P_l (float64: same-type multiply)
         # A reduction over the first axis adds whole rows, one level after the other.
-        p = np.add.reduce(terms, axis=0, initial=0.0)
+        p: np.ndarray = np.add.reduce(terms, axis=0, initial=0.0)
         p *= s
-        return np.subtract(self.lam_total, p, out=p)
+        np.subtract(self.lam_total, p, out=p)
+        return p

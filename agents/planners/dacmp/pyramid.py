@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import cast
+from typing import Any, cast, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -167,7 +167,8 @@ def pyr_down(a: np.ndarray) -> np.ndarray:
         a = a.astype(np.float64)
     h, w = a.shape
     out = np.empty((1, (h + 1) // 2, (w + 1) // 2), a.dtype)
-    return pyr_down_stack(np.ascontiguousarray(a)[None], out)[0]
+    down: np.ndarray = pyr_down_stack(np.ascontiguousarray(a)[None], out)[0]
+    return down
 
 
 def level_shapes(shape: tuple[int, int], levels: int) -> list[tuple[int, int]]:
@@ -197,7 +198,13 @@ def gaussian_pyramid(q: np.ndarray, levels: int) -> list[np.ndarray]:
     return pyr
 
 
-def level_index(i0, level: int):
+@overload
+def level_index(i0: int, level: int) -> int: ...
+@overload
+def level_index(i0: npt.NDArray[np.integer[Any]], level: int) -> npt.NDArray[np.integer[Any]]: ...
+
+
+def level_index(i0: int | npt.NDArray[np.integer[Any]], level: int) -> int | npt.NDArray[np.integer[Any]]:
     """Index on level ``level`` of the cell nearest to level-0 cell ``i0`` (int or int array).
 
     ``REDUCE`` keeps samples 0, 2, 4, ...: level-``l`` cell ``a`` is centred on level-0 cell

@@ -33,7 +33,7 @@ import numpy as np
 from agents.planners.dacmp.planner import _INTENT_MAX_AGE_S, DacmpPlanner
 
 if TYPE_CHECKING:
-    from agents.planners.dacmp.planner import _UavSearch
+    from agents.planners.dacmp.planner import UavSearch
     from agents.planners.registry import PlannerContext
 
 __all__ = ["DacmpSpreadPlanner"]
@@ -57,7 +57,7 @@ class DacmpSpreadPlanner(DacmpPlanner):
         planner = cast("DacmpSpreadPlanner", super().from_context(context))  # from_settings builds cls
         return dataclasses.replace(planner, spread_weight=float(spread_weight))
 
-    def crowding(self, uavs: list[_UavSearch], points: int) -> _Crowding | None:
+    def crowding(self, uavs: list[UavSearch], points: int) -> _Crowding | None:
         """The factor on ``f_Sl`` (module docstring) for these UAVs, or None when none hears a peer."""
         if self.spread_weight == 0:
             return None
@@ -99,4 +99,5 @@ class _Crowding:
         s = np.clip((px * self.dx + py * self.dy) / self.len2, 0.0, 1.0)  # nearest point of the segment
         u = np.minimum(np.hypot(px - s * self.dx, py - s * self.dy) / self.two_r, 1.0)
         overlap = (2.0 / math.pi) * (np.arccos(u) - u * np.sqrt(1.0 - u * u))
-        return np.maximum(1.0 - self.weight * overlap.sum(axis=1), 0.0)
+        crowding: np.ndarray = np.maximum(1.0 - self.weight * overlap.sum(axis=1), 0.0)
+        return crowding
