@@ -466,8 +466,12 @@ class UavActor:
             # (agents.apf) still keeps it out.
             apf = replace(apf, k_rep=apf.k_rep * s.loiter_threat_weight)
         others = self._others(r, k.recent_peers(t, s.peer_timeout_s))
-        a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
-                               list(k.threats.values()), others, apf, s.dt, s.zones)
+        if s.zones:  # (issue 26: polygon zones and the area's boundary)
+            a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
+                                   list(k.threats.values()), others, apf, s.dt, zones=s.zones)
+        else:
+            a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
+                                   list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
         replies = self._answer_digests(t) if self._digests else []

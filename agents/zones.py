@@ -71,7 +71,8 @@ class Keepout:
         crosses = (ay > y) != (by > y)
         with np.errstate(divide="ignore", invalid="ignore"):
             xi = self.ax[None, :] + (y - ay) * self.dx[None, :] / np.where(self.dy == 0.0, 1.0, self.dy)[None, :]
-        return np.count_nonzero(crosses & (x < xi), axis=1) % 2 == 1
+        inside: np.ndarray = np.count_nonzero(crosses & (x < xi), axis=1) % 2 == 1
+        return inside
 
     def contains(self, x: float, y: float) -> bool:
         return bool(self.contains_many(np.array([x]), np.array([y]))[0])
@@ -119,7 +120,8 @@ class Keepout:
         ex, ey = px - u * self.dx, py - u * self.dy
         d = np.sqrt((ex * ex + ey * ey).min(axis=1))
         bad = self.contains_many(x, y) != self.inverted
-        return np.where(bad, -d, d)
+        signed: np.ndarray = np.where(bad, -d, d)
+        return signed
 
     def _signed_area(self) -> float:
         x, y = self.ax, self.ay

@@ -50,7 +50,7 @@ def error_for(tmp_path, text: str) -> ScenarioError:
 
 # --- built-ins -----------------------------------------------------------------------------
 def test_builtins_are_listed_sorted():
-    assert builtin_scenarios() == ["bench-100", "bench-1000", "bench-dense-300", "demo-all-faults",
+    assert builtin_scenarios() == ["bench-100", "bench-1000", "bench-dense-300", "demo-all-faults", "geo-coast",
                                    "paper-case1", "paper-case2", "paper-case3", "paper-fig11"]
 
 
