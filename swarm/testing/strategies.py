@@ -307,7 +307,29 @@ def scenario_documents(
         schedule = draw(fault_schedules(names, float(duration), kinds=kinds, max_faults=max_faults,
                                         joinable=joinable, area=(area["width_m"], area["height_m"])))
         doc["faults"] = [_fault_doc(f) for f in schedule.faults]
+        if any(f.kind == "battery" for f in schedule.faults):
+            doc["endurance"] = _endurance_for(doc)
     return doc
+
+
+def _endurance_for(doc: dict[str, Any]) -> dict[str, Any]:
+    """(issue 26) An ``[endurance]`` table under which a battery fault acts: every type flown
+    gets ten times the energy of flying the whole run at full speed (default power curve), so
+    only a fault sends a UAV home early; the base is where the first UAV starts."""
+    from swarm.scenario.mission import EnergySpec, min_power_speed, power_w
+    from swarm.scenario.tables import DEFAULT_UAV_TYPES
+
+    specs = {**{n: t.model_dump() for n, t in DEFAULT_UAV_TYPES.items()}, **doc.get("uav_types", {})}
+    types = {}
+    for name in sorted({u["type"] for u in doc["uavs"]}):
+        t = specs[name]
+        e = EnergySpec(capacity_wh=1.0)
+        p = power_w(e, min_power_speed(e, t["speed_min"], t["speed_max"]), t["speed_max"])
+        # (and ten times a round trip across the area, so that any launch point is in reach)
+        across = 2.0 * math.hypot(doc["area"]["width_m"], doc["area"]["height_m"]) / t["speed_min"]
+        types[name] = {"capacity_wh": 10.0 * p * (doc["duration_s"] + across) / 3600.0}
+    first = doc["uavs"][0]
+    return {"x_m": first["x_m"], "y_m": first["y_m"], "types": types}
 
 
 # --- swarm testing ---------------------------------------------------------------------------------
