@@ -28,16 +28,18 @@ from agents.apf import ApfSettings, apf_command
 from agents.inbox import Heard, check_frame
 from agents.knowledge import Knowledge, KnownThreat, Peer, Track
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
-from agents.maps.grid import Grid
+from agents.maps.grid import Disk, Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.types import GRAVITY, UavType
+from agents.zones import Keepout
 from comms.codec import AuthError, FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
+    MODE_SEARCH,
     MODE_SURVEIL,
     NO_TARGET,
     Message,
@@ -95,6 +97,20 @@ class SensedTarget:
     value: float
 
 
+@dataclass(frozen=True, slots=True)
+class EnergyReading:
+    """What a UAV with an energy budget knows of it this tick (issue 26, swarm.mission): where
+    home is; ``leave``: its energy left is down to what it needs to fly home against the wind,
+    plus the reserve and the hand-over allowance (a watcher hands its target over first);
+    ``must_go``: down to home plus the reserve (it turns home now)."""
+
+    home_x: float
+    home_y: float
+    leave: bool
+    must_go: bool
+    cruise_mps: float  # the airspeed it flies home at (its type's minimum-power speed)
+
+
 # Another UAV as the detect-and-avoid sensor gives it: (uav id, x, y, vx, vy).
 SensedUav = tuple[int, float, float, float, float]
 
@@ -115,6 +131,7 @@ class SensorReading:
     targets: list[SensedTarget]
     threats: list[KnownThreat]
     uavs: list[SensedUav] | None = None
+    energy: EnergyReading | None = None  # (issue 26: only UAVs with an energy budget)
 
 
 @dataclass(slots=True)
@@ -150,6 +167,13 @@ class ActorSettings:
     # The swarm key ([radio] auth): frames are sent with their MAC and heard frames without the
     # right one are rejected (comms.codec). None: no authentication.
     auth_key: bytes | None = None
+    # Geographic scenarios (issue 26; empty / None otherwise, and then nothing below runs):
+    # polygon no-fly zones and the area's boundary, known before take-off (agents.zones), which
+    # the APF repels and guards like the circles; and the cells outside the area polygon as one
+    # disk-like mask, stamped into the map as seen at every tick before planning, so that q = 0
+    # there: nothing to search (the pyramids, guide points and every planner read q).
+    zones: tuple[Keepout, ...] = ()
+    outside: Disk | None = None
 
 
 @dataclass(slots=True)
@@ -222,6 +246,11 @@ class UavActor:
         self._bounds = (self._max_scan_r, grid.width_m, grid.height_m, settings.dt)  # agents.inbox.check_frame's
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
+        # (issue 26) Endurance: flying home (no replanning on the way), the target it handed
+        # over, and whether it is handing one over (its beacons then say it searches).
+        self.homebound = False
+        self.handed_target = NO_TARGET
+        self._releasing = False
         self.counters = ActorCounters()
         self._next_replan = -math.inf
         self._next_beacon = -math.inf
@@ -299,6 +328,8 @@ class UavActor:
         d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
         if d is not None:
             self.umap.stamp(d, t)
+        if self.settings.outside is not None:  # (issue 26: outside the area polygon, always "seen")
+            self.umap.stamp(self.settings.outside, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
         if self._log_scans and self._plausible(r.x, r.y, radius):
             self.scans.add(self.uid, t, r.x, r.y, radius)
@@ -309,11 +340,46 @@ class UavActor:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
         for th in r.threats:
             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
+        if r.energy is not None and self._energy(r):
+            return None  # homebound: no replanning on the way home
         if self.plan is None or t >= self._next_replan or self._reached(r):
             s = self.settings
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
                             self.grid, s.replan_s, s.surveillance, self.plan)
         return None
+
+    def _energy(self, r: SensorReading) -> bool:
+        """(issue 26) Endurance: True while flying home. A watcher whose energy says leave
+        announces that it searches (its beacons' intent: the others see its target free, so
+        DACMP's own mode rule draws the nearest suitable UAV in) while it keeps circling and
+        sending the target's track, until a peer watches the target or its energy says go;
+        then it lets go and turns home."""
+        e = r.energy
+        assert e is not None
+        if self.homebound or not (e.leave or e.must_go):
+            return self.homebound
+        plan = self.plan
+        watching = plan is not None and plan.mode == MODE_SURVEIL
+        if watching and not e.must_go:
+            assert plan is not None
+            t, timeout = r.t, self.settings.peer_timeout_s
+            if not any(p.mode == MODE_SURVEIL and p.target == plan.target and t - p.t_intent <= timeout
+                       for p in self.knowledge.peers.values() if p.uav != self.uid):
+                self._releasing = True
+                return False
+        self.homebound = True
+        self.handed_target = plan.target if watching and plan is not None else NO_TARGET
+        self.plan = Plan(e.home_x, e.home_y)
+        self._releasing = False
+        return True
+
+    def relaunch(self) -> None:
+        """(issue 26) Back in the air from the base with what it knew: plan afresh."""
+        self.homebound = False
+        self.handed_target = NO_TARGET
+        self._releasing = False
+        self.plan = None
+        self._next_replan = -math.inf
 
     # --- a liar (the liar fault; swarm.node_faults) ----------------------------------------
 
@@ -388,6 +454,8 @@ class UavActor:
         k = self.knowledge
         plan = cast(Plan, self.plan)  # (set: observe() asks for a plan while there is none)
         speed = self.kind.speed_max
+        if self.homebound and r.energy is not None:  # (issue 26) home at the minimum-power speed
+            speed = r.energy.cruise_mps
         goal_x, goal_y = plan.wx, plan.wy
         apf = s.apf
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
@@ -398,8 +466,12 @@ class UavActor:
             # (agents.apf) still keeps it out.
             apf = replace(apf, k_rep=apf.k_rep * s.loiter_threat_weight)
         others = self._others(r, k.recent_peers(t, s.peer_timeout_s))
-        a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
-                               list(k.threats.values()), others, apf, s.dt)
+        if s.zones:  # (issue 26: polygon zones and the area's boundary)
+            a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
+                                   list(k.threats.values()), others, apf, s.dt, zones=s.zones)
+        else:
+            a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
+                                   list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
         replies = self._answer_digests(t) if self._digests else []
@@ -474,6 +546,10 @@ class UavActor:
             ux, uy = (ux / n, uy / n) if n > 1e-9 else (1.0, 0.0)
             out = zone.radius + standoff
             tx, ty, tvx, tvy = zone.x + out * ux, zone.y + out * uy, 0.0, 0.0
+        for z in s.zones:  # (issue 26) a polygon zone: the same stand-off, along its normal
+            rho, ux, uy = z.clearance(tx, ty)
+            if rho < standoff:
+                tx, ty, tvx, tvy = tx + (standoff - rho) * ux, ty + (standoff - rho) * uy, 0.0, 0.0
         ex, ey = r.x - tx, r.y - ty
         d = math.hypot(ex, ey)
         gamma = math.atan2(ey, ex) if d > 1e-6 else r.theta - math.pi / 2
@@ -647,7 +723,8 @@ class UavActor:
             # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).
             msgs: list[Message | Packed] = [
                 pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
-                pack_intent(self.uid, plan.wx, plan.wy, plan.mode, plan.target),
+                pack_intent(self.uid, plan.wx, plan.wy, *((MODE_SEARCH, NO_TARGET) if self._releasing
+                                                          else (plan.mode, plan.target))),
             ]
             room = s.frame_max_bytes - _FRAME_SLACK - _SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:
@@ -684,4 +761,4 @@ class UavActor:
         return frames
 
 
-__all__ = ["ActorOutput", "ActorSettings", "SensedTarget", "SensedUav", "SensorReading", "UavActor", "NO_TARGET"]
+__all__ = ["ActorOutput", "ActorSettings", "EnergyReading", "SensedTarget", "SensedUav", "SensorReading", "UavActor", "NO_TARGET"]

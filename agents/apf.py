@@ -38,11 +38,16 @@ The result is clipped to the airframe's limits (:func:`agents.dynamics.limit_com
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from agents.dynamics import integrate, limit_command, wrap_angle
 from agents.knowledge import KnownThreat
 from agents.types import UavType
+
+if TYPE_CHECKING:
+    from agents.zones import Keepout
 
 _POSITIVE = {"gt": 0}
 
@@ -72,7 +77,7 @@ class ApfSettings:
 
 
 def _can_escape(kind: UavType, x: float, y: float, v: float, theta: float, omega: float, speed: float,
-                threats: list[KnownThreat], s: ApfSettings, dt: float) -> bool:
+                threats: list[KnownThreat], s: ApfSettings, dt: float, zones: Sequence[Keepout] = ()) -> bool:
     """True if, after flying ``(omega, speed)`` (within limits) for ``dt``, the UAV can still
     turn clear of every known threat it is then heading towards: the full-rate turn away from
     it (towards the side of its outward normal, as the guard turns) stays at least
@@ -91,7 +96,34 @@ def _can_escape(kind: UavType, x: float, y: float, v: float, theta: float, omega
         cx, cy = x - side * r * sn, y + side * r * c
         if math.hypot(cx - th.x, cy - th.y) - r < th.radius + s.threat_margin_m:
             return False
+    # Polygon zones and the area's boundary (issue 26; none in a run without them): the same
+    # test with the polygon's clearance and normal in place of the circle's.
+    for z in zones:
+        _, ux, uy = z.clearance(x, y)
+        if c * ux + sn * uy >= 0.0:
+            continue
+        side = 1.0 if c * uy - sn * ux >= 0.0 else -1.0
+        cx, cy = x - side * r * sn, y + side * r * c
+        if z.clearance(cx, cy)[0] - r < s.threat_margin_m:
+            return False
     return True
+
+
+def _clearer_side(kind: UavType, x: float, y: float, v: float, theta: float, threats: list[KnownThreat],
+                  zones: Sequence[Keepout], preferred: float) -> float:
+    """The turn direction (+1 left, -1 right) whose full-rate turning circle at speed ``v``
+    keeps the larger clearance from every threat and zone; ``preferred`` unless the other is
+    strictly clearer (issue 26: corners between polygons and the area's boundary)."""
+    r = kind.r_min(v)
+    c, sn = math.cos(theta), math.sin(theta)
+    best, best_clear = preferred, -math.inf
+    for side in (preferred, -preferred):
+        cx, cy = x - side * r * sn, y + side * r * c
+        clear = min([math.hypot(cx - th.x, cy - th.y) - th.radius for th in threats]
+                    + [z.clearance(cx, cy)[0] for z in zones]) - r
+        if clear > best_clear:
+            best, best_clear = side, clear
+    return best
 
 
 def apf_command(
@@ -107,8 +139,12 @@ def apf_command(
     others: list[tuple[float, float, float, float]],
     s: ApfSettings,
     dt: float,
+    zones: Sequence[Keepout] = (),
 ) -> tuple[float, float]:
-    """Command ``(a, omega)`` that steers towards ``(wx, wy)`` at ``speed``, within limits."""
+    """Command ``(a, omega)`` that steers towards ``(wx, wy)`` at ``speed``, within limits.
+
+    ``zones``: polygon no-fly zones and the area's boundary (:mod:`agents.zones`), repelled and
+    guarded like the circles of ``threats`` with their clearance and normal (issue 26)."""
     # Attraction (eq. 28-29).
     dx, dy = wx - x, wy - y
     d = math.hypot(dx, dy)
@@ -135,6 +171,23 @@ def apf_command(
             # Turn towards whichever side the outward normal lies.
             side = math.sin(math.atan2(uy, ux) - theta)
             guard_turn = 1.0 if side >= 0 else -1.0
+    for z in zones:  # (issue 26: polygons, as the circles above with their clearance and normal)
+        rho, ux, uy = z.clearance(x, y)
+        reach = z.reach_m
+        if rho < reach:
+            rho_f = max(rho, 1.0)
+            mag = s.k_rep * (1.0 / (rho_f * rho_f) - 1.0 / (reach * reach))  # eq. 30
+            fx += mag * ux
+            fy += mag * uy
+        closing = math.cos(theta) * (-ux) + math.sin(theta) * (-uy)
+        if rho < r_turn + s.threat_margin_m and closing > 0.0:
+            side = math.sin(math.atan2(uy, ux) - theta)
+            guard_turn = 1.0 if side >= 0 else -1.0
+    if zones and guard_turn:
+        # Polygons make corners (a zone on the area's edge, a concave coast) where turning away
+        # from one edge turns into another: take the side whose full-rate turning circle keeps
+        # the most clearance from everything known (the guard's own side on a tie).
+        guard_turn = _clearer_side(kind, x, y, v, theta, threats, zones, guard_turn)
 
     vx, vy = v * math.cos(theta), v * math.sin(theta)
     conflict = 0.0  # turn direction for the earliest predicted conflict (+1 left, -1 right)
@@ -192,11 +245,11 @@ def apf_command(
         # Before, the guard always won: two fast UAVs turning away from the same no-fly zone
         # side by side flew into each other (paper-case2 seed 13).
         w_max = kind.turn_rate_max(v)
-        if _can_escape(kind, x, y, v, theta, conflict * w_max, conflict_speed, threats, s, dt):
+        if _can_escape(kind, x, y, v, theta, conflict * w_max, conflict_speed, threats, s, dt, zones):
             omega, speed = conflict * w_max, conflict_speed
         else:
             omega = guard_turn * w_max
-            if not _can_escape(kind, x, y, v, theta, omega, conflict_speed, threats, s, dt):
+            if not _can_escape(kind, x, y, v, theta, omega, conflict_speed, threats, s, dt, zones):
                 speed = kind.speed_min
             else:
                 speed = conflict_speed

@@ -5,5 +5,5 @@ order of ``faults.registry.FAULT_KINDS`` (and of the error messages that list th
 """
 
 # isort: off
-from faults import link, cuts, node, sensing, adversary  # noqa: F401  (each registers its kinds)
+from faults import link, cuts, node, sensing, adversary, energy  # noqa: F401  (each registers its kinds)
 # isort: on

@@ -92,6 +92,20 @@ class FaultHost(Protocol):
         """A tick fault stops acting."""
         ...
 
+    def battery(self, uid: int) -> BatteryLike | None:
+        """The UAV's battery (issue 26: a type with an ``[endurance]`` budget), or None."""
+        ...
+
+
+class BatteryLike(Protocol):
+    """What the ``battery`` fault (:mod:`faults.energy`) changes of a UAV's energy."""
+
+    drain_factor: float
+
+    def lose(self, frac: float) -> None:
+        """Lose ``frac`` of the energy left at once."""
+        ...
+
 
 class RadioHost(Protocol):
     """What a fault that transmits frames of its own (:meth:`FaultKind.transmitter`) may read

@@ -17,6 +17,7 @@ from __future__ import annotations
 from faults.adversary import Liar, Spoofer
 from faults.base import PHANTOM_TARGET_ID, FaultKind, TickFault, Windowed
 from faults.cuts import Bridge, Jammer, Partition, Swizzle
+from faults.energy import Battery
 from faults.link import Burst, Corrupt, Delay, Drop, Duplicate, LinkFault
 from faults.node import Crash, Join, Pause, Restart
 from faults.registry import FAULT_KINDS, FaultSchedule, fault_from_dict, fault_to_dict, register, uav_names
@@ -26,7 +27,7 @@ from faults.sensing import ClockSkew, NavError, Sensor
 Fault = FaultKind
 
 __all__ = [
-    "FAULT_KINDS", "PHANTOM_TARGET_ID", "Bridge", "Burst", "ClockSkew", "Corrupt", "Crash", "Delay", "Drop",
+    "FAULT_KINDS", "PHANTOM_TARGET_ID", "Battery", "Bridge", "Burst", "ClockSkew", "Corrupt", "Crash", "Delay", "Drop",
     "Duplicate", "Fault", "FaultKind", "FaultSchedule", "Jammer", "Join", "Liar", "LinkFault", "NavError",
     "Partition", "Pause", "Restart", "Sensor", "Spoofer", "Swizzle", "TickFault", "Windowed",
     "fault_from_dict", "fault_to_dict", "register", "uav_names",

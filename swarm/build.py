@@ -8,9 +8,11 @@ and decide nothing at run time; :class:`swarm.simulation.Simulation` composes th
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,7 +26,11 @@ from swarm.scenario import Scenario, UavTypeSpec, load_scenario
 from swarm.scenario.trust import allowed
 from swarm.world import TargetMotion
 
-__all__ = ["actor_settings", "auth_key", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
+if TYPE_CHECKING:
+    from agents.maps.grid import Grid
+    from swarm.geo.geography import Geography
+
+__all__ = ["actor_settings", "auth_key", "geography", "radio", "target_motion", "threats", "uav_type_from_spec", "uav_types"]
 
 
 def uav_type_from_spec(name: str, spec: UavTypeSpec) -> UavType:
@@ -63,9 +69,56 @@ def auth_key(sc: Scenario) -> bytes | None:
     return hashlib.sha256(f"uav-swarm-sim swarm key {sc.seed}".encode()).digest()
 
 
-def actor_settings(sc: Scenario) -> ActorSettings:
+def geography(sc: Scenario, grid: Grid, world: Any = None, metrics: Any = None) -> Geography | None:
+    """The run's areas and zones as polygons (issue 26), or None without ``[geo]`` and
+    ``[[no_fly]]`` (then pyproj and shapely are never imported); placed in the ``world`` (its
+    no-fly polygons) and the ``metrics`` (the cells inside the area) if given."""
+    if sc.geo is None and not sc.no_fly:
+        return None
+    from swarm.geo.geography import geography as build_geography
+
+    geo = build_geography(sc, grid)
+    assert geo is not None  # (it has [geo] or [[no_fly]])
+    if world is not None:
+        world.zones = geo.zones
+    if metrics is not None:
+        metrics.inside = geo.inside
+    return geo
+
+
+def random_start(g: np.random.Generator, sc: Scenario, geo: Geography | None) -> tuple[float, float, float, float]:
+    """A random target's start ``(x, y, heading, speed)``: uniform in the area (inside the area
+    polygon, with [geo]: the position drawn again until it is; a rectangle draws exactly as it
+    always did), then heading and speed."""
+    x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
+    while geo is not None and geo.area is not None and geo.area.clearance(x, y)[0] < 0.0:
+        x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
+    return x, y, float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, sc.targets.speed_max))
+
+
+def mission(sim: Any) -> Any:
+    """(issue 26) The run's wind and endurance (:mod:`swarm.mission`), hooked into the run's
+    fault host (its tick start and sense phase, and the battery fault's access), or None for a
+    scenario without ``[wind]`` and ``[endurance]``."""
+    if sim.scenario.wind is None and sim.scenario.endurance is None:
+        return None
+    from swarm.mission import mission as build_mission
+
+    m = build_mission(sim)
+    sim.faults.mission = m
+    return m
+
+
+def actor_settings(sc: Scenario, geo: Geography | None = None) -> ActorSettings:
     """What every UAV actor of the run is configured with (the scenario's [radio] settings: frame
-    cap, timers, anti-entropy; loitering, APF)."""
+    cap, timers, anti-entropy; loitering, APF; with ``geo``, the zones and the outside mask)."""
+    settings = _actor_settings(sc)
+    if geo is not None:
+        settings = replace(settings, zones=geo.keepouts, outside=geo.outside)
+    return settings
+
+
+def _actor_settings(sc: Scenario) -> ActorSettings:
     p = sc.planner
     ap = p.apf
     return ActorSettings(

@@ -214,6 +214,29 @@ def _summary_table(metrics: dict, out_dir: Path | None):
     return t
 
 
+def _cmd_view(args) -> int:
+    """(issue 26) Open a recording in the rerun viewer where a display exists; otherwise say how."""
+    import os
+    import shutil
+    import subprocess
+
+    target = Path(args.rundir)
+    rrds = [target] if target.suffix == ".rrd" and target.is_file() else sorted(target.glob("*.rrd"))
+    if not rrds:
+        raise UsageError(f"{target}: no rerun recording (.rrd) there; write one with "
+                         f"`swarm run SCENARIO --out {target} --rerun {target / 'run.rrd'}`")
+    import importlib.util
+
+    if importlib.util.find_spec("rerun") is None:
+        raise UsageError("the rerun viewer is not installed: pip install 'uav-swarm-sim[view]'")
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) and sys.platform.startswith("linux"):
+        print(f"no display here: copy {rrds[0]} to a machine with one and run `rerun {rrds[0].name}` there "
+              f"(pip install rerun-sdk), or open it in the web viewer at https://app.rerun.io (drag and drop)")
+        return 0
+    viewer = shutil.which("rerun")
+    return subprocess.call([viewer, str(rrds[0])] if viewer else [sys.executable, "-m", "rerun", str(rrds[0])])
+
+
 def _cmd_run(args) -> int:
     from swarm.outputs import write_run
     from swarm.scenario import load_scenario, parse_assignment
@@ -253,6 +276,10 @@ def _cmd_run(args) -> int:
     out_dir = Path(args.out) if args.out else None
     if out_dir is not None:
         write_run(result, out_dir, sim.scenario.to_dict(), figures=not args.no_figures)
+    if args.rerun is not None:  # (issue 26: a recording for the rerun viewer, extra `view`)
+        from swarm.viz.rerun_view import record
+
+        record(result.events, sim.scenario.to_dict(), args.rerun)
     if args.json:
         _print_json(result.metrics)
     elif not args.quiet:
@@ -564,6 +591,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a scenario setting, e.g. --set radio.loss_base=0.3 (repeatable)")
     r.add_argument("--out", default=None, help="output folder (metrics.json, timeseries.csv, events.msgpack, trajectories.png)")
     r.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
+    r.add_argument("--rerun", default=None, metavar="FILE.rrd",
+                   help="also record the run for the rerun viewer (extra `view`); `swarm view` opens it")
     r.add_argument("--memory-limit", type=float, default=None, metavar="GB",
                    help="refuse a scenario estimated to need more (default: SWARM_MEMORY_LIMIT_GB, else half of "
                         "this machine's memory)")
@@ -657,6 +686,10 @@ def build_parser() -> argparse.ArgumentParser:
     an.add_argument("--trail", type=float, default=300.0, metavar="SECONDS", help="trail length (default 300 s)")
     an.add_argument("--quiet", action="store_true", help="no progress bar")
     an.set_defaults(func=_cmd_animate)
+
+    vw = sub.add_parser("view", help="open a run's rerun recording (RUNDIR/*.rrd) in the rerun viewer")
+    vw.add_argument("rundir", help="a run folder holding a recording (`swarm run --out DIR --rerun DIR/run.rrd`), or an .rrd")
+    vw.set_defaults(func=_cmd_view)
 
     rep = sub.add_parser("report", help="write a self-contained HTML report of a run folder")
     rep.add_argument("rundir", help="a run folder written by `swarm run --out DIR`")

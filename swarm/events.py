@@ -45,6 +45,11 @@ __all__ = [
     "KINDS",
     "MODE_CODES",
     "Crash",
+    "EnergyOut",
+    "Landed",
+    "Launched",
+    "ReturnToBase",
+    "Wind",
     "Decoder",
     "Event",
     "EventLogError",
@@ -338,10 +343,62 @@ class FaultOff(Event):
     uav_name: Annotated[str | None, _name_of("uav")]
 
 
+# --- real-world missions (issue 26, swarm.mission): only runs with [wind] or [endurance] log these ---
+@dataclass(slots=True)
+class Wind(Event):
+    """The wind every UAV drifts with from this tick to the next (mean plus gust), once per tick."""
+
+    kind: ClassVar[str] = "wind"
+    wx: MetresPerSecond  # towards east
+    wy: MetresPerSecond  # towards north
+
+
+@dataclass(slots=True)
+class ReturnToBase(Event):
+    """A UAV turned home: its energy left is what it needs to fly home against the wind plus the reserve."""
+
+    kind: ClassVar[str] = "rtb"
+    uav: UavId
+    energy_wh: Annotated[float, Meta("Wh")]  # left
+    needed_wh: Annotated[float, Meta("Wh")]  # to fly home, plus the reserve
+    target: PlanTarget  # the target it watched when the energy said so (handed over first), -1: none
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Landed(Event):
+    """A returning UAV landed at its base (it no longer flies, senses or sends until it launches)."""
+
+    kind: ClassVar[str] = "landed"
+    uav: UavId
+    energy_wh: Annotated[float, Meta("Wh")]  # left on landing
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class Launched(Event):
+    """A UAV took off again from its base, turned around (a full battery), keeping its memory."""
+
+    kind: ClassVar[str] = "launched"
+    uav: UavId
+    x: Metres
+    y: Metres
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
+class EnergyOut(Event):
+    """A UAV's energy ran out in flight: it is lost (a crash event follows)."""
+
+    kind: ClassVar[str] = "energy_out"
+    uav: UavId
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
 # The kinds in the order docs/outputs.md lists them.
 _RECORDS: tuple[type[Event], ...] = (
     Start, Pose, Target, Mode, Found, Release, Handover, Rx, Lost, Radio, Join, Crash, Violation,
-    Pause, Resume, Restart, FaultOn, FaultOff,
+    Pause, Resume, Restart, FaultOn, FaultOff, Wind, ReturnToBase, Landed, Launched, EnergyOut,
 )
 
 

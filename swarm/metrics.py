@@ -82,6 +82,9 @@ class Metrics:
         # Needs the union to be written through scan() only.
         self._touched: np.ndarray | None = None
         self._q: np.ndarray | None = None
+        # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
+        # count those only. None: every cell (a rectangle).
+        self.inside: np.ndarray | None = None
         if self.grid.nx * self.grid.ny > DENSE_MAX_CELLS:
             self._touched = np.zeros((-(-self.grid.ny // _BLOCK), -(-self.grid.nx // _BLOCK)), dtype=bool)
 
@@ -101,11 +104,15 @@ class Metrics:
         """Cells scanned at least once: those the union has seen. Counted when asked (a few
         times per run) rather than per scan (every UAV, every tick): the same number."""
         seen = self.union.to_dense_view()
+        if self.inside is not None:
+            return int(np.count_nonzero((seen != NEVER) & self.inside))
         if self._touched is None:
             return int(np.count_nonzero(seen != NEVER))
         return sum(int(np.count_nonzero(seen[rows, cols] != NEVER)) for rows, cols in self._touched_runs())
 
     def coverage(self) -> float:
+        if self.inside is not None:
+            return self.covered_cells / max(1, int(np.count_nonzero(self.inside)))
         return self.covered_cells / self.n_cells
 
     def _touched_runs(self) -> list[tuple[slice, slice]]:
@@ -124,6 +131,8 @@ class Metrics:
 
     def certainty(self, t: float) -> float:
         """Eq. 8, ``1 - mean(q)`` over every cell: exactly ``np.mean(union.uncertainty(t))``."""
+        if self.inside is not None:  # (over the cells inside the area polygon only)
+            return 1.0 - float(np.mean(self.union.uncertainty(t)[self.inside], dtype=np.float64))
         if self._touched is None:
             return 1.0 - float(np.mean(self.union.uncertainty(t), dtype=np.float64))
         q = self._q

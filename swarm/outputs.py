@@ -5,7 +5,9 @@
                          radio counters, and each UAV's mode (search / surveil / down / pending);
 * ``events.msgpack``   — the event log; its SHA-256 is ``metrics.json``'s ``event_log_sha256``;
 * ``trajectories.png`` — UAV and target paths, threats and the final coverage map;
-* ``scenario.json``    — the exact scenario that ran (with seed and overrides applied).
+* ``scenario.json``    — the exact scenario that ran (with seed and overrides applied);
+* ``paths.geojson``, ``targets.geojson``, ``zones.geojson`` — a geographic scenario's (``[geo]``)
+  tracks and zones in lon/lat (RFC 7946; :mod:`swarm.geo.geojson`).
 
 Every file is written with :func:`atomic_write` (or :func:`atomic_path` for writers that want a
 file name), which the experiment commands, reports and animations use too. :func:`read_run_dir`
@@ -81,6 +83,10 @@ def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -
         files["timeseries.csv"] = buf.getvalue().encode()
     if scenario_dict is not None:
         files["scenario.json"] = json.dumps(scenario_dict, indent=2).encode()
+    if scenario_dict is not None and scenario_dict.get("geo"):  # (issue 26: paths, targets, zones in lon/lat)
+        from swarm.geo.geojson import geojson_files
+
+        files.update(geojson_files(result, scenario_dict))
     if figures:
         from swarm.viz.plots import trajectories_figure
 

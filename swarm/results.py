@@ -152,7 +152,21 @@ def run_metrics(sim: Run) -> dict:
         "per_uav": per_uav,
         "events": sim.log.total,
         "event_log_sha256": sim.log.sha256(),
+        **_mission_metrics(sim),
     }
+
+
+def _mission_metrics(sim: Run) -> dict:
+    """(issue 26) What a geographic, windy or endurance scenario adds to ``metrics.json``;
+    nothing for a scenario without them (their metrics are what they always were)."""
+    out: dict = {}
+    geo = getattr(sim, "geography", None)
+    if geo is not None and geo.frame is not None:
+        out["geo"] = {**geo.frame.describe(), "cells_inside": int(geo.inside.sum()) if geo.inside is not None else None}
+    mission = getattr(sim, "mission", None)
+    if mission is not None:
+        out.update(mission.metrics(sim.now))
+    return out
 
 
 def run_result(sim: Run) -> RunResult:

@@ -108,6 +108,7 @@ class Simulation:
         self.targets = Targets(build.target_motion(sc))
         self.world = World(self.grid, self.targets, build.threats(sc))
         self.metrics = Metrics(self.grid, self.tau)
+        self.geography = build.geography(sc, self.grid, self.world, self.metrics)  # (issue 26: polygons; None without)
         self.observer = Observer(self.world, self.metrics, self.log, self.dt, sc.recording.level == "summary",
                                  sc.safety.min_separation_m)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
@@ -118,7 +119,7 @@ class Simulation:
                                         sc.radio.horizon_m) else None)
         # Each broadcast frame decoded once (with the swarm key, if [radio] auth).
         self._decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc))
-        self.fleet = Fleet(sc, self.world, self.grid, self.tau, self.rng, self.log, build.actor_settings(sc),
+        self.fleet = Fleet(sc, self.world, self.grid, self.tau, self.rng, self.log, build.actor_settings(sc, self.geography),
                            self._decoder, self.map_group, batch_planning,
                            lost=lambda src, dst, n, cause: self.transmission.lose(self.clock.now, src, dst, n, cause))
         self.fleet.types = self.types
@@ -130,6 +131,7 @@ class Simulation:
         self.faults.radio = self.radio
         self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
         self._populate(sc)
+        self.mission = build.mission(self)  # (issue 26: wind, endurance, hooked into self.faults; None without)
         self.clock.schedule(0.0, self._tick, TICK)
         self.log.emit("start", 0.0, {
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
@@ -147,10 +149,7 @@ class Simulation:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
         for _ in range(tm.count):
             g = self.rng.generator("target", len(self.targets))
-            self._add_target_rng(
-                float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m)),
-                float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, tm.speed_max)), tm.value, g,
-            )
+            self._add_target_rng(*build.random_start(g, sc, self.geography), tm.value, g)
         for spec in sc.uavs:
             self._add_uav_spec(spec)
         for f in sc.faults:

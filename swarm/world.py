@@ -163,6 +163,10 @@ class World:
         self.targets = targets
         self.threats = threats
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
+        # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
+        self.zones: list = []
+        # The wind of this tick (issue 26, swarm.mission; None: still air): every UAV drifts with it.
+        self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
         self.dynamics_by_uav: dict[int, list[float]] = {}
 
@@ -264,6 +268,9 @@ class World:
             seen[0] += 1
             seen[2] = t
         b.x, b.y, b.v, b.theta = integrate(b.x, b.y, b.v, b.theta, a, omega, dt)
+        if self.wind is not None:  # (issue 26) ground velocity = air velocity + wind
+            b.x += self.wind[0] * dt
+            b.y += self.wind[1] * dt
 
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
         """Count separation and threat-clearance violations now; returns them for the log."""
@@ -276,6 +283,10 @@ class World:
             d = np.hypot(xy[:, 0] - th.x, xy[:, 1] - th.y) if len(ids) else np.zeros(0)
             for i in np.flatnonzero(d < th.radius).tolist():
                 found.append(("threat", ids[i], th.threat))
+        for z in self.zones:  # (issue 26) inside a polygon: every UAV at once
+            if len(ids):
+                for i in np.flatnonzero(z.contains_many(xy[:, 0], xy[:, 1])).tolist():
+                    found.append(("threat", ids[i], z.zone))
         for kind, _, _ in found:
             self.violations[kind] += 1
         return found

@@ -77,11 +77,29 @@ def _wire(data: bytes) -> list[list]:
 # --- one schema, and what is written is what it says --------------------------------------------
 
 
+def _mission_run():
+    """(issue 26) Wind, and endurance with a quick return to base, landing, relaunch and a
+    battery fault that empties one UAV: the mission kinds, checked as they are written."""
+    doc = {"duration_s": 200.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
+           "uavs": [{"type": "A", "x_m": 2800.0, "y_m": 3000.0}, {"type": "A", "x_m": 3200.0, "y_m": 3000.0}],
+           "wind": {"speed_mps": 3.0, "gust_sigma_mps": 1.0},
+           "endurance": {"x_m": 2500.0, "y_m": 2500.0, "turnaround_s": 20.0, "types": {"A": {"capacity_wh": 60.0}}},
+           "faults": [{"kind": "battery", "uav": "A2", "start_s": 5.0, "loss_frac": 1.0}]}
+    saved = EventLog.check_schema
+    EventLog.check_schema = True
+    try:
+        with Simulation(parse_scenario(doc)) as sim:
+            return sim.run()
+    finally:
+        EventLog.check_schema = saved
+
+
 def test_every_kind_is_written_and_every_event_is_as_the_schema_says(runs):
     frames, _, summary = runs
-    seen = Counter(e.kind for r in (frames, summary) for e in read_events(r.events))
+    mission = _mission_run()
+    seen = Counter(e.kind for r in (frames, summary, mission) for e in read_events(r.events))
     assert set(seen) == set(KINDS), f"kinds never written by these runs: {set(KINDS) - set(seen)}"
-    for r in (frames, summary):
+    for r in (frames, summary, mission):
         for wire in _wire(r.events):
             check_wire(wire)
 

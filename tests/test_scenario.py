@@ -50,7 +50,7 @@ def error_for(tmp_path, text: str) -> ScenarioError:
 
 # --- built-ins -----------------------------------------------------------------------------
 def test_builtins_are_listed_sorted():
-    assert builtin_scenarios() == ["bench-100", "bench-1000", "bench-dense-300", "demo-all-faults",
+    assert builtin_scenarios() == ["bench-100", "bench-1000", "bench-dense-300", "demo-all-faults", "geo-coast",
                                    "paper-case1", "paper-case2", "paper-case3", "paper-fig11"]
 
 
@@ -263,7 +263,7 @@ def test_unknown_fault_kind(tmp_path):
     assert err.key == "faults[0].kind"
     assert err.expected == "one of: " + ", ".join(FAULT_KINDS)
     assert err.expected == ("one of: drop, burst, delay, duplicate, corrupt, partition, bridge, swizzle, jammer, "
-                            "crash, join, restart, pause, clock_skew, nav_error, sensor, liar, spoofer")
+                            "crash, join, restart, pause, clock_skew, nav_error, sensor, liar, spoofer, battery")
 
 
 def test_fault_window_and_partition_rules(tmp_path):

@@ -76,7 +76,7 @@ AREA = (8_000.0, 6_000.0)
 
 
 def test_all_kinds_are_the_fault_kinds_of_faults_schedule():
-    assert sorted(ALL_KINDS) == sorted(FAULT_KINDS) and len(ALL_KINDS) == len(FAULT_KINDS) == 18
+    assert sorted(ALL_KINDS) == sorted(FAULT_KINDS) and len(ALL_KINDS) == len(FAULT_KINDS) == 19  # (issue 26: battery)
     assert ALL_KINDS[0] == "drop"  # the simplest kind shrinks first
 
 

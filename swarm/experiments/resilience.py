@@ -82,7 +82,7 @@ from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABE
 from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 
-AXES = ("loss", "burst", "range", "crash", "pause", "restart", "skew", "detect", "jammer", "liar")
+AXES = ("loss", "burst", "range", "crash", "pause", "restart", "skew", "detect", "jammer", "liar", "battery")
 # Axes whose values count UAVs, taken from crash_candidates in order.
 COUNT_AXES = ("crash", "restart", "liar")
 PLANNERS = FIG11_PLANNERS  # greedy first: the sweep's paired comparisons are "dacmp - greedy"
@@ -111,14 +111,17 @@ DEFAULT_VALUES: dict[str, tuple] = {
     "detect": (1.0, 0.1, 0.03, 0.01, 0.003),
     "jammer": (0.0, 5.0, 10.0, 15.0, 20.0, 25.0),  # km; 0 = no jammer
     "liar": (0, 1, 2, 3),
+    # (issue 26) battery capacity as a fraction of the energy to fly the whole run at full speed;
+    # 0 = no budget (the scenario as it is). Below 1 UAVs return to base, land and relaunch.
+    "battery": (0.0, 1.0, 0.5, 0.35, 0.25),
 }
 SETTING = {"loss": "radio.loss_base", "burst": "burst.mean_frames", "range": "radio.range_km",
            "crash": "crashed_uavs", "pause": "pause.length_s", "restart": "restarted_uavs",
            "skew": "clock_skew.offset_s", "detect": "sensor.p_detect", "jammer": "jammer.radius_km",
-           "liar": "liars"}
+           "liar": "liars", "battery": "battery.capacity_frac"}
 # The undegraded value of each axis; burst has none.
 BASELINE = {"loss": 0.0, "range": None, "crash": 0, "pause": 0.0, "restart": 0, "skew": 0.0, "detect": 1.0,
-            "jammer": 0.0, "liar": 0}
+            "jammer": 0.0, "liar": 0, "battery": 0.0}
 # Quantities per run (from metrics.json): delivered = radio.delivered (frame copies decoded by
 # receivers; the radio's throughput, which range and crashes cut too), delivered_fraction =
 # radio.delivered / radio.sent (copies offered to UAVs in range: what loss cuts);
@@ -181,6 +184,7 @@ AXIS_TITLE = {
     "detect": "probability of detection per tick (all UAVs)",
     "jammer": "jammer radius at the centre of the area",
     "liar": "lying UAVs (fake scan records)",
+    "battery": "battery capacity (fraction of the run's energy at full speed; 0: none)",
 }
 
 
@@ -218,6 +222,8 @@ def _check_values(axis: str, values: Sequence) -> list:
               "skew": ("a clock offset in s (>= -1e6 and <= 1e6)", lambda v: v is not None and -1e6 <= v <= 1e6),
               "detect": ("a probability of detection from 0 to 1", lambda v: v is not None and 0.0 <= v <= 1.0),
               "jammer": ("a jammer radius in km >= 0 (0: none)", lambda v: v is not None and math.isfinite(v) and v >= 0),
+              "battery": ("a capacity as a fraction of the run's energy at full speed, >= 0 (0: no budget)",
+                          lambda v: v is not None and math.isfinite(v) and v >= 0),
               }
     count = ("a number of UAVs >= 0", lambda v: v is not None and float(v).is_integer() and v >= 0)
     expect = expects.get(axis, count)  # restart, liar: counts like crash
@@ -239,6 +245,32 @@ def crash_candidates(scenario: Scenario) -> list[str]:
     joined = {f.uav for f in scenario.faults if f.kind == "join"}
     crashed = {f.uav for f in scenario.faults if f.kind == "crash"}
     return [name for name, u in zip(scenario.uav_names, scenario.uavs) if not u.join_s and name not in joined | crashed]
+
+
+def battery_point(scenario: Scenario, frac: float, duration_s: float | None = None) -> dict:
+    """(issue 26) The overrides giving each UAV type a battery of ``frac`` times the energy it
+    would need to fly the whole run at full speed (default power curve, ``[endurance]``), with a
+    base at the mean of the launch points; the scenario's own ``[endurance]`` scaled instead if
+    it has one; ``frac = 0``: no budget."""
+    from swarm.scenario.mission import EnergySpec, min_power_speed, power_w
+
+    if not frac:
+        return {"endurance": None} if scenario.endurance is not None else {}
+    run_s = duration_s or scenario.duration_s
+    if scenario.endurance is not None:
+        e = scenario.endurance.model_dump()
+        for spec in e["types"].values():
+            spec["capacity_wh"] *= frac
+        return {"endurance": e}
+    types = {}
+    for name in sorted({u.type for u in scenario.uavs}):
+        t = scenario.uav_types[name]
+        spec = EnergySpec(capacity_wh=1.0)
+        full = power_w(spec, min_power_speed(spec, t.speed_min, t.speed_max), t.speed_max) * run_s / 3600.0
+        types[name] = {"capacity_wh": frac * full}
+    xs = [u.x_m for u in scenario.uavs]
+    ys = [u.y_m for u in scenario.uavs]
+    return {"endurance": {"x_m": sum(xs) / len(xs), "y_m": sum(ys) / len(ys), "types": types, "turnaround_s": 300.0}}
 
 
 def burst_fault(mean_frames: float, mean_loss: float) -> dict:
@@ -264,6 +296,8 @@ def _point(axis: str, scenario: Scenario, v: Any, *, crash_at_s: float, burst_lo
     if axis == "burst":
         return (((SETTING[axis], v), ("burst.mean_loss", burst_loss)),
                 {"faults": faults + [burst_fault(v, burst_loss)]})
+    if axis == "battery":  # (issue 26)
+        return ((SETTING[axis], v),), battery_point(scenario, v)
     if axis == "crash":
         names = crash_candidates(scenario)[:v]
         return (((SETTING[axis], v), ("crash_at_s", crash_at_s)),

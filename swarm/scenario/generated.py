@@ -52,6 +52,7 @@ __all__ = [
     "RestartFault",
     "SensorFault",
     "SpooferFault",
+    "BatteryFault",
     "SwizzleFault",
 ]
 
@@ -249,10 +250,11 @@ if TYPE_CHECKING:
     class SwizzleFault(_WindowedFault, _faults.Swizzle, frozen=True): ...  # type: ignore[misc]
     class LiarFault(_WindowedFault, _faults.Liar, frozen=True): ...  # type: ignore[misc]
     class SpooferFault(_WindowedFault, _faults.Spoofer, frozen=True): ...  # type: ignore[misc]
+    class BatteryFault(_WindowedFault, _faults.Battery, frozen=True): ...  # type: ignore[misc]
 
     Fault = (DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault
              | JoinFault | PauseFault | RestartFault | ClockSkewFault | NavErrorFault | SensorFault | JammerFault
-             | BridgeFault | SwizzleFault | LiarFault | SpooferFault)
+             | BridgeFault | SwizzleFault | LiarFault | SpooferFault | BatteryFault)
 else:
     DropFault = FAULT_TABLES["drop"]
     BurstFault = FAULT_TABLES["burst"]
@@ -272,6 +274,7 @@ else:
     SwizzleFault = FAULT_TABLES["swizzle"]
     LiarFault = FAULT_TABLES["liar"]
     SpooferFault = FAULT_TABLES["spoofer"]
+    BatteryFault = FAULT_TABLES["battery"]
 
     Fault = fault_union()
 

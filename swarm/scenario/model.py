@@ -31,6 +31,8 @@ from faults import schedule as _faults
 from swarm.errors import ScenarioError, UsageError
 from swarm.scenario.fields import Int, Num, Problem, Str, Table, fmt, int_field, num_field, raise_if, table_field
 from swarm.scenario.generated import FAULT_KINDS, Fault, JoinFault, RadioSettings, fault_union, sync_fault_tables
+from swarm.scenario.geo import GeoSettings, NoFlySpec, geo_problems, resolve_geography
+from swarm.scenario.mission import EnduranceSettings, WindSettings, endurance_problems
 from swarm.scenario.overrides import PLANNER_NAME_KEY, set_keys
 from swarm.scenario.positions import found_words
 from swarm.scenario.tables import (
@@ -85,10 +87,20 @@ class Scenario(Table):
     safety: SafetySettings = table_field(SafetySettings, "safety")
     metrics: MetricsSettings = table_field(MetricsSettings, "metrics")
     recording: RecordingSettings = table_field(RecordingSettings, "recording")
+    # Geographic scenarios (issue 26, swarm.scenario.geo): the area as a lon/lat polygon, and
+    # polygon no-fly zones. Absent (the default), nothing geographic runs or is imported.
+    geo: GeoSettings | None = Field(default=None, description="a table [geo]: the area as a polygon in a CRS")
+    no_fly: list[NoFlySpec] = Field(default_factory=list, description="an array of tables [[no_fly]] (polygon no-fly zones)")
+    # Wind and endurance (issue 26, swarm.scenario.mission, swarm.mission): absent, nothing runs.
+    wind: WindSettings | None = Field(default=None, description="a table [wind]")
+    endurance: EnduranceSettings | None = Field(default=None, description="a table [endurance]")
 
     @model_validator(mode="before")
     @classmethod
-    def _fleet_only(cls, data: Any) -> Any:
+    def _fleet_only(cls, data: Any, info: ValidationInfo) -> Any:
+        # (issue 26) [geo]: the GeoJSON file read, the area's size from its polygon, lon/lat
+        # positions in metres; a document without [geo] comes back as it was.
+        data = resolve_geography(data, info.context)
         # A document with [[fleet]] needs no [[uavs]]; without either, "uavs" is missing.
         if isinstance(data, dict) and data.get("fleet") and "uavs" not in data:
             data = {**data, "uavs": []}
@@ -226,6 +238,10 @@ class Scenario(Table):
         if self.metrics.sample_s < self.dt_s:
             problems.append(Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({fmt(self.dt_s)})"))
         problems += self._runnable_problems(join_end)
+        if self.geo is not None or self.no_fly:  # (issue 26: polygons simple, positions inside the area)
+            problems += geo_problems(self)
+        if self.endurance is not None:  # (issue 26: types, the base, budgets that reach the area)
+            problems += endurance_problems(self)
         return problems
 
     def _runnable_problems(self, join_end: float | None) -> list[Problem]:
@@ -291,6 +307,9 @@ class Scenario(Table):
         """This scenario as an input document that validates to itself (what overrides edit):
         joins are unfolded again so the join fault stays the one place that says when."""
         doc = self.model_dump(mode="python")
+        if doc.get("geo") is not None:  # (issue 26: the size comes from the polygon again)
+            doc["area"].pop("width_m", None)
+            doc["area"].pop("height_m", None)
         joins = {f["uav"] for f in doc["faults"] if f["kind"] == "join"}
         for uav in doc["uavs"]:
             if uav["name"] in joins:
@@ -329,7 +348,8 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated
     name = table.get("name") if isinstance(table, dict) else None
     if isinstance(name, str) and not permits(allow, name):
         raise ScenarioError(source, PLANNER_NAME_KEY, *refusal(name))
-    context = {"truncated": truncated, "scenario_duration_s": scenario_duration_s, "allow_planners": allow}
+    context = {"truncated": truncated, "scenario_duration_s": scenario_duration_s, "allow_planners": allow,
+               "source": source}
     _follow_fault_registry()
     try:
         return Scenario.model_validate(data, context=context)

@@ -99,7 +99,7 @@ LINK_KINDS: tuple[str, ...] = ("drop", "delay", "duplicate", "corrupt", "burst")
 #: a transmitter outside the swarm (spoofer).
 RADIO_KINDS: tuple[str, ...] = ("jammer", "partition", "bridge", "swizzle", "spoofer")
 #: Faults of one named UAV (they need a name to draw; ``join`` from the ``joinable`` ones).
-NODE_KINDS: tuple[str, ...] = ("crash", "join", "pause", "restart", "nav_error", "clock_skew", "liar")
+NODE_KINDS: tuple[str, ...] = ("crash", "join", "pause", "restart", "nav_error", "clock_skew", "liar", "battery")
 #: Faults of the sensors of some UAVs.
 SENSING_KINDS: tuple[str, ...] = ("sensor",)
 
@@ -390,6 +390,20 @@ def spoofers(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: fl
     return Spoofer(x_m=x, y_m=y, range_m=reach, start_s=start, end_s=end, rate_per_s=rate, as_uav=as_uav)
 
 
+@st.composite
+def batteries(draw: st.DrawFn, uavs: Sequence[str], duration_s: float, step_s: float = 1.0) -> Fault:
+    """(issue 26) A battery fault: a loss of part of the energy left and/or a faster drain over
+    a window (nothing happens to a UAV without an [endurance] budget)."""
+    from faults.energy import Battery
+
+    if not uavs:
+        raise ValueError("a battery fault needs a UAV name")
+    start, end = _short_window(draw, duration_s, step_s, open_ended=True)
+    loss = draw(st.sampled_from([0.0, 0.25, 0.5, 0.9]))
+    factor = draw(st.sampled_from([1.0, 2.0, 5.0])) if loss else draw(st.sampled_from([2.0, 5.0]))
+    return Battery(uav=draw(_name(uavs)), start_s=start, end_s=end, loss_frac=loss, drain_factor=factor)
+
+
 _Builder = Callable[..., st.SearchStrategy[Fault]]
 # Each kind's strategy, simplest first (this is also the shrink order): loss on links, then
 # whole links cut, then whole UAVs, then UAVs that are wrong (clocks, positions, sensors), then
@@ -398,7 +412,7 @@ _BUILDERS: dict[str, _Builder] = {
     "drop": drops, "delay": delays, "duplicate": duplicates, "corrupt": corrupts, "burst": bursts,
     "jammer": jammers, "partition": partitions, "bridge": bridges, "swizzle": swizzles, "crash": crashes,
     "join": joins, "pause": pauses, "restart": restarts, "sensor": sensors, "nav_error": nav_errors,
-    "clock_skew": clock_skews, "liar": liars, "spoofer": spoofers,
+    "clock_skew": clock_skews, "liar": liars, "spoofer": spoofers, "battery": batteries,
 }
 #: Every fault kind with a strategy here, in shrink order (every built-in kind of
 #: :data:`faults.registry.FAULT_KINDS`; a kind registered elsewhere brings its own strategy).

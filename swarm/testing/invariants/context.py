@@ -100,6 +100,15 @@ class RunContext:
         self.range_m = scenario.radio.range_limit_m
         self.min_separation_m = scenario.safety.min_separation_m
         self.threats = [(i, th.x_m, th.y_m, th.radius_m) for i, th in enumerate(scenario.threats)]
+        # (issue 26) Polygon no-fly zones (agents.zones.Keepout, ids after the circles'): judged
+        # by the threat checker with their signed distance, as the circles are.
+        self.zones: list[Any] = []
+        if scenario.no_fly:
+            from swarm.geo.frame import frame_for
+            from swarm.geo.geography import zone_keepouts
+
+            geo = scenario.geo
+            self.zones = zone_keepouts(scenario, frame_for(geo.crs, geo.area, scenario.area.cell_m) if geo else None)
         self.names: dict[int, str] = {}
         self.type_name: dict[int, str] = {}
         self.uid: dict[str, int] = {}

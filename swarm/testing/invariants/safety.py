@@ -81,19 +81,26 @@ class ThreatClearanceChecker(Checker):
                 d = math.hypot(p[0] - x, p[1] - y)
                 if d >= r:
                     continue
-                key = (uid, k)
-                inside.add(key)
-                if key in self._active or key in self._excused:
-                    continue
-                if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, after_s=RECOVER_S)):
-                    self._excused.add(key)  # (a node fault's doing: excused until it is out)
-                    continue
-                self._active.add(key)
-                self.violate(t, f"{ctx.name(uid)} is {r - d:.1f} m inside threat {k} (radius {r:g} m)",
-                             [uid], threat=k, depth_m=r - d)
+                self._inside(t, uid, k, inside, f"{r - d:.1f} m inside threat {k} (radius {r:g} m)", r - d)
+            for z in ctx.zones:  # (issue 26) polygon zones: the depth is minus the signed clearance
+                depth = -z.clearance(p[0], p[1])[0]
+                if depth > 0.0:
+                    self._inside(t, uid, z.zone, inside, f"{depth:.1f} m inside no-fly polygon {z.zone}", depth)
         self._active &= inside
         self._excused &= inside
         self._prev = set(poses)
+
+    def _inside(self, t: float, uid: int, k: int, inside: set[tuple[int, int]], words: str, depth: float) -> None:
+        ctx = self.context
+        key = (uid, k)
+        inside.add(key)
+        if key in self._active or key in self._excused:
+            return
+        if uid not in self._prev or (self.excuse_node_faults and ctx.impaired(uid, t, after_s=RECOVER_S)):
+            self._excused.add(key)  # (a node fault's doing: excused until it is out)
+            return
+        self._active.add(key)
+        self.violate(t, f"{ctx.name(uid)} is {words}", [uid], threat=k, depth_m=depth)
 
 
 class DynamicsChecker(Checker):
@@ -108,6 +115,7 @@ class DynamicsChecker(Checker):
         super().__init__()
         self.tol_m = tol_m
         self._prev: dict[int, tuple] = {}
+        self._wind: tuple[float, float] | None = None  # (issue 26) the last group's wind event
 
     def on_group(self, t, events):
         poses = poses_of(events)
@@ -115,6 +123,10 @@ class DynamicsChecker(Checker):
             return
         ctx = self.context
         dt = ctx.dt
+        # (issue 26) With [wind] the log has the wind of each tick: the position follows from
+        # the speed and heading plus the wind of the tick before (the limits are air-relative).
+        wind_before = self._wind
+        self._wind = next(((e.wx, e.wy) for e in events if e.kind == "wind"), None)
         for uid, p in poses.items():
             kind = ctx.kind(uid)
             prev = self._prev.get(uid)
@@ -137,6 +149,8 @@ class DynamicsChecker(Checker):
                 self.violate(t, f"turn rate {omega:.6g} rad/s beyond {w_max:.6g} (turn radius below r_min)",
                              [uid], omega=omega)
             px, py, _, _ = integrate(x0, y0, v0, th0, a, omega, dt)
+            if wind_before is not None:
+                px, py = px + wind_before[0] * dt, py + wind_before[1] * dt
             err = math.hypot(px - x1, py - y1)
             if err > self.tol_m + 1e-9 * (abs(x1) + abs(y1)):
                 self.violate(t, f"moved {err:.3g} m away from where its speed and heading take it", [uid], error_m=err)

@@ -1,0 +1,151 @@
+"""Wind and endurance (issue 26, items 3 and 4): ground track = air velocity + wind, gusts
+reproducible by seed, return to base / landing / relaunch, the battery fault."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from agents.dynamics import integrate
+from swarm import Simulation
+from swarm.errors import ScenarioError
+from swarm.events import read_events
+from swarm.scenario import parse_scenario
+from swarm.testing.invariants import check_events
+
+
+def doc(**over) -> dict:
+    d = {"name": "mission", "duration_s": 300.0, "area": {"width_m": 30000.0, "height_m": 30000.0},
+         "uavs": [{"type": "B", "x_m": 5000.0, "y_m": 5000.0}, {"type": "A", "x_m": 8000.0, "y_m": 5000.0}],
+         "targets": {"count": 2, "speed_max": 3.0}}
+    d.update(over)
+    return d
+
+
+def run(d: dict, **kw):
+    sc = parse_scenario(d, "m.toml")
+    with Simulation(sc, **kw) as sim:
+        return sim, sim.run()
+
+
+def test_steady_wind_ground_track_is_air_velocity_plus_wind():
+    sim, result = run(doc(duration_s=60.0, wind={"speed_mps": 10.0, "direction_deg": 90.0}))
+    poses: dict[int, list] = {}
+    winds = {}
+    for e in read_events(result.events):
+        if e.kind == "pose":
+            poses.setdefault(e.uav, []).append(e)
+        elif e.kind == "wind":
+            winds[e.t] = (e.wx, e.wy)
+    assert all(w == pytest.approx((0.0, 10.0), abs=1e-12) for w in winds.values()) and len(winds) == 60
+    for seq in poses.values():
+        for p0, p1 in zip(seq, seq[1:]):
+            a = (p1.v - p0.v) / sim.dt
+            omega = math.remainder(p1.theta - p0.theta, 2 * math.pi) / sim.dt
+            ax, ay, _, _ = integrate(p0.x, p0.y, p0.v, p0.theta, a, omega, sim.dt)  # air-relative step
+            assert (p1.x - ax, p1.y - ay) == pytest.approx((0.0, 10.0 * sim.dt), abs=1e-6)
+    # the dynamics invariant judges air-relative limits: nothing to report
+    assert [str(v) for v in check_events(result.events, sim.scenario) if v.checker == "dynamics"] == []
+
+
+def test_gusts_are_reproducible_by_seed():
+    gusty = doc(duration_s=120.0, wind={"speed_mps": 5.0, "gust_sigma_mps": 3.0, "gust_tau_s": 10.0})
+
+    def winds(seed: int) -> list[tuple[float, float]]:
+        _, result = run(gusty, seed=seed)
+        return [(e.wx, e.wy) for e in read_events(result.events) if e.kind == "wind"]
+
+    a, b, c = winds(1), winds(1), winds(2)
+    assert a == b and a != c
+    gx = [w[0] - 5.0 for w in a]
+    assert 0.5 < max(abs(g) for g in gx) < 15.0  # gusts of a few m/s, not the mean alone
+
+
+ENDURANCE = {"x_m": 2000.0, "y_m": 2000.0, "turnaround_s": 60.0,
+             "types": {"A": {"capacity_wh": 300.0, "power_min_w": 1000.0},
+                       "B": {"capacity_wh": 1500.0, "power_min_w": 3000.0}}}
+
+
+@pytest.mark.slow
+def test_return_to_base_land_relaunch_and_never_out_of_energy_without_a_fault():
+    sim, result = run(doc(duration_s=1500.0, endurance=ENDURANCE, wind={"speed_mps": 6.0, "direction_deg": 30.0}))
+    kinds = [e.kind for e in read_events(result.events)]
+    for k in ("rtb", "landed", "launched"):
+        assert k in kinds, k
+    e = result.metrics["endurance"]
+    assert e["lost_to_energy"] == 0 and "energy_out" not in kinds
+    assert e["sorties"] > len(sim.scenario.uavs) and e["time_on_station_s"] > 0
+    assert all(u["energy_left_wh"] > 0 for u in e["per_uav"].values())
+    bad = [str(v) for v in check_events(result.events, sim.scenario) if v.checker in ("radio", "dynamics", "separation")]
+    assert bad == []
+
+
+@pytest.mark.slow
+def test_battery_fault_fires_is_counted_and_can_lose_a_uav():
+    faults = [{"kind": "battery", "uav": "A1", "start_s": 100.0, "loss_frac": 0.95}]
+    sim, result = run(doc(duration_s=600.0, endurance=ENDURANCE, faults=faults))
+    assert result.metrics["faults_applied"] == {"battery": 1}
+    assert result.metrics["endurance"]["lost_to_energy"] == 1
+    kinds = [(e.kind, getattr(e, "uav", None)) for e in read_events(result.events)]
+    assert ("energy_out", 1) in kinds and ("crash", 1) in kinds
+    drain = [{"kind": "battery", "uav": "B1", "start_s": 50.0, "end_s": 200.0, "drain_factor": 3.0}]
+    _, slow = run(doc(duration_s=400.0, endurance=ENDURANCE, faults=drain))
+    _, normal = run(doc(duration_s=400.0, endurance=ENDURANCE))
+    assert slow.metrics["faults_applied"] == {"battery": 1}
+    left = slow.metrics["endurance"]["per_uav"]["B1"]["energy_left_wh"]
+    assert left < normal.metrics["endurance"]["per_uav"]["B1"]["energy_left_wh"] or \
+        slow.metrics["endurance"]["per_uav"]["B1"]["sorties"] > 1
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"endurance": {**ENDURANCE, "types": {"C": {"capacity_wh": 100.0}}}}, "endurance.types.C"),
+    ({"endurance": {**ENDURANCE, "types": {"A": {"capacity_wh": 1.0}}}}, "endurance.types.A.capacity_wh"),
+    ({"endurance": {**ENDURANCE, "x_m": -5.0}}, "endurance.x_m"),
+    ({"wind": {"speed_mps": -1.0}}, "wind.speed_mps"),
+])
+def test_mission_validation_names_the_key(change, key):
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(doc(**change), "m.toml")
+    assert err.value.key == key, str(err.value)
+
+
+def test_nothing_new_runs_without_the_tables():
+    sim, result = run(doc(duration_s=20.0))
+    assert sim.mission is None and sim.geography is None and sim.world.wind is None
+    assert "endurance" not in result.metrics and "wind" not in result.metrics
+
+
+@pytest.mark.slow
+def test_resilience_battery_axis_plans_budgets_that_send_uavs_home():
+    from swarm.experiments.resilience import AXES, battery_point, plan_axis
+    from swarm.scenario import apply_overrides, load_scenario
+
+    assert "battery" in AXES
+    sc = load_scenario("paper-fig11")
+    runs = plan_axis("battery", sc, seeds=[0], planners=["greedy"], duration_s=900.0)
+    assert [dict(r.settings)["battery.capacity_frac"] for r in runs] == [0.0, 1.0, 0.5, 0.35, 0.25]
+    assert battery_point(sc, 0.0) == {}
+    small = apply_overrides(sc, battery_point(sc, 0.25))
+    with Simulation(small, planner="greedy", duration_s=900.0) as sim:
+        m = sim.run().metrics
+    assert m["endurance"]["lost_to_energy"] == 0 and m["endurance"]["sorties"] > len(sc.uavs)
+
+
+def test_a_watcher_hands_its_target_over_before_it_goes_home():
+    """A1 watches a target; when its energy says leave, its beacons say it searches while it keeps
+    circling; A2 (same type, just launched nearby) is drawn in by DACMP's own rules and watches
+    the target; only then does A1 turn home. The assignment invariants hold throughout."""
+    d = {"duration_s": 600.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
+         "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
+                  {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 420.0}],
+         "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
+         "endurance": {"x_m": 5000.0, "y_m": 5000.0, "turnaround_s": 60.0, "handover_s": 120.0,
+                       "types": {"A": {"capacity_wh": 260.0}}}}
+    sim, result = run(d)
+    events = list(read_events(result.events))
+    rtb = next(e for e in events if e.kind == "rtb" and e.uav_name == "A1")
+    assert rtb.target == 0  # it was watching target 0 when it left ...
+    took = [e.t for e in events if e.kind == "mode" and e.uav_name == "A2" and e.mode == "surveil" and e.target == 0]
+    assert took and took[0] <= rtb.t  # ... and A2 watched it before A1 turned home
+    assert [str(v) for v in check_events(result.events, sim.scenario)] == []
