@@ -85,6 +85,11 @@ class _RadioChecks(Table):
         """The disk model's loss at the range limit (``loss_base`` when ``loss_at_range`` is absent)."""
         return self.settings().effective_loss_at_range
 
+    @property
+    def loses_nothing(self) -> bool:
+        """:attr:`comms.settings.RadioSettings.loses_nothing`."""
+        return self.settings().loses_nothing
+
     def link_model(self) -> _radio.LinkModel:
         """The link model the radio runs with these settings (:meth:`comms.settings.RadioSettings.link_model`)."""
         return self.settings().link_model()
