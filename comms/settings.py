@@ -195,6 +195,12 @@ class RadioSettings:
         return self.link_model().range_loss
 
     @property
+    def loses_nothing(self) -> bool:
+        """Whether the radio, without faults, delivers every frame copy in range: no link ever
+        loses one (:attr:`LinkModel.lossless`) and no bandwidth cap drops one."""
+        return self.link_model().lossless and self.bandwidth_bytes_per_s is None
+
+    @property
     def range_limit_m(self) -> float:
         """How far links reach, as a number (math.inf when unlimited): ``range_m``, and with the
         log-distance model at most its link budget's range (:attr:`LinkModel.radius_m`)."""

@@ -54,7 +54,7 @@ def threats(sc: Scenario) -> list[KnownThreat]:
 def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], link_filter: LinkFilter) -> Radio:
     """The radio graph with the scenario's link model; ``link_rng(src, dst)`` gives a directed
     link's own random stream, ``link_filter`` (the fault injector) sees every frame copy."""
-    return Radio(sc.radio.settings().link_model(), link_rng=link_rng, link_filter=link_filter)
+    return Radio(sc.radio.link_model(), link_rng=link_rng, link_filter=link_filter)
 
 
 def auth_key(sc: Scenario) -> bytes | None:

@@ -17,7 +17,8 @@ counter-clockwise). ``KINDS`` is the schema as data: the recorder checks written
 against it (:attr:`swarm.recorder.EventLog.check_schema`), the readers decode through it
 (:func:`read_events`, :func:`read_columns`, :class:`Decoder`) and the Parquet export builds its
 columns from it (:mod:`swarm.export`). docs/outputs.md's table of kinds is
-:func:`markdown_table`.
+:func:`markdown_table`; the order of a tick's events is documented there too ("Order within a
+tick").
 
 Records are slots dataclasses, not tuples: a reader names the field it wants (``e.x``), and
 indexing a record by position fails loudly instead of reading the wrong field. They are not
@@ -44,6 +45,7 @@ from swarm.errors import SwarmError, UsageError
 __all__ = [
     "KINDS",
     "MODE_CODES",
+    "NAMING_KINDS",
     "Crash",
     "EnergyOut",
     "Landed",
@@ -74,6 +76,7 @@ __all__ = [
     "Start",
     "Target",
     "Violation",
+    "check_kinds",
     "check_wire",
     "markdown_table",
     "read_columns",

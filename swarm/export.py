@@ -34,6 +34,7 @@ import importlib
 import json
 import math
 import os
+import typing
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -115,8 +116,6 @@ def find_runs(folder: str | os.PathLike[str]) -> tuple[list[RunInfo], bool]:
 def _arrow_type(pa: Any, annotation: Any) -> Any:
     """The Arrow type of a schema annotation (``str``, ``list[int]``, ``dict[str, list[int]]``...);
     ``None`` for a free-form table (``dict[str, Any]``: written as JSON text)."""
-    import typing
-
     simple = {float: pa.float64(), int: pa.int64(), bool: pa.bool_(), str: pa.string()}
     if annotation in simple:
         return simple[annotation]
@@ -154,28 +153,25 @@ def _label_types(pa: Any, runs: Sequence[RunInfo]) -> list[tuple[str, Any]]:
     """The label columns of a sweep (run, planner, seed, then each swept setting by key), each
     typed from its values over all runs."""
     keys = list(dict.fromkeys(k for r in runs for k in r.label))
-    return [(k, _infer(pa, [r.label.get(k) for r in runs])[0]) for k in keys]
+    return [(k, _label_type(pa, [r.label.get(k) for r in runs])) for k in keys]
 
 
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}  # strict JSON's spelling (sweep.py)
 
 
-def _infer(pa: Any, values: Sequence[Any]) -> tuple[Any, list[Any]]:
-    """An Arrow type for a column of JSON values and the values converted to it: bool, int64,
-    float64 (numbers, with "inf", "-inf", "nan" as strict JSON writes them), string, or else
-    JSON text (arrays, tables, mixtures)."""
+def _label_type(pa: Any, values: Sequence[Any]) -> Any:
+    """The Arrow type of a column of JSON values: bool, int64, float64 (numbers, "inf", "-inf"
+    and "nan" among them as strict JSON writes them), string, or else string holding JSON text
+    (arrays, tables, mixtures; :func:`_label_columns` converts)."""
     present = [v for v in values if v is not None]
     if present and all(isinstance(v, bool) for v in present):
-        return pa.bool_(), list(values)
-    if present and all(isinstance(v, int) and not isinstance(v, bool) for v in present):
-        return pa.int64(), list(values)
-    numeric = [isinstance(v, (int, float)) and not isinstance(v, bool) or v in _NONFINITE for v in present]
-    if present and all(numeric) and any(isinstance(v, (int, float)) for v in present):
-        return pa.float64(), [None if v is None else _NONFINITE.get(v, v) if isinstance(v, str) else float(v)
-                              for v in values]
-    if all(isinstance(v, str) for v in present):
-        return pa.string(), list(values)
-    return pa.string(), [None if v is None else json.dumps(v) for v in values]
+        return pa.bool_()
+    numbers = [v for v in present if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    if present and len(numbers) == len(present) and all(isinstance(v, int) for v in numbers):
+        return pa.int64()
+    if numbers and all(v in numbers or (isinstance(v, str) and v in _NONFINITE) for v in present):
+        return pa.float64()
+    return pa.string()
 
 
 def _label_columns(pa: Any, labels: Sequence[tuple[str, Any]], run: RunInfo, n: int) -> list[Any]:

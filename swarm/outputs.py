@@ -157,7 +157,7 @@ def read_json(path: Path) -> dict:
 @dataclass(frozen=True)
 class RunFolder:
     """The two files every run folder has, as written: ``scenario.json`` (a dict, not yet
-    validated) and ``events.msgpack`` (bytes, see :func:`swarm.recorder.read_events`)."""
+    validated) and ``events.msgpack`` (bytes, see :func:`swarm.events.read_events`)."""
 
     path: Path
     scenario: dict

@@ -176,8 +176,9 @@ def test_radio_table_is_the_radio_settings_dataclass():
         table = generated.RadioSettings(**values)
         radio = table.settings()
         assert radio == CommsRadio(**values)
-        assert (table.horizon_m, table.range_limit_m, table.effective_loss_at_range, table.log_distance_model()) == (
-            radio.horizon_m, radio.range_limit_m, radio.effective_loss_at_range, radio.link_model().log_distance)
+        assert (table.horizon_m, table.range_limit_m, table.effective_loss_at_range, table.log_distance_model(),
+                table.link_model()) == (radio.horizon_m, radio.range_limit_m, radio.effective_loss_at_range,
+                                        radio.link_model().log_distance, radio.link_model())
 
 
 def test_the_actors_and_the_radio_take_their_radio_settings_from_the_scenario():

@@ -85,10 +85,19 @@ class _RadioChecks(Table):
         """The disk model's loss at the range limit (``loss_base`` when ``loss_at_range`` is absent)."""
         return self.settings().effective_loss_at_range
 
+    @property
+    def loses_nothing(self) -> bool:
+        """:attr:`comms.settings.RadioSettings.loses_nothing`."""
+        return self.settings().loses_nothing
+
+    def link_model(self) -> _radio.LinkModel:
+        """The link model the radio runs with these settings (:meth:`comms.settings.RadioSettings.link_model`)."""
+        return self.settings().link_model()
+
     def log_distance_model(self) -> _radio.LogDistance | None:
         """``[radio.log_distance]`` as the radio's :class:`~comms.settings.LogDistance` when
         ``model = "log_distance"``; None for the disk model."""
-        return self.settings().link_model().log_distance
+        return self.link_model().log_distance
 
     @property
     def horizon_m(self) -> float:

@@ -68,9 +68,7 @@ PEER_TIMEOUT_S = ActorSettings().peer_timeout_s  # (not a scenario setting)
 
 def radio_loses_nothing(scenario: Any) -> bool:
     """Whether the scenario's radio, without faults, delivers every frame in range."""
-    r = scenario.radio
-    return (r.model == "disk" and r.loss_base == 0 and r.effective_loss_at_range == 0
-            and r.bandwidth_bytes_per_s is None)
+    return bool(scenario.radio.loses_nothing)
 
 
 def _lat(scenario: Any) -> float:

@@ -53,9 +53,7 @@ class _LiveChecker(Checker):
         """A radio that loses frames by itself: anti-entropy converges, but in no bounded time.
         Also true in a tick in which a full mailbox dropped a frame copy (a small
         ``mailbox_capacity`` loses frames of a lossless radio the same way)."""
-        r = self.context.scenario.radio
-        return (r.loss_base > 0 or r.effective_loss_at_range > 0 or r.model != "disk"
-                or r.bandwidth_bytes_per_s is not None or self._overflowed)
+        return not self.context.scenario.radio.loses_nothing or self._overflowed
 
     _overflowed = False  # a mailbox dropped a frame since the previous tick (_note_overflow)
     _full_drops = 0
