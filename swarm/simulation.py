@@ -144,12 +144,9 @@ class Simulation:
         tm = sc.targets
         for p in tm.placed:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
-        for _ in range(tm.count):
-            g = self.rng.generator("target", len(self.targets))
-            self._add_target_rng(
-                float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m)),
-                float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, tm.speed_max)), tm.value, g,
-            )
+        if tm.count:  # placed at once, streams made when first drawn from (swarm.build.random_targets)
+            ids = self.targets.add_many(*build.random_targets(sc, self.seed, len(self.targets)))
+            self.metrics.appeared_t.update(dict.fromkeys(ids, self.clock.now))
         for spec in sc.uavs:
             self._add_uav_spec(spec)
         for f in sc.faults:
@@ -163,7 +160,6 @@ class Simulation:
 
     def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
         tid = self.targets.add(x, y, theta, v, value, rng)
-        self.observer.target_paths[tid] = []
         self.metrics.appeared_t[tid] = self.clock.now  # (time to first detection counts from here)
         return tid
 
