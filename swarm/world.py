@@ -52,11 +52,11 @@ class TargetMotion:
 # step. A Generator gives the same numbers in one call for n as in n calls for one each.
 _DRAW_BLOCK = 128
 
-# From this many targets on, step() moves them as numpy arrays, one operation for all (the same
+# From this many targets on (measured crossover), step() moves them as numpy arrays, one operation for all (the same
 # IEEE operations in the same order as the per-target loop below it, and math's cos and sin, so
 # the same numbers: tests/test_targets_vector.py); below it, one by one in Python floats (cheaper
 # for the paper's few targets). Issue 25: 10^5 targets cost 0.3 s a tick one by one.
-_VECTOR_MIN = 32
+_VECTOR_MIN = 48
 
 # Rows of Targets._s, the targets' state (one column per target).
 _X, _Y, _V, _TH, _A, _OM, _VAL = range(7)
@@ -121,6 +121,9 @@ class Targets:
         self._buf = np.zeros((0, _DRAW_BLOCK))  # per slot: normals drawn ahead
         self._pos = np.zeros(0, np.int64)  # per slot: the next unused one (_DRAW_BLOCK: none left)
         self._shared = False  # some slot serves several targets (step() then goes one by one)
+        # While every target i has slot i and all are at the same place in their draws (targets
+        # added together: the usual), that place; _pos is then stale. None: read _pos.
+        self._lock: int | None = _DRAW_BLOCK
 
     def __len__(self) -> int:
         return self._n
@@ -150,7 +153,15 @@ class Targets:
             self._buf = buf
             self._pos = np.concatenate((self._pos[:slots], np.full(cap - slots, _DRAW_BLOCK, np.int64)))
 
+    def _unlock(self) -> None:
+        """Targets stop moving through their draws in step: _pos becomes the truth."""
+        if self._lock is not None:
+            self._pos[: len(self._gens)] = self._lock
+            self._lock = None
+
     def add(self, x: float, y: float, theta: float, v: float, value: float, rng: np.random.Generator) -> int:
+        if self._lock != _DRAW_BLOCK:  # (a new stream starts with no draws: in step only at a block's end)
+            self._unlock()
         self._reserve(1)
         i = self._n
         self._s[:, i] = (x, y, v, theta, 0.0, 0.0, value)
@@ -160,6 +171,7 @@ class Targets:
             self._gens.append(rng)
         else:
             self._shared = True
+            self._unlock()
         self._slot[i] = slot
         self._n = i + 1
         self._xy = None
@@ -170,6 +182,8 @@ class Targets:
         """Add ``len(x)`` targets, each with a stream of its own, ``make(target id)``, made only
         if and when something draws from it. Returns their ids."""
         k = len(x)
+        if self._lock != _DRAW_BLOCK:
+            self._unlock()
         self._reserve(k)
         n, slot0 = self._n, len(self._gens)
         s = self._s
@@ -226,17 +240,25 @@ class Targets:
         w, h = grid.width_m, grid.height_m
         n = self._n
         st = self._s
-        xs, ys, vs, ths, accs, oms = (st[r, :n].tolist() for r in (_X, _Y, _V, _TH, _A, _OM))
-        slots = self._slot[:n].tolist()
-        buf, pos = self._buf, self._pos
+        state = st[_X:_OM + 1, :n].tolist()  # (one call each way: rows _X.._OM)
+        xs, ys, vs, ths, accs, oms = state
+        if self._shared:  # (targets sharing a stream draw from it in target order)
+            slots = self._slot[:n].tolist()
+            buf, pos = self._buf, self._pos
+            nas, nws = [], []
+            for s in slots:
+                k = int(pos[s])
+                if k == _DRAW_BLOCK:  # (blocks are even: pairs never straddle two)
+                    self._refill([s])
+                    k = 0
+                pos[s] = k + 2
+                nas.append(buf.item(s, k))
+                nws.append(buf.item(s, k + 1))
+        else:
+            na_a, nw_a = self._draw_pairs()
+            nas, nws = na_a.tolist(), nw_a.tolist()
         for i in range(n):
-            s = slots[i]
-            k = int(pos[s])
-            if k == _DRAW_BLOCK:  # (blocks are even: pairs never straddle two)
-                self._refill([s])
-                k = 0
-            pos[s] = k + 2
-            na, nw = buf.item(s, k), buf.item(s, k + 1)  # = rngs[i].standard_normal(2).tolist()
+            na, nw = nas[i], nws[i]  # = rngs[i].standard_normal(2).tolist()
             a = clamp(accs[i] + sigma_a * na, -a_max, a_max)
             om = clamp(oms[i] * keep + sigma_w * nw, -w_max, w_max)
             v = vs[i]
@@ -253,8 +275,27 @@ class Targets:
                 y, th = 2 * h - y, -th
             xs[i], ys[i], vs[i], ths[i] = x, y, v, wrap_angle(th)
             accs[i], oms[i] = a, om
-        for r, col in zip((_X, _Y, _V, _TH, _A, _OM), (xs, ys, vs, ths, accs, oms)):
-            st[r, :n] = col
+        st[_X:_OM + 1, :n] = state
+
+    def _draw_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each target's next two normals from its stream (no stream shared: order is free)."""
+        n = self._n
+        buf = self._buf
+        lock = self._lock
+        if lock is not None:  # target i is slot i, all at draw `lock`: plain slices
+            if lock == _DRAW_BLOCK:
+                self._refill(list(range(n)))
+                lock = 0
+            self._lock = lock + 2
+            return buf[:n, lock], buf[:n, lock + 1]
+        slots = self._slot[:n]
+        k = self._pos[slots]
+        empty = k == _DRAW_BLOCK
+        if empty.any():
+            self._refill(slots[empty].tolist())
+            k = self._pos[slots]
+        self._pos[slots] = k + 2
+        return buf[slots, k], buf[slots, k + 1]
 
     def _step_all(self, dt: float, grid: Grid) -> None:
         """:meth:`_step_each` for every target at once (each target has a stream of its own)."""
@@ -266,14 +307,7 @@ class Targets:
         w, h = grid.width_m, grid.height_m
         n = self._n
         st = self._s
-        slots = self._slot[:n]
-        k = self._pos[slots]
-        empty = slots[k == _DRAW_BLOCK]
-        if len(empty):
-            self._refill(empty.tolist())
-            k = self._pos[slots]
-        na, nw = self._buf[slots, k], self._buf[slots, k + 1]
-        self._pos[slots] = k + 2
+        na, nw = self._draw_pairs()
         a = _clamp_v(st[_A, :n] + sigma_a * na, -a_max, a_max)
         om = _clamp_v(st[_OM, :n] * keep + sigma_w * nw, -w_max, w_max)
         v = st[_V, :n]
