@@ -350,7 +350,7 @@ class Grid:
                 values = np.where(mask, t32, np.float32(-np.inf))
                 values.flags.writeable = False
             if values is not None and tiles is not None:
-                self._prefetch_stamps(todo, members, cast(float, t), cast("tuple[int, int]", tiles), ntx,
+                self._prefetch_stamps(todo, members, cast(float, t), tiles, ntx,
                                       ix0[idx], iy0[idx], h, w, mask, values, near_r, near_c)
                 continue
             for k, i in enumerate(members):
