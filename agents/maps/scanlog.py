@@ -160,6 +160,9 @@ class ScanLog:
         k_min = (round(t / self.dt) - cast(int, self.horizon_ticks) - FORGET_SLACK_TICKS) & ~7  # (finite: an int)
         if k_min <= self._floor:
             return
+        # Chunks wholly below k_min are dropped; those below the old floor went already (and
+        # add_tick makes none there), so only these can be left.
+        dead = range(self._floor >> CHUNK_SHIFT, k_min >> CHUNK_SHIFT)
         self._floor = k_min
         for rec in self._org.values():
             base = rec[1]
@@ -172,10 +175,10 @@ class ScanLog:
             for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
                 if scans.pop(k, None) is not None:
                     self.count -= 1
-            boxes = rec[3]
-            for c in [c for c in boxes if (c + 1) << CHUNK_SHIFT <= k_min]:  # chunks now empty
-                del boxes[c]
-                rec[4].pop(c, None)
+            boxes, centres = rec[3], rec[4]
+            for c in dead:  # chunks now empty ((c + 1) << CHUNK_SHIFT <= k_min)
+                if boxes.pop(c, None) is not None:
+                    centres.pop(c, None)
             self._version += 1
 
     def window(self, t_cut: float) -> tuple[int, int]:
