@@ -212,6 +212,11 @@ class Targets:
             g.standard_normal(out=buf[slot])  # (= standard_normal(_DRAW_BLOCK): the same draws)
         self._pos[slots] = 0
 
+    def state_of(self, ids: np.ndarray) -> list[list[float]]:
+        """``[x, y, v, theta, value]`` of the targets ``ids``, each a list of Python floats."""
+        st = self._s
+        return [st[r, ids].tolist() for r in (_X, _Y, _V, _TH, _VAL)]
+
     @property
     def xy(self) -> np.ndarray:
         """The targets' positions, (n, 2): a new array after each change (safe to keep)."""
@@ -386,17 +391,15 @@ class World:
             # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis;
             # UAVs in chunks of at most about 4M pairs (bounded memory with many targets).
             chunk = max(1, (1 << 22) // len(txy))
-            found = []
             for k0 in range(0, len(ids), chunk):
                 d2 = (txy[:, 0] - xy[k0:k0 + chunk, 0:1]) ** 2 + (txy[:, 1] - xy[k0:k0 + chunk, 1:2]) ** 2
                 rows, cols = (d2 <= r2[k0:k0 + chunk, None]).nonzero()  # row-major: targets in id order
-                found.append((rows + k0, cols))
-            rows = np.concatenate([f[0] for f in found])
-            cols = np.concatenate([f[1] for f in found])
-            # (Python floats, as the targets' lists gave them before: tg's arrays read once)
-            st = [a[cols].tolist() for a in (tg.x, tg.y, tg.v, tg.theta, tg.value)]
-            for k, i, x, y, v, th, value in zip(rows.tolist(), cols.tolist(), *st):
-                inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
+                if not len(cols):
+                    continue
+                # (Python floats, as the targets' lists gave them before: the state read once)
+                st = tg.state_of(cols)
+                for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
+                    inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
         daa = self._detect_and_avoid(ids, bodies, xy)
         readings = []
         for k, (b, seen) in enumerate(zip(bodies, inside)):
