@@ -79,10 +79,12 @@ def threats(sc: Scenario) -> list[KnownThreat]:
     return [KnownThreat(i, th.x_m, th.y_m, th.radius_m, th.d_max) for i, th in enumerate(sc.threats)]
 
 
-def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], link_filter: LinkFilter) -> Radio:
+def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], link_filter: LinkFilter,
+          link_rngs: Callable[[list[tuple[int, int]]], list[np.random.Generator]] | None = None) -> Radio:
     """The radio graph with the scenario's link model; ``link_rng(src, dst)`` gives a directed
-    link's own random stream, ``link_filter`` (the fault injector) sees every frame copy."""
-    return Radio(sc.radio.settings().link_model(), link_rng=link_rng, link_filter=link_filter)
+    link's own random stream (``link_rngs`` those of many links at once), ``link_filter`` (the
+    fault injector) sees every frame copy."""
+    return Radio(sc.radio.settings().link_model(), link_rng=link_rng, link_filter=link_filter, link_rngs=link_rngs)
 
 
 def auth_key(sc: Scenario) -> bytes | None:

@@ -10,6 +10,7 @@ shift anyone else's draws, and the order in which streams are created does not m
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,17 @@ class RngTree:
     def generator(self, *key: str | int) -> np.random.Generator:
         ss = np.random.SeedSequence(entropy=self.seed, spawn_key=self._spawn_key(key))
         return np.random.Generator(np.random.PCG64(ss))
+
+    def generators(self, keys: Sequence[tuple[str | int, ...]]) -> list[np.random.Generator]:
+        """``[self.generator(*key) for key in keys]``: the same streams, their seed words made
+        together (:func:`stream_states`' algorithm): about 4 us a stream instead of 35 (a dense
+        swarm makes tens of thousands of link streams in its first tick; issue 25)."""
+        if not keys:
+            return []
+        sha = hashlib.sha256
+        digests = b"".join([sha("\x1f".join(map(str, key)).encode()).digest() for key in keys])
+        spawn = np.frombuffer(digests, dtype="<u4").reshape(len(keys), 8)[:, :4].astype(np.uint32)
+        return [generator_from_state(words) for words in _seed_states(self.seed, spawn)]
 
 
 # --- many streams' first draws at once (issue 25: a million targets build in seconds) -----------

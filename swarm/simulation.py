@@ -123,9 +123,11 @@ class Simulation:
         self.fleet.types = self.types
         self.faults = RunFaults(self.clock, self.world, self.fleet, self.log, self.rng, self.names,
                                 (self.grid.width_m, self.grid.height_m), self.dt, sc.radio.latency_s)
+        uavs = self.world.uavs
         self.radio = build.radio(
-            sc, link_rng=lambda s, d: self.rng.generator("link", self.world.uavs[s].name, self.world.uavs[d].name),
-            link_filter=self.faults.injector)
+            sc, link_rng=lambda s, d: self.rng.generator("link", uavs[s].name, uavs[d].name),
+            link_filter=self.faults.injector,
+            link_rngs=lambda links: self.rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]))
         self.faults.radio = self.radio
         self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
         self._populate(sc)
