@@ -244,6 +244,9 @@ class UavActor:
         self._encode = (decoder.encode if decoder is not None and decoder.key == settings.auth_key
                         else partial(encode, key=settings.auth_key))
         self._bounds = (self._max_scan_r, grid.width_m, grid.height_m, settings.dt)  # agents.inbox.check_frame's
+        # Heard scans older than this are anti-entropy resends (a beacon carries the scans of the
+        # last beacon period): sent to this UAV alone, their disks are not worth sharing.
+        self._fresh_s = radio.beacon_every_s + 2 * settings.dt
         self.knowledge = Knowledge()
         self.plan: Plan | None = None
         # (issue 26) Endurance: flying home (no replanning on the way), the target it handed
@@ -584,6 +587,11 @@ class UavActor:
         stamp = self.umap.stamp
         disk_stamp = self.grid.disk_stamp
         known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
+        umap = self.umap
+        # A resent scan missing from the memo is stamped into a tiled map of its own directly
+        # (UncertaintyMap.stamp_once: 35 -> 15 us; group maps keep their own bookkeeping).
+        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
+        old = t - self._fresh_s
         decode_frame = self._decode
         cache = self._cache
         counters = self.counters
@@ -634,6 +642,9 @@ class UavActor:
                     # this record (grid memo).
                     d = known_disk(key, _MISSING)
                     if d is _MISSING:
+                        if once is not None and scan[0] < old:
+                            once(*key, scan[0])  # (a resend: this map's cells only, no shared disk)
+                            continue
                         d = disk_stamp(*key)
                     if d is not None:
                         stamp(d, scan[0])

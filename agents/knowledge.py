@@ -7,8 +7,10 @@ tracks and peers and "never forget" for threats, so duplicated or reordered fram
 from __future__ import annotations
 
 import math
+from bisect import insort
 from collections.abc import Iterable
 from dataclasses import dataclass
+from operator import attrgetter
 
 from comms.messages import NO_TARGET, TrackItem
 
@@ -56,13 +58,19 @@ class Peer:
     t_intent: float = -math.inf
 
 
+_uav_of = attrgetter("uav")
+
+
 class Knowledge:
-    __slots__ = ("tracks", "threats", "peers")
+    __slots__ = ("tracks", "threats", "peers", "_by_id")
 
     def __init__(self) -> None:
         self.tracks: dict[int, Track] = {}
         self.threats: dict[int, KnownThreat] = {}
         self.peers: dict[int, Peer] = {}
+        # The peers in id order, kept as they are added (peer()): recent_peers() runs for every
+        # UAV every tick and peers only grow (issue 25: it sorted them all each time).
+        self._by_id: list[Peer] = []
 
     def see_target(self, target: int, x: float, y: float, vx: float, vy: float, t: float, value: float) -> bool:
         """Record a sighting; True if the target was unknown before."""
@@ -104,8 +112,15 @@ class Knowledge:
         p = self.peers.get(uav)
         if p is None:
             p = self.peers[uav] = Peer(uav)
+            by_id = self._by_id
+            if by_id and by_id[-1].uav > uav:
+                insort(by_id, p, key=_uav_of)
+            else:
+                by_id.append(p)
         return p
 
     def recent_peers(self, t: float, max_age_s: float) -> list[Peer]:
         """Peers heard from within ``max_age_s``, in id order (deterministic)."""
-        return [p for _, p in sorted(self.peers.items()) if t - p.t_pose <= max_age_s]
+        if len(self._by_id) != len(self.peers):  # (peers added to the dict directly: sort them)
+            self._by_id = [p for _, p in sorted(self.peers.items())]
+        return [p for p in self._by_id if t - p.t_pose <= max_age_s]

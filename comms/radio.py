@@ -111,10 +111,18 @@ class Radio:
         model: LinkModel,
         link_rng: Callable[[int, int], np.random.Generator],
         link_filter: LinkFilter | None = None,
+        link_rngs: Callable[[list[tuple[int, int]]], list[np.random.Generator]] | None = None,
     ):
+        """``link_rng(src, dst)``: the stream of a directed link; ``link_rngs(links)`` (optional):
+        the streams of many links at once, the same as ``link_rng`` gives each."""
         self.model = model
         self._link_rng_factory = link_rng
         self._link_rngs: dict[tuple[int, int], np.random.Generator] = {}
+        # With link_rngs: the directed links of edges added since their streams were last made.
+        # The first copy that needs a stream makes those of all of them at once (a stream does
+        # not depend on when it is made; a dense swarm's first tick makes tens of thousands).
+        self._bulk = link_rngs
+        self._new_links: list[tuple[int, int]] = []
         self.filter = link_filter
         self.graph = RadioGraph()
         self._edges = self.graph.edge_data  # (the graph's own: read and updated in place)
@@ -219,6 +227,8 @@ class Radio:
                     e["loss"] = ll
         if add:
             g.add_edges_from(add)
+            if self._bulk is not None:
+                self._new_links += [(u, v) for u, v, _ in add] + [(v, u) for u, v, _ in add]
         # Neighbour lists (sorted ids) straight from the pairs (unless nothing changed).
         if same_edges and same_ids:
             pass
@@ -252,7 +262,20 @@ class Radio:
     def _rng(self, src: int, dst: int) -> np.random.Generator:
         rng = self._link_rngs.get((src, dst))
         if rng is None:
-            rng = self._link_rngs[(src, dst)] = self._link_rng_factory(src, dst)
+            rng = self._new_rng(src, dst)
+        return rng
+
+    def _new_rng(self, src: int, dst: int) -> np.random.Generator:
+        """The stream of a link that has none yet (see _new_links), kept."""
+        rngs = self._link_rngs
+        if self._bulk is not None and self._new_links:
+            todo = [link for link in dict.fromkeys(self._new_links) if link not in rngs]
+            self._new_links = []
+            rngs.update(zip(todo, self._bulk(todo)))
+            rng = rngs.get((src, dst))
+            if rng is not None:
+                return rng
+        rng = rngs[(src, dst)] = self._link_rng_factory(src, dst)
         return rng
 
     def _faded_loss(self, t: float, src: int, dst: int, margin_db: float, ld: LogDistance,
@@ -327,7 +350,7 @@ class Radio:
                 if p > 0.0 or jitter > 0.0:
                     rng = rngs.get((src, dst))
                     if rng is None:
-                        rng = rngs[(src, dst)] = self._link_rng_factory(src, dst)
+                        rng = self._new_rng(src, dst)
                     if p > 0.0 and rng.random() < p:
                         c.drop("loss")
                         if on_lost is not None:

@@ -22,7 +22,12 @@ The estimate is an upper bound of the big arrays, not of Python's overhead:
   bench-100), plus the particles' windows of one batch
   (every UAV's levels within ``ring_max_factor`` detection radii of it, float32);
 * per UAV, a mailbox of the frames of one tick (one from each UAV it hears, at most
-  ``radio.mailbox_capacity``, of a typical size).
+  ``radio.mailbox_capacity``, of a typical size);
+* what the run records of every target every tick (issue 25: a million targets are a million
+  ``target`` events a tick): its event (about 40 bytes of the in-memory log, and as much again
+  in the result's copy of it), its position in the observer's per-tick array (16 bytes) and in
+  the result's paths (24 bytes); likewise a
+  UAV's ``pose`` event and path row (counted at 160 bytes: Python floats).
 """
 
 from __future__ import annotations
@@ -45,6 +50,12 @@ _TYPICAL_FRAME_BYTES = 512  # a beacon (hello, intent, a few scans) is 150-400 b
 # not stored), a third of the map's cells or more (their tiles reach one cell past the seen
 # ones). Counted generously (bench-100 measures 0.38 after 200 s).
 PYRAMID_PER_MAP_BYTE = 0.75
+# Recorded per target and per UAV each tick (see the module docstring): a target's event in the
+# log (36-40 bytes of msgpack, twice: the log and the result's copy of its bytes), its position
+# in the observer's array and in the result's paths (measured: 121 bytes a target-tick of peak
+# RSS with 10^5 targets over paper-case1's 600 s).
+_TARGET_TICK_BYTES = 128
+_UAV_TICK_BYTES = 160
 
 
 class MemoryLimitError(SwarmError, MemoryError):
@@ -105,6 +116,12 @@ def estimate_memory(sc: Scenario) -> MemoryEstimate:
         parts["DACMP particle windows of one batch"] = window
     # Mailboxes are drained every tick: at most a frame from each other UAV, of a typical size.
     parts["mailboxes"] = float(n * min(sc.radio.mailbox_capacity, n) * _TYPICAL_FRAME_BYTES)
+    ticks = math.ceil(sc.duration_s / sc.dt_s) if sc.dt_s > 0 else 0
+    targets = len(sc.targets.placed) + sc.targets.count
+    if targets:
+        parts[f"target events and paths ({_TARGET_TICK_BYTES} B a target a tick)"] = float(
+            _TARGET_TICK_BYTES * targets * ticks)
+    parts[f"UAV events and paths ({_UAV_TICK_BYTES} B a UAV a tick)"] = float(_UAV_TICK_BYTES * n * ticks)
     return MemoryEstimate(cells, parts)
 
 
@@ -152,7 +169,8 @@ def check_memory(sc: Scenario, limit_gb: float | None = None) -> MemoryEstimate:
         raise MemoryLimitError(
             f"scenario {sc.name!r} would need about {format_bytes(est.total)} ({biggest}), above the limit of "
             f"{format_bytes(limit)}: it has {cells} cells (area.width_m {sc.area.width_m:g} x area.height_m "
-            f"{sc.area.height_m:g} at area.cell_m {sc.area.cell_m:g}) and {len(sc.uavs)} UAVs over duration_s "
-            f"{sc.duration_s:g}; use a larger area.cell_m or a smaller area, or raise the limit "
-            f"(--memory-limit GB, SWARM_MEMORY_LIMIT_GB)")
+            f"{sc.area.height_m:g} at area.cell_m {sc.area.cell_m:g}), {len(sc.uavs)} UAVs and "
+            f"{len(sc.targets.placed) + sc.targets.count:,} targets (targets.count) over duration_s "
+            f"{sc.duration_s:g}; use a larger area.cell_m or a smaller area, fewer targets or UAVs or a shorter "
+            f"duration_s, or raise the limit (--memory-limit GB, SWARM_MEMORY_LIMIT_GB)")
     return est

@@ -180,11 +180,15 @@ class Metrics:
         for key in [k for k in self.watch_since if k[0] not in watching.get(k[1], ())]:
             del self.watch_since[key]
             self.arrived.pop(key, None)
-        for m in self.found_t:
-            if m in covered:
-                self.watched_s[m] = self.watched_s.get(m, 0.0) + dt
-            if m in holding:
-                self.held_s[m] = self.held_s.get(m, 0.0) + dt
+        # Only targets some UAV covers or holds gain time: visit those, not every found target
+        # (10^5 targets: tens of thousands found; these dicts are only read by key).
+        found, watched_s, held_s = self.found_t, self.watched_s, self.held_s
+        for m in covered:
+            if m in found:
+                watched_s[m] = watched_s.get(m, 0.0) + dt
+        for m in holding:
+            if m in found:
+                held_s[m] = held_s.get(m, 0.0) + dt
         for m, uids in holding.items():
             for uid in uids:
                 self.first_hold.setdefault((m, types.get(uid, "?")), t)

@@ -21,6 +21,49 @@ from swarm.metrics import Metrics
 from swarm.recorder import EventLog
 from swarm.world import World
 
+# From this many targets on, a tick's ``target`` events are packed from the positions' array
+# (pack_target_events) instead of tuple by tuple: 10^5 targets cost 50 ms a tick that way.
+_PACK_MIN = 256
+
+
+def _target_event_dtype(id_tag: bytes, id_type: str) -> np.dtype:
+    """The msgpack bytes of one ``("target", t, i, x, y)`` event, as a packed record: a fixarray
+    of 5, the fixstr "target", float 64 t, the id (as msgpack writes that many bits of it) and
+    float 64 x and y, big-endian."""
+    fields: list[tuple[str, str]] = [("head", "S8"), ("tt", "u1"), ("t", ">f8")]
+    if id_tag:
+        fields.append(("it", "u1"))
+    fields += [("i", id_type), ("xt", "u1"), ("x", ">f8"), ("yt", "u1"), ("y", ">f8")]
+    return np.dtype(fields)
+
+
+# (first id, last id + 1, id tag, id type): msgpack's positive fixint, uint 8, 16 and 32.
+_ID_FORMS = ((0, 0x80, b"", "u1"), (0x80, 0x100, b"\xcc", "u1"), (0x100, 0x10000, b"\xcd", ">u2"),
+             (0x10000, 0x100000000, b"\xce", ">u4"))
+
+
+def pack_target_events(t: float, xy: np.ndarray) -> bytes:
+    """``b"".join(msgpack.packb(("target", t, i, x, y)) for i, (x, y) in enumerate(xy))``, from
+    the arrays (``t`` a float, ``xy`` float64 (n, 2), n < 2**32): what :meth:`Observer.observe`
+    logs of every target each tick (tests/test_observer_pack.py checks the bytes)."""
+    n = len(xy)
+    parts = []
+    for lo, hi, tag, id_type in _ID_FORMS:
+        if n <= lo:
+            break
+        k = min(n, hi) - lo
+        rec = np.empty(k, _target_event_dtype(tag, id_type))
+        rec["head"] = b"\x95\xa6target"
+        rec["tt"] = rec["xt"] = rec["yt"] = 0xCB
+        rec["t"] = t
+        if tag:
+            rec["it"] = tag[0]
+        rec["i"] = np.arange(lo, lo + k)
+        rec["x"] = xy[lo:lo + k, 0]
+        rec["y"] = xy[lo:lo + k, 1]
+        parts.append(rec.tobytes())
+    return b"".join(parts)
+
 
 class Observer:
     """What the run records of itself, tick by tick."""
@@ -32,10 +75,14 @@ class Observer:
         self.log = log
         self.dt = dt
         self.min_separation_m = min_separation_m
-        # Flat (t, x, y, t, x, y, ...) per UAV and per target: an array is made from a flat
-        # list of floats several times faster than from a list of tuples (swarm.results).
+        # Flat (t, x, y, t, x, y, ...) per UAV: an array is made from a flat list of floats
+        # several times faster than from a list of tuples (swarm.results).
         self.paths: dict[int, list[float]] = {}
-        self.target_paths: dict[int, list[float]] = {}
+        # The targets' positions, one (n, 2) array per tick (the world's own, which it replaces
+        # rather than changes): per-target lists cost 10^5 list appends a tick and 32 bytes a
+        # float (issue 25); target_path_arrays() cuts them into paths.
+        self._target_t: list[float] = []
+        self._target_xy: list[np.ndarray] = []
         # Recording level "summary": rx / lost frame copies are counted per tick and logged as
         # one "radio" event at the end of the tick, not one event each.
         self.summary = summary
@@ -102,14 +149,41 @@ class Observer:
         types = {u: uavs[u].kind.name for u in alive}
         events += self.metrics.observe(t, self.dt, plans, sensed, types, speed_max_by_type, faults.detected)
         tg = world.targets
-        target_paths = self.target_paths
-        for i, (x, y) in enumerate(zip(tg.x, tg.y)):
-            add(("target", t, i, x, y))
-            target_paths[i].extend((t, x, y))
+        txy = tg.xy
+        self._target_t.append(t)
+        self._target_xy.append(txy)
         log = self.log
-        log.extend(events)
+        n = len(txy)
+        if n < _PACK_MIN or type(t) is not float:
+            events += [("target", t, i, x, y) for i, (x, y) in enumerate(txy.tolist())]
+            log.extend(events)
+        else:  # every target's event of the tick packed from the arrays at once (the same bytes)
+            log.extend(events)
+            log.extend_packed(pack_target_events(t, txy), n, lambda: [("target", t, i, x, y)
+                                                                       for i, (x, y) in enumerate(txy.tolist())])
         for kind, a, b2 in world.check_safety(alive, xy, self.min_separation_m):
             log.emit("violation", t, kind, a, b2)
+
+    def target_path_arrays(self) -> dict[int, np.ndarray]:
+        """Each target's path so far: ``(ticks, 3)`` rows of ``(t, x, y)`` from the first tick
+        observed with it (targets added later start later)."""
+        ts, snaps = self._target_t, self._target_xy
+        out: dict[int, np.ndarray] = {}
+        k0 = 0
+        while k0 < len(snaps):
+            # the targets first observed at tick k0, and the ticks until more were added
+            i0, i1 = (len(snaps[k0 - 1]) if k0 else 0), len(snaps[k0])
+            k1 = k0 + 1
+            while k1 < len(snaps) and len(snaps[k1]) == i1:
+                k1 += 1
+            if i1 > i0:
+                rows = np.empty((i1 - i0, len(snaps) - k0, 3))
+                rows[:, :, 0] = np.asarray(ts[k0:])
+                for k in range(k0, len(snaps)):
+                    rows[:, k - k0, 1:] = snaps[k][i0:i1]
+                out.update(zip(range(i0, i1), rows))
+            k0 = k1
+        return out
 
     def end_tick(self, t: float) -> None:
         """Recording level "summary": the tick's one ``radio`` event, ``[t, read, rejected,

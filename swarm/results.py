@@ -177,7 +177,7 @@ def run_result(sim: Run) -> RunResult:
         timeseries=list(sim.metrics.rows),
         events=events,
         paths={sim.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in sim.observer.paths.items()},
-        target_paths={i: np.array(p, dtype=float).reshape(-1, 3) for i, p in sim.observer.target_paths.items()},
+        target_paths=sim.observer.target_path_arrays(),
         union_last_seen=sim.metrics.union.to_dense(),
         threats=list(sim.world.threats),
         area=(sim.grid.width_m, sim.grid.height_m),

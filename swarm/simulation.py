@@ -125,9 +125,11 @@ class Simulation:
         self.fleet.types = self.types
         self.faults = RunFaults(self.clock, self.world, self.fleet, self.log, self.rng, self.names,
                                 (self.grid.width_m, self.grid.height_m), self.dt, sc.radio.latency_s)
+        uavs = self.world.uavs
         self.radio = build.radio(
-            sc, link_rng=lambda s, d: self.rng.generator("link", self.world.uavs[s].name, self.world.uavs[d].name),
-            link_filter=self.faults.injector)
+            sc, link_rng=lambda s, d: self.rng.generator("link", uavs[s].name, uavs[d].name),
+            link_filter=self.faults.injector,
+            link_rngs=lambda links: self.rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]))
         self.faults.radio = self.radio
         self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
         self._populate(sc)
@@ -147,9 +149,13 @@ class Simulation:
         tm = sc.targets
         for p in tm.placed:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
-        for _ in range(tm.count):
-            g = self.rng.generator("target", len(self.targets))
-            self._add_target_rng(*build.random_start(g, sc, self.geography), tm.value, g)
+        if tm.count and self.geography is not None and self.geography.area is not None:
+            for _ in range(tm.count):  # (inside a polygon: each drawn again from its stream until inside)
+                g = self.rng.generator("target", len(self.targets))
+                self._add_target_rng(*build.random_start(g, sc, self.geography), tm.value, g)
+        elif tm.count:  # placed at once, streams made when first drawn from (swarm.build.random_targets)
+            ids = self.targets.add_many(*build.random_targets(sc, self.seed, len(self.targets)))
+            self.metrics.appeared_t.update(dict.fromkeys(ids, self.clock.now))
         for spec in sc.uavs:
             self._add_uav_spec(spec)
         for f in sc.faults:
@@ -163,7 +169,6 @@ class Simulation:
 
     def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
         tid = self.targets.add(x, y, theta, v, value, rng)
-        self.observer.target_paths[tid] = []
         self.metrics.appeared_t[tid] = self.clock.now  # (time to first detection counts from here)
         return tid
 

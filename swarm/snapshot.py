@@ -56,6 +56,6 @@ def take_snapshot(t: float, world: World, fleet: Fleet, metrics: Metrics, links:
         uavs.append(UavSnapshot(uid, b.name, b.kind.name, b.state, b.x, b.y, b.v, b.theta, fleet.mode_name(uid),
                                 plan.target if plan else -1, (plan.wx, plan.wy) if plan else None))
     tg = world.targets
-    targets = tuple(TargetSnapshot(i, tg.x[i], tg.y[i], tg.v[i], tg.theta[i], metrics.found_t.get(i))
-                    for i in range(len(tg)))
+    targets = tuple(TargetSnapshot(i, x, y, v, th, metrics.found_t.get(i))
+                    for i, (x, y, v, th) in enumerate(zip(tg.x.tolist(), tg.y.tolist(), tg.v.tolist(), tg.theta.tolist())))
     return Snapshot(t, tuple(uavs), targets, metrics.coverage(), len(metrics.found_t), tuple(sorted(links)))

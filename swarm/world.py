@@ -10,13 +10,14 @@ acceleration limits, and reflect at the area border. Each target draws from its 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from agents.actor import SensedTarget, SensedUav, SensorReading
-from agents.dynamics import clamp, command_violates, integrate, limit_command, wrap_angle
+from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_command, wrap_angle
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from agents.types import UavType
@@ -51,10 +52,37 @@ class TargetMotion:
 # step. A Generator gives the same numbers in one call for n as in n calls for one each.
 _DRAW_BLOCK = 128
 
+# From this many targets on (measured crossover), step() moves them as numpy arrays, one operation for all (the same
+# IEEE operations in the same order as the per-target loop below it, and math's cos and sin, so
+# the same numbers: tests/test_targets_vector.py); below it, one by one in Python floats (cheaper
+# for the paper's few targets). Issue 25: 10^5 targets cost 0.3 s a tick one by one.
+_VECTOR_MIN = 48
+
+# Rows of Targets._s, the targets' state (one column per target).
+_X, _Y, _V, _TH, _A, _OM, _VAL = range(7)
+
+
+def _clamp_v(v: np.ndarray, lo: np.ndarray | float, hi: np.ndarray | float) -> np.ndarray:
+    """:func:`agents.dynamics.clamp` element by element (the same comparisons, the same order)."""
+    v = np.where(lo > v, lo, v)
+    return np.where(hi < v, hi, v)
+
+
+def _wrap_v(a: np.ndarray) -> np.ndarray:
+    """:func:`agents.dynamics.wrap_angle` element by element (numpy's ``%`` on floats is Python's)."""
+    w = (a + math.pi) % TWO_PI - math.pi
+    return np.where(w >= math.pi, w - TWO_PI, w)
+
+
+def _math_v(f: Callable[[float], float], a: np.ndarray) -> np.ndarray:
+    """``f`` (math's cos or sin) of each element: numpy's own may differ in the last bit, and
+    the UAVs' and per-target paths use math's."""
+    return np.fromiter(map(f, a.tolist()), np.float64, len(a))
+
 
 class _Normals:
     """A generator's standard normals, drawn ahead in blocks and handed out in order, two at a
-    time (targets sharing one generator share one of these: the same order of draws)."""
+    time (kept for reference and tests: :class:`Targets` holds the same per stream in arrays)."""
 
     __slots__ = ("rng", "buf", "pos")
 
@@ -73,42 +101,140 @@ class _Normals:
 
 
 class Targets:
-    """Target states as parallel lists (few targets; per-target random streams)."""
+    """Target states, one column per target of a float64 array grown by doubling (adding a
+    target is O(1): a million of them build in a second), each target with its own random stream.
+
+    ``x``, ``y``, ``v``, ``theta``, ``a``, ``omega``, ``value``: views of the live state (numpy
+    arrays; take ``.tolist()`` for Python floats). A stream is a slot: targets given the same
+    generator share one (and its draws, in target order); a slot's generator may be made only
+    when first drawn from (:meth:`add_many`)."""
 
     def __init__(self, motion: TargetMotion):
         self.motion = motion
-        self.x: list[float] = []
-        self.y: list[float] = []
-        self.v: list[float] = []
-        self.theta: list[float] = []
-        self.a: list[float] = []
-        self.omega: list[float] = []
-        self.value: list[float] = []
-        self.rngs: list[np.random.Generator] = []
-        self._normals: list[_Normals] = []  # per target, over its generator (step() draws only here)
-        self._xy = np.zeros((0, 2))
+        self._n = 0
+        self._s = np.zeros((7, 0))
+        self._xy: np.ndarray | None = None  # xy, made when read after a change
+        self._slot = np.zeros(0, np.int64)  # target -> its stream's slot
+        self._slot_of: dict[int, int] = {}  # id(generator) -> slot (the generators are kept in _gens)
+        self._gens: list[np.random.Generator | None] = []  # per slot; None: made when first drawn from
+        self._makers: list[tuple[int, int, int, Callable[[int], np.random.Generator]]] = []  # (slot0, slot1, target0, make)
+        self._buf = np.zeros((0, _DRAW_BLOCK))  # per slot: normals drawn ahead
+        self._pos = np.zeros(0, np.int64)  # per slot: the next unused one (_DRAW_BLOCK: none left)
+        self._shared = False  # some slot serves several targets (step() then goes one by one)
+        # While every target i has slot i and all are at the same place in their draws (targets
+        # added together: the usual), that place; _pos is then stale. None: read _pos.
+        self._lock: int | None = _DRAW_BLOCK
 
     def __len__(self) -> int:
-        return len(self.x)
+        return self._n
+
+    x = property(lambda self: self._s[_X, : self._n])
+    y = property(lambda self: self._s[_Y, : self._n])
+    v = property(lambda self: self._s[_V, : self._n])
+    theta = property(lambda self: self._s[_TH, : self._n])
+    a = property(lambda self: self._s[_A, : self._n])
+    omega = property(lambda self: self._s[_OM, : self._n])
+    value = property(lambda self: self._s[_VAL, : self._n])
+
+    def _reserve(self, k: int) -> None:
+        """Room for ``k`` more targets and slots (capacity doubled when short)."""
+        n = self._n
+        if n + k > self._s.shape[1]:
+            cap = max(2 * self._s.shape[1], n + k, 16)
+            s = np.zeros((7, cap))
+            s[:, :n] = self._s[:, :n]
+            self._s = s
+            self._slot = np.concatenate((self._slot[:n], np.zeros(cap - n, np.int64)))
+        slots = len(self._gens)
+        if slots + k > len(self._pos):
+            cap = max(2 * len(self._pos), slots + k, 16)
+            buf = np.zeros((cap, _DRAW_BLOCK))
+            buf[:slots] = self._buf[:slots]
+            self._buf = buf
+            self._pos = np.concatenate((self._pos[:slots], np.full(cap - slots, _DRAW_BLOCK, np.int64)))
+
+    def _unlock(self) -> None:
+        """Targets stop moving through their draws in step: _pos becomes the truth."""
+        if self._lock is not None:
+            self._pos[: len(self._gens)] = self._lock
+            self._lock = None
 
     def add(self, x: float, y: float, theta: float, v: float, value: float, rng: np.random.Generator) -> int:
-        self.x.append(x)
-        self.y.append(y)
-        self.v.append(v)
-        self.theta.append(theta)
-        self.a.append(0.0)
-        self.omega.append(0.0)
-        self.value.append(value)
-        self.rngs.append(rng)
-        self._normals.append(next((n for n in self._normals if n.rng is rng), None) or _Normals(rng))
-        self._xy = np.array([self.x, self.y]).T  # (n, 2)
-        return len(self.x) - 1
+        if self._lock != _DRAW_BLOCK:  # (a new stream starts with no draws: in step only at a block's end)
+            self._unlock()
+        self._reserve(1)
+        i = self._n
+        self._s[:, i] = (x, y, v, theta, 0.0, 0.0, value)
+        slot = self._slot_of.get(id(rng))
+        if slot is None:
+            slot = self._slot_of[id(rng)] = len(self._gens)
+            self._gens.append(rng)
+        else:
+            self._shared = True
+            self._unlock()
+        self._slot[i] = slot
+        self._n = i + 1
+        self._xy = None
+        return i
+
+    def add_many(self, x: np.ndarray, y: np.ndarray, theta: np.ndarray, v: np.ndarray, value: float,
+                 make: Callable[[int], np.random.Generator]) -> range:
+        """Add ``len(x)`` targets, each with a stream of its own, ``make(target id)``, made only
+        if and when something draws from it. Returns their ids."""
+        k = len(x)
+        if self._lock != _DRAW_BLOCK:
+            self._unlock()
+        self._reserve(k)
+        n, slot0 = self._n, len(self._gens)
+        s = self._s
+        s[_X, n:n + k], s[_Y, n:n + k], s[_V, n:n + k], s[_TH, n:n + k] = x, y, v, theta
+        s[_A, n:n + k] = s[_OM, n:n + k] = 0.0
+        s[_VAL, n:n + k] = value
+        self._slot[n:n + k] = np.arange(slot0, slot0 + k)
+        self._gens.extend([None] * k)
+        self._makers.append((slot0, slot0 + k, n, make))
+        self._n = n + k
+        self._xy = None
+        return range(n, n + k)
+
+    def _refill(self, slots: list[int]) -> None:
+        """Draw the next block of normals of each of these slots' streams (making the stream
+        first if it was never drawn from)."""
+        gens, buf = self._gens, self._buf
+        for slot in slots:
+            g = gens[slot]
+            if g is None:
+                for s0, s1, t0, make in self._makers:
+                    if s0 <= slot < s1:
+                        g = gens[slot] = make(t0 + slot - s0)
+                        break
+                assert g is not None  # (every lazy slot has its maker)
+            g.standard_normal(out=buf[slot])  # (= standard_normal(_DRAW_BLOCK): the same draws)
+        self._pos[slots] = 0
+
+    def state_of(self, ids: np.ndarray) -> list[list[float]]:
+        """``[x, y, v, theta, value]`` of the targets ``ids``, each a list of Python floats."""
+        st = self._s
+        return [st[r, ids].tolist() for r in (_X, _Y, _V, _TH, _VAL)]
 
     @property
     def xy(self) -> np.ndarray:
+        """The targets' positions, (n, 2): a new array after each change (safe to keep)."""
+        if self._xy is None:
+            self._xy = np.array(self._s[_X:_Y + 1, : self._n].T)
         return self._xy
 
     def step(self, dt: float, grid: Grid) -> None:
+        n = self._n
+        if not n:
+            return
+        if n < _VECTOR_MIN or self._shared:
+            self._step_each(dt, grid)
+        else:
+            self._step_all(dt, grid)
+        self._xy = None
+
+    def _step_each(self, dt: float, grid: Grid) -> None:
         m = self.motion
         sq = math.sqrt(dt)
         # The turn rate relaxes towards 0 (Ornstein-Uhlenbeck): a pure Wiener turn rate drifts to
@@ -117,9 +243,27 @@ class Targets:
         sigma_a, sigma_w = m.accel_sigma * sq, m.turn_sigma * sq
         a_max, w_max, v_max = m.accel_max, m.turn_rate_max, m.speed_max
         w, h = grid.width_m, grid.height_m
-        xs, ys, vs, ths, accs, oms = self.x, self.y, self.v, self.theta, self.a, self.omega
-        for i, normals in enumerate(self._normals):
-            na, nw = normals.pair()  # = rngs[i].standard_normal(2).tolist()
+        n = self._n
+        st = self._s
+        state = st[_X:_OM + 1, :n].tolist()  # (one call each way: rows _X.._OM)
+        xs, ys, vs, ths, accs, oms = state
+        if self._shared:  # (targets sharing a stream draw from it in target order)
+            slots = self._slot[:n].tolist()
+            buf, pos = self._buf, self._pos
+            nas, nws = [], []
+            for s in slots:
+                k = int(pos[s])
+                if k == _DRAW_BLOCK:  # (blocks are even: pairs never straddle two)
+                    self._refill([s])
+                    k = 0
+                pos[s] = k + 2
+                nas.append(buf.item(s, k))
+                nws.append(buf.item(s, k + 1))
+        else:
+            na_a, nw_a = self._draw_pairs()
+            nas, nws = na_a.tolist(), nw_a.tolist()
+        for i in range(n):
+            na, nw = nas[i], nws[i]  # = rngs[i].standard_normal(2).tolist()
             a = clamp(accs[i] + sigma_a * na, -a_max, a_max)
             om = clamp(oms[i] * keep + sigma_w * nw, -w_max, w_max)
             v = vs[i]
@@ -136,8 +280,58 @@ class Targets:
                 y, th = 2 * h - y, -th
             xs[i], ys[i], vs[i], ths[i] = x, y, v, wrap_angle(th)
             accs[i], oms[i] = a, om
-        if self.rngs:
-            self._xy = np.array([xs, ys]).T
+        st[_X:_OM + 1, :n] = state
+
+    def _draw_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each target's next two normals from its stream (no stream shared: order is free)."""
+        n = self._n
+        buf = self._buf
+        lock = self._lock
+        if lock is not None:  # target i is slot i, all at draw `lock`: plain slices
+            if lock == _DRAW_BLOCK:
+                self._refill(list(range(n)))
+                lock = 0
+            self._lock = lock + 2
+            return buf[:n, lock], buf[:n, lock + 1]
+        slots = self._slot[:n]
+        k = self._pos[slots]
+        empty = k == _DRAW_BLOCK
+        if empty.any():
+            self._refill(slots[empty].tolist())
+            k = self._pos[slots]
+        self._pos[slots] = k + 2
+        return buf[slots, k], buf[slots, k + 1]
+
+    def _step_all(self, dt: float, grid: Grid) -> None:
+        """:meth:`_step_each` for every target at once (each target has a stream of its own)."""
+        m = self.motion
+        sq = math.sqrt(dt)
+        keep = math.exp(-dt / m.turn_reversion_s)
+        sigma_a, sigma_w = m.accel_sigma * sq, m.turn_sigma * sq
+        a_max, w_max, v_max = m.accel_max, m.turn_rate_max, m.speed_max
+        w, h = grid.width_m, grid.height_m
+        n = self._n
+        st = self._s
+        na, nw = self._draw_pairs()
+        a = _clamp_v(st[_A, :n] + sigma_a * na, -a_max, a_max)
+        om = _clamp_v(st[_OM, :n] * keep + sigma_w * nw, -w_max, w_max)
+        v = st[_V, :n]
+        a = _clamp_v(a, -v / dt, (v_max - v) / dt)
+        # integrate(), term by term
+        v_next = v + a * dt
+        theta_mid = st[_TH, :n] + 0.5 * om * dt
+        v_mean = 0.5 * (v + v_next)
+        x = st[_X, :n] + v_mean * _math_v(math.cos, theta_mid) * dt
+        y = st[_Y, :n] + v_mean * _math_v(math.sin, theta_mid) * dt
+        th = _wrap_v(st[_TH, :n] + om * dt)
+        lo, hi = x < 0.0, x > w
+        x = np.where(lo, -x, np.where(hi, 2 * w - x, x))
+        th = np.where(lo | hi, math.pi - th, th)
+        lo, hi = y < 0.0, y > h
+        y = np.where(lo, -y, np.where(hi, 2 * h - y, y))
+        th = np.where(lo | hi, -th, th)
+        st[_X, :n], st[_Y, :n], st[_V, :n], st[_TH, :n] = x, y, v_next, _wrap_v(th)
+        st[_A, :n], st[_OM, :n] = a, om
 
 
 # Up to this many UAVs, check_safety first compares every pair itself (cheaper than a k-d tree).
@@ -192,25 +386,28 @@ class World:
         uavs = self.uavs
         bodies = [uavs[u] for u in ids]
         tg = self.targets
-        inside: list[list[int]] = [[] for _ in ids]
+        inside: list[list[SensedTarget]] = [[] for _ in ids]
         if len(tg) and ids:
             if xy is None:
                 xy = self.positions(ids)
             txy = tg.xy
-            radii = np.array([b.kind.detect_radius for b in bodies])
-            # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis.
-            d2 = (txy[:, 0] - xy[:, 0:1]) ** 2 + (txy[:, 1] - xy[:, 1:2]) ** 2
-            rows, cols = (d2 <= (radii * radii)[:, None]).nonzero()  # row-major: targets in id order
-            for k, i in zip(rows.tolist(), cols.tolist()):
-                inside[k].append(i)
+            r2 = np.array([b.kind.detect_radius for b in bodies]) ** 2
+            # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis;
+            # UAVs in chunks of at most about 4M pairs (bounded memory with many targets).
+            chunk = max(1, (1 << 22) // len(txy))
+            for k0 in range(0, len(ids), chunk):
+                d2 = (txy[:, 0] - xy[k0:k0 + chunk, 0:1]) ** 2 + (txy[:, 1] - xy[k0:k0 + chunk, 1:2]) ** 2
+                rows, cols = (d2 <= r2[k0:k0 + chunk, None]).nonzero()  # row-major: targets in id order
+                if not len(cols):
+                    continue
+                # (Python floats, as the targets' lists gave them before: the state read once)
+                st = tg.state_of(cols)
+                for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
+                    inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
         daa = self._detect_and_avoid(ids, bodies, xy)
         readings = []
-        for k, (b, hits) in enumerate(zip(bodies, inside)):
+        for k, (b, seen) in enumerate(zip(bodies, inside)):
             r = b.kind.detect_radius
-            seen: list[SensedTarget] = []
-            for i in hits:
-                v, th = tg.v[i], tg.theta[i]
-                seen.append(SensedTarget(i, tg.x[i], tg.y[i], v * math.cos(th), v * math.sin(th), tg.value[i]))
             threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
             readings.append(SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats, daa[k]))
         return readings

@@ -208,12 +208,8 @@ def test_target_noise_drawn_ahead_is_drawn_in_the_same_order():
     ahead, direct = _Normals(np.random.default_rng(3)), np.random.default_rng(3)
     n = 3 * _DRAW_BLOCK // 2 + 5  # over several blocks
     assert [ahead.pair() for _ in range(n)] == [tuple(direct.standard_normal(2).tolist()) for _ in range(n)]
-    # Targets sharing one generator share its draws ahead (the order of draws of one call each).
-    shared, own = np.random.default_rng(1), np.random.default_rng(2)
-    tg = Targets(TargetMotion())
-    for rng in (shared, own, shared):
-        tg.add(10.0, 10.0, 0.0, 1.0, 1.0, rng)
-    assert tg._normals[0] is tg._normals[2] and tg._normals[1] is not tg._normals[0]
+    # Targets sharing one generator share its draws ahead (the order of draws of one call
+    # each): tests/test_many_targets.py.
 
 
 _items = st.lists(st.builds(TrackItem, st.integers(0, 4), st.floats(-1e4, 1e4), st.floats(-1e4, 1e4), st.floats(-50, 50),

@@ -670,3 +670,34 @@ def test_radio_to_mailbox_end_to_end():
     for mb in boxes.values():
         assert mb.stats.accepted == 4 and mb.stats.dropped_full == 2
         assert all(decode(data).seq in (0, 1) for _, _, data in mb.drain())
+
+
+@pytest.mark.parametrize("faults", [False, True])
+def test_streams_made_together_are_the_streams_made_one_by_one(faults):
+    """A radio given ``link_rngs`` (issue 25: a dense swarm's first tick makes tens of thousands
+    of link streams) makes them in bulk when a new link first needs one: the same copies and
+    losses as making each when first needed, with links coming and going."""
+    from swarm.rng import RngTree
+
+    tree = RngTree(4)
+
+    def one(s: int, d: int) -> np.random.Generator:
+        return tree.generator("link", s, d)
+
+    def many(links: list[tuple[int, int]]) -> list[np.random.Generator]:
+        return tree.generators([("link", s, d) for s, d in links])
+
+    model = LinkModel(range_m=60.0, loss_base=0.2, loss_at_range=0.6, jitter_s=0.2)
+    runs = []
+    for bulk in (None, many):
+        flt = injector(Drop(rate=0.3), Duplicate(rate=0.5)) if faults else None
+        radio = Radio(model, one, flt, link_rngs=bulk)
+        pos = np.random.default_rng(2).uniform(0, 100, (6, 2))
+        out: list[Delivery] = []
+        for k in range(60):
+            pos = pos + np.random.default_rng(k).normal(0, 8, pos.shape)
+            radio.update_topology(list(range(6)), pos, 1.0)
+            for u in range(6):
+                radio.broadcast(float(k), u, bytes([k, u]), out)
+        runs.append(out)
+    assert runs[0] == runs[1] and len(runs[0]) > 100

@@ -140,3 +140,20 @@ def test_seed_must_be_a_non_negative_int(seed):
 
 def test_large_seeds_are_accepted():
     assert len(_draws(RngTree(2**64 + 1), "planner", "A1")) == 8
+
+
+@pytest.mark.parametrize("seed", [0, 3, 2**33 + 1])
+def test_generators_made_together_are_the_streams_of_generator(seed):
+    """RngTree.generators (seed words of many streams at once: issue 25) gives each key's stream."""
+    tree = RngTree(seed)
+    keys = [("link", "B1", f"A{i}") for i in range(40)] + [("target", 7), ("uav", "A1", 2)]
+    assert tree.generators([]) == []
+    for g, key in zip(tree.generators(keys), keys):
+        assert g.random(6).tolist() == tree.generator(*key).random(6).tolist()
+        assert g.standard_normal(3).tolist() == _draws_normal(tree, *key)
+
+
+def _draws_normal(tree: RngTree, *key) -> list[float]:
+    g = tree.generator(*key)
+    g.random(6)
+    return g.standard_normal(3).tolist()

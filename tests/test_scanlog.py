@@ -92,3 +92,40 @@ def test_missing_respects_the_limit_oldest_first():
     out = list(a.missing(0, 0, ORIGIN_MAX, (), 100.0, limit=12))
     assert [o for o, _ in out] == [1, 2]
     assert len(out[0][1]) == 40 and len(out[1][1]) == 8 and out[1][1][0] == 0.0
+
+
+@settings(max_examples=examples(100), deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([200.0, 600.0]), st.booleans(), st.integers(1, 4000),
+       st.sampled_from([None, 2000.0, 8000.0, 25000.0]))
+def test_missing_is_the_lacking_scans_within_the_horizon(seed, horizon_s, forget, limit, h):
+    """missing() (chunks skipped, taken or tested at once by their boxes and centres) lists
+    exactly the scans a brute-force filter lists: held, lacking from the digest, within the
+    horizon, by origin then tick, at most ``limit``."""
+    import random
+
+    rnd = random.Random(seed)
+    mine, theirs = ScanLog(DT, horizon_s), ScanLog(DT, horizon_s)
+    end = rnd.randint(20, 700)
+    for origin in range(rnd.randint(1, 5)):
+        x, y = rnd.uniform(0, 3e4), rnd.uniform(0, 3e4)
+        for k in range(end):
+            x, y = x + rnd.uniform(-90, 90), y + rnd.uniform(-90, 90)
+            if rnd.random() < 0.9:
+                mine.add(origin, k * DT, x, y, 1500.0)
+                if rnd.random() < 0.3:  # (mine learns more scans of this chunk later: fresh centres)
+                    mine.add(origin, max(0, k - rnd.randint(1, 100)) * DT, x, y, 1500.0)
+            if rnd.random() < 0.4:
+                theirs.add(origin, k * DT, x, y, 1500.0)
+    if forget:
+        mine.forget_before(end * DT)
+    t_cut = (end - rnd.randint(0, 5)) * DT
+    tick0, lo, hi, bitmaps, _ = theirs.digest(t_cut)
+    near = None if h is None else (rnd.uniform(0, 3e4), rnd.uniform(0, 3e4), h)
+    for _ in range(2):  # (twice: the second time with the centres missing() kept)
+        got = [(o, flat[i:i + 4]) for o, flat in mine.missing(tick0, lo, hi, bitmaps, t_cut, limit, near)
+               for i in range(0, len(flat), 4)]
+        have = {(o, round(s[0] / DT)) for o, s in theirs.scans()}
+        want = [(o, list(s)) for o, s in mine.scans()
+                if tick0 <= round(s[0] / DT) <= t_cut / DT and (o, round(s[0] / DT)) not in have
+                and (near is None or (s[1] - near[0]) ** 2 + (s[2] - near[1]) ** 2 <= near[2] ** 2)][:limit]
+        assert got == want

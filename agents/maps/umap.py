@@ -233,6 +233,46 @@ class UncertaintyMap:
             view = tile[start:stop]
             np.maximum(view, values, out=view)
 
+    def stamp_once(self, x: float, y: float, radius: float, t: float) -> None:
+        """:meth:`stamp` of the disk of ``(x, y, radius)`` at ``t`` on a tiled map, computing
+        the disk's cells for this map alone (``grid.disk_box``) instead of building a shared
+        :class:`Disk` and its tile bands: for a heard scan no other map is about to apply (an
+        anti-entropy resend goes to one UAV; issue 25: 35 us a scan that way, about 15 so).
+        The same cells, and the same tiles allocated (those holding a cell of the disk)."""
+        b = self.grid.disk_box(x, y, radius)
+        if b is None:
+            return
+        iy0, iy1, ix0, ix1, mask, dy2, dx2 = b
+        iy1 += 1
+        ix1 += 1
+        changes = self._changes
+        if changes is not None:
+            self._changed(iy0, iy1, ix0, ix1)
+        values = np.where(mask, np.float32(t), NEVER)
+        if self.dense:
+            view = self._tiles[0][iy0:iy1, ix0:ix1]
+            np.maximum(view, values, out=view)
+            return
+        th, tw = self.tile_shape
+        tiles = self._tiles
+        ntx = self._ntx
+        # A tile holds a cell of the disk iff its cell nearest the disk's centre does (Disk.pieces).
+        near_r, near_c = int(dy2.argmin()), int(dx2.argmin())
+        item = mask.item
+        for ty in range(iy0 // th, (iy1 - 1) // th + 1):
+            r0, r1 = max(iy0, ty * th) - iy0, min(iy1, (ty + 1) * th) - iy0
+            nr = min(max(near_r, r0), r1 - 1)
+            for tx in range(ix0 // tw, (ix1 - 1) // tw + 1):
+                c0, c1 = max(ix0, tx * tw) - ix0, min(ix1, (tx + 1) * tw) - ix0
+                if item(nr, min(max(near_c, c0), c1 - 1)):
+                    key = ty * ntx + tx
+                    tile = tiles.get(key)
+                    if tile is None:
+                        tile = self._alloc(key)
+                    a, c = iy0 - ty * th, ix0 - tx * tw
+                    view = tile.reshape(th, tw)[r0 + a:r1 + a, c0 + c:c1 + c]
+                    np.maximum(view, values[r0:r1, c0:c1], out=view)
+
     def cover(self, d: Disk, t: float) -> int:
         """Like :meth:`stamp`, but returns how many of the disk's cells had never been seen."""
         if self._changes is not None:
