@@ -23,16 +23,16 @@ from agents.knowledge import KnownThreat
 from agents.types import UavType
 from comms.radio import LinkFilter, Radio
 from swarm.errors import UsageError
-from swarm.rng import first_randoms, generator_from_state, stream_states
+from swarm.rng import RngTree, first_randoms, generator_from_state, stream_states
 from swarm.scenario import Scenario, UavTypeSpec, load_scenario
 from swarm.scenario.trust import allowed
-from swarm.world import TargetMotion
+from swarm.world import TargetMotion, Targets
 
 if TYPE_CHECKING:
     from agents.maps.grid import Grid
     from swarm.geo.geography import Geography
 
-__all__ = ["actor_settings", "auth_key", "geography", "radio", "random_targets", "target_motion", "threats",
+__all__ = ["actor_settings", "add_random_targets", "auth_key", "geography", "radio", "random_targets", "target_motion", "threats",
            "uav_type_from_spec", "uav_types"]
 
 
@@ -68,6 +68,20 @@ def random_targets(sc: Scenario, seed: int, first: int) -> tuple[np.ndarray, np.
     # (Generator.uniform(lo, hi) = lo + (hi - lo) * random())
     return (0.0 + area.width_m * u[:, 0], 0.0 + area.height_m * u[:, 1], lo_th + (hi_th - lo_th) * u[:, 2],
             0.0 + tm.speed_max * u[:, 3], tm.value, partial(_target_stream, states, first))
+
+
+def add_random_targets(sc: Scenario, targets: Targets, rng: RngTree, geo: Geography | None) -> list[int]:
+    """Add the scenario's ``targets.count`` random targets; returns their ids. In a rectangle
+    they are placed at once (:func:`random_targets`); inside an area polygon each is drawn
+    again from its own stream until it is inside (:func:`random_start`)."""
+    tm = sc.targets
+    if geo is None or geo.area is None:
+        return list(targets.add_many(*random_targets(sc, rng.seed, len(targets)))) if tm.count else []
+    ids = []
+    for _ in range(tm.count):
+        g = rng.generator("target", len(targets))
+        ids.append(targets.add(*random_start(g, sc, geo), tm.value, g))
+    return ids
 
 
 def _target_stream(states: np.ndarray, first: int, tid: int) -> np.random.Generator:

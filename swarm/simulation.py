@@ -149,13 +149,8 @@ class Simulation:
         tm = sc.targets
         for p in tm.placed:
             self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
-        if tm.count and self.geography is not None and self.geography.area is not None:
-            for _ in range(tm.count):  # (inside a polygon: each drawn again from its stream until inside)
-                g = self.rng.generator("target", len(self.targets))
-                self._add_target_rng(*build.random_start(g, sc, self.geography), tm.value, g)
-        elif tm.count:  # placed at once, streams made when first drawn from (swarm.build.random_targets)
-            ids = self.targets.add_many(*build.random_targets(sc, self.seed, len(self.targets)))
-            self.metrics.appeared_t.update(dict.fromkeys(ids, self.clock.now))
+        ids = build.add_random_targets(sc, self.targets, self.rng, self.geography)
+        self.metrics.appeared_t.update(dict.fromkeys(ids, self.clock.now))
         for spec in sc.uavs:
             self._add_uav_spec(spec)
         for f in sc.faults:

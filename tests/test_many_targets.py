@@ -147,14 +147,14 @@ def test_extend_packed_logs_what_extend_would():
     for log in (a, b, c):
         log.emit("violation", 1.0, "x", 0, 1)
     assert a.to_bytes() == b.to_bytes() == c.to_bytes() and a.total == b.total == c.total
-    assert got == events
+    assert [(g.kind, g.t, g.target, g.x, g.y) for g in got] == events  # (subscribers get records)
 
 
 def test_target_paths_are_the_rows_each_target_was_observed_at():
     sc = load_scenario("paper-case1", overrides={"targets.count": 300})
     with Simulation(sc, duration_s=30.0) as sim:
         rows: dict[int, list[tuple[float, float, float]]] = {}
-        sim.subscribe(lambda e: rows.setdefault(e[2], []).append((e[1], e[3], e[4])), ["target"])
+        sim.subscribe(lambda e: rows.setdefault(e.target, []).append((e.t, e.x, e.y)), ["target"])
         sim.step(10)
         sim.add_target(100.0, 200.0)
         sim.step(5)

@@ -96,16 +96,16 @@ class ScanLog:
         :func:`agents.inbox.check_frame`); the tuple is stored as it is (shared, immutable)."""
         if tick < self._floor:
             return True
-        rec = self._org.get(origin)
-        if rec is None:
-            rec = self._org[origin] = [bytearray(), tick & ~7, {}, {}, {}]
-            self._scans[origin] = rec[2]
-        bits: bytearray = rec[0]
-        base: int = rec[1]
+        entry = self._org.get(origin)
+        if entry is None:
+            entry = self._org[origin] = [bytearray(), tick & ~7, {}, {}, {}]
+            self._scans[origin] = entry[2]
+        bits: bytearray = entry[0]
+        base: int = entry[1]
         if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
             grow = (base - (tick & ~7)) >> 3
             bits[:0] = bytes(grow)
-            base = rec[1] = base - 8 * grow
+            base = entry[1] = base - 8 * grow
         k = tick - base
         i = k >> 3
         bit = 1 << (k & 7)
@@ -117,11 +117,11 @@ class ScanLog:
         else:
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
-        rec[2][tick] = scan
-        if rec[4]:
-            rec[4].pop(tick >> CHUNK_SHIFT, None)  # (missing()'s centres of the chunk: stale)
+        entry[2][tick] = scan
+        if entry[4]:
+            entry[4].pop(tick >> CHUNK_SHIFT, None)  # (missing()'s centres of the chunk: stale)
         x, y = scan[1], scan[2]
-        boxes: dict[int, list[float]] = rec[3]
+        boxes: dict[int, list[float]] = entry[3]
         box = boxes.get(tick >> CHUNK_SHIFT)
         if box is None:
             boxes[tick >> CHUNK_SHIFT] = [x, y, x, y]
@@ -164,18 +164,18 @@ class ScanLog:
         # add_tick makes none there), so only these can be left.
         dead = range(self._floor >> CHUNK_SHIFT, k_min >> CHUNK_SHIFT)
         self._floor = k_min
-        for rec in self._org.values():
-            base = rec[1]
+        for entry in self._org.values():
+            base = entry[1]
             if base >= k_min:
                 continue
             drop = (k_min - base) >> 3
-            del rec[0][:drop]
-            rec[1] = base + 8 * drop
-            scans = rec[2]
+            del entry[0][:drop]
+            entry[1] = base + 8 * drop
+            scans = entry[2]
             for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
                 if scans.pop(k, None) is not None:
                     self.count -= 1
-            boxes, centres = rec[3], rec[4]
+            boxes, centres = entry[3], entry[4]
             for c in dead:  # chunks now empty ((c + 1) << CHUNK_SHIFT <= k_min)
                 if boxes.pop(c, None) is not None:
                     centres.pop(c, None)
@@ -198,9 +198,9 @@ class ScanLog:
         out: dict[int, bytes] = {}
         org = self._org
         for origin in sorted(org):
-            rec = org[origin]
-            base = rec[1]
-            bits: bytes | bytearray = rec[0]
+            entry = org[origin]
+            base = entry[1]
+            bits: bytes | bytearray = entry[0]
             if base > tick0:  # the log starts later: pad (tick0 and base are multiples of 8)
                 bits = bytes((base - tick0) >> 3) + bits
             else:
@@ -271,10 +271,10 @@ class ScanLog:
             if other == b:
                 continue
             lack = int.from_bytes(b, "little") & ~int.from_bytes(other, "little")
-            rec = self._org[origin]
-            scans = rec[2]
-            boxes = rec[3]
-            centres = rec[4]
+            entry = self._org[origin]
+            scans = entry[2]
+            boxes = entry[3]
+            centres = entry[4]
             flat: list[float] = []
             test = False  # whether to test each scan of the chunk against the horizon
             # Chunk by chunk (CHUNK_SHIFT ticks), lowest first: the chunk's lacking bits are
