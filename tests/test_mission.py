@@ -149,3 +149,17 @@ def test_a_watcher_hands_its_target_over_before_it_goes_home():
     took = [e.t for e in events if e.kind == "mode" and e.uav_name == "A2" and e.mode == "surveil" and e.target == 0]
     assert took and took[0] <= rtb.t  # ... and A2 watched it before A1 turned home
     assert [str(v) for v in check_events(result.events, sim.scenario)] == []
+
+
+def test_an_endurance_table_for_no_uav_type_is_said_as_that_first():
+    # Found by tests/test_fuzz.py: the table of a type that does not exist was judged first
+    # ("capacity_wh missing") instead of its name.
+    from swarm.errors import ScenarioError
+    from swarm.scenario import parse_scenario
+
+    doc = {"name": "g", "duration_s": 20.0, "area": {"width_m": 5000.0, "height_m": 5000.0, "cell_m": 100.0},
+           "uavs": [{"name": "B1", "type": "B", "x_m": 500.0, "y_m": 500.0}],
+           "endurance": {"x_m": 100.0, "y_m": 100.0, "types": {"B": {"capacity_wh": 100.0}, "B_": {}}}}
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(doc, "<doc>")
+    assert err.value.key == "endurance.types.B_" and "not a UAV type" in str(err.value)

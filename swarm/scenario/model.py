@@ -104,6 +104,7 @@ class Scenario(Table):
         # A document with [[fleet]] needs no [[uavs]]; without either, "uavs" is missing.
         if isinstance(data, dict) and data.get("fleet") and "uavs" not in data:
             data = {**data, "uavs": []}
+        _endurance_types_known(data)
         return data
 
     @field_validator("uav_types", mode="before")
@@ -325,6 +326,22 @@ def _finite_or_none(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_finite_or_none(v) for v in value]
     return value
+
+
+def _endurance_types_known(data: Any) -> None:
+    """An ``[endurance.types.NAME]`` whose NAME is no UAV type is said as that, before what its
+    table may lack (the table of a type that does not exist is not judged)."""
+    endurance = data.get("endurance") if isinstance(data, dict) else None
+    types = endurance.get("types") if isinstance(endurance, dict) else None
+    if not isinstance(types, dict):
+        return
+    given = data.get("uav_types")
+    known = {**DEFAULT_UAV_TYPES, **given} if isinstance(given, dict) else DEFAULT_UAV_TYPES
+    for name in types:
+        if name not in known:
+            raise_if([Problem(("endurance", "types", str(name)), name,
+                              f"a UAV type defined in [uav_types]: {', '.join(map(str, known))}",
+                              found=f"a table for {name!r}, which is not a UAV type")])
 
 
 # --- documents ---------------------------------------------------------------------------
