@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import abc
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -17,14 +18,15 @@ from faults.registry import register
 _GROUPS = {"expected": "an array of at least 2 non-empty arrays of UAV names"}
 
 
-class _Cuts(Windowed):
+class _Cuts(Windowed, abc.ABC):
     """What partitions and bridges share: the partition they are, who it separates."""
 
     groups: tuple[tuple[str, ...], ...]
     disturbs_links: ClassVar[bool] = True
 
+    @abc.abstractmethod
     def as_partition(self) -> Partition:
-        raise NotImplementedError
+        """The partition it is (a bridge: without its bridge UAV)."""
 
     @cached_property
     def _group_of(self) -> dict[str, int]:

@@ -4,6 +4,7 @@ directed ``links`` (empty: all), drawing from the link's own stream (:mod:`fault
 
 from __future__ import annotations
 
+import abc
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -17,7 +18,7 @@ from faults.registry import register
 
 
 @dataclass(frozen=True, kw_only=True)
-class LinkFault(Windowed):
+class LinkFault(Windowed, abc.ABC):
     """A fault on frame copies while ``start_s <= t < end_s``, on every link or on those from or
     to ``uavs`` (empty: all) and on the directed ``links`` (empty: all)."""
 
@@ -36,10 +37,10 @@ class LinkFault(Windowed):
     def link_behaviour(self, ids: Mapping[str, int], fault_rng: FaultRng, rank: int) -> LinkBehaviour:
         return _Scoped(self, ids)
 
+    @abc.abstractmethod
     def copy(self, c: Copy, rng: np.random.Generator, state: dict[tuple[int, int], bool],
              src: int, dst: int) -> bool:
         """What the fault does to one copy it covers; True if it changed something."""
-        raise NotImplementedError
 
 
 class _Scoped(LinkBehaviour):
