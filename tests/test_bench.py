@@ -16,6 +16,7 @@ from swarm.simulation import Simulation
 
 FIELDS = {"case", "scenario", "planner", "uavs", "sim_seconds", "wall_seconds", "realtime_factor", "cpu_seconds",
           "peak_rss_mb", "shares", "coverage", "event_log_sha256", "anti_entropy", "uav_steps_per_cpu_s",
+          "uav_steps_per_cpu_s_by_tenth", "flatness",
           "radio_bytes_per_uav_s", "event_log_bytes_per_uav_s", "sync_horizon_m", "digest_bytes_mean",
           "anti_entropy_bytes_per_uav_s", "scan_log_max", "scan_log_mean", "map_mb_max", "map_mb_mean"}
 SHARES = {"planning", "map", "radio", "actors", "world"}
@@ -87,6 +88,12 @@ def test_bench_quick_emits_one_valid_json_line_per_case():
         assert r["anti_entropy"] is True  # paper-fig11 has the model's default
         # 6 UAVs alive in every one of the 60 ticks (cpu_seconds is rounded to ms).
         assert r["uav_steps_per_cpu_s"] == pytest.approx(6 * 60 / r["cpu_seconds"], rel=0.01)
+        # Each tenth holds 6 UAVs x 6 ticks, in a tenth of the CPU time more or less: the
+        # rates are of the same order as the whole run's, and the whole run's lies among them.
+        tenths = r["uav_steps_per_cpu_s_by_tenth"]
+        assert len(tenths) == 10 and all(v > 0 for v in tenths)
+        assert min(tenths) <= r["uav_steps_per_cpu_s"] * 1.01 and max(tenths) >= r["uav_steps_per_cpu_s"] * 0.99
+        assert r["flatness"] == pytest.approx(r["uav_steps_per_cpu_s"] / tenths[0], rel=0.01)
         assert r["radio_bytes_per_uav_s"] > 0 and r["event_log_bytes_per_uav_s"] > 0
         assert r["sync_horizon_m"] is None and r["digest_bytes_mean"] > 0 and r["scan_log_max"] > 0
         assert 0 < r["anti_entropy_bytes_per_uav_s"] < r["radio_bytes_per_uav_s"]
