@@ -116,3 +116,62 @@ def test_dubins_several_poses_equal_one_pose_at_a_time(poses, points):
         many = dubins_length(x0[:, None], y0[:, None], th, px, py, r[:, None])
         for i, (a, b, h, rr) in enumerate(poses):
             assert np.array_equal(many[i], dubins_length(a, b, h, px[i], py[i], rr), equal_nan=True)
+
+
+@pytest.mark.slow  # two whole runs
+def test_shared_surveillance_prepares_the_watchers_pyramids_together_without_changing_the_log(monkeypatch):
+    # Greedy with the shared surveillance logic: each UAV has its own planner instance (no
+    # plan_many), but SharedSurveillance.prepare_many updates the map pyramids of the UAVs that
+    # weigh a target in one MaintainedPyramid.update_many. The log must be the one-by-one log.
+    from agents.planners.dacmp.maintained import MaintainedPyramid
+
+    sizes: list[int] = []
+    update_many = MaintainedPyramid.update_many
+
+    def spy(pyramids, ts):
+        sizes.append(len(pyramids))
+        return update_many(pyramids, ts)
+
+    monkeypatch.setattr(MaintainedPyramid, "update_many", staticmethod(spy))
+    one_by_one, _ = _run("paper-case2", False, planner="greedy", duration_s=400.0)
+    assert max(sizes) == 1
+    sizes.clear()
+    batched, _ = _run("paper-case2", True, planner="greedy", duration_s=400.0)
+    assert max(sizes) > 1  # several watchers' pyramids were brought up to date in one call
+    assert batched == one_by_one
+
+
+def test_prepare_many_runs_once_per_flush_before_the_plans_and_its_error_reaches_every_plan():
+    import asyncio
+    from types import SimpleNamespace
+
+    from agents.planners.base import Plan
+    from agents.planners.batching import PlanBatcher
+
+    calls: list[str] = []
+
+    class Prepared:  # each UAV its own instance: planned one by one, prepared together
+        fail = False
+
+        @staticmethod
+        def prepare_many(requests):
+            calls.append(f"prepare {[v for _, v in requests]}")
+            if Prepared.fail:
+                raise RuntimeError("prepare broke")
+
+        def plan(self, view):
+            calls.append(f"plan {view}")
+            return Plan(0.0, 0.0)
+
+    async def serve():
+        batcher = PlanBatcher()
+        futures = [batcher.request(SimpleNamespace(uid=uid, planner=Prepared()), f"view{uid}") for uid in (2, 1)]
+        batcher.flush()
+        return [f.exception() or f.result() for f in futures]
+
+    assert all(isinstance(r, Plan) for r in asyncio.run(serve()))
+    assert calls == ["prepare ['view1', 'view2']", "plan view1", "plan view2"]  # in UAV-id order
+    Prepared.fail = True
+    calls.clear()
+    errors = asyncio.run(serve())
+    assert [str(e) for e in errors] == ["prepare broke"] * 2 and calls == ["prepare ['view1', 'view2']"]

@@ -12,6 +12,13 @@ stream, and the batch only shares array operations, not decisions). ``tests/test
 checks that through the event-log hash. Requests are grouped by equal planners (same class and
 settings); anything else is planned one by one. Grouping and order follow UAV ids, so the result
 does not depend on the order in which the event loop ran the actors.
+
+Planners that are not equal (each UAV's own instance, with state of its own) can still share
+work: a planner class may define ``prepare_many(requests)``, a static or class method called
+once per flush, before any plan, with every ``(planner, view)`` of its class in UAV-id order. It
+must not change what any plan will be, only do ahead, for all of them at once, work the plans
+would each do alone (:meth:`agents.planners.surveillance.SharedSurveillance.prepare_many`
+brings the watchers' map pyramids up to date together).
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ class PlanBatcher:
         """Plan every queued request, grouped by equal planners, and resolve the futures."""
         requests = sorted(self._requests, key=lambda r: r[0])
         self._requests = []
+        failed = self._prepare(requests)
         groups: list[tuple[Planner, list[tuple[PlanView, asyncio.Future[Plan]]]]] = []
         for _uid, planner, view, fut in requests:
             for p, members in groups:
@@ -56,6 +64,8 @@ class PlanBatcher:
         for planner, members in groups:
             views = [v for v, _ in members]
             try:
+                if type(planner) in failed:
+                    raise failed[type(planner)]
                 many = getattr(planner, "plan_many", None)
                 plans = many(views) if many is not None and len(views) > 1 else [planner.plan(v) for v in views]
             except Exception as exc:
@@ -68,6 +78,23 @@ class PlanBatcher:
             for (_, fut), plan in zip(members, plans):
                 if not fut.done():
                     fut.set_result(plan)
+
+    @staticmethod
+    def _prepare(requests: list[tuple[int, Planner, PlanView, asyncio.Future[Plan]]]) -> dict[type, Exception]:
+        """Each planner class's ``prepare_many`` with its requests (see the module docstring);
+        returns the classes whose ``prepare_many`` raised, with the error, which their plans
+        then raise (each actor reports it with its name)."""
+        by_class: dict[type, list[tuple[Planner, PlanView]]] = {}
+        for _uid, planner, view, _fut in requests:
+            if getattr(type(planner), "prepare_many", None) is not None:
+                by_class.setdefault(type(planner), []).append((planner, view))
+        failed: dict[type, Exception] = {}
+        for cls, pairs in by_class.items():
+            try:
+                cls.prepare_many(pairs)  # type: ignore[attr-defined]  # (checked above)
+            except Exception as exc:
+                failed[cls] = exc
+        return failed
 
 
 __all__ = ["PlanBatcher"]

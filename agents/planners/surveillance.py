@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from agents.planners.base import Plan, Planner, PlanView
+from agents.planners.dacmp.maintained import MaintainedPyramid
 from agents.planners.dacmp.planner import Batch, DacmpPlanner, Layers, UavSearch
 from comms.messages import MODE_SURVEIL
 
@@ -52,13 +53,35 @@ class SharedSurveillance:
     ``search``: the UAV's own search planner instance; ``dacmp``: a :class:`DacmpPlanner` with
     the scenario's settings (:meth:`of`), used only for its surveillance decision. The search
     planner's own state stays on ``search``. No ``plan_many``: the simulator plans each UAV
-    with it one by one (its identity equality keeps UAVs apart)."""
+    with it one by one (its identity equality keeps UAVs apart); :meth:`prepare_many` shares the
+    map work of the UAVs that replan in the same tick."""
 
     surveils = True
 
     def __init__(self, search: Planner, dacmp: DacmpPlanner):
         self.search = search
         self.dacmp = dacmp
+        # The UavSearch prepare_many built for the view about to be planned (view, its search).
+        self._prepared: tuple[PlanView, UavSearch] | None = None
+
+    @staticmethod
+    def prepare_many(requests: list[tuple[SharedSurveillance, PlanView]]) -> None:
+        """Before the plans of one tick (agents.planners.batching): bring the map pyramids of
+        every UAV that will weigh a target (a known one in scope) up to date in one
+        :meth:`MaintainedPyramid.update_many`, whose shared array calls give each pyramid bit
+        for bit what its own update would (so :meth:`watch` finds nothing left to do and its
+        plan is unchanged). Each one's :class:`UavSearch` is kept for its :meth:`watch`."""
+        pyramids, ts = [], []
+        for planner, view in requests:
+            if not view.surveillance:
+                continue
+            u = UavSearch.build(planner.dacmp, view, 0)
+            planner._prepared = (view, u)
+            if u.targets:
+                pyramids.append(MaintainedPyramid.of(view.umap, planner.dacmp.levels))
+                ts.append(view.t)
+        if len(pyramids) > 1:
+            MaintainedPyramid.update_many(pyramids, ts)
 
     @classmethod
     def of(cls, search: Planner, context: PlannerContext) -> SharedSurveillance:
@@ -78,7 +101,8 @@ class SharedSurveillance:
     def watch(self, view: PlanView) -> Plan | None:
         """A plan in surveillance mode if DACMP's rules have this UAV watch a target, else None."""
         dacmp, g = self.dacmp, view.grid
-        u = UavSearch.build(dacmp, view, 0)
+        prepared, self._prepared = self._prepared, None
+        u = prepared[1] if prepared is not None and prepared[0] is view else UavSearch.build(dacmp, view, 0)
         if not u.targets:
             return None
         layers = Layers(dacmp, [u])  # (the UAV's guide point: f_Sg of eq. 20)
