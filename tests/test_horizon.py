@@ -92,9 +92,9 @@ def test_missing_answers_only_with_scans_inside_the_senders_horizon():
     near = (0.0, 0.0, 5500.0)
     (origin, flat), = log.missing(0, 0, 2**31 - 1, (), 30.0, 100, near)
     assert [flat[i + 1] for i in range(0, len(flat), 4)] == [1000.0 * k for k in range(6)]
-    assert list(log.missing(0, 0, 2**31 - 1, (), 30.0, 100, (50_000.0, 0.0, 5000.0))) == []  # box test
-    # Scans along a long track, a horizon around a few of them: exactly those, across chunk
-    # boxes wholly outside, wholly inside and across the horizon; and after forgetting.
+    assert list(log.missing(0, 0, 2**31 - 1, (), 30.0, 100, (50_000.0, 0.0, 5000.0))) == []  # none inside
+    # Scans along a long track, a horizon around a few of them: exactly those, whether the
+    # horizon holds none, some or all of them; and after forgetting.
     track = ScanLog(1.0, horizon_s=300.0)
     for k in range(1000):
         track.add(2, float(k), 100.0 * k, 0.0, 500.0)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents.maps.scanlog import ORIGIN_MAX, ScanLog
+from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, ScanLog
 
 DT = 1.0
 
@@ -98,7 +100,7 @@ def test_missing_respects_the_limit_oldest_first():
 @given(st.integers(0, 2**32 - 1), st.sampled_from([200.0, 600.0]), st.booleans(), st.integers(1, 4000),
        st.sampled_from([None, 2000.0, 8000.0, 25000.0]))
 def test_missing_is_the_lacking_scans_within_the_horizon(seed, horizon_s, forget, limit, h):
-    """missing() (chunks skipped, taken or tested at once by their boxes and centres) lists
+    """missing() (every lacking scan tested against the horizon at once, as one array) lists
     exactly the scans a brute-force filter lists: held, lacking from the digest, within the
     horizon, by origin then tick, at most ``limit``."""
     import random
@@ -112,7 +114,7 @@ def test_missing_is_the_lacking_scans_within_the_horizon(seed, horizon_s, forget
             x, y = x + rnd.uniform(-90, 90), y + rnd.uniform(-90, 90)
             if rnd.random() < 0.9:
                 mine.add(origin, k * DT, x, y, 1500.0)
-                if rnd.random() < 0.3:  # (mine learns more scans of this chunk later: fresh centres)
+                if rnd.random() < 0.3:  # (an older scan learnt later: the log grows downwards)
                     mine.add(origin, max(0, k - rnd.randint(1, 100)) * DT, x, y, 1500.0)
             if rnd.random() < 0.4:
                 theirs.add(origin, k * DT, x, y, 1500.0)
@@ -121,7 +123,7 @@ def test_missing_is_the_lacking_scans_within_the_horizon(seed, horizon_s, forget
     t_cut = (end - rnd.randint(0, 5)) * DT
     tick0, lo, hi, bitmaps, _ = theirs.digest(t_cut)
     near = None if h is None else (rnd.uniform(0, 3e4), rnd.uniform(0, 3e4), h)
-    for _ in range(2):  # (twice: the second time with the centres missing() kept)
+    for _ in range(2):  # (twice: asking changes nothing)
         got = [(o, flat[i:i + 4]) for o, flat in mine.missing(tick0, lo, hi, bitmaps, t_cut, limit, near)
                for i in range(0, len(flat), 4)]
         have = {(o, round(s[0] / DT)) for o, s in theirs.scans()}
@@ -129,3 +131,122 @@ def test_missing_is_the_lacking_scans_within_the_horizon(seed, horizon_s, forget
                 if tick0 <= round(s[0] / DT) <= t_cut / DT and (o, round(s[0] / DT)) not in have
                 and (near is None or (s[1] - near[0]) ** 2 + (s[2] - near[1]) ** 2 <= near[2] ** 2)][:limit]
         assert got == want
+
+
+# --- the scan log against a plain model ----------------------------------------------------------
+
+# What a log is asked to do, in any order: add one scan (any tick, so out of order and repeated
+# ticks; a negative one is refused), add a track (an origin's scans over consecutive ticks, the
+# usual case), forget. Small integer coordinates put many scans exactly on a horizon's edge.
+_coord = st.integers(0, 40).map(float)
+_origin = st.sampled_from([0, 1, 2, 3, 9, 2**30])
+_ops = st.lists(st.one_of(
+    st.tuples(st.just("add"), _origin, st.integers(-2, 300), _coord, _coord),
+    st.tuples(st.just("track"), _origin, st.integers(0, 300), st.integers(1, 90), _coord, _coord),
+    st.tuples(st.just("forget"), st.integers(0, 400)),
+), max_size=40)
+
+
+class _Model:
+    """The log's specification, written plainly: the scans held, keyed by (origin, tick)."""
+
+    def __init__(self, dt: float, horizon_s: float):
+        self.dt, self.horizon_s = dt, horizon_s
+        self.scans: dict[tuple[int, int], tuple[float, float, float, float]] = {}
+        self.floor = 0  # ticks below it are forgotten
+
+    def add(self, origin: int, t: float, x: float, y: float, r: float) -> bool:
+        tick = round(t / self.dt)
+        if tick < 0 or (origin, tick) in self.scans:
+            return False
+        if tick >= self.floor:  # (older: reported new, not kept)
+            self.scans[origin, tick] = (t, x, y, r)
+        return True
+
+    def forget_before(self, t: float) -> None:
+        if not math.isinf(self.horizon_s):
+            k_min = (round(t / self.dt) - math.ceil(self.horizon_s / self.dt) - FORGET_SLACK_TICKS) // 8 * 8
+            self.floor = max(self.floor, k_min)
+            self.scans = {key: s for key, s in self.scans.items() if key[1] >= self.floor}
+
+    def window(self, t_cut: float) -> tuple[int, int]:
+        k_cut = math.floor(t_cut / self.dt)
+        lo = 0 if math.isinf(self.horizon_s) else max(0, k_cut - math.ceil(self.horizon_s / self.dt))
+        return lo // 8 * 8, k_cut
+
+    def digest(self, t_cut: float) -> tuple[tuple[int, bytes], ...]:
+        """Per origin with a scan in the window, a byte string with bit k - tick0 set for each
+        tick k it knows (little-endian; no trailing zero bytes)."""
+        tick0, k_cut = self.window(t_cut)
+        out = []
+        for origin in sorted({o for o, _ in self.scans}):
+            ks = [k - tick0 for o, k in self.scans if o == origin and tick0 <= k <= k_cut]
+            if ks:
+                out.append((origin, sum(1 << j for j in ks).to_bytes(max(ks) // 8 + 1, "little")))
+        return tuple(out)
+
+    def missing(self, tick0: int, lo: int, hi: int, bitmaps, t_cut: float, limit: int, near):
+        """The held scans of ticks tick0..t_cut, origins lo..hi, whose bit the digest does not
+        set, inside ``near``; by origin then tick, the first ``limit``, grouped by origin."""
+        k_cut = math.floor(t_cut / self.dt)
+        if k_cut < 0 or tick0 < 0 or tick0 % 8 or tick0 > k_cut:
+            return []
+        theirs = {o: int.from_bytes(b, "little") for o, b in bitmaps}
+        lacking = []
+        for (o, k), (t, x, y, r) in sorted(self.scans.items()):
+            if not (lo <= o <= hi and tick0 <= k <= k_cut) or theirs.get(o, 0) >> (k - tick0) & 1:
+                continue
+            if near is None or (x - near[0]) * (x - near[0]) + (y - near[1]) * (y - near[1]) <= near[2] * near[2]:
+                lacking.append((o, [t, x, y, r]))
+        out: list[tuple[int, list[float]]] = []
+        for o, s in lacking[:max(limit, 0)]:
+            if out and out[-1][0] == o:
+                out[-1][1].extend(s)
+            else:
+                out.append((o, s))
+        return out
+
+
+def _apply(ops, dt: float, horizon_s: float) -> tuple[ScanLog, _Model]:
+    log, model = ScanLog(dt, horizon_s), _Model(dt, horizon_s)
+    for op in ops:
+        if op[0] == "forget":
+            log.forget_before(op[1] * dt)
+            model.forget_before(op[1] * dt)
+            continue
+        if op[0] == "add":
+            _, origin, k, x, y = op
+            scans = [(k, x, y)]
+        else:
+            _, origin, k0, length, x, y = op
+            scans = [(k, x + (k - k0) % 7, y + (k - k0) % 5) for k in range(k0, k0 + length)]
+        for k, x, y in scans:
+            assert log.add(origin, k * dt, x, y, 3.0) == model.add(origin, k * dt, x, y, 3.0)
+    return log, model
+
+
+@settings(max_examples=examples(300), deadline=None)
+@given(ops=_ops, peer_ops=_ops, dt=st.sampled_from([1.0, 0.5]), horizon_s=st.sampled_from([math.inf, 40.0, 100.0]),
+       t_cut=st.integers(-2, 420), limit=st.integers(-1, 120),
+       near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)),
+       split=st.sampled_from([None, 20, 60]), data=st.data())
+def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon_s, t_cut, limit, near, split, data):
+    """Random logs (origins, ticks, adds out of order, forgetting) and digests of random peers
+    (split or not, or arbitrary bitmaps): count, scans(), digest() and missing() (horizon and
+    limit included) give exactly what the model gives, in its order; so does the same log
+    after more scans arrive."""
+    log, model = _apply(ops, dt, horizon_s)
+    peer, peer_model = _apply(peer_ops, dt, horizon_s)
+    for _ in range(2):
+        assert log.count == len(model.scans)
+        assert list(log.scans()) == [(o, s) for (o, _), s in sorted(model.scans.items())]
+        assert log.digest(t_cut * dt)[3] == model.digest(t_cut * dt)
+        tick0, lo, hi, bitmaps, _ = peer.digest(t_cut * dt, data.draw(st.integers(0, 3)), split)
+        assert bitmaps == tuple((o, b) for o, b in peer_model.digest(t_cut * dt) if lo <= o <= hi)
+        arbitrary = data.draw(st.lists(st.tuples(_origin, st.binary(max_size=60)), max_size=4))
+        for args in ((tick0, lo, hi, bitmaps), (data.draw(st.integers(-8, 400)), 0, ORIGIN_MAX, tuple(arbitrary))):
+            got = list(log.missing(*args, t_cut * dt, limit, near))
+            assert got == model.missing(*args, t_cut * dt, limit, near)
+        more, _ = _apply(data.draw(_ops), dt, horizon_s)  # (the same log, more scans heard)
+        for origin, scan in more.scans():
+            assert log.add(origin, *scan) == model.add(origin, *scan)

@@ -34,16 +34,18 @@ still cannot change the result. What "maps agree" then means is stated in
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Iterator
+from itertools import groupby
+from operator import itemgetter
 from typing import Any, cast
 
 import numpy as np
 
 ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
 FORGET_SLACK_TICKS = 64
-CHUNK_SHIFT = 6  # missing()'s horizon test boxes the scans of each 64 ticks of an origin
 
-# Per origin: [bitmap, its base tick, tick -> scan, chunk -> box] (see ScanLog.__init__).
+# Per origin: [bitmap, its base tick, tick -> scan, centres] (see ScanLog.__init__).
 _Origin = list[Any]  # (a list, mutated in place: cheaper than an object on add_tick's path)
 Bitmaps = tuple[tuple[int, bytes], ...]  # a digest's (origin, bits) pairs (ScanDigest.bitmaps)
 Near = tuple[float, float, float]  # (x, y, H): only scans centred within H of (x, y)
@@ -64,16 +66,16 @@ class ScanLog:
     def __init__(self, dt: float, horizon_s: float = math.inf):
         self.dt = dt
         self.horizon_ticks = math.inf if math.isinf(horizon_s) else max(1, math.ceil(horizon_s / dt))
-        # origin -> [bits, base, scans, boxes], one record per origin (add_tick, the receivers'
-        # hot path, looks up one dict instead of four):
+        # origin -> [bits, base, scans, centres], one record per origin (add_tick, the receivers'
+        # hot path, looks up one dict instead of several):
         # bits: bitmap of ticks >= base (bit k - base set: the scan of tick k is known), base a
         #   multiple of 8 (bitmaps start on a byte);
         # scans: tick -> (t, x, y, r);
-        # boxes: chunk (tick >> CHUNK_SHIFT) -> [x0, y0, x1, y1], a box around the centres of its
-        #   scans in those ticks: missing()'s horizon test skips (or takes) a chunk's scans whole
-        #   when its box is outside (inside) the horizon. Never smaller than the scans'.
-        # centres: chunk -> (2, 2**CHUNK_SHIFT) array of its scans' centres (NaN: none), made by
-        #   missing() for a chunk across a horizon and dropped when the chunk gets a scan.
+        # centres: x and y of the scan of tick k at 2 (k - base) and 2 (k - base) + 1, two
+        #   doubles per bit of `bits` (0.0 where no scan is known: the bits say which are): what
+        #   missing() tests a digest's lacking scans against the sender's horizon with, all at
+        #   once as one numpy array (a digest lacks hundreds of scans outside that horizon, and
+        #   lacks them again at every digest).
         self._org: dict[int, _Origin] = {}
         self._floor = 0  # ticks before this are forgotten (forget_before)
         self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}  # origin -> its scans (as in _org)
@@ -98,13 +100,15 @@ class ScanLog:
             return True
         entry = self._org.get(origin)
         if entry is None:
-            entry = self._org[origin] = [bytearray(), tick & ~7, {}, {}, {}]
+            entry = self._org[origin] = [bytearray(), tick & ~7, {}, array("d")]
             self._scans[origin] = entry[2]
         bits: bytearray = entry[0]
         base: int = entry[1]
+        centres: array[float] = entry[3]
         if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
             grow = (base - (tick & ~7)) >> 3
             bits[:0] = bytes(grow)
+            centres[:0] = array("d", bytes(128 * grow))  # (16 doubles a byte of bits)
             base = entry[1] = base - 8 * grow
         k = tick - base
         i = k >> 3
@@ -115,25 +119,12 @@ class ScanLog:
                 return False
             bits[i] = old | bit
         else:
+            centres.frombytes(bytes(128 * (i + 1 - len(bits))))
             bits.extend(bytes(i - len(bits)))
             bits.append(bit)
         entry[2][tick] = scan
-        if entry[4]:
-            entry[4].pop(tick >> CHUNK_SHIFT, None)  # (missing()'s centres of the chunk: stale)
-        x, y = scan[1], scan[2]
-        boxes: dict[int, list[float]] = entry[3]
-        box = boxes.get(tick >> CHUNK_SHIFT)
-        if box is None:
-            boxes[tick >> CHUNK_SHIFT] = [x, y, x, y]
-        else:
-            if x < box[0]:
-                box[0] = x
-            elif x > box[2]:
-                box[2] = x
-            if y < box[1]:
-                box[1] = y
-            elif y > box[3]:
-                box[3] = y
+        centres[2 * k] = scan[1]
+        centres[2 * k + 1] = scan[2]
         self.count += 1
         self._version += 1
         return True
@@ -160,9 +151,6 @@ class ScanLog:
         k_min = (round(t / self.dt) - cast(int, self.horizon_ticks) - FORGET_SLACK_TICKS) & ~7  # (finite: an int)
         if k_min <= self._floor:
             return
-        # Chunks wholly below k_min are dropped; those below the old floor went already (and
-        # add_tick makes none there), so only these can be left.
-        dead = range(self._floor >> CHUNK_SHIFT, k_min >> CHUNK_SHIFT)
         self._floor = k_min
         for entry in self._org.values():
             base = entry[1]
@@ -170,15 +158,12 @@ class ScanLog:
                 continue
             drop = (k_min - base) >> 3
             del entry[0][:drop]
+            del entry[3][:16 * drop]
             entry[1] = base + 8 * drop
             scans = entry[2]
             for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
                 if scans.pop(k, None) is not None:
                     self.count -= 1
-            boxes, centres = entry[3], entry[4]
-            for c in dead:  # chunks now empty ((c + 1) << CHUNK_SHIFT <= k_min)
-                if boxes.pop(c, None) is not None:
-                    centres.pop(c, None)
             self._version += 1
 
     def window(self, t_cut: float) -> tuple[int, int]:
@@ -197,18 +182,16 @@ class ScanLog:
             return c[3], c[4]
         out: dict[int, bytes] = {}
         org = self._org
+        n = ((k_cut - tick0) >> 3) + 1
+        last = (1 << (((k_cut - tick0) & 7) + 1)) - 1  # the last byte's ticks up to k_cut
         for origin in sorted(org):
-            entry = org[origin]
-            base = entry[1]
-            bits: bytes | bytearray = entry[0]
-            if base > tick0:  # the log starts later: pad (tick0 and base are multiples of 8)
-                bits = bytes((base - tick0) >> 3) + bits
-            else:
-                bits = bits[(tick0 - base) >> 3:]
-            n = ((k_cut - tick0) >> 3) + 1
-            b = bytearray(bits[:n])
+            bits, base = org[origin][0], org[origin][1]
+            if base > k_cut:
+                continue
+            i = (tick0 - base) >> 3  # the window's first byte in bits (tick0, base: multiples of 8)
+            b: bytearray = bits[i:i + n] if i >= 0 else bytearray(-i) + bits[:n + i]  # (< 0: pad)
             if len(b) == n:
-                b[-1] &= (1 << (((k_cut - tick0) & 7) + 1)) - 1  # ticks up to k_cut only
+                b[-1] &= last
             packed = bytes(b.rstrip(b"\0"))
             if packed:
                 out[origin] = packed
@@ -262,77 +245,43 @@ class ScanLog:
         if lo == 0 and hi == ORIGIN_MAX and bitmaps == items:
             return  # the usual case on a good radio: the same knowledge, nothing to send
         theirs = dict(bitmaps)
-        left = limit
-        nx, ny, h2 = (near[0], near[1], near[2] * near[2]) if near is not None else (0.0, 0.0, math.inf)
-        for origin, b in mine.items():
-            if not lo <= origin <= hi:
-                continue
-            other = theirs.get(origin, b"")
-            if other == b:
-                continue
-            lack = int.from_bytes(b, "little") & ~int.from_bytes(other, "little")
-            entry = self._org[origin]
-            scans = entry[2]
-            boxes = entry[3]
-            centres = entry[4]
-            flat: list[float] = []
-            test = False  # whether to test each scan of the chunk against the horizon
-            # Chunk by chunk (CHUNK_SHIFT ticks), lowest first: the chunk's lacking bits are
-            # taken out of `lack` as a small int and walked there (bit operations on the whole
-            # window's int allocate a new one each: issue 25, a third of missing()'s time).
-            while lack and left:
-                low = lack & -lack
-                k = tick0 + low.bit_length() - 1
-                chunk = k >> CHUNK_SHIFT
-                first = k - tick0  # (the chunk's bits below k are clear: k is the lowest lacking)
-                end = ((chunk + 1) << CHUNK_SHIFT) - tick0
-                seg = (lack >> first) & ((1 << (end - first)) - 1)
-                lack = (lack >> end) << end
-                if near is not None:
-                    # outside the horizon (skip its bits), inside (take them) or across
-                    box = boxes.get(chunk)
-                    if box is not None:
-                        x0, y0, x1, y1 = box
-                        dx, dy = max(x0 - nx, 0.0, nx - x1), max(y0 - ny, 0.0, ny - y1)
-                        if dx * dx + dy * dy > h2:
-                            continue
-                        fx, fy = max(nx - x0, x1 - nx), max(ny - y0, y1 - ny)
-                        test = fx * fx + fy * fy > h2
-                        if test:
-                            # Across the horizon: test the chunk's scans at once (the same
-                            # comparison, element by element), keep the bits of those inside.
-                            c = centres.get(chunk)
-                            if c is None:
-                                c = centres[chunk] = _centres(scans, chunk)
-                            inside = (c[0] - nx) ** 2 + (c[1] - ny) ** 2 <= h2
-                            seg &= int.from_bytes(np.packbits(inside, bitorder="little").tobytes(),
-                                                  "little") >> (k - (chunk << CHUNK_SHIFT))
-                            check = False
-                        else:
-                            check = test
-                    else:
-                        check = test  # (as the last chunk with a box said)
-                else:
-                    check = False
-                while seg and left:
-                    sl = seg & -seg
-                    scan = scans.get(k + sl.bit_length() - 1)
-                    # (= within(scan[1], scan[2], near), inlined)
-                    if scan is not None and (not check or (scan[1] - nx) ** 2 + (scan[2] - ny) ** 2 <= h2):
-                        flat.extend(scan)
-                        left -= 1
-                    seg ^= sl
-            if flat:
-                yield origin, flat
-            if not left:
-                return
+        differ = [(origin, b, other) for origin, b in mine.items()
+                  if lo <= origin <= hi and (other := theirs.get(origin, b"")) != b]
+        if not differ:
+            return
+        # All at once, a row of w ticks (tick0 on) per origin that differs: bit r * w + j set
+        # where this log knows the scan of tick tick0 + j of the r-th and the digest does not.
+        n = ((k_cut - tick0) >> 3) + 1
+        w = 8 * n
+        have = np.frombuffer(b"".join([b.ljust(n, b"\0") for _, b, _ in differ]), np.uint8)
+        known = np.frombuffer(b"".join([other[:n].ljust(n, b"\0") for _, _, other in differ]), np.uint8)
+        lacks = np.flatnonzero(np.unpackbits(have & ~known, bitorder="little").view(bool))
+        if near is not None and lacks.size:
+            lacks = lacks[_inside(lacks, w, tick0, [self._org[origin] for origin, _, _ in differ], near)]
+        # The first `limit`, by origin then tick (the rows' order, then the bits').
+        row, j = np.divmod(lacks[:limit], w)
+        for r, ticks in groupby(zip(row.tolist(), (j + tick0).tolist()), itemgetter(0)):
+            origin = differ[r][0]
+            scans = self._org[origin][2]
+            yield origin, [v for _, k in ticks for v in scans[k]]
 
 
-def _centres(scans: dict[int, tuple[float, float, float, float]], chunk: int) -> np.ndarray:
-    """(2, 2**CHUNK_SHIFT): x and y of the scans of the chunk's ticks, NaN where none."""
-    c0 = chunk << CHUNK_SHIFT
-    none = (math.nan, math.nan, math.nan)
-    return np.array([scans.get(k, none)[1:3] for k in range(c0, c0 + (1 << CHUNK_SHIFT))]).T
+def _inside(lacks: np.ndarray, w: int, tick0: int, entries: list[_Origin], near: Near) -> np.ndarray:
+    """Which of the bits ``lacks`` (bit ``r * w + j``: the scan of tick ``tick0 + j`` of
+    ``entries[r]``) are scans centred within the horizon ``near``: :func:`within` of each,
+    as one array (the same operations on the same doubles, so the same results)."""
+    row = lacks // w
+    # Every entry's centres one after the other, each pair as one complex x + iy (one gather
+    # for both): bit r * w + j's scan is at index r * w + j + shift[r].
+    shift, start = [], 0
+    for r, entry in enumerate(entries):
+        shift.append(start + tick0 - entry[1] - r * w)
+        start += len(entry[3]) >> 1
+    z = np.frombuffer(b"".join([entry[3] for entry in entries]), np.complex128).take(lacks + np.array(shift).take(row))
+    z -= complex(near[0], near[1])  # (x - near[0]) + i (y - near[1])
+    dx, dy = z.real, z.imag
+    inside: np.ndarray = dx * dx + dy * dy <= near[2] * near[2]
+    return inside
 
 
 __all__ = ["ORIGIN_MAX", "Near", "ScanLog", "within"]
