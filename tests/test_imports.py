@@ -166,7 +166,8 @@ def test_import_circles_are_found_at_any_depth_but_not_through_type_checking():
 
 # Reads of another object's private attribute in agents, comms and faults that are allowed: an
 # instance of the same class (a map merging or copying another map, a pyramid batching the work of
-# several, the shared surveillance logic preparing the plans of several of its instances). Another class's internals are read through a public name (issue 24: the radio's
+# several, the shared surveillance logic preparing the plans of several of its instances).
+# Another class's internals are read through a public name (issue 24: the radio's
 # RadioGraph.edge_data, DecodeCache.derived, Disk.values_memo / stamps_memo, MapGroup.base_cells
 # and the extra scans a MapGroup keeps for its members, DacmpPlanner.keep / search_weights / scratch).
 SAME_CLASS = {
