@@ -142,6 +142,7 @@ class ActorOutput:
     plan: Plan
     received: list[tuple[int, int, bool]]  # (sender, nbytes, accepted) for frames drained this tick
     replies: list[tuple[int, bytes]] = field(default_factory=list)  # (receiver, frame): unicast
+    speed: float = math.nan  # the speed the local planner steers towards (m/s)
 
 
 @dataclass(frozen=True, slots=True)
@@ -252,6 +253,7 @@ class UavActor:
         # (issue 26) Endurance: flying home (no replanning on the way), the target it handed
         # over, and whether it is handing one over (its beacons then say it searches).
         self.homebound = False
+        self.operator_goal: tuple[float, float] | None = None  # (set_waypoint: an operator's waypoint)
         self.handed_target = NO_TARGET
         self._releasing = False
         self.counters = ActorCounters()
@@ -345,6 +347,8 @@ class UavActor:
             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
         if r.energy is not None and self._energy(r):
             return None  # homebound: no replanning on the way home
+        if self.operator_goal is not None and self._to_operator_goal(r):
+            return None  # flying to the operator's waypoint: no replanning on the way
         if self.plan is None or t >= self._next_replan or self._reached(r):
             s = self.settings
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
@@ -375,6 +379,28 @@ class UavActor:
         self.plan = Plan(e.home_x, e.home_y)
         self._releasing = False
         return True
+
+    def goto(self, x: float, y: float) -> None:
+        """An operator's waypoint (the embedding API's ``set_waypoint``, a ground station's
+        reposition): fly to ``(x, y)`` searching, without replanning, until there (within one
+        turn radius, or 1.5 ticks of flight); then plan afresh. Energy still sends it home first."""
+        self.operator_goal = (x, y)
+        if not self.homebound:
+            self.plan = Plan(x, y)
+            self._releasing = False
+
+    def _to_operator_goal(self, r: SensorReading) -> bool:
+        """True while on the way to the operator's waypoint; at it, forget it and replan now."""
+        assert self.operator_goal is not None
+        gx, gy = self.operator_goal
+        reach = max(1.5 * r.v * self.settings.dt, self.kind.r_min(max(r.v, 1e-9)))
+        if math.hypot(gx - r.x, gy - r.y) > reach:
+            if self.plan is None or (self.plan.wx, self.plan.wy) != (gx, gy):
+                self.plan = Plan(gx, gy)
+            return True
+        self.operator_goal = None
+        self._next_replan = -math.inf
+        return False
 
     def relaunch(self) -> None:
         """(issue 26) Back in the air from the base with what it knew: plan afresh."""
@@ -478,7 +504,7 @@ class UavActor:
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
         replies = self._answer_digests(t) if self._digests else []
-        return ActorOutput(a, omega, frames, plan, received, replies)
+        return ActorOutput(a, omega, frames, plan, received, replies, speed)
 
     def _others(self, r: SensorReading, peers: list[Peer]) -> list[tuple[float, float, float, float]]:
         """The other UAVs collision avoidance steers clear of, ``(x, y, vx, vy)`` in id order.

@@ -154,7 +154,7 @@ def mission(sim: Any) -> Any:
     from swarm.mission import mission as build_mission
 
     m = build_mission(sim)
-    sim.faults.mission = m
+    sim._faults.mission = m
     return m
 
 
@@ -187,7 +187,7 @@ def _actor_settings(sc: Scenario) -> ActorSettings:
 
 def configured(scenario: Scenario | str | Path, seed: int | None, planner: str | type | None,
                 planner_options: Mapping[str, Any] | None, duration_s: float | None,
-                allow_planner_imports: bool | Iterable[str]) -> Scenario:
+                allow_planner_imports: bool | Iterable[str], dt_s: float | None = None) -> Scenario:
     """The scenario with :class:`swarm.simulation.Simulation`'s arguments applied."""
     # A class is named by where it lives (module:Class), as a scenario would name it.
     name = planner if planner is None or isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
@@ -206,6 +206,8 @@ def configured(scenario: Scenario | str | Path, seed: int | None, planner: str |
         overrides["duration_s"] = duration_s
     if seed is not None:
         overrides["seed"] = seed
+    if dt_s is not None:
+        overrides["dt_s"] = dt_s
     if not overrides:
         return scenario
     from swarm.scenario import apply_overrides

@@ -42,5 +42,11 @@ class Clock:
         self.now = time
         return callback
 
+    def advance_to(self, t: float) -> None:
+        """Move ``now`` forward to ``t`` (a tick boundary the host acts at: every entry before it
+        has run); never backwards."""
+        if t > self.now:
+            self.now = float(t)
+
     def __len__(self) -> int:
         return len(self._heap)

@@ -40,6 +40,18 @@ class LoopBinding:
         if self.failed is not None:
             raise APIMisuseError(f"this Simulation failed earlier: {self.failed}")
 
+    def check_host_loop(self) -> None:
+        """The caller runs in the loop that drives (or will drive) it: the host's, not a private one."""
+        self._check_usable()
+        loop = asyncio.get_running_loop()
+        if self.own_loop:
+            raise APIMisuseError("this Simulation is driven with step()/run(); wait_until needs it driven by "
+                                 "`await sim.run_until(t)` in your event loop (use call_at with step())")
+        if self.loop is None:
+            self.loop = loop
+        elif self.loop is not loop:
+            raise APIMisuseError("this Simulation is bound to another event loop; drive it from one loop only")
+
     async def in_host_loop(self, advance: Advance) -> None:
         """Run ``advance()`` in the caller's running event loop."""
         self._check_usable()

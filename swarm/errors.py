@@ -18,7 +18,8 @@ from __future__ import annotations
 
 from comms.errors import SwarmError
 
-__all__ = ["APIMisuseError", "ScenarioError", "SimulationError", "SwarmError", "UsageError"]
+__all__ = ["APIMisuseError", "BadStateError", "NotControlledError", "NotGeographicError", "ScenarioError",
+           "SimulationError", "SwarmError", "TimeInPastError", "UnknownUavError", "UsageError"]
 
 
 class ScenarioError(SwarmError, ValueError):
@@ -56,3 +57,26 @@ class APIMisuseError(SwarmError, RuntimeError):
 
 class UsageError(SwarmError, ValueError):
     """A call into the public API received an argument it cannot use."""
+
+
+# --- the embedding API's bad inputs (docs/embedding.md): one kind each, all UsageErrors ---
+
+
+class UnknownUavError(UsageError):
+    """No UAV has the name a call gave."""
+
+
+class TimeInPastError(UsageError):
+    """A time before the simulation's present (the tick boundary where a change would take effect)."""
+
+
+class NotControlledError(UsageError):
+    """``set_state`` on a UAV the host has not taken control of (``take_control``)."""
+
+
+class BadStateError(UsageError):
+    """A pose or speed given for a body that is not finite (or a speed outside its type's range)."""
+
+
+class NotGeographicError(UsageError):
+    """Longitude/latitude given to a scenario in metres (one without ``[geo]``)."""

@@ -61,6 +61,7 @@ __all__ = [
     "FieldSpec",
     "Found",
     "Handover",
+    "Host",
     "Join",
     "KindSpec",
     "Lost",
@@ -398,10 +399,23 @@ class EnergyOut(Event):
     uav_name: Annotated[str | None, _name_of("uav")]
 
 
+# --- embedding (issue 34, swarm.host): only runs a host changed log these ---
+@dataclass(slots=True)
+class Host(Event):
+    """A change a host program made (the embedding API: ``add_target``, ``add_uav``,
+    ``add_fault``, ``take_control``, ``release_control``, ``set_state``, ``set_waypoint``),
+    logged at the tick boundary where it took effect, before anything else of that tick; what
+    :func:`swarm.hostlog.schedule_recorded_host_changes` replays."""
+
+    kind: ClassVar[str] = "host"
+    change: Annotated[str, Meta(label="change")]  # the call's name
+    args: Annotated[dict[str, Any], Meta(label="table")]  # its arguments as applied (UAVs by name)
+
+
 # The kinds in the order docs/outputs.md lists them.
 _RECORDS: tuple[type[Event], ...] = (
     Start, Pose, Target, Mode, Found, Release, Handover, Rx, Lost, Radio, Join, Crash, Violation,
-    Pause, Resume, Restart, FaultOn, FaultOff, Wind, ReturnToBase, Landed, Launched, EnergyOut,
+    Pause, Resume, Restart, FaultOn, FaultOff, Wind, ReturnToBase, Landed, Launched, EnergyOut, Host,
 )
 
 

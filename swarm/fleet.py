@@ -163,7 +163,7 @@ class Fleet:
             for uid in alive:
                 if uid in paused:
                     prev = last[uid]
-                    self.outputs[uid] = ActorOutput(prev.a, prev.omega, [], prev.plan, [])
+                    self.outputs[uid] = ActorOutput(prev.a, prev.omega, [], prev.plan, [], speed=prev.speed)
             alive = [uid for uid in alive if uid not in paused]
         if alive:
             self._barrier = asyncio.get_running_loop().create_future()

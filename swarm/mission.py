@@ -105,7 +105,7 @@ class Mission:
     def battery_of(self, uid: int) -> Battery | None:
         u = self.uavs.get(uid)
         if u is None and self.settings is not None:
-            b = self.sim.world.uavs[uid]
+            b = self.sim._world.uavs[uid]
             spec = self.settings.types.get(b.kind.name)
             if spec is None:
                 return None
@@ -141,7 +141,7 @@ class Mission:
             if self.battery_of(uid) is None:
                 continue
             u = self.uavs[uid]
-            b = self.sim.world.uavs[uid]
+            b = self.sim._world.uavs[uid]
             reserve = s.reserve_frac * u.battery.capacity_wh
             need = self.needed_home_wh(uid, b.x, b.y) + reserve
             allowance = u.battery.power_w(b.v) * s.handover_s / 3600.0
@@ -158,14 +158,14 @@ class Mission:
             self._energy(t - dt, dt)
         if self.wind is not None:
             self.wind_now = self.wind.advance(t, dt)
-            sim.world.wind = self.wind_now
-            sim.log.emit("wind", t, self.wind_now[0], self.wind_now[1])
+            sim._world.wind = self.wind_now
+            sim._log.emit("wind", t, self.wind_now[0], self.wind_now[1])
 
     def _energy(self, t: float, dt: float) -> None:
         """The last tick's (at ``t``) flight: energy drained; its homecomings and landings."""
         sim = self.sim
         s = self.settings
-        world, fleet = sim.world, sim.fleet
+        world, fleet = sim._world, sim._fleet
         flew, self._flew = self._flew, []
         for uid in flew:
             u = self.uavs.get(uid)
@@ -176,19 +176,19 @@ class Mission:
             u.battery.left_wh -= u.battery.power_w(b.v) * dt / 3600.0 * u.battery.drain_factor
             if actor.homebound and u.state == "flying":
                 u.state = "homebound"
-                sim.log.emit("rtb", t, uid, u.battery.left_wh, u.rtb_needed, actor.handed_target)
+                sim._log.emit("rtb", t, uid, u.battery.left_wh, u.rtb_needed, actor.handed_target)
             if u.state == "flying":
                 u.on_station_s += dt
             if u.battery.left_wh <= 0.0:
                 self.lost_to_energy += 1
-                sim.log.emit("energy_out", t, uid)
+                sim._log.emit("energy_out", t, uid)
                 fleet.fail_stop(uid, t + dt)
                 continue
             if u.state == "homebound" and math.hypot(b.x - s.x_m, b.y - s.y_m) <= s.land_radius_m:
                 u.state, u.landed_at = LANDED, t + dt
                 b.state = LANDED  # (not alive from the next tick: it neither flies, senses nor sends)
                 fleet.plans.pop(uid, None)
-                sim.log.emit("landed", t + dt, uid, u.battery.left_wh)
+                sim._log.emit("landed", t + dt, uid, u.battery.left_wh)
         for uid, u in self.uavs.items():
             if u.state == LANDED and t + dt + 1e-9 >= u.landed_at + s.turnaround_s:
                 self._launch(t + dt, uid, u)
@@ -196,25 +196,25 @@ class Mission:
     def _launch(self, t: float, uid: int, u: _Uav) -> None:
         sim = self.sim
         s = self.settings
-        b = sim.world.uavs[uid]
+        b = sim._world.uavs[uid]
         u.battery.left_wh = u.battery.capacity_wh
         u.state = "flying"
         u.sorties += 1
         b.x, b.y = s.x_m, s.y_m
         b.v = b.kind.speed_min
-        b.theta = math.atan2(sim.grid.height_m / 2 - s.y_m, sim.grid.width_m / 2 - s.x_m)
+        b.theta = math.atan2(sim._grid.height_m / 2 - s.y_m, sim._grid.width_m / 2 - s.x_m)
         b.state = "alive"
-        actor = sim.fleet.actors[uid]
+        actor = sim._fleet.actors[uid]
         for _arrival, sender, data in actor.mailbox.drain():  # (frames that reached it on the ground: lost)
-            sim.fleet.lost(sender, uid, len(data), "receiver_down")
+            sim._fleet.lost(sender, uid, len(data), "receiver_down")
         actor.relaunch()
-        sim.log.emit("launched", t, uid, b.x, b.y)
+        sim._log.emit("launched", t, uid, b.x, b.y)
 
     # --- results ------------------------------------------------------------------------------
     def metrics(self, t: float) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if self.settings is not None:
-            names = self.sim.world.uavs
+            names = self.sim._world.uavs
             out["endurance"] = {
                 "sorties": sum(u.sorties for u in self.uavs.values()),
                 "lost_to_energy": self.lost_to_energy,
@@ -236,10 +236,10 @@ def mission(sim: Any) -> Mission | None:
     wind = None
     if sc.wind is not None:
         w = sc.wind
-        wind = WindField(w.mean, w.gust_sigma_mps, w.gust_tau_s, sim.rng.generator("wind"))
+        wind = WindField(w.mean, w.gust_sigma_mps, w.gust_tau_s, sim._rng.generator("wind"))
     e = sc.endurance
     m = Mission(sim, wind, (e.x_m, e.y_m) if e is not None else None, e)
-    for uid in sim.world.uavs:
+    for uid in sim._world.uavs:
         m.battery_of(uid)
     return m
 

@@ -45,19 +45,20 @@ class RunResult:
 
 class Run(Protocol):
     """What the results read of a simulation (:class:`swarm.simulation.Simulation` is one):
-    public parts only, so that this module does not depend on the kernel."""
+    its documented parts and the internals the results are made of, so that this module does
+    not depend on the kernel."""
 
     scenario: Scenario
     seed: int
-    grid: Grid
-    world: World
-    targets: Targets
-    metrics: Metrics
-    log: EventLog
-    radio: Radio
-    observer: Observer
-    transmission: Transmission
-    speed_max_by_type: dict[str, float]
+    _grid: Grid
+    _world: World
+    _targets: Targets
+    _metrics: Metrics
+    _log: EventLog
+    _radio: Radio
+    _observer: Observer
+    _transmission: Transmission
+    _speed_max_by_type: dict[str, float]
 
     @property
     def now(self) -> float: ...
@@ -73,7 +74,7 @@ class Run(Protocol):
 
 
 def radio_totals(sim: Run) -> dict:
-    c = sim.radio.counters
+    c = sim._radio.counters
     delivered = sum(a.counters.delivered for a in sim.actors.values())
     rejected = sum(a.counters.rejected for a in sim.actors.values())
     rejected_auth = sum(a.counters.rejected_auth for a in sim.actors.values())
@@ -87,7 +88,7 @@ def radio_totals(sim: Run) -> dict:
         "bytes_sent": c.bytes_sent,
         "duplicated": c.duplicated,
         "dropped_by_cause": dict(sorted(c.dropped.items())),
-        "in_flight": sim.transmission.in_flight + queued,  # scheduled on the clock or unread in a mailbox
+        "in_flight": sim._transmission.in_flight + queued,  # scheduled on the clock or unread in a mailbox
     }
 
 
@@ -95,10 +96,10 @@ def run_metrics(sim: Run) -> dict:
     """``metrics.json``: the ground-truth measures, radio and fault counters, per-UAV counters."""
     sc = sim.scenario
     t = sim.now
-    m = sim.metrics
+    m = sim._metrics
     radio = radio_totals(sim)
     per_uav = {}
-    for uid, b in sorted(sim.world.uavs.items()):
+    for uid, b in sorted(sim._world.uavs.items()):
         a = sim.actors[uid]
         per_uav[b.name] = {
             "type": b.kind.name,
@@ -117,10 +118,10 @@ def run_metrics(sim: Run) -> dict:
             "messages_ignored": a.counters.messages_ignored,  # other heard messages with absurd values
         }
     surv = m.surveillance_ratio(t)
-    assignment = m.assignment(len(sim.targets), {uid: b.kind.name for uid, b in sim.world.uavs.items()},
-                              sim.speed_max_by_type, t)
+    assignment = m.assignment(len(sim._targets), {uid: b.kind.name for uid, b in sim._world.uavs.items()},
+                              sim._speed_max_by_type, t)
     for uid, share in assignment.pop("per_uav").items():
-        per_uav[sim.world.uavs[uid].name]["time_share"] = share
+        per_uav[sim._world.uavs[uid].name]["time_share"] = share
     return {
         "scenario": sc.name,
         "planner": sc.planner.name,
@@ -130,28 +131,28 @@ def run_metrics(sim: Run) -> dict:
         "coverage": m.coverage(),
         "certainty": m.certainty(t),
         "targets_found": len(m.found_t),
-        "targets_total": len(sim.targets),
+        "targets_total": len(sim._targets),
         "surveillance_ratio_mean": float(np.mean(list(surv.values()))) if surv else 0.0,
         "surveillance_ratio": {str(k): v for k, v in surv.items()},
         "handovers": len(m.handovers),
-        "handovers_fast_to_slow": m.fast_to_slow_handovers(sim.speed_max_by_type),
+        "handovers_fast_to_slow": m.fast_to_slow_handovers(sim._speed_max_by_type),
         "handover_list": [
-            {"t": h.t, "target": h.target, "from": sim.world.uavs[h.from_uav].name,
-             "to": sim.world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
+            {"t": h.t, "target": h.target, "from": sim._world.uavs[h.from_uav].name,
+             "to": sim._world.uavs[h.to_uav].name, "from_type": h.from_type, "to_type": h.to_type,
              "latency_s": h.latency_s, "overlap_s": max(h.latency_s, 0.0), "gap_s": max(-h.latency_s, 0.0)}
             for h in m.handovers
         ],
         **assignment,  # time_to_first_detection_s ... uav_time_share (swarm.metrics.Metrics.assignment)
         "radio": radio,
-        "violations": dict(sim.world.violations),
+        "violations": dict(sim._world.violations),
         "dynamics_violations_by_uav": {
-            sim.world.uavs[uid].name: {"count": int(n), "first_s": first, "last_s": last}
-            for uid, (n, first, last) in sorted(sim.world.dynamics_by_uav.items())
+            sim._world.uavs[uid].name: {"count": int(n), "first_s": first, "last_s": last}
+            for uid, (n, first, last) in sorted(sim._world.dynamics_by_uav.items())
         },
         "faults_applied": dict(sorted(sim.injector.fired.items())),
         "per_uav": per_uav,
-        "events": sim.log.total,
-        "event_log_sha256": sim.log.sha256(),
+        "events": sim._log.total,
+        "event_log_sha256": sim._log.sha256(),
         **_mission_metrics(sim),
     }
 
@@ -170,17 +171,17 @@ def _mission_metrics(sim: Run) -> dict:
 
 
 def run_result(sim: Run) -> RunResult:
-    events = sim.log.to_bytes()
+    events = sim._log.to_bytes()
     metrics = run_metrics(sim)
     return RunResult(
         metrics=metrics,
-        timeseries=list(sim.metrics.rows),
+        timeseries=list(sim._metrics.rows),
         events=events,
-        paths={sim.world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in sim.observer.paths.items()},
-        target_paths=sim.observer.target_path_arrays(),
-        union_last_seen=sim.metrics.union.to_dense(),
-        threats=list(sim.world.threats),
-        area=(sim.grid.width_m, sim.grid.height_m),
-        uav_types={b.name: b.kind.name for b in sim.world.uavs.values()},
+        paths={sim._world.uavs[u].name: np.array(p, dtype=float).reshape(-1, 3) for u, p in sim._observer.paths.items()},
+        target_paths=sim._observer.target_path_arrays(),
+        union_last_seen=sim._metrics.union.to_dense(),
+        threats=list(sim._world.threats),
+        area=(sim._grid.width_m, sim._grid.height_m),
+        uav_types={b.name: b.kind.name for b in sim._world.uavs.values()},
         scenario=sim.scenario.to_dict(),
     )

@@ -26,6 +26,7 @@ the clock, and is the embedding API; it knows no fault kind.
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
@@ -47,6 +48,7 @@ from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event
 from swarm.faulting import RunFaults
 from swarm.fleet import Fleet
+from swarm.host import Host, finite, not_geographic
 from swarm.memory import check_memory
 from swarm.metrics import Metrics
 from swarm.observer import Observer
@@ -70,6 +72,7 @@ class Simulation:
         planner: str | type | None = None,
         planner_options: Mapping[str, Any] | None = None,
         duration_s: float | None = None,
+        dt_s: float | None = None,
         batch_planning: bool = True,
         memory_limit_gb: float | None = None,
         allow_planner_imports: bool | Iterable[str] = False,
@@ -85,112 +88,114 @@ class Simulation:
         :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself.
         ``memory_limit_gb``: refuse (:class:`~swarm.memory.MemoryLimitError`) a scenario whose
         estimated memory is above it (default: ``SWARM_MEMORY_LIMIT_GB``, else half of this
-        machine's memory)."""
-        scenario = build.configured(scenario, seed, planner, planner_options, duration_s, allow_planner_imports)
+        machine's memory). ``dt_s``: the tick (default: the scenario's), e.g. a host's own step."""
+        scenario = build.configured(scenario, seed, planner, planner_options, duration_s, allow_planner_imports, dt_s)
         # Before anything is allocated: refuse a run that cannot fit (swarm.memory).
         self.memory_estimate = check_memory(scenario, memory_limit_gb)
         self.scenario = sc = scenario
         self.seed = sc.seed
         self.dt = sc.dt_s
         self.duration_s = sc.duration_s
-        self.rng = RngTree(self.seed)
-        self.clock = Clock()
-        self.log = EventLog()
-        self.names: dict[str, int] = {}  # shared with the faults: names added later resolve
+        self._rng = RngTree(self.seed)
+        self._clock = Clock()
+        self._log = EventLog()
+        self._names: dict[str, int] = {}  # shared with the faults: names added later resolve
         self._tick_index = 0
         self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
         self._binding = LoopBinding()  # the event loop that drives it (swarm.driving)
+        self._host = Host(self)  # the host's side: changes, alarms, bodies driven from outside (swarm.host)
         # Ground truth (area grid, targets, threats), the metrics that observe it, UAV types.
-        self.grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
-        self.tau = sc.effective_tau
-        self.types = build.uav_types(sc)
-        self.speed_max_by_type = {n: t.speed_max for n, t in self.types.items()}
-        self.targets = Targets(build.target_motion(sc))
-        self.world = World(self.grid, self.targets, build.threats(sc))
-        self.metrics = Metrics(self.grid, self.tau)
-        self.geography = build.geography(sc, self.grid, self.world, self.metrics)  # (issue 26: polygons; None without)
-        self.observer = Observer(self.world, self.metrics, self.log, self.dt, sc.recording.level == "summary",
+        self._grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
+        self._tau = sc.effective_tau
+        self._types = build.uav_types(sc)
+        self._speed_max_by_type = {n: t.speed_max for n, t in self._types.items()}
+        self._targets = Targets(build.target_motion(sc))
+        self._world = World(self._grid, self._targets, build.threats(sc))
+        self._metrics = Metrics(self._grid, self._tau)
+        self._geography = build.geography(sc, self._grid, self._world, self._metrics)  # (issue 26: polygons; None without)
+        self._observer = Observer(self._world, self._metrics, self._log, self.dt, sc.recording.level == "summary",
                                  sc.safety.min_separation_m)
         # The UAVs' maps share storage where they agree (same cells as maps of their own;
         # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon
         # keeps scans from ever reaching every map (maps_share).
-        self.map_group = (MapGroup(self.grid, self.tau, self.dt)
-                          if maps_share(self.grid.nx * self.grid.ny, self.grid.width_m, self.grid.height_m,
+        self._map_group = (MapGroup(self._grid, self._tau, self.dt)
+                          if maps_share(self._grid.nx * self._grid.ny, self._grid.width_m, self._grid.height_m,
                                         sc.radio.horizon_m) else None)
         # Each broadcast frame decoded once (with the swarm key, if [radio] auth).
         self._decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc))
-        self.fleet = Fleet(sc, self.world, self.grid, self.tau, self.rng, self.log, build.actor_settings(sc, self.geography),
-                           self._decoder, self.map_group, batch_planning,
-                           lost=lambda src, dst, n, cause: self.transmission.lose(self.clock.now, src, dst, n, cause))
-        self.fleet.types = self.types
-        self.faults = RunFaults(self.clock, self.world, self.fleet, self.log, self.rng, self.names,
-                                (self.grid.width_m, self.grid.height_m), self.dt, sc.radio.latency_s)
-        uavs = self.world.uavs
-        self.radio = build.radio(
-            sc, link_rng=lambda s, d: self.rng.generator("link", uavs[s].name, uavs[d].name),
-            link_filter=self.faults.injector,
-            link_rngs=lambda links: self.rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]))
-        self.faults.radio = self.radio
-        self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
+        self._fleet = Fleet(sc, self._world, self._grid, self._tau, self._rng, self._log,
+                            build.actor_settings(sc, self._geography), self._decoder, self._map_group, batch_planning,
+                            lost=lambda src, dst, n, cause: self._transmission.lose(self._clock.now, src, dst, n, cause))
+        self._fleet.types = self._types
+        self._faults = RunFaults(self._clock, self._world, self._fleet, self._log, self._rng, self._names,
+                                (self._grid.width_m, self._grid.height_m), self.dt, sc.radio.latency_s)
+        uavs = self._world.uavs
+        self._radio = build.radio(
+            sc, link_rng=lambda s, d: self._rng.generator("link", uavs[s].name, uavs[d].name),
+            link_filter=self._faults.injector,
+            link_rngs=lambda links: self._rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]))
+        self._faults.radio = self._radio
+        self._transmission = Transmission(self._radio, self._clock, self._world, self._fleet.actors, self._observer.lost)
         self._populate(sc)
-        self.mission = build.mission(self)  # (issue 26: wind, endurance, hooked into self.faults; None without)
-        self.clock.schedule(0.0, self._tick, TICK)
-        self.log.emit("start", 0.0, {
+        self._mission = build.mission(self)  # (issue 26: wind, endurance, hooked into self._faults; None without)
+        self._clock.schedule(0.0, self._tick, TICK)
+        self._log.emit("start", 0.0, {
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
-            "uavs": [[b.uid, b.name, b.kind.name] for b in self.world.uavs.values()],
-            "targets": len(self.targets), "threats": len(self.world.threats),
-            "faults": self.faults.schedule.to_list(),
+            "uavs": [[b.uid, b.name, b.kind.name] for b in self._world.uavs.values()],
+            "targets": len(self._targets), "threats": len(self._world.threats),
+            "faults": self._faults.schedule.to_list(),
             # (only when not the default, so a "frames" log is byte for byte what it always was)
-            **({"recording": sc.recording.level} if self.observer.summary else {}),
+            **({"recording": sc.recording.level} if self._observer.summary else {}),
         })
 
     def _populate(self, sc: Scenario) -> None:
         """The scenario's targets (placed, then random), UAVs and faults, in that order."""
         tm = sc.targets
-        for p in tm.placed:
-            self.add_target(p.x_m, p.y_m, p.heading_deg, p.speed, p.value)
-        ids = build.add_random_targets(sc, self.targets, self.rng, self.geography)
-        self.metrics.appeared_t.update(dict.fromkeys(ids, self.clock.now))
+        for i, p in enumerate(tm.placed):
+            self._add_target_rng(p.x_m, p.y_m, math.radians(p.heading_deg), p.speed, p.value, self._rng.generator("target", i))
+        ids = build.add_random_targets(sc, self._targets, self._rng, self._geography)
+        self._metrics.appeared_t.update(dict.fromkeys(ids, self._clock.now))
         for spec in sc.uavs:
             self._add_uav_spec(spec)
         for f in sc.faults:
             fault = fault_from_dict(f.model_dump(mode="python"))
             if not fault.applied_by_loader:  # (a join: folded into the UAV's join_s)
-                self.add_fault(fault)
+                self._faults.add(fault)
 
     @classmethod
     def from_file(cls, ref: str | Path, **kw) -> Simulation:
         return cls(ref, **kw)
 
     def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
-        tid = self.targets.add(x, y, theta, v, value, rng)
-        self.metrics.appeared_t[tid] = self.clock.now  # (time to first detection counts from here)
+        tid = self._targets.add(x, y, theta, v, value, rng)
+        self._metrics.appeared_t[tid] = self._clock.now  # (time to first detection counts from here)
         return tid
 
     def _add_uav_spec(self, spec: UavSpec) -> int:
-        kind = self.types[spec.type]
-        uid = len(self.world.uavs)
+        kind = self._types[spec.type]
+        uid = len(self._world.uavs)
         name = spec.name
         assert name is not None  # filled in by the scenario's validation, or by add_uav
         speed = spec.speed if spec.speed is not None else kind.speed_max
-        self.world.add_uav(UavBody(uid, name, kind, spec.x_m, spec.y_m, speed, math.radians(spec.heading_deg),
+        self._world.add_uav(UavBody(uid, name, kind, spec.x_m, spec.y_m, speed, math.radians(spec.heading_deg),
                                    PENDING, spec.join_s or 0.0))
-        self.names[name] = uid
+        self._names[name] = uid
         # Scan disks and decoded frames are shared by every UAV using them within a few ticks;
         # anti-entropy resends scans up to sync_horizon_s old, so at least 4096 disks are kept
         # (bench-100-dacmp 300 s: disk rebuilds 41k -> 19k, 9% less CPU, +90 MB peak RSS).
-        self.grid.set_disk_cache_size(max(4096, 3 * len(self.world.uavs)))
-        self._decoder.size = max(256, 4 * len(self.world.uavs))
-        self.fleet.add(uid)
-        self.observer.paths[uid] = []
-        self.faults.set_join(uid, spec.join_s or 0.0)
+        self._grid.set_disk_cache_size(max(4096, 3 * len(self._world.uavs)))
+        self._decoder.size = max(256, 4 * len(self._world.uavs))
+        self._fleet.add(uid)
+        self._observer.paths[uid] = []
+        self._faults.set_join(uid, spec.join_s or 0.0)
         return uid
 
     # --- public API: inspection -------------------------------------------------------------
 
     @property
     def now(self) -> float:
-        """World time: ``k * dt`` after ``k`` ticks."""
+        """The tick boundary the world stands at: ``k * dt`` after ``k`` ticks (while a tick is
+        under way, the boundary it started from)."""
         return self._tick_index * self.dt
 
     @property
@@ -203,74 +208,117 @@ class Simulation:
 
     @property
     def actors(self) -> dict[int, UavActor]:
-        """Each UAV's actor, by UAV id (a restart replaces it)."""
-        return self.fleet.actors
+        """Each UAV's actor, by UAV id (a restart replaces it): for diagnostics and tests."""
+        return self._fleet.actors
 
     @property
     def injector(self) -> FaultInjector:
         """The run's fault schedule (``injector.schedule``) and what fired (``injector.fired``)."""
-        return self.faults.injector
+        return self._faults.injector
+
+    @property
+    def geographic(self) -> bool:
+        """Whether the scenario has a longitude/latitude frame (``[geo]``)."""
+        return self._geography is not None and self._geography.frame is not None
+
+    @property
+    def controlled(self) -> tuple[str, ...]:
+        """The UAVs whose bodies the host drives (``take_control``), by name."""
+        return tuple(self._world.uavs[uid].name for uid in sorted(self._host.controlled))
+
+    def to_local(self, lon: float, lat: float) -> tuple[float, float]:
+        """Longitude/latitude (WGS84, degrees) as the run's local metres ``(x, y)`` (x east, y
+        north, from the area's south-west corner); a :class:`NotGeographicError` without ``[geo]``."""
+        frame = self._frame("to_local")
+        x, y = frame.lonlat_to_local(finite(lon, "lon"), finite(lat, "lat"))
+        return x, y
+
+    def to_lonlat(self, x: float, y: float) -> tuple[float, float]:
+        """Local metres as longitude/latitude (WGS84, degrees); inverse of :meth:`to_local`."""
+        lon, lat = self._frame("to_lonlat").to_lonlat([finite(x, "x")], [finite(y, "y")])
+        return float(lon[0]), float(lat[0])
+
+    def _frame(self, what: str) -> Any:
+        if not self.geographic:
+            raise not_geographic(what)
+        assert self._geography is not None
+        return self._geography.frame
 
     def snapshot(self) -> Snapshot:
         """Where everything is now (plain records: safe to keep)."""
-        return take_snapshot(self.now, self.world, self.fleet, self.metrics, self.radio.graph.edges())
+        return take_snapshot(self)
 
     def uav_map(self, name: str) -> np.ndarray:
         """A copy of one UAV's own last-seen map (what it believes, not the truth)."""
-        return self.actors[self._uid(name)].umap.to_dense()
+        return self.actors[self._host.uid(name)].umap.to_dense()
 
     def subscribe(self, callback: Callable[[Event], None], kinds: Iterable[str] | None = None) -> Callable[[], None]:
         """Call ``callback(event)`` for each event as it is logged, a record of :mod:`swarm.events`
         with UAV and mode names (optionally only some kinds); returns an unsubscribe function.
         Subscribed before the first tick, it gets the ``start`` header first."""
-        return self.log.subscribe(callback, kinds)
-
-    def _uid(self, name: str) -> int:
-        if name not in self.names:
-            raise UsageError(f"no UAV named {name!r}; known: {', '.join(self.names)}")
-        return self.names[name]
+        return self._log.subscribe(callback, kinds)
 
     def mode_names(self) -> dict[str, str]:
         """Each UAV's mode now, by name: search / surveil, or down / pending."""
-        return {b.name: self.fleet.mode_name(uid) for uid, b in sorted(self.world.uavs.items())}
+        return {b.name: self._fleet.mode_name(uid) for uid, b in sorted(self._world.uavs.items())}
 
-    # --- public API: changing the run -------------------------------------------------------
+    # --- public API: changing the run (swarm.host: checked, applied at a tick boundary, logged) ---
 
-    def add_target(self, x: float, y: float, heading_deg: float = 0.0, speed: float = 0.0, value: float = 1.0) -> int:
-        if not self.grid.contains(x, y):
-            raise UsageError(f"target position ({x}, {y}) is outside the area {self.grid.width_m} x {self.grid.height_m} m")
-        if not 0.0 <= speed <= self.targets.motion.speed_max:
-            raise UsageError(f"target speed {speed} outside [0, {self.targets.motion.speed_max}] m/s")
-        tid = len(self.targets)
-        return self._add_target_rng(x, y, math.radians(heading_deg), speed, value, self.rng.generator("target", tid))
+    def add_target(self, x: float | None = None, y: float | None = None, heading_deg: float = 0.0, speed: float = 0.0,
+                   value: float = 1.0, *, lon: float | None = None, lat: float | None = None) -> int:
+        """Add a target at ``(x, y)`` (or ``lon``/``lat``); returns its id."""
+        x, y = self._host.local(x, y, lon, lat, "add_target")
+        return self._host.add_target(x, y, heading_deg, speed, value)
 
-    def add_uav(self, type: str, x: float, y: float, heading_deg: float = 0.0, speed: float | None = None,
-                name: str | None = None, join_s: float | None = None) -> str:
-        """Add a UAV; it joins at ``join_s`` (default: the next tick). Returns its name."""
-        if type not in self.types:
-            raise UsageError(f"unknown UAV type {type!r}; known: {', '.join(self.types)}")
-        if name is None:
-            k = 1 + sum(1 for b in self.world.uavs.values() if b.kind.name == type)
-            name = f"{type}{k}"
-            while name in self.names:
-                k += 1
-                name = f"{type}{k}"
-        if name in self.names:
-            raise UsageError(f"a UAV named {name!r} already exists")
-        if not self.grid.contains(x, y):
-            raise UsageError(f"UAV position ({x}, {y}) is outside the area")
-        kind = self.types[type]
-        if speed is not None and not kind.speed_min <= speed <= kind.speed_max:
-            raise UsageError(f"speed {speed} outside type {type}'s range [{kind.speed_min}, {kind.speed_max}]")
-        join = self.now if join_s is None else max(join_s, self.now)
-        spec = UavSpec(name=name, type=type, x_m=x, y_m=y, heading_deg=heading_deg, speed=speed, join_s=join)
-        self._add_uav_spec(spec)
-        return name
+    def add_uav(self, type: str, x: float | None = None, y: float | None = None, heading_deg: float = 0.0,
+                speed: float | None = None, name: str | None = None, join_s: float | None = None, *,
+                lon: float | None = None, lat: float | None = None) -> str:
+        """Add a UAV at ``(x, y)`` (or ``lon``/``lat``); it joins at ``join_s`` (default: the
+        present). Returns its name."""
+        x, y = self._host.local(x, y, lon, lat, "add_uav")
+        return self._host.add_uav(type, x, y, heading_deg, speed, name, join_s)
 
     def add_fault(self, fault: FaultKind) -> None:
         """Add a fault (an instance of a kind of :mod:`faults.schedule`, or of one registered
-        elsewhere); faults that happen at a time must not be in the past."""
-        self.faults.add(fault)
+        elsewhere); faults that happen at a time must not be before the present."""
+        self._host.add_fault(fault)
+
+    def take_control(self, name: str) -> None:
+        """Drive UAV ``name``'s body from outside: the simulator stops integrating it (it stays
+        where :meth:`set_state` last put it); its actor goes on sensing, planning and talking."""
+        self._host.take_control(name)
+
+    def release_control(self, name: str) -> None:
+        """Give UAV ``name``'s body back to the simulator, which flies it on from its last state."""
+        self._host.release_control(name)
+
+    def set_state(self, name: str, x_m: float, y_m: float, heading_rad: float, speed_mps: float) -> None:
+        """Put a controlled UAV's body at ``(x_m, y_m)`` with heading ``heading_rad`` (from east,
+        counter-clockwise) and speed ``speed_mps``."""
+        x, y = self._host.local(x_m, y_m, None, None, "set_state")
+        self._host.set_state(name, x, y, heading_rad, speed_mps)
+
+    def set_state_lonlat(self, name: str, lon: float, lat: float, heading_rad: float, speed_mps: float) -> None:
+        """:meth:`set_state` with the position as longitude/latitude (geographic scenarios)."""
+        x, y = self._host.local(None, None, lon, lat, "set_state_lonlat")
+        self._host.set_state(name, x, y, heading_rad, speed_mps)
+
+    def set_waypoint(self, name: str, x: float | None = None, y: float | None = None, *,
+                     lon: float | None = None, lat: float | None = None) -> None:
+        """An operator's waypoint: UAV ``name`` flies to it searching (no replanning on the
+        way), then plans afresh."""
+        x, y = self._host.local(x, y, lon, lat, "set_waypoint")
+        self._host.set_waypoint(name, x, y)
+
+    def call_at(self, t: float, fn: Callable[[], Any]) -> None:
+        """Call ``fn()`` when the simulation reaches the last tick boundary at or before ``t``."""
+        self._host.call_at(t, fn)
+
+    async def wait_until(self, t: float) -> None:
+        """Suspend the calling task until the simulation reaches the last tick boundary at or
+        before ``t``; the simulation does not go on until the task waits again or finishes."""
+        self._binding.check_host_loop()
+        await self._host.wait_until(t)
 
     # --- the tick ---------------------------------------------------------------------------
 
@@ -279,59 +327,70 @@ class Simulation:
 
         Faults, joins and frames due at ``t`` ran before this (clock priorities)."""
         t = self.now
-        self.faults.begin_tick(t)
-        alive = self.world.alive_ids()
-        self.fleet.start_tasks(alive)
+        self._host.in_tick = True
+        self._faults.begin_tick(t)
+        alive = self._world.alive_ids()
+        self._fleet.start_tasks(alive)
         xy, readings = self._sense(t, alive)
-        outputs = await self.fleet.wake(alive, readings, self.faults.tick.paused)
-        self.observer.observe(t, alive, outputs, readings, xy, self.fleet.plans, self.faults.tick,
-                              self.speed_max_by_type)
-        self.transmission.transmit(t, self.dt, alive, xy, outputs, first=self.faults.transmit(t, self.dt, alive, xy))
+        outputs = await self._fleet.wake(alive, readings, self._faults.tick.paused)
+        self._observer.observe(t, alive, outputs, readings, xy, self._fleet.plans, self._faults.tick,
+                              self._speed_max_by_type)
+        self._transmission.transmit(t, self.dt, alive, xy, outputs, first=self._faults.transmit(t, self.dt, alive, xy))
         self._integrate(alive, outputs)
         self._end_tick()
+        self._host.in_tick = False
 
     def _sense(self, t: float, alive: list[int]) -> tuple[np.ndarray, dict[int, SensorReading]]:
         """Positions at ``t`` and what each live UAV senses there (after the tick faults).
 
         UAVs move only in :meth:`_integrate`, so these positions also serve the safety check and
         the radio topology of this tick."""
-        world = self.world
+        world = self._world
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
-        self.faults.sense(t, alive, readings, self.fleet.outputs.__contains__)
+        self._faults.sense(t, alive, readings, self._fleet.outputs.__contains__)
         # Every live UAV scans its disk this tick (its own map, then the ground truth and every
         # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
         if len(alive) >= PREFETCH_MIN:
             bodies = [world.uavs[uid] for uid in alive]
             umap = self.actors[alive[0]].umap
-            self.grid.prefetch_disks([b.x for b in bodies], [b.y for b in bodies], [b.kind.detect_radius for b in bodies],
+            self._grid.prefetch_disks([b.x for b in bodies], [b.y for b in bodies], [b.kind.detect_radius for b in bodies],
                                      t, None if umap.dense else umap.tile_shape)
         return xy, readings
 
     def _integrate(self, alive: list[int], outputs: dict[int, ActorOutput]) -> None:
-        """Physics: every live UAV flies its command for ``dt``, then the targets move."""
+        """Physics: every live UAV the simulator flies (not the host's: swarm.host) flies its
+        command for ``dt``, then the targets move."""
         dt = self.dt
+        if self._host.controlled:
+            alive = [uid for uid in alive if uid not in self._host.controlled]
         for uid in alive:
             out = outputs[uid]
-            self.world.apply(uid, out.a, out.omega, dt, self.now)
-        self.targets.step(dt, self.grid)
+            self._world.apply(uid, out.a, out.omega, dt, self.now)
+        self._targets.step(dt, self._grid)
 
     def _end_tick(self) -> None:
         """Count the tick, sample the time series when due, flush the log, schedule the next."""
-        self.observer.end_tick(self.now)
+        self._observer.end_tick(self.now)
         self._tick_index += 1
         if self._tick_index % self._sample_every == 0 or self._tick_index == self.n_ticks:
-            self.observer.sample(self.now, radio_totals(self), self.mode_names)
-        self.log.flush()
-        self.clock.schedule(self._tick_index * self.dt, self._tick, TICK)
+            self._observer.sample(self.now, radio_totals(self), self.mode_names)
+        self._log.flush()
+        self._clock.schedule(self._tick_index * self.dt, self._tick, TICK)
 
     # --- driving ----------------------------------------------------------------------------
 
-    async def _advance(self, t_end: float, progress: Callable[[float, float], None] | None = None) -> None:
-        clock = self.clock
+    async def _advance(self, k_end: int, progress: Callable[[float, float], None] | None = None) -> None:
+        """Run every tick up to boundary ``k_end``, serving each boundary reached (swarm.host)."""
+        clock, host = self._clock, self._host
         eps = 1e-9 * self.dt
+        t_end = k_end * self.dt
         every = max(1, self.n_ticks // 200)
-        while clock.peek() < t_end - eps:
+        while True:
+            if host.due() and clock.peek() >= self.now - eps:
+                await host.serve()
+            if clock.peek() >= t_end - eps:
+                break
             callback = clock.pop()
             if callback == self._tick:
                 await self._tick()
@@ -341,8 +400,17 @@ class Simulation:
                 callback()
 
     async def run_until(self, t: float, progress: Callable[[float, float], None] | None = None) -> None:
-        """Advance the world to time ``t`` inside the caller's running event loop."""
-        await self._binding.in_host_loop(lambda: self._advance(t, progress))
+        """Run every tick that ends at or before ``t`` inside the caller's running event loop:
+        afterwards ``now`` is the last tick boundary at or before ``t`` (never past it)."""
+        if not isinstance(t, (int, float)) or math.isnan(t):
+            raise UsageError(f"run_until: t = {t!r} is not a number of seconds")
+        k_end = max(self._tick_index, math.floor(t / self.dt + 1e-9)) if math.isfinite(t) else self.n_ticks
+
+        async def advance() -> None:
+            await asyncio.sleep(0)  # (host tasks started with it make their first wait_until first)
+            await self._advance(k_end, progress)
+
+        await self._binding.in_host_loop(advance)
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` ticks synchronously."""
@@ -353,11 +421,11 @@ class Simulation:
                 f"step({n}) at tick {self._tick_index} would go past the end of the run ({self.n_ticks} ticks, "
                 f"{self.duration_s:g} s); step at most {self.n_ticks - self._tick_index} more, or build the "
                 f"Simulation with a longer duration_s")
-        self._binding.in_own_loop(lambda: self._advance((self._tick_index + n) * self.dt))
+        self._binding.in_own_loop(lambda: self._advance(self._tick_index + n))
 
     def run(self, progress: Callable[[float, float], None] | None = None) -> RunResult:
         """Run synchronously to the scenario's duration and return the result."""
-        self._binding.in_own_loop(lambda: self._advance(self.n_ticks * self.dt, progress))
+        self._binding.in_own_loop(lambda: self._advance(self.n_ticks, progress))
         return self.result()
 
     @property
@@ -368,7 +436,7 @@ class Simulation:
     def close(self) -> None:
         """Cancel the actor tasks and release a private event loop. Safe to call twice."""
         if not self._binding.closed:
-            self._binding.close(self.fleet.cancel())
+            self._binding.close(self._fleet.cancel())
 
     def __del__(self) -> None:
         # Dropped without close() (``Simulation(...).run()`` in a script): close it here, or

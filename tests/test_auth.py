@@ -160,7 +160,7 @@ def test_a_spoofers_frames_do_nothing_and_are_counted_a_members_get_through():
         assert me.counters.rejected_auth == 2
         m = sim.run().metrics
     assert m["radio"]["rejected_auth"] == 2 and m["radio"]["rejected"] >= 2
-    assert m["per_uav"][sim.world.uavs[1].name]["frames_rejected_auth"] == 2
+    assert m["per_uav"][sim._world.uavs[1].name]["frames_rejected_auth"] == 2
     assert sum(u["frames_rejected_auth"] for u in m["per_uav"].values()) == 2
 
 

@@ -29,7 +29,7 @@ from swarm import Simulation
 def _run(scenario, batch: bool, **kw):
     with Simulation(scenario, batch_planning=batch, **kw) as sim:
         result = sim.run()
-        batcher = sim.fleet.batcher
+        batcher = sim._fleet.batcher
         return result.metrics["event_log_sha256"], (batcher.batches, batcher.plans) if batcher else None
 
 

@@ -52,7 +52,7 @@ WITHOUT_RADIO = {"greedy": _head_on("greedy", 16), "dacmp": _head_on("dacmp", 0)
 def _separation(doc: dict) -> tuple[int, int, str]:
     with Simulation(parse_scenario(doc, "daa")) as sim:
         m = sim.run().metrics
-        return m["violations"]["separation"], sim.radio.counters.dropped_total, m["event_log_sha256"]
+        return m["violations"]["separation"], sim._radio.counters.dropped_total, m["event_log_sha256"]
 
 
 @pytest.mark.parametrize("planner", sorted(WITHOUT_RADIO))
@@ -122,7 +122,7 @@ def test_the_sensor_measures_relative_to_where_a_uav_believes_it_is():
         with Simulation(parse_scenario(doc, "pair")) as sim:
             sim.add_fault(NavError(uav="B1", bias_x_m=700.0, bias_y_m=-300.0))
             sim.step()
-            b1, b2 = sim.world.uavs[0], sim.world.uavs[1]
+            b1, b2 = sim._world.uavs[0], sim._world.uavs[1]
     (x, y, rel), = seen[0]
     assert (x, y) == (2700.0, 2200.0)  # where B1 believes it is
     assert rel == [(1, pytest.approx(1000.0), pytest.approx(0.0))]  # B2 where it truly is, relative to B1

@@ -177,7 +177,7 @@ def test_misuse_is_a_swarm_error_and_a_runtime_error_but_not_a_simulation_error(
 
 
 def _break_an_actor(sim: Simulation, name: str, at_s: float) -> None:
-    actor = sim.actors[sim.names[name]]
+    actor = sim.actors[sim._names[name]]
     act = actor.act
 
     def act_then_fail(reading):

@@ -117,7 +117,7 @@ def test_a_restarted_uav_stays_an_agent_under_the_policy():
     env = parallel_env(scenario=sc)
     env.reset(seed=1)
     sim = env.sim
-    uid = sim.names["B1"]
+    uid = sim._names["B1"]
     first_actor = sim.actors[uid]
     states = []
     for _ in range(8):  # to 80 s
@@ -137,7 +137,7 @@ def test_a_restarted_uav_stays_an_agent_under_the_policy():
     env.reset(seed=1)
     while env.agents:
         env.step({a: np.zeros(2, np.float32) for a in env.agents})
-    assert isinstance(env.sim.actors[env.sim.names["B1"]].planner, DacmpPlanner)
+    assert isinstance(env.sim.actors[env.sim._names["B1"]].planner, DacmpPlanner)
     env.close()
 
 
@@ -210,7 +210,7 @@ def test_action_is_the_waypoint_flown_from_the_first_tick():
     env = parallel_env(scenario=case1())
     env.reset()
     sim = env.sim
-    b1 = sim.world.uavs[sim.names["B1"]]
+    b1 = sim._world.uavs[sim._names["B1"]]
     planner = env._planners["B1"]
     calls = []  # (t, plan) of every plan request B1 makes
     answer = planner.plan
@@ -239,7 +239,7 @@ def test_action_is_the_waypoint_flown_from_the_first_tick():
     far = act(-1.0, 1.0)
     t, first = next((t, p) for t, p in calls if t >= 20.0)
     assert t == 20.0 and (first.wx, first.wy) == pytest.approx(far)
-    assert sim.actors[sim.names["B1"]].plan.wx == pytest.approx(far[0])
+    assert sim.actors[sim._names["B1"]].plan.wx == pytest.approx(far[0])
     env.close()
 
 
@@ -247,7 +247,7 @@ def test_controlled_by_type_keeps_the_scenario_planner_for_the_rest():
     env = parallel_env(scenario=case1(), controlled=["A"])
     assert env.possible_agents == ["A1"]
     env.reset()
-    planners = {b.name: type(env.sim.actors[uid].planner) for uid, b in env.sim.world.uavs.items()}
+    planners = {b.name: type(env.sim.actors[uid].planner) for uid, b in env.sim._world.uavs.items()}
     assert planners == {"B1": DacmpPlanner, "B2": DacmpPlanner, "A1": ExternalPlanner}
     run_random(env, seed=0)
     env.close()
@@ -268,8 +268,8 @@ def test_rewards_are_the_ground_truth_of_the_step():
             cells += i["new_cells"]
             found += i["found"]
     # Every UAV is an agent: their new cells are the run's covered cells, their finds its finds.
-    assert cells == env.sim.metrics.covered_cells > 0
-    assert found == len(env.sim.metrics.found_t)
+    assert cells == env.sim._metrics.covered_cells > 0
+    assert found == len(env.sim._metrics.found_t)
     assert RewardWeights.of(weights) == RewardWeights(2.0, 7.0, -3.0)
     with pytest.raises(UsageError, match="unknown reward weight"):
         parallel_env(scenario=case1(), rewards={"coverage": 1.0})

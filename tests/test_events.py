@@ -216,7 +216,7 @@ def test_without_subscribers_nothing_is_converted(monkeypatch):
     monkeypatch.setattr(Decoder, "__call__", refuse)
     with Simulation(parse_scenario(_doc(30.0))) as sim:
         sim.run()
-        assert sim.log._decoder is None
+        assert sim._log._decoder is None
 
 
 # --- no reader indexes events by position -----------------------------------------------------------

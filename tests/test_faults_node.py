@@ -105,14 +105,14 @@ def test_restart_rejoins_with_an_empty_memory_where_it_went_down():
         sim.step(30)
         old = sim.actors[B1]
         assert np.isfinite(sim.uav_map("B1")).any() and old.knowledge.peers
-        last = (sim.world.uavs[B1].x, sim.world.uavs[B1].y)
+        last = (sim._world.uavs[B1].x, sim._world.uavs[B1].y)
         seen = []  # at the rejoin (before its first tick): what the new actor knows
 
         def at_restart(_event):
             new = sim.actors[B1]
             seen.append((new, (sim.uav_map("B1") == NEVER).all(), dict(new.knowledge.peers),
                          dict(new.knowledge.tracks), new.scans.count, new.plan,
-                         sim.world.uavs[B1].state, (sim.world.uavs[B1].x, sim.world.uavs[B1].y)))
+                         sim._world.uavs[B1].state, (sim._world.uavs[B1].x, sim._world.uavs[B1].y)))
 
         sim.subscribe(at_restart, kinds={"restart"})
         sim.step(90)  # the crash at 30 s, the rejoin at 40 s (before the tick at 40 s)
@@ -155,7 +155,7 @@ def test_a_clock_ahead_is_ignored_and_never_pins_a_receivers_cells():
         for _ in range(50):
             sim.step()
             for uid in (B2, A1, A2):  # no cell of another UAV's map is stamped after its clock
-                assert sim.uav_map(sim.world.uavs[uid].name).max() <= sim.now - sim.dt + 1e-6
+                assert sim.uav_map(sim._world.uavs[uid].name).max() <= sim.now - sim.dt + 1e-6
         assert sim.uav_map("B1").max() >= sim.now - sim.dt + 30.0 - 1e-6  # its own stamps are skewed
         ignored = {u: sim.actors[u].counters.messages_ignored for u in (B2, A1, A2)}
         result = sim.result()
@@ -189,11 +189,11 @@ def test_maps_in_a_group_stay_a_max_of_what_they_applied_under_skew(monkeypatch)
         if not group:
             monkeypatch.setattr(simulation_module, "maps_share", lambda *_: False)
         with Simulation(sc, seed=2) as sim:
-            assert (sim.map_group is not None) == group
+            assert (sim._map_group is not None) == group
             for f in faults:
                 sim.add_fault(f)
             sim.run()
-            return sim.log.sha256(), {n: sim.uav_map(n) for n in sim.names}
+            return sim._log.sha256(), {n: sim.uav_map(n) for n in sim._names}
 
     grouped, own = maps(True), maps(False)
     assert grouped[0] == own[0]
@@ -210,10 +210,10 @@ def test_nav_bias_shifts_what_it_believes_not_the_ground_truth():
     with Simulation(sc, seed=1) as sim:
         sim.add_fault(f)
         sim.step(5)
-        b = sim.world.uavs[B1]
+        b = sim._world.uavs[B1]
         t = sim.now - sim.dt
-        umap, union = sim.uav_map("B1"), sim.metrics.union.to_dense()
-        grid = sim.grid
+        umap, union = sim.uav_map("B1"), sim._metrics.union.to_dense()
+        grid = sim._grid
         # Where it was at the last tick (it has moved by one step since), and where it believed.
         x0, y0 = b.x - b.v * math.cos(b.theta) * sim.dt, b.y - b.v * math.sin(b.theta) * sim.dt
         (ix, bx), (iy, by) = (v.tolist() for v in grid.cells_of(np.array([x0, x0 + 2000.0]),
@@ -258,7 +258,7 @@ def test_false_alarms_reach_the_knowledge_as_phantom_targets():
         sim.run()
         phantoms = [m for m in sim.actors[B1].knowledge.tracks if m >= PHANTOM_TARGET_ID]
         fired = sim.injector.fired["sensor"]
-        found = set(sim.metrics.found_t)
+        found = set(sim._metrics.found_t)
     assert phantoms and fired >= len(phantoms)  # (each false alarm fires; all are B1's)
     assert all(m < PHANTOM_TARGET_ID for m in found)
 
@@ -283,7 +283,7 @@ def test_the_others_believe_the_liars_scans():
     with Simulation(sc, seed=1) as sim:
         sim.add_fault(f)
         sim.run()
-        truth = sim.metrics.union.to_dense() != NEVER
+        truth = sim._metrics.union.to_dense() != NEVER
         believed = sim.uav_map("B2") != NEVER
     assert (believed & ~truth).sum() > 0  # cells nobody scanned, which B2 takes for scanned
 

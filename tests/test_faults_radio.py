@@ -163,7 +163,7 @@ def test_every_radio_kind_fires_and_is_counted_as_its_lost_copies(all_four):
     for cause in ("jammer", "bridge", "swizzle"):
         assert fired[cause] == len(lost(events, cause)) == m["radio"]["dropped_by_cause"][cause]
     spoofed = [e for e in events if e.kind == "rx" and e.src == -1]
-    assert spoofed and sim.radio.counters.spoofed >= len(spoofed)
+    assert spoofed and sim._radio.counters.spoofed >= len(spoofed)
     r = m["radio"]
     assert r["sent"] + r["duplicated"] == r["delivered"] + r["dropped"] + r["rejected"] + r["in_flight"]
 
@@ -309,7 +309,7 @@ def test_a_spoofer_forging_a_named_member():
     assert m["faults_applied"]["spoofer"] > 0
     # Its Hello says U4 is at the spoofer's position: U0 believes it (auth off).
     peer = sim.actors[0].knowledge.peers[4]
-    assert (peer.x, peer.y) != (sim.world.uavs[4].x, sim.world.uavs[4].y)
+    assert (peer.x, peer.y) != (sim._world.uavs[4].x, sim._world.uavs[4].y)
 
 
 # --- as data: TOML, Python API, determinism ----------------------------------------------------------
@@ -446,7 +446,7 @@ def test_no_spoofed_frame_changes_any_map_in_the_demo_scenario():
     for scenario in (sc, quiet):
         with Simulation(scenario) as sim:
             m = sim.run().metrics
-            maps.append({name: sim.uav_map(name) for name in sim.names})
+            maps.append({name: sim.uav_map(name) for name in sim._names})
         if scenario is sc:
             assert m["faults_applied"]["spoofer"] > 0 and m["radio"]["rejected_auth"] > 0
     assert maps[0].keys() == maps[1].keys()

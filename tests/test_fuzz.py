@@ -167,7 +167,7 @@ def _fuzz_live(n_frames: int, seed: int, planner: str) -> tuple[int, int]:
         before = {u: a.counters.rejected for u, a in sim.actors.items()}
         per_tick = max(1, n_frames // int(sim.duration_s))
         while not sim.done:
-            for uid, body in sorted(sim.world.uavs.items()):
+            for uid, body in sorted(sim._world.uavs.items()):
                 if body.state != "alive":
                     continue
                 for _ in range(per_tick):

@@ -129,10 +129,10 @@ def test_concave_area_with_polygon_zones_runs_clean(planner):
     sim, result = _run(planner, geo_doc())
     m = result.metrics
     assert m["violations"] == {"separation": 0, "threat": 0, "dynamics": 0}
-    geo = sim.geography
+    geo = sim._geography
     # no UAV outside the area polygon by more than its turn radius at full speed
     for name, rows in result.paths.items():
-        kind = sim.types[result.uav_types[name]]
+        kind = sim._types[result.uav_types[name]]
         assert geo.area.clearance_many(rows[:, 1], rows[:, 2]).min() > -kind.r_min(kind.speed_max), name
         for z in geo.zones:
             assert z.clearance_many(rows[:, 1], rows[:, 2]).min() > 0.0, (name, z.zone)
@@ -147,7 +147,7 @@ def test_concave_area_with_polygon_zones_runs_clean(planner):
 
 def test_outside_cells_read_as_nothing_to_search():
     sim, _ = _run("dacmp", geo_doc(), duration=3.0)
-    geo = sim.geography
+    geo = sim._geography
     for actor in sim.actors.values():
         q = actor.umap.uncertainty(sim.now - sim.dt)
         assert np.all(q[~geo.inside] <= 1e-6)  # stamped as seen every tick
@@ -170,7 +170,7 @@ def test_geo_rectangle_matches_the_metric_rectangle():
     geo = {"name": "g", "duration_s": 600.0, "geo": {"area": ring}, "area": {"cell_m": 200.0}, "uavs": uavs}
     _, rm = _run("dacmp", metric)
     sim, rg = _run("dacmp", geo)
-    assert sim.grid.width_m == pytest.approx(w, abs=200.0)
+    assert sim._grid.width_m == pytest.approx(w, abs=200.0)
     assert abs(rg.metrics["coverage"] - rm.metrics["coverage"]) < 0.06, (rg.metrics["coverage"], rm.metrics["coverage"])
 
 

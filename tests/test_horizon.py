@@ -147,7 +147,7 @@ def test_a_horizon_keeps_far_scans_out_of_log_and_map_and_maps_agree_within_it()
         mon.finish()
         result = sim.run()
         for uid in range(4):
-            assert _heard_within(sim, uid, h, sim.observer.paths[uid])
+            assert _heard_within(sim, uid, h, sim._observer.paths[uid])
         far = {o for o, _ in sim.actors[0].scans.scans()}
         beyond = sim.actors[0].counters.scans_beyond
         map0 = sim.actors[0].umap.to_dense()
@@ -164,13 +164,13 @@ def test_a_horizon_keeps_far_scans_out_of_log_and_map_and_maps_agree_within_it()
 @pytest.mark.slow
 def test_local_map_agreement_catches_a_radio_that_loses_one_uavs_frames():
     with Simulation(parse_scenario(_line(12_000.0))) as sim:
-        send = sim.radio.broadcast
+        send = sim._radio.broadcast
 
         def lossy(t, src, data, out, on_lost=None, to=None):  # the planted bug: B1's frames vanish
             if src != 1:
                 send(t, src, data, out, on_lost, to)
 
-        sim.radio.broadcast = lossy
+        sim._radio.broadcast = lossy
         mon = Monitor([MapAgreementChecker()]).attach(sim)
         while not sim.done:
             sim.step()

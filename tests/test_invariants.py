@@ -449,7 +449,7 @@ def test_live_monitor_passes_a_clean_run_with_faults(small_scenario_path):
 
 def test_radio_checker_catches_a_radio_that_ignores_range():
     with Simulation(parse_scenario(_small(radio={"range_m": 3000.0}))) as sim:
-        sim.radio.model = dataclasses.replace(sim.radio.model, range_m=None)  # the planted bug
+        sim._radio.model = dataclasses.replace(sim._radio.model, range_m=None)  # the planted bug
         monitor = _run_live(sim, [RadioChecker()], until=10.0)
     assert monitor.violations and all("apart (range 3000 m)" in v.message for v in monitor.violations)
 
@@ -500,13 +500,13 @@ def test_map_agreement_holds_on_an_ideal_radio_and_catches_a_radio_that_loses_fr
         good = _run_live(sim, [MapAgreementChecker()])
     assert good.violations == [] and good.by_name("map_agreement").checks >= 3
     with Simulation(parse_scenario(_ideal())) as sim:
-        send = sim.radio.broadcast
+        send = sim._radio.broadcast
 
         def lossy(t, src, data, out, on_lost=None, to=None):  # the planted bug: B1's frames vanish
             if src != 0:
                 send(t, src, data, out, on_lost, to)
 
-        sim.radio.broadcast = lossy
+        sim._radio.broadcast = lossy
         bad = _run_live(sim, [MapAgreementChecker()])
     assert bad.violations and {v.uavs[1] for v in bad.violations} == {"B1"}
 
@@ -519,7 +519,7 @@ def test_map_agreement_does_not_judge_ticks_in_which_a_full_mailbox_dropped_fram
     doc["radio"]["mailbox_capacity"] = 1  # two neighbours: a frame or more lost most ticks
     with Simulation(parse_scenario(doc)) as sim:
         small = _run_live(sim, [MapAgreementChecker()])
-        assert sim.radio.counters.dropped.get("mailbox_full", 0) > 0
+        assert sim._radio.counters.dropped.get("mailbox_full", 0) > 0
     assert small.violations == [] and small.by_name("map_agreement").checks == 0
 
 
@@ -581,7 +581,7 @@ def _with_planners(planners: dict[str, object], duration: float = 150.0) -> Moni
                  targets={"placed": [{"x_m": 6500.0, "y_m": 10_000.0}]})
     with Simulation(parse_scenario(doc)) as sim:
         for name, planner in planners.items():
-            sim.actors[sim.names[name]].planner = planner
+            sim.actors[sim._names[name]].planner = planner
         return _run_live(sim, handover_checkers(settle_s=30.0, takeover_s=60.0, release_s=60.0))
 
 
@@ -604,7 +604,7 @@ def test_check_events_judges_the_assignment_invariants_by_default():
                  targets={"placed": [{"x_m": 6500.0, "y_m": 10_000.0}]})
     with Simulation(parse_scenario(doc)) as sim:
         for name in ("B1", "B2"):
-            sim.actors[sim.names[name]].planner = Sticky()
+            sim.actors[sim._names[name]].planner = Sticky()
         result = sim.run()
         scenario = sim.scenario
     found = {v.invariant for v in check_events(result.events, scenario)}
@@ -643,7 +643,7 @@ def test_dynamics_catches_a_planner_whose_commands_are_not_clipped(no_airframe_l
     with Simulation(parse_scenario(_small())) as sim:
         sim.actors[0].planner = UTurn()
         monitor = _run_live(sim, [DynamicsChecker()], until=5.0)
-        assert sim.world.violations["dynamics"] > 0  # the world's own check agrees
+        assert sim._world.violations["dynamics"] > 0  # the world's own check agrees
     assert monitor.violations and all(v.uavs == ("B1",) for v in monitor.violations)
     assert any("turn rate" in v.message for v in monitor.violations)
 
@@ -830,7 +830,7 @@ def test_separation_without_radio_greedy(tmp_path):
     with reproducible(scenario, tmp_path):
         with Simulation(scenario) as sim:
             monitor = _run_live(sim, [checker])
-            dropped = sim.radio.counters.dropped_total
+            dropped = sim._radio.counters.dropped_total
         monitor.raise_if()
     assert dropped > 0  # (the radio really carried nothing)
 

@@ -70,15 +70,15 @@ def _state(tg: Targets) -> list[list[float]]:
 def test_a_simulations_random_targets_are_those_of_their_own_generators(n):
     sc = load_scenario("paper-case1", overrides={"targets.count": n, "targets.placed": []})
     with Simulation(sc, seed=5) as sim:
-        grid = sim.grid
-        old = _old_targets(5, n, grid.width_m, grid.height_m, sim.targets.motion.speed_max, sc.targets.value)
-        old.motion = sim.targets.motion
-        assert _state(sim.targets) == _state(old)
-        assert not any(g is not None for g in sim.targets._gens)  # no stream made yet
+        grid = sim._grid
+        old = _old_targets(5, n, grid.width_m, grid.height_m, sim._targets.motion.speed_max, sc.targets.value)
+        old.motion = sim._targets.motion
+        assert _state(sim._targets) == _state(old)
+        assert not any(g is not None for g in sim._targets._gens)  # no stream made yet
         for _ in range(_DRAW_BLOCK // 2 + 3):  # past a block of draws
-            sim.targets.step(sim.dt, grid)
+            sim._targets.step(sim.dt, grid)
             old._step_each(sim.dt, grid)
-        assert _state(sim.targets) == _state(old)
+        assert _state(sim._targets) == _state(old)
 
 
 def _random_targets(tg: Targets, rng: np.random.Generator, n: int, w: float, h: float, first_seed: int) -> None:
@@ -159,10 +159,10 @@ def test_target_paths_are_the_rows_each_target_was_observed_at():
         sim.add_target(100.0, 200.0)
         sim.step(5)
         paths = sim.result().target_paths
-    assert sorted(paths) == sorted(rows) == list(range(len(sim.targets)))
+    assert sorted(paths) == sorted(rows) == list(range(len(sim._targets)))
     for i, p in paths.items():
         assert p.shape == (len(rows[i]), 3) and p.tolist() == [list(r) for r in rows[i]]
-    assert len(paths[0]) == 15 and len(paths[len(sim.targets) - 1]) == 5
+    assert len(paths[0]) == 15 and len(paths[len(sim._targets) - 1]) == 5
 
 
 def test_a_million_targets_are_refused_over_600_s_not_over_a_few():

@@ -174,7 +174,7 @@ def test_the_simulation_and_the_memory_estimate_follow_maps_share():
     for name, shared in (("paper-fig11", True), ("bench-dense-300", False)):
         sim = Simulation(name, duration_s=1.0)
         try:
-            assert (sim.map_group is not None) == shared, name
+            assert (sim._map_group is not None) == shared, name
         finally:
             sim.close()
         parts = estimate_memory(load_scenario(name)).parts

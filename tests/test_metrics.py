@@ -126,8 +126,8 @@ def test_detection_and_watch_measures_agree_with_the_event_log_on_paper_case1():
 
     with Simulation("paper-case1", planner="greedy") as sim:
         r = sim.run()
-        radius = {b.uid: b.kind.detect_radius for b in sim.world.uavs.values()}
-        kind = {b.uid: b.kind.name for b in sim.world.uavs.values()}
+        radius = {b.uid: b.kind.detect_radius for b in sim._world.uavs.values()}
+        kind = {b.uid: b.kind.name for b in sim._world.uavs.values()}
     m = r.metrics
     found, pose, target = {}, {}, {}
     for ev in read_events(r.events):
@@ -152,7 +152,7 @@ def test_detection_and_watch_measures_agree_with_the_event_log_on_paper_case1():
         slow = [t for t, uid in holds if kind[uid] == "A"]
         assert m["time_to_slow_watcher_s"][str(k)] == (min(slow) - found[k] if slow else None)
         assert m["watched_share"][str(k)] == pytest.approx(len({t for t, _ in holds}) / (t_end - found[k]))
-    names = {b: n for n, b in sim.names.items()}
+    names = {b: n for n, b in sim._names.items()}
     for uid, n in surveil.items():
         assert m["per_uav"][names[uid]]["time_share"]["watching"] == pytest.approx(n / len(pose))
     # What this run shows (hand-checked against its trajectories): both targets found at 7 s by

@@ -112,7 +112,7 @@ def test_mission_validation_names_the_key(change, key):
 
 def test_nothing_new_runs_without_the_tables():
     sim, result = run(doc(duration_s=20.0))
-    assert sim.mission is None and sim.geography is None and sim.world.wind is None
+    assert sim._mission is None and sim._geography is None and sim._world.wind is None
     assert "endurance" not in result.metrics and "wind" not in result.metrics
 
 

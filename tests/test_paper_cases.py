@@ -28,7 +28,7 @@ SURVEIL = MODE_NAMES[MODE_SURVEIL]  # poses carry mode names
 def case1():
     with Simulation("paper-case1") as sim:
         result = sim.run()
-        names = {uid: b.name for uid, b in sim.world.uavs.items()}
+        names = {uid: b.name for uid, b in sim._world.uavs.items()}
     return result, names, list(read_events(result.events))
 
 
@@ -87,9 +87,9 @@ def _case_run(scenario: str, seed: int | None = None) -> dict:
     """What the Case 2/3 tests read from one run (the event log itself is not kept)."""
     with Simulation(scenario, seed=seed) as sim:
         result = sim.run()
-        names = {uid: b.name for uid, b in sim.world.uavs.items()}
-        radius = {b.name: b.kind.detect_radius for b in sim.world.uavs.values()}
-        speed = {b.name: b.kind.speed_max for b in sim.world.uavs.values()}
+        names = {uid: b.name for uid, b in sim._world.uavs.items()}
+        radius = {b.name: b.kind.detect_radius for b in sim._world.uavs.values()}
+        speed = {b.name: b.kind.speed_max for b in sim._world.uavs.values()}
     events = list(read_events(result.events))
     handover_ticks = {e.t for e in events if e.kind == "handover"}
     t_end = max(e.t for e in events if e.kind == "pose")

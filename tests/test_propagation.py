@@ -95,7 +95,7 @@ def test_scenario_loss_at_range_follows_loss_base_when_absent():
     s = scenario(range_m=15_000.0, loss_base=0.2)
     assert s.radio.loss_at_range is None and s.radio.effective_loss_at_range == 0.2
     with Simulation(s) as sim:
-        assert sim.radio.model.loss(14_000.0) == 0.2
+        assert sim._radio.model.loss(14_000.0) == 0.2
     # --set radio.loss_base on a scenario that never gave loss_at_range: the whole curve moves
     s2 = apply_overrides(s, {"radio.loss_base": 0.4})
     assert s2.radio.effective_loss_at_range == 0.4
@@ -135,8 +135,8 @@ def test_the_log_distance_table_is_generated_from_the_radio_dataclass():
     assert s.radio.log_distance_model() == LogDistance(sigma_db=2.0)
     assert scenario().radio.log_distance_model() is None
     with Simulation(s) as sim:
-        assert sim.radio.model.log_distance == LogDistance(sigma_db=2.0)
-        assert sim.radio.model.radius_m == s.radio.range_limit_m == 2500.0  # range_m caps the budget's range
+        assert sim._radio.model.log_distance == LogDistance(sigma_db=2.0)
+        assert sim._radio.model.radius_m == s.radio.range_limit_m == 2500.0  # range_m caps the budget's range
     assert scenario(model="log_distance").radio.range_limit_m == LogDistance().range_m
 
 
@@ -286,7 +286,7 @@ def test_a_log_distance_run_is_deterministic_and_keeps_to_its_range(small_scenar
     for _ in range(2):
         with Simulation(sc) as sim:
             m = sim.run().metrics
-            assert all(attrs["distance"] <= LogDistance().range_m for *_, attrs in sim.radio.graph.edges(data=True))
+            assert all(attrs["distance"] <= LogDistance().range_m for *_, attrs in sim._radio.graph.edges(data=True))
         hashes.append(m["event_log_sha256"])
     assert hashes[0] == hashes[1]
     assert m["radio"]["dropped_by_cause"].get("loss", 0) > 0

@@ -61,7 +61,7 @@ def test_corrupted_frames_are_rejected_by_receivers_who_keep_running(small_run):
     # Receivers of rejected frames kept acting (pose events after their rejection).
     for e in rejected[:5]:
         t, dst = e.t, e.dst
-        if sim.world.uavs[dst].state == "alive":
+        if sim._world.uavs[dst].state == "alive":
             assert any(p.kind == "pose" and p.uav == dst and p.t > t for p in events)
 
 
@@ -71,9 +71,9 @@ def _poses(events):
 
 def test_crashed_uav_sends_and_moves_no_more(small_run):
     sim, result, events = small_run
-    b2 = sim.names["B2"]
+    b2 = sim._names["B2"]
     crash_t = 200.0
-    assert sim.world.uavs[b2].state == "crashed"
+    assert sim._world.uavs[b2].state == "crashed"
     assert not [e for e in events if e.kind == "pose" and e.uav == b2 and e.t >= crash_t]
     # rx is logged when the receiver drains its inbox: frames sent at t-1 are drained at t.
     assert not [e for e in events if e.kind == "rx" and e.src == b2 and e.t > crash_t]
@@ -83,7 +83,7 @@ def test_crashed_uav_sends_and_moves_no_more(small_run):
 
 def test_late_joiner_moves_and_scans_only_after_joining(small_run):
     sim, result, events = small_run
-    a2 = sim.names["A2"]
+    a2 = sim._names["A2"]
     poses = sorted((e.t, e.x, e.y) for e in events if e.kind == "pose" and e.uav == a2)
     assert poses[0][0] == 100.0
     assert math.hypot(poses[-1][1] - poses[0][1], poses[-1][2] - poses[0][2]) > 1000.0
@@ -102,7 +102,7 @@ def test_radio_delivers_only_in_range_never_across_partition(small_run):
     sim, result, events = small_run
     sc = sim.scenario
     poses = _poses(events)
-    group = {sim.names["B1"]: 0, sim.names["B2"]: 1, sim.names["A1"]: 1}
+    group = {sim._names["B1"]: 0, sim._names["B2"]: 1, sim._names["A1"]: 1}
     rx = [e for e in events if e.kind == "rx"]
     assert rx
     for t, src, dst in ((e.t, e.src, e.dst) for e in rx):

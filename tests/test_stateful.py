@@ -101,7 +101,7 @@ class RangeBlindMachine(SwarmMachine):
             lambda sc: sc.model_copy(update={"radio": sc.radio.model_copy(update={"range_m": 1500.0})}))
 
     def on_start(self):
-        self.sim.radio.model = dataclasses.replace(self.sim.radio.model, range_m=None)
+        self.sim._radio.model = dataclasses.replace(self.sim._radio.model, range_m=None)
 
 
 def test_machine_catches_a_planted_radio_bug_and_says_how_to_replay_it():

@@ -261,14 +261,14 @@ class SwarmSearchEnv(ParallelEnv):
         self.close()
         sim = Simulation(self.scenario, seed=None if seed is None else int(seed), batch_planning=self.batch_planning)
         self.sim = sim
-        self._uid = {a: sim.names[a] for a in self.possible_agents}
+        self._uid = {a: sim._names[a] for a in self.possible_agents}
         self._planners = {}
         for a, uid in self._uid.items():
             p = ExternalPlanner(self._reach[a], self.area_m)
             sim.actors[uid].planner = p
             self._planners[a] = p
         self._tally = {uid: _Step() for uid in self._uid.values()}
-        self._covered = np.zeros(sim.grid.shape, dtype=bool)
+        self._covered = np.zeros(sim._grid.shape, dtype=bool)
         self._agent_of = {uid: a for a, uid in self._uid.items()}
         self._unsubscribe = sim.subscribe(self._on_event, kinds={"pose", "found", "violation", "restart"})
         self.agents = self._entered()
@@ -333,13 +333,13 @@ class SwarmSearchEnv(ParallelEnv):
         """Down for a ``restart`` fault: it will fly again (``Fleet.returning``)."""
         sim = self.sim
         assert sim is not None
-        return self._uid[agent] in sim.fleet.returning
+        return self._uid[agent] in sim._fleet.returning
 
     def _crashed(self, agent: str) -> bool:
         """Down for good: crashed, and not in a restart's downtime."""
         sim = self.sim
         assert sim is not None
-        return sim.world.uavs[self._uid[agent]].state == CRASHED and not self._restarting(agent)
+        return sim._world.uavs[self._uid[agent]].state == CRASHED and not self._restarting(agent)
 
     def _entered(self) -> list[str]:
         """Controlled UAVs in play at the next tick: alive, pending with their join time reached
@@ -349,7 +349,7 @@ class SwarmSearchEnv(ParallelEnv):
         now = sim.now + 1e-9
         out = []
         for a in self.possible_agents:
-            b = sim.world.uavs[self._uid[a]]
+            b = sim._world.uavs[self._uid[a]]
             if b.state == ALIVE or (b.state == PENDING and b.join_s <= now) or self._restarting(a):
                 out.append(a)
         return out
@@ -359,7 +359,7 @@ class SwarmSearchEnv(ParallelEnv):
         sim = self.sim
         assert sim is not None
         waiting = [a for a in self.possible_agents
-                   if sim.world.uavs[self._uid[a]].state == PENDING and sim.world.uavs[self._uid[a]].join_s < sim.duration_s]
+                   if sim._world.uavs[self._uid[a]].state == PENDING and sim._world.uavs[self._uid[a]].join_s < sim.duration_s]
         entered: list[str] = []
         while waiting and not entered and not sim.done:
             sim.step(min(self.ticks_per_step, self._ticks_left()))
@@ -378,7 +378,7 @@ class SwarmSearchEnv(ParallelEnv):
                 raise UsageError(f"action of {agent}: expected shape (2,) (forward, left), got shape {a.shape}")
             a = np.clip(np.nan_to_num(a, nan=0.0), -1.0, 1.0)
         uid = self._uid[agent]
-        b = sim.world.uavs[uid]
+        b = sim._world.uavs[uid]
         reach = self._reach[agent]
         c, s = math.cos(b.theta), math.sin(b.theta)
         fwd, left = float(a[0]) * reach, float(a[1]) * reach
@@ -392,7 +392,7 @@ class SwarmSearchEnv(ParallelEnv):
             covered = self._covered
             assert sim is not None and covered is not None
             uid = event.uav
-            d = sim.grid.disk_stamp(event.x, event.y, sim.world.uavs[uid].kind.detect_radius)  # the scan just made (a memo hit)
+            d = sim._grid.disk_stamp(event.x, event.y, sim._world.uavs[uid].kind.detect_radius)  # the scan just made (a memo hit)
             if d is None:
                 return
             block = covered[d.rows, d.cols]
@@ -420,7 +420,7 @@ class SwarmSearchEnv(ParallelEnv):
         sim = self.sim
         assert sim is not None
         t = self._tally[self._uid[agent]]
-        area_km2 = t.new_cells * sim.grid.cell_m ** 2 / _SQM_PER_KM2
+        area_km2 = t.new_cells * sim._grid.cell_m ** 2 / _SQM_PER_KM2
         w = self.weights
         return float(w.area * area_km2 + w.found * t.found + w.violation * t.violations)
 
@@ -431,10 +431,10 @@ class SwarmSearchEnv(ParallelEnv):
         assert sim is not None
         uid = self._uid[agent]
         t = self._tally[uid]
-        b = sim.world.uavs[uid]
+        b = sim._world.uavs[uid]
         state = "restarting" if self._restarting(agent) else b.state
         return {"t": sim.now, "state": state, "type": b.kind.name, "new_cells": t.new_cells,
-                "new_area_km2": t.new_cells * sim.grid.cell_m ** 2 / _SQM_PER_KM2, "found": t.found,
+                "new_area_km2": t.new_cells * sim._grid.cell_m ** 2 / _SQM_PER_KM2, "found": t.found,
                 "violations": t.violations, "waypoint": self._planners[agent].waypoint}
 
     def _observe(self, agent: str) -> dict[str, np.ndarray] | np.ndarray:
@@ -447,7 +447,7 @@ class SwarmSearchEnv(ParallelEnv):
         sim = self.sim
         assert sim is not None
         uid = self._uid[agent]
-        b = sim.world.uavs[uid]
+        b = sim._world.uavs[uid]
         actor = sim.actors[uid]
         now = sim.now
         w, h = self.area_m
@@ -464,7 +464,7 @@ class SwarmSearchEnv(ParallelEnv):
         inside = (xs >= 0.0) & (xs < w) & (ys >= 0.0) & (ys < h)
         q = np.zeros(xs.shape, dtype=np.float64)
         if inside.any():
-            ix, iy = sim.grid.cells_of(xs[inside], ys[inside])
+            ix, iy = sim._grid.cells_of(xs[inside], ys[inside])
             q[inside] = actor.umap.q_at(ix, iy, now)
         window = q.mean(axis=2)
         tracks = np.zeros((self.n_tracks, len(TRACK_FIELDS)), dtype=np.float64)

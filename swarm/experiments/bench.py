@@ -213,7 +213,7 @@ def run_case(case: Case) -> dict:
         "case": case.name,
         "scenario": case.scenario,
         "planner": case.planner,
-        "uavs": len(sim.world.uavs),
+        "uavs": len(sim._world.uavs),
         "sim_seconds": m["sim_seconds"],
         "wall_seconds": round(wall, 3),
         "realtime_factor": round(m["sim_seconds"] / wall, 2),
@@ -253,7 +253,7 @@ def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict:
         "scan_log_mean": round(sum(logs) / len(logs), 1),
     }
     out["map_mb_max"] = out["map_mb_mean"] = None  # group maps share storage: no per-UAV figure
-    if sim.map_group is None:
+    if sim._map_group is None:
         mb = [a.umap.nbytes / 1e6 for a in sim.actors.values()] or [0.0]
         out["map_mb_max"] = round(max(mb), 2)
         out["map_mb_mean"] = round(sum(mb) / len(mb), 2)

@@ -89,6 +89,12 @@ class GeoFrame:
                                                                    np.asarray(y, dtype=np.float64) + self.y0)
         return np.asarray(lon), np.asarray(lat)
 
+    def lonlat_to_local(self, lon: float, lat: float) -> tuple[float, float]:
+        """A longitude/latitude (EPSG:4326, degrees) as local metres."""
+        x, y = _transformer("EPSG:4326", self.proj4).transform(np.asarray([lon], dtype=np.float64),
+                                                                np.asarray([lat], dtype=np.float64))
+        return float(np.asarray(x)[0]) - self.x0, float(np.asarray(y)[0]) - self.y0
+
     def ring_to_local(self, ring: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
         pts = np.asarray(ring, dtype=np.float64).reshape(-1, 2)
         x, y = self.to_local(pts[:, 0], pts[:, 1])

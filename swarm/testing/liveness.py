@@ -119,7 +119,7 @@ class RecoveryWatch:
 
     def observe(self) -> None:
         t = self.sim.now
-        names = {b.uid: b.name for b in self.sim.world.uavs.values()}
+        names = {b.uid: b.name for b in self.sim._world.uavs.values()}
         hit = {name for t0, t1, name in self._hit if t0 <= t + _EPS and t < t1 - _EPS}
         # A paused UAV still shows its old plan: under a node fault nobody counts as watching.
         now = {u: m for u, m in _watchers(self.sim).items() if names[u] not in hit}
@@ -175,8 +175,8 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
         if watch is not None:
             watch.observe()
     t0 = sim.now
-    live = [uid for uid, b in sorted(sim.world.uavs.items()) if b.state == "alive"]
-    names = {uid: sim.world.uavs[uid].name for uid in live}
+    live = [uid for uid, b in sorted(sim._world.uavs.items()) if b.state == "alive"]
+    names = {uid: sim._world.uavs[uid].name for uid in live}
     q = quiet_period_s(sc, len(live), sim.injector.schedule.faults)
     lossless = radio_loses_nothing(sc)
     report = LivenessReport(t0, q)
@@ -214,8 +214,8 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
         if sim.done:
             break
         step(1)
-        comp = _components(sim.radio.graph.edges(), live)
-        alive_now = {uid for uid in live if sim.world.uavs[uid].state == "alive"}
+        comp = _components(sim._radio.graph.edges(), live)
+        alive_now = {uid for uid in live if sim._world.uavs[uid].state == "alive"}
         for pair in together:
             a, b = pair
             if a not in alive_now or b not in alive_now or comp[a] != comp[b]:

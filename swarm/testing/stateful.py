@@ -177,19 +177,19 @@ class SwarmMachine(RuleBasedStateMachine):
     def alive(self) -> list[str]:
         if self.sim is None:
             return []
-        return [b.name for _, b in sorted(self.sim.world.uavs.items()) if b.state == "alive"]
+        return [b.name for _, b in sorted(self.sim._world.uavs.items()) if b.state == "alive"]
 
     def flying_or_pending(self) -> list[str]:
         if self.sim is None:
             return []
-        return [b.name for _, b in sorted(self.sim.world.uavs.items()) if b.state != "crashed"]
+        return [b.name for _, b in sorted(self.sim._world.uavs.items()) if b.state != "crashed"]
 
     def _clear(self, x: float, y: float) -> bool:
         assert self.scenario is not None and self.sim is not None  # (started: rules run after start)
         far_from_threats = all(math.hypot(x - th.x_m, y - th.y_m) >= th.radius_m + self.threat_clearance_m
                                for th in self.scenario.threats)
         far_from_uavs = all(math.hypot(x - b.x, y - b.y) >= self.uav_clearance_m
-                            for b in self.sim.world.uavs.values() if b.state != "crashed")
+                            for b in self.sim._world.uavs.values() if b.state != "crashed")
         return far_from_threats and far_from_uavs
 
     def reproduction_scenario(self) -> Scenario:
@@ -314,7 +314,7 @@ class SwarmMachine(RuleBasedStateMachine):
         self.add_fault(Liar(uav=name, start_s=start, end_s=end, scans_per_s=scans, tracks_per_s=tracks), end)
         self.history.append(f"t={start:g}: {name} lies ({scans:g} scans/s, {tracks:g} tracks/s) until {end:g}")
 
-    @precondition(lambda self: self.sim is not None and len(self.sim.world.uavs) < self.max_uavs)
+    @precondition(lambda self: self.sim is not None and len(self.sim._world.uavs) < self.max_uavs)
     @rule(data=st.data())
     def join(self, data: Any) -> None:
         sc = self.scenario

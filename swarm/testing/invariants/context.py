@@ -120,7 +120,7 @@ class RunContext:
         for i, (name, u) in enumerate(zip(scenario.uav_names, scenario.uavs)):  # the simulator numbers them in order
             self._learn(i, name, u.type)
         if sim is not None:
-            for uid, b in sim.world.uavs.items():
+            for uid, b in sim._world.uavs.items():
                 self._learn(uid, b.name, b.kind.name)
 
     def _learn(self, uid: int, name: str, type_name: str | None) -> None:
@@ -141,8 +141,8 @@ class RunContext:
         elif isinstance(ev, (event_schema.Join, event_schema.Restart)):
             uid, name = ev.uav, ev.uav_name
             type_name = self.type_name.get(uid)
-            if self.sim is not None and uid in self.sim.world.uavs:
-                type_name = self.sim.world.uavs[uid].kind.name
+            if self.sim is not None and uid in self.sim._world.uavs:
+                type_name = self.sim._world.uavs[uid].kind.name
             self._learn(uid, name, type_name)
 
     def name(self, uid: int) -> str:

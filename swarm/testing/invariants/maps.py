@@ -79,7 +79,7 @@ class MapMonotonicityChecker(_LiveChecker):
 
     def _snapshot(self, t: float | None) -> None:
         sim = self._sim()
-        for uid, b in sorted(sim.world.uavs.items()):
+        for uid, b in sorted(sim._world.uavs.items()):
             if b.state == "crashed" and uid in self._last:
                 continue  # a crashed UAV's map no longer changes
             cur = sim.uav_map(b.name)
@@ -237,8 +237,8 @@ class JoinerCatchUpChecker(_LiveChecker):
         for e in events:
             if (e.kind == "join" and e.t > 0) or e.kind == "restart":  # a restarted UAV rejoins empty
                 uid = e.uav
-                j = sim.world.uavs[uid]
-                nbrs = tuple(u for u, b in sorted(sim.world.uavs.items())
+                j = sim._world.uavs[uid]
+                nbrs = tuple(u for u, b in sorted(sim._world.uavs.items())
                              if u != uid and b.state == "alive"
                              and ctx.in_range((b.x, b.y), (j.x, j.y)))
                 if nbrs:
