@@ -402,10 +402,11 @@ class EnergyOut(Event):
 # --- embedding (issue 34, swarm.host): only runs a host changed log these ---
 @dataclass(slots=True)
 class Host(Event):
-    """A change a host program made (the embedding API: ``add_target``, ``add_uav``,
-    ``add_fault``, ``take_control``, ``release_control``, ``set_state``, ``set_waypoint``),
-    logged at the tick boundary where it took effect, before anything else of that tick; what
-    :func:`swarm.hostlog.schedule_recorded_host_changes` replays."""
+    """A host program changed the run (embedding API), at this tick boundary, before the tick.
+
+    ``change`` is the call (``add_target``, ``add_uav``, ``add_fault``, ``take_control``,
+    ``release_control``, ``set_state``, ``set_waypoint``), ``args`` its arguments as applied;
+    what :func:`swarm.hostlog.schedule_recorded_host_changes` replays."""
 
     kind: ClassVar[str] = "host"
     change: Annotated[str, Meta(label="change")]  # the call's name

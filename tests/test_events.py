@@ -255,6 +255,7 @@ def test_the_docs_table_of_kinds_is_the_schema():
 # The phases of one instant t, in log order, and the kinds each may write. A kind in several
 # phases (a lost copy: a crash's drained mailbox, a frame arriving, a broadcast) may be in any.
 PHASES: list[tuple[str, set[str]]] = [
+    ("tick boundary: host changes", {"host"}),
     ("clock: faults and joins", {"join", "crash", "restart", "resume", "fault_off", "lost"}),
     ("clock: frames arriving", {"lost"}),
     ("sense: node faults acting", {"fault_on", "pause"}),
