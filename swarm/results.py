@@ -161,10 +161,10 @@ def _mission_metrics(sim: Run) -> dict:
     """(issue 26) What a geographic, windy or endurance scenario adds to ``metrics.json``;
     nothing for a scenario without them (their metrics are what they always were)."""
     out: dict = {}
-    geo = getattr(sim, "geography", None)
+    geo = getattr(sim, "_geography", None)
     if geo is not None and geo.frame is not None:
         out["geo"] = {**geo.frame.describe(), "cells_inside": int(geo.inside.sum()) if geo.inside is not None else None}
-    mission = getattr(sim, "mission", None)
+    mission = getattr(sim, "_mission", None)
     if mission is not None:
         out.update(mission.metrics(sim.now))
     return out

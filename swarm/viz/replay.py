@@ -43,7 +43,7 @@ __all__ = [
 
 
 # The kinds a replay reads.
-_REPLAYED = ("start", "pose", "target", "rx", "lost", "found", "crash", "join", "handover", "violation")
+_REPLAYED = ("start", "pose", "target", "rx", "lost", "found", "crash", "join", "handover", "violation", "host")
 
 
 @dataclass(frozen=True)
@@ -225,6 +225,10 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
         names[int(uid)] = name
         types[int(uid)] = typ
     spec_type = {u.get("name"): u.get("type") for u in scenario.get("uavs", [])}
+    # (issue 34) What a host added while it ran: its UAVs' types, its faults (shown like scheduled ones).
+    hosted = [(c, a) for c, a in zip(cols["host"]["change"], cols["host"]["args"])]
+    spec_type.update({a["name"]: a["type"] for c, a in hosted if c == "add_uav"})
+    added_faults = [dict(a["fault"]) for c, a in hosted if c == "add_fault"]
     for uid, name in join_names.items():
         names.setdefault(uid, name)
         types.setdefault(uid, spec_type.get(name, "?"))
@@ -286,7 +290,7 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
         rx=columns(rx, ("t", "src", "dst", "accepted"), (float, np.int32, np.int32, bool)),
         lost=columns({**lost, "cause": lost_cause}, ("t", "src", "dst", "cause"), (float, np.int32, np.int32, np.int16)),
         lost_causes=list(causes),
-        faults=list(header.get("faults", [])),
+        faults=list(header.get("faults", [])) + added_faults,
     )
 
 

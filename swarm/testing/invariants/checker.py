@@ -39,6 +39,12 @@ class Checker(abc.ABC):
         # nothing, and Monitor.unchecked says so.
         self.unchecked: str | None = None
 
+    @property
+    def note(self) -> str | None:
+        """What it judged only in part, and why (None: all of it); see :attr:`unchecked` for
+        a run it could not judge at all."""
+        return None
+
     def bind(self, ctx: RunContext) -> None:
         self.ctx = ctx
 

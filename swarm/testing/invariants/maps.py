@@ -30,10 +30,10 @@ class _LiveChecker(Checker):
     def _near(self, pose: Sequence[float], reach: float) -> np.ndarray:
         """The cells whose centres lie within ``reach`` of ``pose`` (a boolean (ny, nx) mask)."""
         if reach <= 0:
-            g = self._sim().grid
+            g = self._sim()._grid
             return np.zeros((g.ny, g.nx), dtype=bool)
         if self._centres is None:
-            g = self._sim().grid
+            g = self._sim()._grid
             self._centres = (((np.arange(g.nx) + 0.5) * g.cell_m)[None, :], ((np.arange(g.ny) + 0.5) * g.cell_m)[:, None])
         cx, cy = self._centres
         return (cx - pose[0]) ** 2 + (cy - pose[1]) ** 2 <= reach * reach
@@ -60,7 +60,7 @@ class _LiveChecker(Checker):
 
     def _note_overflow(self) -> None:
         """Called once per tick: whether a full mailbox dropped a frame copy since the last call."""
-        n = self._sim().radio.counters.dropped.get("mailbox_full", 0)
+        n = self._sim()._radio.counters.dropped.get("mailbox_full", 0)
         self._overflowed, self._full_drops = n > self._full_drops, n
 
 

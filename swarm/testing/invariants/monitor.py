@@ -106,6 +106,12 @@ class Monitor:
         """Checkers that could not judge the run, with why (e.g. ``radio`` on a summary log)."""
         return {c.name: c.unchecked for c in self.checkers if c.unchecked is not None}
 
+    @property
+    def notes(self) -> dict[str, str]:
+        """Checkers that judged the run only in part, with what they left out (e.g. ``dynamics``
+        skips the bodies a host drives)."""
+        return {c.name: c.note for c in self.checkers if c.note is not None}
+
     def by_name(self, name: str) -> Checker:
         for c in self.checkers:
             if c.name == name:

@@ -107,7 +107,11 @@ class DynamicsChecker(Checker):
     """Consecutive poses (``t``, ``t + dt``) of each UAV respect its type's hard limits
     (``speed_min <= v <= speed_max``, ``|dv| <= accel_max dt``, ``|dtheta| <= g tan(bank)/v dt``
     at the larger of the two speeds) and the kinematics (eq. 9-10: the position follows from
-    speed and heading). ``tol_m``: position tolerance; limits get a relative 1e-9."""
+    speed and heading). ``tol_m``: position tolerance; limits get a relative 1e-9.
+
+    Only bodies the simulator flies are judged: a UAV whose body a host drives (from its
+    ``take_control`` to its ``release_control``, ``host`` events) is not, and :attr:`skipped`
+    (and :attr:`note`, the monitor's ``notes``) says which UAVs and for how many poses."""
 
     name = "dynamics"
 
@@ -116,8 +120,11 @@ class DynamicsChecker(Checker):
         self.tol_m = tol_m
         self._prev: dict[int, tuple] = {}
         self._wind: tuple[float, float] | None = None  # (issue 26) the last group's wind event
+        self._driven: set[str] = set()  # UAV names whose bodies the host drives now
+        self.skipped: dict[str, int] = {}  # UAV name -> poses not judged (driven from outside)
 
     def on_group(self, t, events):
+        released = self._host_control(events)
         poses = poses_of(events)
         if not poses:
             return
@@ -132,6 +139,10 @@ class DynamicsChecker(Checker):
             prev = self._prev.get(uid)
             self._prev[uid] = (t, *p)
             if kind is None:
+                continue
+            name = ctx.name(uid)
+            if name in self._driven or name in released:  # (its pose is the host's, not the simulator's)
+                self.skipped[name] = self.skipped.get(name, 0) + 1
                 continue
             x1, y1, v1, th1 = p[:4]
             rel = 1e-9
@@ -154,3 +165,25 @@ class DynamicsChecker(Checker):
             err = math.hypot(px - x1, py - y1)
             if err > self.tol_m + 1e-9 * (abs(x1) + abs(y1)):
                 self.violate(t, f"moved {err:.3g} m away from where its speed and heading take it", [uid], error_m=err)
+
+    def _host_control(self, events) -> set[str]:
+        """Follow take_control / release_control; returns the UAVs released at this instant
+        (their pose now is still where the host put them)."""
+        released: set[str] = set()
+        for e in events:
+            if e.kind == "host" and e.change in ("take_control", "release_control"):
+                name = e.args["uav"]
+                if e.change == "take_control":
+                    self._driven.add(name)
+                else:
+                    self._driven.discard(name)
+                    released.add(name)
+        return released
+
+    @property
+    def note(self) -> str | None:
+        """Which UAVs it did not judge, and why (None: it judged every pose)."""
+        if not self.skipped:
+            return None
+        return ("not judged while driven from outside (take_control): "
+                + ", ".join(f"{n} ({k} poses)" for n, k in sorted(self.skipped.items())))
