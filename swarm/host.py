@@ -167,8 +167,11 @@ class Host:
         return name
 
     def add_fault(self, fault: FaultKind) -> None:
-        for _path, n in uav_names(fault):
-            self.known(n)
+        sim = self._sim
+        queued = {a["name"] for a in self.queued("add_uav")}
+        unknown = [n for _path, n in uav_names(fault) if n not in sim._names and n not in queued]
+        if unknown:
+            raise UnknownUavError(f"fault {fault.kind} names unknown UAV(s) {unknown}; known: {', '.join(sim._names)}")
         problem = fault.check(self.present() * self._sim.dt)
         if problem:
             raise TimeInPastError(problem) if "past" in problem else UsageError(problem)
