@@ -325,3 +325,30 @@ def test_geographic_hosts_use_lon_lat():
         sim.take_control(name)
         sim.set_state_lonlat(name, 10.45, 54.47, 0.0, 30.0)
         assert (sim.snapshot().uavs[-1].x, sim.snapshot().uavs[-1].y) == pytest.approx((x, y))
+
+
+# --- the public surface ---------------------------------------------------------------------------
+
+# Every public name of a Simulation (methods, properties, attributes), each documented in
+# docs/embedding.md. A new public name fails here until it is added to both, or made private.
+PUBLIC_SURFACE = {
+    "actors", "add_fault", "add_target", "add_uav", "call_at", "close", "controlled", "done", "dt", "duration_s",
+    "from_file", "geographic", "injector", "memory_estimate", "metrics_dict", "mode_names", "n_ticks", "now",
+    "release_control", "result", "run", "run_until", "scenario", "seed", "set_state", "set_state_lonlat",
+    "set_waypoint", "snapshot", "step", "subscribe", "take_control", "to_local", "to_lonlat", "uav_map",
+    "wait_until", "wall_seconds",
+}
+
+
+def test_the_public_surface_is_the_documented_one():
+    import re
+    from pathlib import Path
+
+    with _sim() as sim:
+        sim.step()
+        surface = {n for n in set(dir(sim)) | set(vars(sim)) if not n.startswith("_")}
+    assert surface == PUBLIC_SURFACE
+    text = (Path(__file__).resolve().parent.parent / "docs" / "embedding.md").read_text(encoding="utf-8")
+    spans = " ".join(re.findall(r"`([^`]+)`", text))
+    undocumented = sorted(n for n in PUBLIC_SURFACE if not re.search(rf"\b{n}\b", spans))
+    assert undocumented == []
