@@ -7,6 +7,7 @@ prints one ``error:`` line and exits with status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import asyncio
 import shlex
 import sys
 from contextlib import contextmanager
@@ -272,7 +273,10 @@ def _cmd_run(args) -> int:
         def on_progress(now: float, end: float) -> None:
             progress.update(task, completed=round(now / sim.dt), note=f"t={now:.0f}/{end:.0f} s")
 
-        result = sim.run(progress=on_progress)
+        if args.mavlink is None and args.pace is None:
+            result = sim.run(progress=on_progress)
+        else:  # (issue 34) a host loop: the MAVLink bridge and/or the pacer wait for each tick
+            result = asyncio.run(_hosted(sim, args.mavlink, args.pace, on_progress))
     out_dir = Path(args.out) if args.out else None
     if out_dir is not None:
         write_run(result, out_dir, sim.scenario.to_dict(), figures=not args.no_figures)
@@ -285,6 +289,27 @@ def _cmd_run(args) -> int:
     elif not args.quiet:
         _console().print(_summary_table(result.metrics, out_dir))
     return 0
+
+
+async def _hosted(sim, mavlink: str | None, pace_factor: float | None, progress):
+    """Run ``sim`` to its end in this loop beside the MAVLink bridge and the pacer."""
+    from swarm.mavlink import MavlinkBridge, pace
+
+    t_end = sim.n_ticks * sim.dt
+    tasks = []
+    if pace_factor is not None:
+        if not pace_factor > 0:
+            raise UsageError(f"--pace {pace_factor:g}: expected a positive number (simulated seconds per second)")
+        tasks.append(pace(sim, pace_factor, t_end))
+    bridge = MavlinkBridge(sim, mavlink) if mavlink is not None else None
+    if bridge is not None:
+        tasks.append(bridge.run(t_end))
+    try:
+        await asyncio.gather(sim.run_until(t_end, progress), *tasks)
+    finally:
+        if bridge is not None:
+            bridge.close()
+    return sim.result()
 
 
 def _parse_grid(assignments: list[str]) -> dict[str, list]:
@@ -593,6 +618,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
     r.add_argument("--rerun", default=None, metavar="FILE.rrd",
                    help="also record the run for the rerun viewer (extra `view`); `swarm view` opens it")
+    r.add_argument("--mavlink", default=None, metavar="URL",
+                   help="each UAV a MAVLink system on this pymavlink connection, e.g. udpout:127.0.0.1:14550 "
+                        "(extra `mavlink`; docs/embedding.md#mavlink)")
+    r.add_argument("--pace", type=float, default=None, metavar="FACTOR",
+                   help="simulated seconds per wall-clock second (1.0: real time; default: as fast as it runs)")
     r.add_argument("--memory-limit", type=float, default=None, metavar="GB",
                    help="refuse a scenario estimated to need more (default: SWARM_MEMORY_LIMIT_GB, else half of "
                         "this machine's memory)")
