@@ -31,7 +31,10 @@ The invariants (``name``: class, parameters and their defaults):
   UAV inside a threat circle. A pair (or UAV) already in violation when it first appears (a
   start or join position) is excused until it has cleared once: that is the scenario's doing.
 * ``dynamics``: :class:`DynamicsChecker`: consecutive poses of a UAV respect its type's limits
-  (speed range, ``|a| <= accel_max``, turn radius) and the kinematics (no jumps).
+  (speed range, ``|a| <= accel_max``, turn radius) and the kinematics (no jumps). It judges the
+  bodies the simulator flies: a body a host drives (between its ``take_control`` and
+  ``release_control`` ``host`` events) is not judged, and the checker's ``note`` (the
+  monitor's ``notes``) names it.
 * ``radio``: :class:`RadioChecker`: every ``rx`` has a legal send tick: sender and receiver both
   flying, within range, not separated by an active partition or bridge (its bridge UAV talks
   to every side), neither clogged by a swizzle; and the receiver is flying when it reads the
