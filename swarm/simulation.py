@@ -103,6 +103,7 @@ class Simulation:
         self._tick_index = 0
         self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
         self._binding = LoopBinding()  # the event loop that drives it (swarm.driving)
+        self._advancing = False  # inside run_until (a second driver is refused)
         self._host = Host(self)  # the host's side: changes, alarms, bodies driven from outside (swarm.host)
         # Ground truth (area grid, targets, threats), the metrics that observe it, UAV types.
         self._grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
@@ -404,11 +405,18 @@ class Simulation:
         afterwards ``now`` is the last tick boundary at or before ``t`` (never past it)."""
         if not isinstance(t, (int, float)) or math.isnan(t):
             raise UsageError(f"run_until: t = {t!r} is not a number of seconds")
+        if self._advancing:
+            raise APIMisuseError("run_until: this Simulation is already advancing (called from a task it resumed, or "
+                                 "twice at once); one driver calls run_until, other tasks use wait_until")
         k_end = max(self._tick_index, math.floor(t / self.dt + 1e-9)) if math.isfinite(t) else self.n_ticks
 
         async def advance() -> None:
-            await asyncio.sleep(0)  # (host tasks started with it make their first wait_until first)
-            await self._advance(k_end, progress)
+            self._advancing = True
+            try:
+                await asyncio.sleep(0)  # (host tasks started with it make their first wait_until first)
+                await self._advance(k_end, progress)
+            finally:
+                self._advancing = False
 
         await self._binding.in_host_loop(advance)
 

@@ -352,3 +352,21 @@ def test_the_public_surface_is_the_documented_one():
     spans = " ".join(re.findall(r"`([^`]+)`", text))
     undocumented = sorted(n for n in PUBLIC_SURFACE if not re.search(rf"\b{n}\b", spans))
     assert undocumented == []
+
+
+@pytest.mark.asyncio
+async def test_a_resumed_task_cannot_drive_the_simulation_too():
+    with _sim() as sim:
+        caught: list[BaseException] = []
+
+        async def station():
+            await sim.wait_until(3.0)
+            try:
+                await sim.run_until(10.0)
+            except APIMisuseError as exc:
+                caught.append(exc)
+
+        await asyncio.gather(sim.run_until(5.0), station())
+        assert len(caught) == 1 and sim.now == 5.0
+        await sim.run_until(6.0)  # still usable
+        assert sim.now == 6.0
