@@ -15,8 +15,10 @@ A simulation is bound to the first event loop that drives it: the host's running
 ``run_until``, or a private loop for ``step``/``run``. Mixing the two raises a clear error.
 Library code never prints, exits or calls ``asyncio.run``.
 
-One tick at time ``t`` (see ARCHITECTURE.md): faults and joins due at ``t`` and frames that
-arrived by ``t`` are processed first (clock priorities), then the tick's phases, each a call
+Between two ticks the simulation stands at a tick boundary, where a host acts
+(:mod:`swarm.host`: its changes, ``call_at``, ``wait_until``; logged by :mod:`swarm.hostlog`).
+One tick at time ``t`` (see ARCHITECTURE.md): the host's changes at boundary ``t``, then faults
+and joins due at ``t`` and frames that arrived by ``t`` (clock priorities), then the tick's phases, each a call
 into the part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), sense (the world,
 then the tick faults), wake the actors and wait for all of them (:mod:`swarm.fleet`), observe
 (:mod:`swarm.observer`), transmit (:mod:`swarm.transmission`), integrate (the world), end
