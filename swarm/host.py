@@ -44,7 +44,10 @@ from swarm.errors import (
 from swarm.hostlog import apply_change
 
 if TYPE_CHECKING:
+    from swarm.driving import LoopBinding
+    from swarm.geo.geography import Geography
     from swarm.simulation import Simulation
+    from swarm.world import World
 
 # What an alarm does when its boundary comes.
 _CALL, _WAKE, _REPLAY = 0, 1, 2
@@ -134,7 +137,7 @@ class Host:
         if not 0.0 <= speed <= sim._targets.motion.speed_max:
             raise UsageError(f"target speed {speed} outside [0, {sim._targets.motion.speed_max}] m/s")
         tid = len(sim._targets) + len(self.queued("add_target"))
-        self.submit("add_target", {"x": x, "y": y, "heading": math.radians(heading), "speed": speed, "value": value})
+        self.submit("add_target", {"x": x, "y": y, "heading_deg": heading, "speed": speed, "value": value})
         return tid
 
     def add_uav(self, type: str, x: float, y: float, heading_deg: float, speed: float | None,
@@ -162,7 +165,7 @@ class Host:
         present = self.present() * sim.dt
         join = present if join_s is None else max(finite(join_s, "join_s"), present)
         self.submit("add_uav", {"name": name, "type": type, "x": x, "y": y,
-                                "heading": math.radians(finite(heading_deg, "heading_deg")), "speed": speed,
+                                "heading_deg": finite(heading_deg, "heading_deg"), "speed": speed,
                                 "join_s": join})
         return name
 
@@ -300,3 +303,100 @@ def finite(value: Any, what: str) -> float:
 def not_geographic(what: str) -> NotGeographicError:
     return NotGeographicError(f"{what}: longitude/latitude need a geographic scenario (one with [geo]); "
                               f"this one is in metres: give x and y")
+
+
+class HostApi:
+    """The embedding API's calls that change a run or act at a simulated time, and the local
+    frame's conversions: a part of :class:`swarm.simulation.Simulation` (it inherits them), here
+    beside the contract they follow. Each checks its input and hands the change to :class:`Host`."""
+
+    _host: Host
+    _binding: LoopBinding
+    _geography: Geography | None
+    _world: World
+
+    @property
+    def geographic(self) -> bool:
+        """Whether the scenario has a longitude/latitude frame (``[geo]``)."""
+        return self._geography is not None and self._geography.frame is not None
+
+    @property
+    def controlled(self) -> tuple[str, ...]:
+        """The UAVs whose bodies the host drives (``take_control``), by name."""
+        return tuple(self._world.uavs[uid].name for uid in sorted(self._host.controlled))
+
+    def to_local(self, lon: float, lat: float) -> tuple[float, float]:
+        """Longitude/latitude (WGS84, degrees) as the run's local metres ``(x, y)`` (x east, y
+        north, from the area's south-west corner); a :class:`NotGeographicError` without ``[geo]``."""
+        frame = self._frame("to_local")
+        x, y = frame.lonlat_to_local(finite(lon, "lon"), finite(lat, "lat"))
+        return x, y
+
+    def to_lonlat(self, x: float, y: float) -> tuple[float, float]:
+        """Local metres as longitude/latitude (WGS84, degrees); inverse of :meth:`to_local`."""
+        lon, lat = self._frame("to_lonlat").to_lonlat([finite(x, "x")], [finite(y, "y")])
+        return float(lon[0]), float(lat[0])
+
+    def _frame(self, what: str) -> Any:
+        if not self.geographic:
+            raise not_geographic(what)
+        assert self._geography is not None
+        return self._geography.frame
+
+    # --- changing the run: checked, applied at a tick boundary, logged (swarm.hostlog) ---
+
+    def add_target(self, x: float | None = None, y: float | None = None, heading_deg: float = 0.0, speed: float = 0.0,
+                   value: float = 1.0, *, lon: float | None = None, lat: float | None = None) -> int:
+        """Add a target at ``(x, y)`` (or ``lon``/``lat``); returns its id."""
+        x, y = self._host.local(x, y, lon, lat, "add_target")
+        return self._host.add_target(x, y, heading_deg, speed, value)
+
+    def add_uav(self, type: str, x: float | None = None, y: float | None = None, heading_deg: float = 0.0,
+                speed: float | None = None, name: str | None = None, join_s: float | None = None, *,
+                lon: float | None = None, lat: float | None = None) -> str:
+        """Add a UAV at ``(x, y)`` (or ``lon``/``lat``); it joins at ``join_s`` (default: the
+        present). Returns its name."""
+        x, y = self._host.local(x, y, lon, lat, "add_uav")
+        return self._host.add_uav(type, x, y, heading_deg, speed, name, join_s)
+
+    def add_fault(self, fault: FaultKind) -> None:
+        """Add a fault (an instance of a kind of :mod:`faults.schedule`, or of one registered
+        elsewhere); faults that happen at a time must not be before the present."""
+        self._host.add_fault(fault)
+
+    def take_control(self, name: str) -> None:
+        """Drive UAV ``name``'s body from outside: the simulator stops integrating it (it stays
+        where :meth:`set_state` last put it); its actor goes on sensing, planning and talking."""
+        self._host.take_control(name)
+
+    def release_control(self, name: str) -> None:
+        """Give UAV ``name``'s body back to the simulator, which flies it on from its last state."""
+        self._host.release_control(name)
+
+    def set_state(self, name: str, x_m: float, y_m: float, heading_rad: float, speed_mps: float) -> None:
+        """Put a controlled UAV's body at ``(x_m, y_m)`` with heading ``heading_rad`` (from east,
+        counter-clockwise) and speed ``speed_mps``."""
+        x, y = self._host.local(x_m, y_m, None, None, "set_state")
+        self._host.set_state(name, x, y, heading_rad, speed_mps)
+
+    def set_state_lonlat(self, name: str, lon: float, lat: float, heading_rad: float, speed_mps: float) -> None:
+        """:meth:`set_state` with the position as longitude/latitude (geographic scenarios)."""
+        x, y = self._host.local(None, None, lon, lat, "set_state_lonlat")
+        self._host.set_state(name, x, y, heading_rad, speed_mps)
+
+    def set_waypoint(self, name: str, x: float | None = None, y: float | None = None, *,
+                     lon: float | None = None, lat: float | None = None) -> None:
+        """An operator's waypoint: UAV ``name`` flies to it searching (no replanning on the
+        way), then plans afresh."""
+        x, y = self._host.local(x, y, lon, lat, "set_waypoint")
+        self._host.set_waypoint(name, x, y)
+
+    def call_at(self, t: float, fn: Callable[[], Any]) -> None:
+        """Call ``fn()`` when the simulation reaches the last tick boundary at or before ``t``."""
+        self._host.call_at(t, fn)
+
+    async def wait_until(self, t: float) -> None:
+        """Suspend the calling task until the simulation reaches the last tick boundary at or
+        before ``t``; the simulation does not go on until the task waits again or finishes."""
+        self._binding.check_host_loop()
+        await self._host.wait_until(t)

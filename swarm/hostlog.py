@@ -2,11 +2,11 @@
 
 Every change the embedding API makes to a running simulation (``add_target``, ``add_uav``,
 ``add_fault``, ``take_control``, ``release_control``, ``set_state``, ``set_waypoint``) is applied
-here, by :func:`apply_change`, from its name and a table of plain arguments (UAVs by name, angles
-in radians, times in seconds): the call checked its input first (:mod:`swarm.host`). The
-change is logged as a ``host`` event (:class:`swarm.events.Host`) at the tick boundary where
-it takes effect, before anything else of that tick, so an embedded run can be replayed from its
-event log: :func:`schedule_recorded_host_changes` schedules every recorded change of a run on a
+here, by :func:`apply_change`, from its name and a table of plain arguments (UAVs by name,
+headings in degrees for what is added and in radians for ``set_state``, times in seconds): the
+call checked its input first (:mod:`swarm.host`). The change is logged as a ``host`` event
+(:class:`swarm.events.Host`) at the tick boundary where it takes effect, before anything else of
+that tick, so an embedded run can be replayed from its event log: :func:`schedule_recorded_host_changes` schedules every recorded change of a run on a
 fresh simulation of the same scenario and seed, to be applied again at the same tick boundary
 in the same order; the replay then logs the same bytes.
 """
@@ -30,12 +30,13 @@ __all__ = ["CHANGES", "apply_change", "schedule_recorded_host_changes"]
 
 def _add_target(sim: Simulation, a: dict[str, Any]) -> None:
     tid = len(sim._targets)
-    sim._add_target_rng(a["x"], a["y"], a["heading"], a["speed"], a["value"], sim._rng.generator("target", tid))
+    sim._add_target_rng(a["x"], a["y"], math.radians(a["heading_deg"]), a["speed"], a["value"],
+                        sim._rng.generator("target", tid))
 
 
 def _add_uav(sim: Simulation, a: dict[str, Any]) -> None:
     sim._add_uav_spec(UavSpec(name=a["name"], type=a["type"], x_m=a["x"], y_m=a["y"],
-                              heading_deg=math.degrees(a["heading"]), speed=a["speed"], join_s=a["join_s"]))
+                              heading_deg=a["heading_deg"], speed=a["speed"], join_s=a["join_s"]))
 
 
 def _add_fault(sim: Simulation, a: dict[str, Any]) -> None:
