@@ -6,9 +6,10 @@ here, by :func:`apply_change`, from its name and a table of plain arguments (UAV
 headings in degrees for what is added and in radians for ``set_state``, times in seconds): the
 call checked its input first (:mod:`swarm.host`). The change is logged as a ``host`` event
 (:class:`swarm.events.Host`) at the tick boundary where it takes effect, before anything else of
-that tick, so an embedded run can be replayed from its event log: :func:`schedule_recorded_host_changes` schedules every recorded change of a run on a
-fresh simulation of the same scenario and seed, to be applied again at the same tick boundary
-in the same order; the replay then logs the same bytes.
+that tick, so an embedded run can be replayed from its event log:
+:func:`schedule_recorded_host_changes` schedules every recorded change of a run on a fresh
+simulation of the same scenario and seed, to be applied again at the same tick boundary in the
+same order; the replay then logs the same bytes.
 """
 
 from __future__ import annotations
