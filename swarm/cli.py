@@ -287,6 +287,45 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_rerun(args) -> int:
+    """Re-run a run folder and compare event-log hashes: 0 equal, 1 different, 2 cannot re-run."""
+    from swarm.rerun import rerun
+
+    from contextlib import ExitStack
+
+    quiet = args.quiet or args.json
+    with ExitStack() as stack:
+        shown: list = []  # the bar, made at the first tick (a folder that cannot be re-run shows none)
+
+        def on_progress(now: float, end: float) -> None:
+            if not shown:
+                bar = stack.enter_context(_progress(quiet=quiet, transient=True))
+                shown[:] = [bar, bar.add_task(f"re-running {args.rundir}", total=end, note="")]
+            bar, task = shown
+            bar.update(task, completed=now, total=end, note=f"t={now:.0f}/{end:.0f} s")
+
+        res = rerun(args.rundir, args.out, allow_planner_imports=args.allow_planner_imports,
+                    figures=not args.no_figures, progress=on_progress)
+    if args.json:
+        _print_json({"equal": res.equal, "original_sha256": res.original_sha256, "sha256": res.sha256,
+                     "out": str(res.out), "first_difference_s": res.first_difference_s,
+                     "versions_then": res.versions_then, "versions_now": res.versions_now,
+                     "version_differences": res.version_differences})
+    else:
+        print(f"original  {res.original_sha256}  {res.folder}")
+        print(f"re-run    {res.sha256}  {res.out}")
+        if res.equal:
+            print("equal: the re-run reproduces the folder's event log")
+        else:
+            print(f"DIFFERENT: the first tick whose events differ is t = {res.first_difference_s:g} s")
+        changed = res.version_differences
+        if changed:
+            print("versions differ: " + "; ".join(changed))
+        elif not res.equal:
+            print("versions: the same as the original's (" + ", ".join(f"{k} {v}" for k, v in res.versions_now.items()) + ")")
+    return 0 if res.equal else 1
+
+
 def _parse_grid(assignments: list[str]) -> dict[str, list]:
     from swarm.experiments.sweep import split_values
     from swarm.scenario import parse_assignment
@@ -600,6 +639,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--json", action="store_true", help="print the metrics as JSON on stdout instead of the table")
     _add_allow_arg(r)
     r.set_defaults(func=_cmd_run)
+
+    rr = sub.add_parser("rerun", help="re-run a run folder and compare event-log hashes (exit 0 equal, 1 different)")
+    rr.add_argument("rundir", help="a run folder (`swarm run --out DIR`, a sweep's runs/PLANNER/SETTINGS/seed-NNN, ...)")
+    rr.add_argument("--out", default=None, metavar="DIR", help="folder for the new run (default: a new temporary folder)")
+    rr.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
+    rr.add_argument("--quiet", action="store_true", help="no progress bar")
+    rr.add_argument("--json", action="store_true", help="print the comparison as JSON on stdout")
+    _add_allow_arg(rr)
+    rr.set_defaults(func=_cmd_rerun)
 
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
