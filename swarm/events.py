@@ -79,7 +79,9 @@ __all__ = [
     "Violation",
     "PROVENANCE_KEY",
     "check_kinds",
+    "check_log",
     "check_wire",
+    "first_difference_s",
     "log_sha256",
     "markdown_table",
     "read_columns",
@@ -650,6 +652,42 @@ def _unpacker(data: bytes) -> msgpack.Unpacker:
     unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
     unpacker.feed(split_provenance(data)[1])
     return unpacker
+
+
+def check_log(data: bytes) -> int:
+    """The number of events of a log's bytes, each checked against the schema; raises
+    :class:`EventLogError` for a log that is damaged, empty or cut short (a log cut inside an
+    event would otherwise read as a shorter one: the unpacker stops at the last whole event)."""
+    events = split_provenance(bytes(data))[1]
+    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
+    unpacker.feed(events)
+    count = 0
+    try:
+        for wire in unpacker:
+            check_wire(wire)
+            count += 1
+    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
+        raise EventLogError(f"the event log is damaged after {count} events ({exc})") from None
+    if unpacker.tell() != len(events):
+        raise EventLogError(f"the event log is cut short: {len(events) - unpacker.tell()} bytes after the last whole event "
+                            f"(the run that wrote it did not finish writing)")
+    if count == 0:
+        raise EventLogError("the event log holds no events")
+    return count
+
+
+def first_difference_s(a: bytes, b: bytes) -> float | None:
+    """The time of the first event at which two logs differ (the first tick whose events
+    differ), ``None`` when their events are the same; provenance records are not compared."""
+    left, right = iter(_unpacker(a)), iter(_unpacker(b))
+    while True:
+        x, y = next(left, None), next(right, None)
+        if x == y:
+            if x is None:
+                return None
+            continue
+        times = [float(e[1]) for e in (x, y) if e is not None]  # (index 1 of every event array is its t)
+        return min(times)
 
 
 class EventRecords:

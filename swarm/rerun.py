@@ -19,14 +19,12 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import msgpack
-
 from swarm.errors import SwarmError
-from swarm.events import EventLogError, log_sha256, read_events, split_provenance
+from swarm.events import EventLogError, check_log, first_difference_s, log_sha256, read_events, split_provenance
 from swarm.outputs import RunDirError, read_json, read_run_dir, write_run
 from swarm.provenance import differences, versions
 
-__all__ = ["RerunResult", "first_difference_s", "rerun"]
+__all__ = ["RerunResult", "rerun"]
 
 
 @dataclass(frozen=True)
@@ -75,7 +73,8 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
     recorded = metrics.get("event_log_sha256")
     if recorded is not None and recorded != original:
         raise RunDirError(f"{run.path / 'events.msgpack'}: its hash {original[:16]}… is not the one metrics.json "
-                          f"records ({str(recorded)[:16]}…): the folder's files are not of one run")
+                          f"records ({str(recorded)[:16]}…): the log was changed or cut short, or the folder's "
+                          f"files are not of one run")
     try:
         scenario = parse_scenario(run.scenario, str(scenario_path), truncated=True,
                                   allow_planner_imports=allow_planner_imports)
@@ -104,25 +103,13 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
 
 
 def _read_log(path: Path, data: bytes) -> tuple[dict | None, bytes]:
-    """The provenance record and the events of a folder's log, every event read once (a log cut
+    """The provenance record and the events of a folder's log, every event checked (a log cut
     short or damaged is said here, before anything runs)."""
     try:
+        check_log(data)
         provenance, events = split_provenance(data)
-        count = sum(1 for _ in read_events(events))
-    except (EventLogError, ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
-        raise RunDirError(f"{path}: cannot be read as an event log ({exc})") from None
-    if count == 0:
-        raise RunDirError(f"{path}: holds no events")
-    # A log cut in the middle of an event reads as fewer events, not as an error: the unpacker
-    # stops at the last whole one. A whole log ends with a whole tick; the check is that what
-    # was read is all there is.
-    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
-    unpacker.feed(events)
-    for _ in unpacker:
-        pass
-    if unpacker.tell() != len(events):
-        raise RunDirError(f"{path}: cut short ({len(events) - unpacker.tell()} bytes after the last whole event): "
-                          f"the run that wrote it did not finish writing")
+    except EventLogError as exc:
+        raise RunDirError(f"{path}: cannot be re-run: {exc}") from None
     return provenance, events
 
 
@@ -144,20 +131,3 @@ def _replay_host_changes(sim, events: bytes) -> None:
     from swarm import hostlog  # type: ignore[attr-defined]
 
     hostlog.schedule_recorded_host_changes(sim, list(read_events(events)))
-
-
-def first_difference_s(a: bytes, b: bytes) -> float | None:
-    """The time of the first tick whose events differ between two event logs (``None``: equal)."""
-    ua = msgpack.Unpacker(raw=False, strict_map_key=False)
-    ua.feed(split_provenance(a)[1])
-    ub = msgpack.Unpacker(raw=False, strict_map_key=False)
-    ub.feed(split_provenance(b)[1])
-    left, right = iter(ua), iter(ub)
-    while True:
-        x, y = next(left, None), next(right, None)
-        if x == y:
-            if x is None:
-                return None
-            continue
-        times = [float(e[1]) for e in (x, y) if isinstance(e, list) and len(e) > 1 and isinstance(e[1], (int, float))]
-        return min(times) if times else 0.0
