@@ -291,7 +291,7 @@ def _cmd_rerun(args) -> int:
     """Re-run a run folder and compare event-log hashes: 0 equal, 1 different, 2 cannot re-run."""
     from contextlib import ExitStack
 
-    from swarm.rerun import rerun
+    from swarm.reproduce import rerun
 
     quiet = args.quiet or args.json
     with ExitStack() as stack:
