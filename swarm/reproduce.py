@@ -84,7 +84,7 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
     target = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="swarm-rerun-"))
     if target.resolve() == run.path.resolve():
         raise RunDirError(f"--out {target}: the re-run must go to another folder than the one re-run")
-    with Simulation(scenario, seed=scenario.seed) as sim:
+    with Simulation(scenario) as sim:  # (its own seed; no overrides, which would judge it afresh)
         _replay_host_changes(sim, events)
         if end >= sim.duration_s:
             result = sim.run(progress=progress)
