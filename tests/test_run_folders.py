@@ -194,3 +194,19 @@ def test_rerun_refuses_to_write_into_the_folder_it_reruns(case1_folder, capsys):
     assert main(["rerun", str(case1_folder), "--out", str(case1_folder)]) == 2
     assert "another folder" in capsys.readouterr().err
     assert _snapshot(case1_folder) == before
+
+
+@pytest.mark.slow
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(sc=scenarios(max_uavs=3, max_duration_s=30))
+def test_a_generated_scenario_written_by_reproduction_reruns_from_its_run_folder(sc, tmp_path_factory):
+    """The toolkit's reproduction files (what ``reproducible()`` writes for a failing example)
+    run with ``swarm run`` into a folder that ``swarm rerun`` reproduces."""
+    from swarm.testing.strategies import reproduction
+
+    tmp = tmp_path_factory.mktemp("repro")
+    path, command = reproduction(sc, tmp)
+    assert command.startswith(f"swarm run {path} --seed {sc.seed}")
+    assert main(["run", str(path), "--seed", str(sc.seed), "--out", str(tmp / "run"), "--quiet", "--no-figures"]) == 0
+    res = rerun(tmp / "run", tmp / "again")
+    assert res.equal, (res.first_difference_s, path.read_text())
