@@ -41,6 +41,7 @@ import json
 import math
 import os
 import re
+import sys
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
@@ -217,7 +218,25 @@ def execute(spec: RunSpec) -> dict:
             result.metrics["settings"] = strict_json(dict(spec.settings))
             return {"files": run_files(result, sim.scenario.to_dict(), figures=spec.figures)}
     except Exception as exc:  # recorded in error.json, reported, retried next time
-        return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        return {"error": f"{type(exc).__name__}: {exc}", "traceback": portable_traceback()}
+
+
+def portable_traceback() -> str:
+    """The exception being handled, formatted as ``traceback.format_exc()`` does but with each
+    frame's file named from the import root it was found under (``swarm/simulation.py``,
+    ``numpy/...``), not by where this machine installed it: ``error.json`` holds no absolute
+    path of the machine (docs/outputs.md, portable artifacts)."""
+    roots = sorted({os.path.abspath(p) for p in sys.path if p}, key=len, reverse=True)
+    lines = []
+    for line in traceback.format_exc().splitlines(keepends=True):
+        head = '  File "'
+        if line.startswith(head):
+            for root in roots:
+                if line.startswith(head + root + os.sep):
+                    line = head + line[len(head + root + os.sep):]
+                    break
+        lines.append(line)
+    return "".join(lines)
 
 
 def is_finished(out_dir: Path, spec: RunSpec) -> bool:
@@ -427,7 +446,7 @@ def _record(out: Path, spec: RunSpec, fut: Future[dict[str, Any]], result: Sweep
     try:
         outcome = fut.result()
     except Exception as exc:  # the worker itself died (e.g. killed, out of memory)
-        outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": portable_traceback()}
     folder = out / spec.folder
     if "files" in outcome:
         (folder / "error.json").unlink(missing_ok=True)
