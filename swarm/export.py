@@ -9,11 +9,17 @@ itself never does. The tables, in ``--out`` (default ``FOLDER/parquet``):
   across tables, within a tick too), then the kind's record fields, their Arrow types made from
   the schema's annotations (``float`` float64, ``int`` int64, ``bool``, ``str`` string, a
   table of counts a map, the ``start`` header JSON text) and their units in each column's
-  metadata (``unit``);
+  metadata (``unit``); beside every UAV id its UAV's type (``uav_type``, ``src_type``...:
+  :func:`_type_columns`);
 * ``timeseries.parquet``: ``timeseries.csv`` with typed columns (integers, floats, mode names);
-* ``paths.parquet``: ``object`` (``uav`` or ``target``), ``id``, ``name`` (a UAV's), ``t``,
-  ``x``, ``y``: the UAV and target positions of the ``pose`` and ``target`` events, in one
-  table for plotting.
+* ``paths.parquet``: ``object`` (``uav`` or ``target``), ``id``, ``name`` (a UAV's),
+  ``uav_type``, ``t``, ``x``, ``y``: the UAV and target positions of the ``pose`` and
+  ``target`` events, in one table for plotting;
+* ``run.parquet``: one row per run, :data:`RUN_COLUMNS` (scenario, planner, seed, ``dt_s``...).
+
+For a geographic run every table with ``x`` and ``y`` has ``lon`` and ``lat`` after them
+(WGS84 degrees, the run's own frame: :func:`swarm.geo.geojson.run_frame`). Every table's
+metadata has ``scenario`` and ``dt_s`` where all runs exported share them.
 
 A sweep folder (``swarm sweep --out``) gives the same tables over all its finished runs, each
 row with its run's ``run`` (the run folder, from the sweep folder), ``planner``, ``seed`` and
