@@ -467,9 +467,13 @@ def flatten_metrics(metrics: Mapping[str, Any], prefix: str = "") -> dict[str, i
     strings, nulls (a target never detected) and arrays (``handover_list``'s records, the
     wind's vectors) are not numbers of their own and are left out. The one definition of a
     sweep's metric names: ``runs.csv`` has a column for each, ``summary.json`` summarises each
-    but the few :data:`_NOT_SUMMARISED`; a metric added to ``metrics.json`` joins both."""
+    but the few :data:`_NOT_SUMMARISED`; a metric added to ``metrics.json`` joins both. A
+    sweep's ``settings`` (what the run was given, recorded in its ``metrics.json``) are not
+    metrics: ``runs.csv`` has each as a column of its own, named by its key."""
     flat: dict[str, int | float] = {}
     for k, v in metrics.items():
+        if not prefix and k == "settings":
+            continue
         name = f"{prefix}{k}"
         if isinstance(v, Mapping):
             flat.update(flatten_metrics(v, f"{name}."))
