@@ -354,7 +354,7 @@ def _dask_executor(args):
 
 def _cmd_sweep(args) -> int:
     from agents.planners import PlannerError, resolve_planner
-    from swarm.experiments.sweep import SweepInterrupted, graceful_interrupts, plan_runs, run_sweep
+    from swarm.experiments.sweep import SweepInterrupted, check_baseline, graceful_interrupts, plan_runs, run_sweep
     from swarm.scenario import load_scenario
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
@@ -365,6 +365,7 @@ def _cmd_sweep(args) -> int:
             resolve_planner(name)
         except PlannerError as exc:
             raise UsageError(f"--planner {args.planner!r}: {exc}") from None
+    check_baseline(planners, args.baseline)
     sc = load_scenario(args.scenario, planner=planners[0], allow_planner_imports=args.allow_planner_imports)
     runs = plan_runs(sc, seeds=args.seeds, planners=planners, grid=_parse_grid(args.set), duration_s=args.duration,
                      figures=args.figures, allow_planner_imports=args.allow_planner_imports)
@@ -383,7 +384,7 @@ def _cmd_sweep(args) -> int:
                 progress.update(task, completed=done, note=f"{status}: {spec.label}")
 
             result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress,
-                               stop=stop)
+                               stop=stop, baseline=args.baseline)
     except SweepInterrupted as exc:
         r = exc.result
         how = ("stopped after the runs in progress finished" if exc.graceful
@@ -666,6 +667,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--seeds", type=parse_seeds, default=parse_seeds("30"), metavar="N|A-B|a,b,c",
                     help="seeds: N (0..N-1), A-B or a,b,c (default 30: seeds 0-29)")
     sw.add_argument("--planner", default="dacmp,greedy", help="comma-separated planners (default dacmp,greedy)")
+    sw.add_argument("--baseline", default=None, metavar="PLANNER",
+                    help="the planner the others are compared with, seed by seed (default: the first of --planner)")
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                     help="sweep a scenario setting over values, e.g. --set radio.loss_base=0,0.3 (repeatable)")
     sw.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")

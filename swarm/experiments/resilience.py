@@ -79,7 +79,7 @@ from swarm.experiments.common import (
     write_text,
 )
 from swarm.experiments.paper import FIG11_PLANNERS, PLANNER_COLOUR, PLANNER_LABEL
-from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep, slug
+from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_folder, run_sweep
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 
 AXES = ("loss", "burst", "range", "crash", "pause", "restart", "skew", "detect", "jammer", "liar", "battery")
@@ -356,9 +356,8 @@ def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, 
     for v in values:
         settings, overrides = _point(axis, scenario, v, crash_at_s=crash_at_s, burst_loss=burst_loss)
         sc = apply_overrides(scenario, overrides) if overrides else scenario
-        point = slug(settings)
         for spec in plan_runs(sc, seeds=seeds, planners=planners, duration_s=duration_s):
-            runs.append(replace(spec, settings=settings, folder=f"runs/{spec.planner}/{point}/seed-{spec.seed:03d}"))
+            runs.append(replace(spec, settings=settings, folder=run_folder(spec.planner, settings, spec.seed)))
     return runs
 
 
