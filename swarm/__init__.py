@@ -12,6 +12,7 @@ from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _package_version
 
 from swarm.errors import APIMisuseError, ScenarioError, SimulationError, SwarmError, UsageError
+from swarm.reproduce import RerunResult, rerun
 from swarm.results import RunResult
 from swarm.scenario import Scenario, builtin_scenarios, load_scenario
 from swarm.simulation import Simulation, Snapshot
@@ -24,6 +25,7 @@ except PackageNotFoundError:  # imported from a source tree that was never insta
 
 __all__ = [
     "APIMisuseError",
+    "RerunResult",
     "RunResult",
     "Scenario",
     "ScenarioError",
@@ -34,4 +36,5 @@ __all__ = [
     "UsageError",
     "builtin_scenarios",
     "load_scenario",
+    "rerun",
 ]

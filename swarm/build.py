@@ -204,6 +204,10 @@ def configured(scenario: Scenario | str | Path, seed: int | None, planner: str |
         overrides.update({f"planner.options.{key}": value for key, value in planner_options.items()})
     if duration_s is not None:
         overrides["duration_s"] = duration_s
+    if not overrides and seed is not None and not isinstance(seed, bool) and isinstance(seed, int) and seed >= 0:
+        # Only the seed: nothing validated depends on it, so the scenario is not judged again
+        # (a scenario validated as a run cut short, with joiners after its end, stays valid).
+        return scenario.model_copy(update={"seed": seed})
     if seed is not None:
         overrides["seed"] = seed
     if dt_s is not None:

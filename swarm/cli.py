@@ -312,6 +312,45 @@ async def _hosted(sim, mavlink: str | None, pace_factor: float | None, progress)
     return sim.result()
 
 
+def _cmd_rerun(args) -> int:
+    """Re-run a run folder and compare event-log hashes: 0 equal, 1 different, 2 cannot re-run."""
+    from contextlib import ExitStack
+
+    from swarm.reproduce import rerun
+
+    quiet = args.quiet or args.json
+    with ExitStack() as stack:
+        shown: list = []  # the bar, made at the first tick (a folder that cannot be re-run shows none)
+
+        def on_progress(now: float, end: float) -> None:
+            if not shown:
+                bar = stack.enter_context(_progress(quiet=quiet, transient=True))
+                shown[:] = [bar, bar.add_task(f"re-running {args.rundir}", total=end, note="")]
+            bar, task = shown
+            bar.update(task, completed=now, total=end, note=f"t={now:.0f}/{end:.0f} s")
+
+        res = rerun(args.rundir, args.out, allow_planner_imports=args.allow_planner_imports,
+                    figures=not args.no_figures, progress=on_progress)
+    if args.json:
+        _print_json({"equal": res.equal, "original_sha256": res.original_sha256, "sha256": res.sha256,
+                     "out": str(res.out), "first_difference_s": res.first_difference_s,
+                     "versions_then": res.versions_then, "versions_now": res.versions_now,
+                     "version_differences": res.version_differences})
+    else:
+        print(f"original  {res.original_sha256}  {res.folder}")
+        print(f"re-run    {res.sha256}  {res.out}")
+        if res.equal:
+            print("equal: the re-run reproduces the folder's event log")
+        else:
+            print(f"DIFFERENT: the first tick whose events differ is t = {res.first_difference_s:g} s")
+        changed = res.version_differences
+        if changed:
+            print("versions differ: " + "; ".join(changed))
+        elif not res.equal:
+            print("versions: the same as the original's (" + ", ".join(f"{k} {v}" for k, v in res.versions_now.items()) + ")")
+    return 0 if res.equal else 1
+
+
 def _parse_grid(assignments: list[str]) -> dict[str, list]:
     from swarm.experiments.sweep import split_values
     from swarm.scenario import parse_assignment
@@ -340,7 +379,7 @@ def _dask_executor(args):
 
 def _cmd_sweep(args) -> int:
     from agents.planners import PlannerError, resolve_planner
-    from swarm.experiments.sweep import SweepInterrupted, graceful_interrupts, plan_runs, run_sweep
+    from swarm.experiments.sweep import SweepInterrupted, check_baseline, graceful_interrupts, plan_runs, run_sweep
     from swarm.scenario import load_scenario
 
     planners = [p.strip() for p in args.planner.split(",") if p.strip()]
@@ -351,6 +390,7 @@ def _cmd_sweep(args) -> int:
             resolve_planner(name)
         except PlannerError as exc:
             raise UsageError(f"--planner {args.planner!r}: {exc}") from None
+    check_baseline(planners, args.baseline)
     sc = load_scenario(args.scenario, planner=planners[0], allow_planner_imports=args.allow_planner_imports)
     runs = plan_runs(sc, seeds=args.seeds, planners=planners, grid=_parse_grid(args.set), duration_s=args.duration,
                      figures=args.figures, allow_planner_imports=args.allow_planner_imports)
@@ -369,7 +409,7 @@ def _cmd_sweep(args) -> int:
                 progress.update(task, completed=done, note=f"{status}: {spec.label}")
 
             result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress,
-                               stop=stop)
+                               stop=stop, baseline=args.baseline)
     except SweepInterrupted as exc:
         r = exc.result
         how = ("stopped after the runs in progress finished" if exc.graceful
@@ -631,6 +671,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_allow_arg(r)
     r.set_defaults(func=_cmd_run)
 
+    rr = sub.add_parser("rerun", help="re-run a run folder and compare event-log hashes (exit 0 equal, 1 different)")
+    rr.add_argument("rundir", help="a run folder (`swarm run --out DIR`, a sweep's runs/PLANNER/SETTINGS/seed-NNN, ...)")
+    rr.add_argument("--out", default=None, metavar="DIR", help="folder for the new run (default: a new temporary folder)")
+    rr.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
+    rr.add_argument("--quiet", action="store_true", help="no progress bar")
+    rr.add_argument("--json", action="store_true", help="print the comparison as JSON on stdout")
+    _add_allow_arg(rr)
+    rr.set_defaults(func=_cmd_rerun)
+
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
     v.add_argument("--json", action="store_true", help="print one JSON record per scenario on stdout")
@@ -648,6 +697,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--seeds", type=parse_seeds, default=parse_seeds("30"), metavar="N|A-B|a,b,c",
                     help="seeds: N (0..N-1), A-B or a,b,c (default 30: seeds 0-29)")
     sw.add_argument("--planner", default="dacmp,greedy", help="comma-separated planners (default dacmp,greedy)")
+    sw.add_argument("--baseline", default=None, metavar="PLANNER",
+                    help="the planner the others are compared with, seed by seed (default: the first of --planner)")
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                     help="sweep a scenario setting over values, e.g. --set radio.loss_base=0,0.3 (repeatable)")
     sw.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
@@ -675,14 +726,12 @@ def build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--quiet", action="store_true", help="no progress bars or table")
     pa.set_defaults(func=_cmd_paper)
 
-    rs = sub.add_parser("resilience", help="coverage and targets found under loss, bursts, range, crashes, pauses, "
-                                           "restarts, clock skew, missed detections, a jammer, liars")
-    rs.add_argument("axis", choices=["loss", "burst", "range", "crash", "pause", "restart", "skew", "detect", "jammer",
-                                     "liar", "all"],
-                    help="loss (i.i.d. loss 0..1), burst (Gilbert-Elliott bursts at 30%% mean loss), range "
-                         "(2..20 km, unlimited), crash (0..5 UAVs crash), pause (3 UAVs pause 0..1200 s), restart "
-                         "(0..5 UAVs restart), skew (3 clocks 0..600 s ahead), detect (detection probability per tick 1..0.003), "
-                         "jammer (radius 0..25 km at the centre), liar (0..3 lying UAVs), or all of them")
+    from swarm.experiments.resilience.axes import AXES  # (the axes' records: names and help from one place)
+
+    rs = sub.add_parser("resilience", help="coverage and targets found along each degradation axis: "
+                                           + ", ".join(AXES))
+    rs.add_argument("axis", choices=[*AXES, "all"],
+                    help=", ".join(a.summary for a in AXES.values()) + ", or all of them")
     # An option, not a positional: it has a default (a required scenario is positional).
     rs.add_argument("--scenario", default="paper-fig11", help="built-in name or .toml file (default paper-fig11)")
     rs.add_argument("--seeds", type=parse_seeds, default=parse_seeds("10"), metavar="N|A-B|a,b,c",

@@ -31,6 +31,7 @@ and the bytes are the same); nothing is converted unless someone subscribes.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import typing
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -77,15 +78,21 @@ __all__ = [
     "Start",
     "Target",
     "Violation",
+    "PROVENANCE_KEY",
     "check_kinds",
+    "check_log",
     "check_wire",
+    "first_difference_s",
+    "log_sha256",
     "markdown_table",
     "read_columns",
     "read_events",
     "records",
+    "split_provenance",
     "to_wire",
     "uav_names",
     "wire_kind",
+    "with_provenance",
 ]
 
 
@@ -622,10 +629,80 @@ def check_wire(wire: Sequence[Any]) -> None:
                                 f"found {type(value).__name__} {value!r:.80}: {list(wire)!r:.200}")
 
 
-def _unpacker(data: bytes) -> msgpack.Unpacker:
+# --- the file's provenance record ------------------------------------------------------------------
+# A written ``events.msgpack`` may begin with one msgpack *map* ``{"provenance": {...}}`` (the
+# versions that produced it: swarm.provenance) before the events, which are arrays. It is not an
+# event and not hashed: the event-log hash (metrics.json's event_log_sha256) is of the events
+# alone, so it does not change with the machine or a release that changes nothing the run does.
+PROVENANCE_KEY = "provenance"
+
+
+def with_provenance(events: bytes, provenance: Mapping[str, Any]) -> bytes:
+    """The bytes of an ``events.msgpack`` file: the provenance record, then the events."""
+    return msgpack.packb({PROVENANCE_KEY: dict(provenance)}, use_bin_type=True) + events
+
+
+def split_provenance(data: bytes) -> tuple[dict[str, Any] | None, bytes]:
+    """``(provenance, events)`` of an event log file's bytes (``None`` when it has no record)."""
+    if not data or not (0x80 <= data[0] <= 0x8F or data[0] in (0xDE, 0xDF)):  # not a msgpack map
+        return None, data
     unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
     unpacker.feed(data)
+    try:
+        head = unpacker.unpack()
+    except (msgpack.OutOfData, ValueError) as exc:
+        raise EventLogError(f"the event log's provenance record cannot be read ({exc})") from None
+    if not isinstance(head, dict) or not isinstance(head.get(PROVENANCE_KEY), dict):
+        raise EventLogError(f"the event log begins with {head!r:.80}, neither an event nor its provenance record")
+    return head[PROVENANCE_KEY], data[unpacker.tell():]
+
+
+def log_sha256(data: bytes) -> str:
+    """The event-log hash of a log's bytes, as ``metrics.json`` records it: the SHA-256 of its
+    events (the provenance record left out)."""
+    return hashlib.sha256(split_provenance(bytes(data))[1]).hexdigest()
+
+
+def _unpacker(data: bytes) -> msgpack.Unpacker:
+    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
+    unpacker.feed(split_provenance(data)[1])
     return unpacker
+
+
+def check_log(data: bytes) -> int:
+    """The number of events of a log's bytes, each checked against the schema; raises
+    :class:`EventLogError` for a log that is damaged, empty or cut short (a log cut inside an
+    event would otherwise read as a shorter one: the unpacker stops at the last whole event)."""
+    events = split_provenance(bytes(data))[1]
+    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
+    unpacker.feed(events)
+    count = 0
+    try:
+        for wire in unpacker:
+            check_wire(wire)
+            count += 1
+    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
+        raise EventLogError(f"the event log is damaged after {count} events ({exc})") from None
+    if unpacker.tell() != len(events):
+        raise EventLogError(f"the event log is cut short: {len(events) - unpacker.tell()} bytes after the last whole event "
+                            f"(the run that wrote it did not finish writing)")
+    if count == 0:
+        raise EventLogError("the event log holds no events")
+    return count
+
+
+def first_difference_s(a: bytes, b: bytes) -> float | None:
+    """The time of the first event at which two logs differ (the first tick whose events
+    differ), ``None`` when their events are the same; provenance records are not compared."""
+    left, right = iter(_unpacker(a)), iter(_unpacker(b))
+    while True:
+        x, y = next(left, None), next(right, None)
+        if x == y:
+            if x is None:
+                return None
+            continue
+        times = [float(e[1]) for e in (x, y) if e is not None]  # (index 1 of every event array is its t)
+        return min(times)
 
 
 class EventRecords:

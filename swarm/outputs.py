@@ -3,7 +3,9 @@
 * ``metrics.json``     — final metrics (keys described in the README);
 * ``timeseries.csv``   — one row per ``metrics.sample_s``: coverage, certainty, targets found,
                          radio counters, and each UAV's mode (search / surveil / down / pending);
-* ``events.msgpack``   — the event log; its SHA-256 is ``metrics.json``'s ``event_log_sha256``;
+* ``events.msgpack``   — the event log, after a provenance record (the versions that ran); the
+                         SHA-256 of its events is ``metrics.json``'s ``event_log_sha256``
+                         (:func:`swarm.events.log_sha256`);
 * ``trajectories.png`` — UAV and target paths, threats and the final coverage map;
 * ``scenario.json``    — the exact scenario that ran (with seed and overrides applied);
 * ``paths.geojson``, ``targets.geojson``, ``zones.geojson`` — a geographic scenario's (``[geo]``)
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from swarm.errors import SwarmError
+from swarm.events import with_provenance
 
 __all__ = [
     "RunDirError",
@@ -70,7 +73,8 @@ def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -
 
     Built in memory so a sweep worker on another machine can ship a finished run back to the
     machine that writes the folder (no shared file system needed)."""
-    files: dict[str, bytes] = {"events.msgpack": result.events}
+    # The events after a provenance record (the versions that ran; not hashed: swarm.events).
+    files: dict[str, bytes] = {"events.msgpack": with_provenance(result.events, result.metrics.get("versions") or {})}
     if scenario_dict is None:
         scenario_dict = getattr(result, "scenario", None) or None  # what ran: swarm report needs it
     rows = result.timeseries

@@ -18,6 +18,7 @@ from comms.radio import Radio
 from faults.injector import FaultInjector
 from swarm.metrics import Metrics
 from swarm.observer import Observer
+from swarm.provenance import versions
 from swarm.recorder import EventLog
 from swarm.scenario import Scenario
 from swarm.transmission import Transmission
@@ -153,6 +154,8 @@ def run_metrics(sim: Run) -> dict:
         "per_uav": per_uav,
         "events": sim._log.total,
         "event_log_sha256": sim._log.sha256(),
+        # Not hashed: the software that ran (swarm.provenance; `swarm rerun` compares them).
+        "versions": versions(),
         **_mission_metrics(sim),
     }
 

@@ -138,13 +138,10 @@ def seed1_fails(monkeypatch) -> str:
 # --- fault-kind coverage across the session -------------------------------------------------------
 # Tests that run generated fault schedules record them here (the `fault_stats` fixture). At the
 # end of the session a summary says how often each kind was scheduled and how often the injector
-# reported it actually changed something; if enough runs happened and some kind never fired, the
-# session fails: a fault strategy that never bites tests nothing.
-# The check is not made under the `quick` profile (the quick loop runs a tenth of the generated
-# runs: too few to expect every kind to fire), nor when fewer than MIN_RUNS_FOR_COVERAGE
-# simulations ran with a generated schedule (one test file, one test, a -k selection).
-
-MIN_RUNS_FOR_COVERAGE = 100
+# reported it actually changed something. Only a report: what the session's property tests
+# generate depends on which tests ran before them in each worker, so it cannot be a gate that
+# passes or fails the same way in any order. The gate is tests/test_fault_coverage.py: a fixed,
+# seeded set of examples per registered kind.
 
 
 class FaultStats:
@@ -229,15 +226,9 @@ def _fault_kind_summary(tr) -> None:
     tr.write_line(f"{'kind':10s} {'scheduled':>10s} {'fired':>10s} {'runs fired':>11s}")
     for kind in ALL_KINDS:
         tr.write_line(f"{kind:10s} {s.scheduled[kind]:10d} {s.fired[kind]:10d} {s.runs_fired[kind]:11d}")
-    if not coverage_is_checked(s):
-        why = f"the {PROFILE} profile" if PROFILE == "quick" else f"fewer than {MIN_RUNS_FOR_COVERAGE} runs"
-        tr.write_line(f"(not checked: {why}; a plain `python -m pytest` checks every kind fired)")
-    elif s.never_fired():
-        tr.write_line(f"FAILED: fault kind(s) never fired in {s.runs} runs: {', '.join(s.never_fired())}", red=True)
-
-
-def coverage_is_checked(s: FaultStats) -> bool:
-    return PROFILE != "quick" and s.runs >= MIN_RUNS_FOR_COVERAGE
+    if s.never_fired():
+        tr.write_line(f"(never fired in these {s.runs} runs: {', '.join(s.never_fired())}; a report, not a gate: "
+                      f"tests/test_fault_coverage.py is the gate)")
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -250,8 +241,5 @@ def pytest_testnodedown(node, error) -> None:
 
 def pytest_sessionfinish(session, exitstatus):
     s = _STATS
-    if _is_worker(session.config):  # hand the tally to the controller, which judges the whole session
+    if _is_worker(session.config):  # hand the tally to the controller, which reports the whole session
         session.config.workeroutput["fault_stats"] = s.to_dict()
-        return
-    if coverage_is_checked(s) and s.never_fired() and session.exitstatus == 0:
-        session.exitstatus = pytest.ExitCode.TESTS_FAILED

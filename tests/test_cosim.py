@@ -370,3 +370,13 @@ async def test_a_resumed_task_cannot_drive_the_simulation_too():
         assert len(caught) == 1 and sim.now == 5.0
         await sim.run_until(6.0)  # still usable
         assert sim.now == 6.0
+
+
+def test_swarm_rerun_reproduces_an_embedded_run(tmp_path):
+    """`swarm rerun RUNDIR` (swarm.reproduce) replays the host changes of the folder's log."""
+    from swarm.reproduce import rerun
+
+    with _embedded_run() as sim:
+        write_run(sim.result(), tmp_path / "run", sim.scenario.to_dict(), figures=False)
+    res = rerun(tmp_path / "run", tmp_path / "again")
+    assert res.equal and res.first_difference_s is None

@@ -259,3 +259,26 @@ def test_fault_axes_run_and_their_faults_fire(out, capsys):
         assert fired[True] == [0, 0] and len(fired[False]) == 2 and all(n > 0 for n in fired[False]), (axis, fired)
     top = (out / "table.md").read_text()
     assert all(f"## {a}:" in top for a in kinds)
+
+
+@pytest.mark.slow
+def test_an_axis_is_one_record(tmp_path, monkeypatch):
+    """A new axis is one Axis record in swarm.experiments.resilience.axes.AXES: the command line,
+    the runs, the figure and the tables take it from there (here a mean-wind axis)."""
+    from swarm.experiments.resilience.axes import AXES, Axis
+
+    gusts = Axis("gusts", "mean wind speed", "wind.speed_mps", (0.0, 8.0), "a wind speed in m/s from 0 to 99",
+                 lambda v: v is not None and 0.0 <= v < 100.0,
+                 lambda sc, v, ctx: ((("wind.speed_mps", v),), {"wind": {"speed_mps": v}} if v else {}),
+                 "gusts (mean wind 0..8 m/s)", baseline=0.0, label=lambda v: f"{v:g} m/s")
+    monkeypatch.setitem(AXES, "gusts", gusts)
+    out = tmp_path / "r"
+    assert main(["resilience", "gusts", "--seeds", "1", "--duration", "30", "--workers", "1", "--out", str(out),
+                 "--quiet"]) == 0
+    res = _results(out, "gusts")
+    assert res["setting"] == "wind.speed_mps" and res["title"] == "mean wind speed"
+    assert [p["label"] for p in res["points"]] == ["0 m/s", "8 m/s"] and res["has_baseline"]
+    assert all(p["planners"][q]["runs"] == 1 for p in res["points"] for q in PLANNERS)
+    _png(out / "gusts" / "gusts.png")
+    assert "## gusts: mean wind speed" in (out / "table.md").read_text()
+    assert main(["resilience", "gusts", "--values", "120", "--out", str(out), "--quiet"]) == 2

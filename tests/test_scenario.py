@@ -325,7 +325,8 @@ def test_missing_file(tmp_path):
         load_scenario(path)
     err = info.value
     assert err.source == str(path) and err.key == ""
-    assert err.expected.startswith("a path to an existing .toml file or a built-in name (bench-100, ")
+    assert err.expected.startswith(
+        "a path to an existing .toml file (or a run folder's scenario.json) or a built-in name (bench-100, ")
     assert "paper-case1, " in err.expected
     assert str(path) in str(err)
 

@@ -162,7 +162,12 @@ class SwarmSearchEnv(ParallelEnv):
             overrides["planner.name"] = planner
         if duration_s is not None:
             overrides["duration_s"] = duration_s
-        self.scenario = apply_overrides(sc, overrides, allow_planner_imports=[planner] if planner else False) if overrides else sc
+        # A shorter episode is the scenario cut short (as `swarm run --duration`): UAVs that would
+        # join after its end are not refused, they just never join.
+        shorter = duration_s is not None and duration_s < sc.duration_s
+        self.scenario = (apply_overrides(sc, overrides, allow_planner_imports=[planner] if planner else False,
+                                         truncated=shorter, scenario_duration_s=sc.duration_s if shorter else None)
+                         if overrides else sc)
         sc = self.scenario
         if not (isinstance(map_size, int) and map_size >= 1 and map_size % 2 == 1):
             raise UsageError(f"map_size must be an odd number >= 1, got {map_size!r}")

@@ -34,12 +34,14 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import functools
 import hashlib
 import io
 import json
 import math
 import os
 import re
+import sys
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
@@ -55,10 +57,11 @@ from swarm.outputs import run_files, write_files
 from swarm.scenario import Scenario, apply_overrides, load_scenario, parse_scenario
 from swarm.scenario.trust import allowed
 
-# Metrics summarised per group: every number at the top level of metrics.json, plus these
-# nested counters (flattened with a dot).
-_NESTED = ("radio", "violations")
-_SKIP = {"seed", "sim_seconds", "wall_seconds", "events", "targets_total"}
+# What metrics.json says of how a run ran rather than of its mission: columns of runs.csv (as
+# every number of metrics.json is), not summarised (the seed is what a group varies over; the
+# simulated and wall seconds and the count of events describe the run; targets_total bounds
+# targets_found).
+_NOT_SUMMARISED = frozenset({"seed", "sim_seconds", "wall_seconds", "events", "targets_total"})
 
 
 def strict_json(value: Any) -> Any:
@@ -132,6 +135,26 @@ def slug(settings: Sequence[tuple[str, Any]]) -> str:
     return safe
 
 
+def planner_folder(planner: str) -> str:
+    """The folder name of a planner's runs: the name itself when it is portable (built-in and
+    most entry-point names), otherwise its other characters replaced by ``_`` and a short hash
+    of the full name appended, so names stay distinct
+    (``examples.random_waypoint:RandomWaypoint`` -> ``examples.random_waypoint_RandomWaypoint-<hash>``):
+    no ``:`` (refused by Windows, shown as ``/`` by macOS) nor any other character a file system
+    may refuse. The full name stays in ``runs.csv``, ``summary.json`` and the run's
+    ``scenario.json``."""
+    safe = re.sub(r"[^A-Za-z0-9._-]", "_", planner)
+    if safe != planner or len(safe) > 80 or not safe.strip("."):
+        digest = hashlib.sha256(planner.encode()).hexdigest()[:8]
+        safe = f"{safe[:80]}-{digest}"
+    return safe
+
+
+def run_folder(planner: str, settings: Sequence[tuple[str, Any]], seed: int) -> str:
+    """``runs/<planner>/<settings>/seed-NNN``: where a sweep keeps a run (relative to its folder)."""
+    return f"runs/{planner_folder(planner)}/{slug(settings)}/seed-{int(seed):03d}"
+
+
 def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[str],
               grid: Mapping[str, Sequence[Any]] | None = None, duration_s: float | None = None,
               figures: bool = False, allow_planner_imports: bool | Iterable[str] = False) -> list[RunSpec]:
@@ -174,8 +197,7 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
             if duration_s is not None:
                 doc["duration_s"] = dict(settings).get("duration_s", scenario.duration_s)
             for seed in seeds:
-                runs.append(RunSpec(doc, planner, int(seed), settings,
-                                    f"runs/{planner}/{slug(settings)}/seed-{int(seed):03d}",
+                runs.append(RunSpec(doc, planner, int(seed), settings, run_folder(planner, settings, seed),
                                     duration_s, figures, carried))
     return runs
 
@@ -196,7 +218,25 @@ def execute(spec: RunSpec) -> dict:
             result.metrics["settings"] = strict_json(dict(spec.settings))
             return {"files": run_files(result, sim.scenario.to_dict(), figures=spec.figures)}
     except Exception as exc:  # recorded in error.json, reported, retried next time
-        return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        return {"error": f"{type(exc).__name__}: {exc}", "traceback": portable_traceback()}
+
+
+def portable_traceback() -> str:
+    """The exception being handled, formatted as ``traceback.format_exc()`` does but with each
+    frame's file named from the import root it was found under (``swarm/simulation.py``,
+    ``numpy/...``), not by where this machine installed it: ``error.json`` holds no absolute
+    path of the machine (docs/outputs.md, portable artifacts)."""
+    roots = sorted({os.path.abspath(p) for p in sys.path if p}, key=len, reverse=True)
+    lines = []
+    for line in traceback.format_exc().splitlines(keepends=True):
+        head = '  File "'
+        if line.startswith(head):
+            for root in roots:
+                if line.startswith(head + root + os.sep):
+                    line = head + line[len(head + root + os.sep):]
+                    break
+        lines.append(line)
+    return "".join(lines)
 
 
 def is_finished(out_dir: Path, spec: RunSpec) -> bool:
@@ -307,8 +347,9 @@ def _terminate_workers(executor: Executor) -> None:
 
 def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executor | None = None,
               workers: int | None = None, progress: ProgressFn | None = None,
-              stop: Callable[[], bool] | None = None) -> SweepResult:
-    """Run what is not finished yet, write each run's folder as it completes, then the summary.
+              stop: Callable[[], bool] | None = None, baseline: str | None = None) -> SweepResult:
+    """Run what is not finished yet, write each run's folder as it completes, then the summary
+    (paired differences against ``baseline``, one of the runs' planners; default the first).
 
     ``executor``: any ``concurrent.futures.Executor`` (``submit`` returning futures), e.g. a
     Dask ``Client(...).get_executor()``; by default a local process pool of ``workers``
@@ -328,6 +369,7 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
       are lost; finished ones stay on disk. (Any other exception from ``progress`` is cleaned up
       after the same way and propagates as it is.)
     """
+    check_baseline((s.planner for s in runs), baseline)  # before anything is written
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     _check_manifest(out, runs)
@@ -386,14 +428,14 @@ def run_sweep(runs: Sequence[RunSpec], out_dir: str | Path, *, executor: Executo
         if own and executor is not None:
             _terminate_workers(executor)
             executor.shutdown(wait=False, cancel_futures=True)
-        result.summary = write_summary(out, runs)
+        result.summary = write_summary(out, runs, baseline)
         if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, SweepInterrupted):
             raise SweepInterrupted(result, graceful=False) from exc
         raise
     finally:
         if own and executor is not None:
             executor.shutdown(wait=True, cancel_futures=True)
-    result.summary = write_summary(out, runs)
+    result.summary = write_summary(out, runs, baseline)
     if unstarted:
         raise SweepInterrupted(result, graceful=True)
     return result
@@ -404,7 +446,7 @@ def _record(out: Path, spec: RunSpec, fut: Future[dict[str, Any]], result: Sweep
     try:
         outcome = fut.result()
     except Exception as exc:  # the worker itself died (e.g. killed, out of memory)
-        outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        outcome = {"error": f"{type(exc).__name__}: {exc}", "traceback": portable_traceback()}
     folder = out / spec.folder
     if "files" in outcome:
         (folder / "error.json").unlink(missing_ok=True)
@@ -418,40 +460,81 @@ def _record(out: Path, spec: RunSpec, fut: Future[dict[str, Any]], result: Sweep
 
 # --- statistics --------------------------------------------------------------------------------
 
-def _flatten(metrics: dict) -> dict[str, float]:
-    flat = {}
+def flatten_metrics(metrics: Mapping[str, Any], prefix: str = "") -> dict[str, int | float]:
+    """Every number of a run's ``metrics.json`` under its dotted name, in the file's order:
+    tables are flattened (``radio.sent``, ``faults_applied.drop``, ``endurance.sorties``,
+    ``time_to_first_detection_s.3`` for target 3, ``per_uav.B1.mode_seconds.search``). Booleans,
+    strings, nulls (a target never detected) and arrays (``handover_list``'s records, the
+    wind's vectors) are not numbers of their own and are left out. The one definition of a
+    sweep's metric names: ``runs.csv`` has a column for each, ``summary.json`` summarises each
+    but the few :data:`_NOT_SUMMARISED`; a metric added to ``metrics.json`` joins both. A
+    sweep's ``settings`` (what the run was given, recorded in its ``metrics.json``) are not
+    metrics: ``runs.csv`` has each as a column of its own, named by its key."""
+    flat: dict[str, int | float] = {}
     for k, v in metrics.items():
-        if k in _SKIP:
+        if not prefix and k == "settings":
             continue
-        if isinstance(v, bool):
-            continue
-        if isinstance(v, (int, float)):
-            flat[k] = float(v)
-        elif k in _NESTED and isinstance(v, dict):
-            for kk, vv in v.items():
-                if isinstance(vv, (int, float)) and not isinstance(vv, bool):
-                    flat[f"{k}.{kk}"] = float(vv)
+        name = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            flat.update(flatten_metrics(v, f"{name}."))
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            flat[name] = v
     return flat
 
 
-INTERVAL_METHOD = ("Student-t 95% interval of the mean over seeds, clipped to the range the metric can take "
-                   "(fractions 0-1, counts from 0, targets found up to the targets in the area)")
+def breakdowns(metrics: Mapping[str, Any]) -> list[str]:
+    """The dotted names of the tables of ``metrics.json`` kept per UAV or per target: those
+    whose keys are all UAV names (the keys of ``per_uav``) or target ids (``0`` to
+    ``targets_total - 1``): ``per_uav``, ``surveillance_ratio``, ``time_to_first_detection_s``,
+    ``endurance.per_uav``... A new table keyed so is one too. Their metrics are in the tables
+    (``runs.csv``, ``summary.json``, ``summary.csv``); the sweep's report shows the others."""
+    uavs = metrics.get("per_uav")
+    total = metrics.get("targets_total")
+    entities = set(uavs) if isinstance(uavs, Mapping) else set()
+    if isinstance(total, int) and not isinstance(total, bool):
+        entities |= {str(i) for i in range(total)}
+    found: list[str] = []
 
-# The range each metric of metrics.json can take (flattened names, as summarised). Fractions
-# are in [0, 1]; counters cannot go below 0; targets_found is at most the run's targets_total
-# (filled in per group, see _bounds). Metrics not named here are left unbounded.
-_FRACTIONS = frozenset({"coverage", "certainty", "surveillance_ratio_mean"})
-_COUNTS = frozenset({"handovers", "handovers_fast_to_slow", "targets_found"})
+    def walk(table: Mapping[str, Any], prefix: str) -> None:
+        for k, v in table.items():
+            if isinstance(v, Mapping) and v:
+                if set(map(str, v)) <= entities:
+                    found.append(f"{prefix}{k}")
+                else:
+                    walk(v, f"{prefix}{k}.")
+
+    walk(metrics, "")
+    return found
+
+
+INTERVAL_METHOD = ("Student-t 95% interval of the mean over seeds, clipped to the range the metric can take "
+                   "(fractions 0-1, counts and durations from 0, targets found up to the targets in the area)")
+
+# The range each metric of metrics.json can take, by its flattened name (flatten_metrics).
+# Fractions: a name part that is a share or a ratio (watched_share_mean, uav_time_share.watching,
+# surveillance_ratio.3, per_uav.B1.time_share.searching), coverage and certainty, in [0, 1].
+# Counts and durations, from 0: what the tables below hold, and the top-level counters.
+# targets_found: at most the run's targets_total (filled in per group, see summarize). A metric
+# none of these name is left unbounded (its plain t interval): a new metric is never clipped
+# wrongly, only not clipped until named here.
+_FRACTION_PART = re.compile(r"(^|_)(share|ratio)(_mean)?$")
+_FRACTIONS = frozenset({"coverage", "certainty"})
+_COUNTS = frozenset({"handovers", "handovers_fast_to_slow"})
+_NONNEGATIVE_TABLES = frozenset({"radio", "violations", "faults_applied", "dynamics_violations_by_uav", "per_uav",
+                                 "time_to_first_detection_s", "time_to_slow_watcher_s"})
+_NONNEGATIVE_ENDURANCE = frozenset({"sorties", "lost_to_energy", "time_on_station_s"})
 
 
 def metric_bounds(name: str, targets_total: float = math.inf) -> tuple[float, float]:
     """``(low, high)``: the values metric ``name`` (flattened, e.g. ``radio.sent``) can take;
     ``targets_total``: the most targets a run of the group has, the bound of ``targets_found``."""
-    if name in _FRACTIONS:
+    parts = name.split(".")
+    if name in _FRACTIONS or any(_FRACTION_PART.search(p) for p in parts):
         return 0.0, 1.0
     if name == "targets_found":
         return 0.0, float(targets_total)
-    if name in _COUNTS or name.startswith(tuple(f"{k}." for k in _NESTED)):
+    if (name in _COUNTS or (len(parts) > 1 and parts[0] in _NONNEGATIVE_TABLES)
+            or (parts[0] == "endurance" and parts[-1] in _NONNEGATIVE_ENDURANCE)):
         return 0.0, math.inf
     return -math.inf, math.inf
 
@@ -463,6 +546,14 @@ def difference_bounds(bounds: tuple[float, float]) -> tuple[float, float]:
     return -width, width
 
 
+@functools.lru_cache(maxsize=256)
+def _t975(dof: int) -> float:
+    """Student's t 97.5% quantile (a sweep describes thousands of metrics over the same seeds)."""
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, dof))
+
+
 def describe(values: Sequence[float], bounds: tuple[float, float] | None = None) -> dict:
     """Mean, sample standard deviation and the Student-t 95% interval of the mean.
 
@@ -472,14 +563,12 @@ def describe(values: Sequence[float], bounds: tuple[float, float] | None = None)
     t interval is wide (t = 12.7 for 2 seeds) and clipped it says, honestly, how little so
     few seeds tell. A bootstrap or percentile interval would stay inside the range too, but
     from 2 seeds it is [min, max], which holds the mean only half the time."""
-    from scipy import stats
-
     x = np.asarray(values, dtype=np.float64)
     n = x.size
     mean = float(x.mean()) if n else math.nan
     if n > 1:
         sd = float(x.std(ddof=1))
-        half = float(stats.t.ppf(0.975, n - 1)) * sd / math.sqrt(n)
+        half = _t975(n - 1) * sd / math.sqrt(n)
     else:
         sd, half = 0.0, math.nan
     ci = [mean - half, mean + half] if math.isfinite(half) else [mean, mean]
@@ -494,16 +583,29 @@ def describe(values: Sequence[float], bounds: tuple[float, float] | None = None)
     return out
 
 
-def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
-    """Per planner and setting: mean, sd and 95% interval of every metric over finished seeds;
-    and, for each setting, each other planner compared with the first one seed by seed
-    (paired differences ``other - first`` with their 95% interval). Intervals are clipped to
-    the range a metric (or a difference of two of its values) can take: :data:`INTERVAL_METHOD`,
-    :func:`describe`; ``"interval"`` says so in the summary."""
+def check_baseline(planners: Iterable[str], baseline: str | None) -> str | None:
+    """``baseline`` if it is one of the sweep's ``planners`` (or None); otherwise a
+    :class:`UsageError` naming them."""
+    planners = list(dict.fromkeys(planners))
+    if baseline is not None and baseline not in planners:
+        raise UsageError(f"--baseline {baseline!r}: not a planner of this sweep (its planners: {', '.join(planners)})")
+    return baseline
+
+
+def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict:
+    """Per planner and setting: mean, sd and 95% interval of every metric over finished seeds
+    (every number of ``metrics.json``, flattened by :func:`flatten_metrics`, but
+    :data:`_NOT_SUMMARISED`); and, for each setting, each other planner compared with the
+    ``baseline`` planner (default: the sweep's first) seed by seed (paired differences
+    ``other - baseline`` with their 95% interval). Intervals are clipped to the range a metric
+    (or a difference of two of its values) can take: :data:`INTERVAL_METHOD`, :func:`describe`;
+    ``"interval"`` says so in the summary. ``"breakdowns"``: the tables kept per UAV or per
+    target (:func:`breakdowns`), whose metrics the sweep's report leaves to the tables."""
     out = Path(out_dir)
     groups: dict[tuple, dict] = {}
     per_seed: dict[tuple, dict[int, dict[str, float]]] = {}
     targets: dict[tuple, float] = {}  # the most targets in a run of the group: targets_found's bound
+    per_entity: dict[str, None] = {}
     errors = []
     for spec in runs:
         key = (spec.planner, _settings_key(spec.settings))
@@ -513,7 +615,9 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
         if mpath.is_file():
             g["runs"] += 1
             metrics = json.loads(mpath.read_text())
-            per_seed.setdefault(key, {})[spec.seed] = _flatten(metrics)
+            per_seed.setdefault(key, {})[spec.seed] = {k: float(v) for k, v in flatten_metrics(metrics).items()
+                                                       if k not in _NOT_SUMMARISED}
+            per_entity.update(dict.fromkeys(breakdowns(metrics)))
             if isinstance(metrics.get("targets_total"), (int, float)):
                 targets[key] = max(targets.get(key, 0.0), float(metrics["targets_total"]))
         elif (out / spec.folder / "error.json").is_file():
@@ -521,25 +625,29 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
             errors.append(json.loads((out / spec.folder / "error.json").read_text()).get("error", "?"))
     for key, g in groups.items():
         seeds = per_seed.get(key, {})
-        names = sorted({m for v in seeds.values() for m in v})
+        names = list(dict.fromkeys(m for v in seeds.values() for m in v))
         g["metrics"] = {m: describe([v[m] for v in seeds.values() if m in v], metric_bounds(m, targets.get(key, math.inf)))
                         for m in names}
     comparisons = []
     planners = list(dict.fromkeys(s.planner for s in runs))
+    base_name = check_baseline(planners, baseline) or (planners[0] if planners else None)
     settings_list = list({_settings_key(s.settings): s.settings for s in runs}.items())
     for skey, settings in settings_list:
-        base = per_seed.get((planners[0], skey), {})
-        for other in planners[1:]:
+        base = per_seed.get((base_name, skey), {})
+        for other in planners:
+            if other == base_name:
+                continue
             theirs = per_seed.get((other, skey), {})
             common = sorted(set(base) & set(theirs))
             if not common:
                 continue
-            names = sorted(set.intersection(*(set(base[s]) & set(theirs[s]) for s in common)))
+            shared = set.intersection(*(set(base[s]) & set(theirs[s]) for s in common))
+            names = [m for m in base[common[0]] if m in shared]
             comparisons.append({
-                "settings": dict(settings), "planner": other, "baseline": planners[0],
+                "settings": dict(settings), "planner": other, "baseline": base_name,
                 "paired_seeds": len(common),
                 "difference": {m: describe([theirs[s][m] - base[s][m] for s in common],
-                                           difference_bounds(metric_bounds(m, max(targets.get((planners[0], skey), 0.0),
+                                           difference_bounds(metric_bounds(m, max(targets.get((base_name, skey), 0.0),
                                                                                   targets.get((other, skey), 0.0)))))
                                for m in names},
             })
@@ -549,6 +657,8 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
         "runs_failed": sum(g["failed"] for g in groups.values()),
         "errors": errors,
         "interval": INTERVAL_METHOD,
+        "baseline": base_name,
+        "breakdowns": list(per_entity),
         "groups": list(groups.values()),
         "comparisons": comparisons,
     }
@@ -576,9 +686,10 @@ def _cell(value: Any) -> str:
 
 
 def run_rows(out_dir: str | Path, runs: Sequence[RunSpec]) -> list[dict[str, Any]]:
-    """One record per run: planner, seed, each swept setting (its own column, named by its
-    key), every numeric metric flattened (``radio.sent``), ``status`` (ok / error / not run)
-    and ``error``."""
+    """One record per run: planner, seed, folder, each swept setting (its own column, named by
+    its key), ``status`` (ok / error / not run), ``error``, and every number of the run's
+    ``metrics.json`` under its dotted name (:func:`flatten_metrics`: ``radio.sent``,
+    ``faults_applied.drop``, ``per_uav.B1.plans``)."""
     out = Path(out_dir)
     rows = []
     for spec in runs:
@@ -588,8 +699,7 @@ def run_rows(out_dir: str | Path, runs: Sequence[RunSpec]) -> list[dict[str, Any
         if mpath.is_file():
             metrics = json.loads(mpath.read_text())
             row.update({"status": "ok", "error": ""})
-            row.update({k: metrics[k] for k in ("sim_seconds", "wall_seconds") if k in metrics})
-            row.update(_flatten(metrics))
+            row.update({k: v for k, v in flatten_metrics(metrics).items() if k != "seed"})
         elif epath.is_file():
             row.update({"status": "error", "error": json.loads(epath.read_text()).get("error", "?")})
         else:
@@ -633,8 +743,8 @@ def _parse_cell(text: str) -> Any:
         return text
 
 
-def write_summary(out_dir: str | Path, runs: Sequence[RunSpec]) -> dict:
-    summary = summarize(out_dir, runs)
+def write_summary(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict:
+    summary = summarize(out_dir, runs, baseline)
     write_files(out_dir, {"summary.csv": _csv(summary).encode(),
                           "runs.csv": _runs_csv(run_rows(out_dir, runs)).encode(),
                           "summary.json": _dumps(summary, indent=2).encode()})
@@ -645,13 +755,13 @@ def sweep(scenario: str | os.PathLike | Scenario, out_dir: str | Path, *, seeds:
           planners: Sequence[str] = ("dacmp", "greedy"), grid: Mapping[str, Sequence[Any]] | None = None,
           executor: Executor | None = None, workers: int | None = None, duration_s: float | None = None,
           figures: bool = False, progress: ProgressFn | None = None,
-          allow_planner_imports: bool | Iterable[str] = False) -> SweepResult:
+          allow_planner_imports: bool | Iterable[str] = False, baseline: str | None = None) -> SweepResult:
     """Plan and run a sweep in one call (the Python form of ``swarm sweep``).
 
     ``seeds``: a count (seeds 0..n-1) or the seeds themselves. ``allow_planner_imports``: a
     ``module:Class`` named by the scenario file or the grid (not by ``planners``) is imported
-    only if allowed (:mod:`swarm.scenario.trust`). See :func:`plan_runs` and :func:`run_sweep`
-    for the rest.
+    only if allowed (:mod:`swarm.scenario.trust`). ``baseline``: the planner the others are
+    compared with (default: the first). See :func:`plan_runs` and :func:`run_sweep` for the rest.
     """
     first = planners[0] if planners else None
     sc = (scenario if isinstance(scenario, Scenario)
@@ -659,7 +769,7 @@ def sweep(scenario: str | os.PathLike | Scenario, out_dir: str | Path, *, seeds:
     seed_list = range(seeds) if isinstance(seeds, int) else list(seeds)
     runs = plan_runs(sc, seeds=seed_list, planners=planners, grid=grid, duration_s=duration_s, figures=figures,
                      allow_planner_imports=allow_planner_imports)
-    return run_sweep(runs, out_dir, executor=executor, workers=workers, progress=progress)
+    return run_sweep(runs, out_dir, executor=executor, workers=workers, progress=progress, baseline=baseline)
 
 
 def split_values(text: str) -> list[str]:

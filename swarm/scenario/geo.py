@@ -162,11 +162,15 @@ def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
         frame = frame_for(crs, geo["area"], float(cell))
     except GeoProblem as p:
         raise _Bad([Problem(("geo", *p.key), p.found, p.expected, hint=p.hint)]) from None
-    given = [k for k in ("width_m", "height_m") if k in area_doc]
-    if given:
-        raise _Bad([Problem(("area", given[0]), area_doc[given[0]],
-                            "to be left out with [geo] area (the area's size is its polygon's bounding box in the "
-                            f"local frame: {frame.width_m:g} x {frame.height_m:g} m)")])
+    # The size is derived from the polygon. A document may still carry it, as every written
+    # scenario.json does (the scenario that ran, derived values included), if it is the size the
+    # polygon gives: a run folder reads back as itself. A different size is a contradiction.
+    derived = {"width_m": frame.width_m, "height_m": frame.height_m}
+    for key, value in derived.items():
+        if key in area_doc and not _same_size(area_doc[key], value):
+            raise _Bad([Problem(("area", key), area_doc[key],
+                                "to be left out with [geo] area (the area's size is its polygon's bounding box in the "
+                                f"local frame: {frame.width_m:g} x {frame.height_m:g} m)")])
     data["area"] = {**area_doc, "width_m": frame.width_m, "height_m": frame.height_m}
     # lon/lat positions -> metres (in copies of the tables that hold them)
     if items:
@@ -193,6 +197,13 @@ def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
             x, y = frame.to_local([lon], [lat])
             item["x_m"], item["y_m"] = float(x[0]), float(y[0])
     return data
+
+
+def _same_size(given: Any, derived: float) -> bool:
+    """A written size read back: equal to the derived one up to float noise (JSON keeps it exact)."""
+    if isinstance(given, bool) or not isinstance(given, (int, float)):
+        return False
+    return math.isclose(float(given), derived, rel_tol=1e-9, abs_tol=1e-6)
 
 
 def geo_problems(sc: Any) -> list[Problem]:

@@ -8,6 +8,7 @@ No other exception than :class:`~swarm.errors.ScenarioError` escapes the loader:
 
 from __future__ import annotations
 
+import json
 import os
 import tomllib
 from collections.abc import Iterable, Mapping
@@ -21,7 +22,7 @@ from swarm.scenario.overrides import set_keys, switch_planner
 from swarm.scenario.positions import found_words
 from swarm.scenario.trust import allowed
 
-__all__ = ["builtin_scenarios", "load_scenario", "scenario_from_toml"]
+__all__ = ["builtin_scenarios", "load_scenario", "scenario_from_document", "scenario_from_toml"]
 
 _BUILTIN_PACKAGE = "swarm.scenario.builtin"
 
@@ -66,8 +67,16 @@ def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
             raise ScenarioError(source, "", "a file that is not UTF-8 text", "a TOML document") from None
         except OSError as exc:
             raise ScenarioError(source, "", f"a file that cannot be read ({exc.strerror or exc})", _file_expected()) from None
+        if path.suffix.lower() == ".json":  # a run folder's scenario.json (the scenario that ran, as a document)
+            return scenario_from_document(_json_document(text, source), source, planner=planner,
+                                          allow_planner_imports=allow_planner_imports, overrides=overrides,
+                                          run_duration_s=run_duration_s, written=True)
         return scenario_from_toml(text, source, planner=planner, allow_planner_imports=allow_planner_imports,
                                   overrides=overrides, run_duration_s=run_duration_s)
+    if path.is_dir() and (path / "scenario.json").is_file():
+        raise ScenarioError(source, "", "a run folder",
+                            "a scenario; re-run the folder with `swarm rerun " + source + "`, or run its scenario with "
+                            "other settings with `swarm run " + str(path / "scenario.json") + " --seed N ...`")
     if isinstance(ref, str) and ref in builtin_scenarios():
         text = resources.files(_BUILTIN_PACKAGE).joinpath(f"{ref}.toml").read_text(encoding="utf-8")
         return scenario_from_toml(text, ref, planner=planner, allow_planner_imports=allow_planner_imports,
@@ -77,7 +86,18 @@ def load_scenario(ref: str | os.PathLike[str], *, planner: str | None = None,
 
 
 def _file_expected() -> str:
-    return f"a path to an existing .toml file or a built-in name ({', '.join(builtin_scenarios())})"
+    return (f"a path to an existing .toml file (or a run folder's scenario.json) or a built-in name "
+            f"({', '.join(builtin_scenarios())})")
+
+
+def _json_document(text: str, source: str) -> dict[str, Any]:
+    try:
+        doc = json.loads(text)
+    except ValueError as exc:
+        raise ScenarioError(source, "", f"invalid JSON ({exc})", "a scenario document (a run folder's scenario.json)") from None
+    if not isinstance(doc, dict):
+        raise ScenarioError(source, "", found_words(doc), "a table of scenario settings")
+    return doc
 
 
 def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
@@ -89,12 +109,24 @@ def scenario_from_toml(text: str, source: str, *, planner: str | None = None,
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(source, "", f"invalid TOML ({exc})", "a TOML document") from None
+    return scenario_from_document(doc, source, planner=planner, allow_planner_imports=allow_planner_imports,
+                                  overrides=overrides, run_duration_s=run_duration_s)
+
+
+def scenario_from_document(doc: dict[str, Any], source: str, *, planner: str | None = None,
+                           allow_planner_imports: bool | Iterable[str] = False,
+                           overrides: Mapping[str, Any] | None = None, run_duration_s: float | None = None,
+                           written: bool = False) -> Scenario:
+    """A scenario from a parsed document (a TOML file's, or a run folder's ``scenario.json``;
+    the keyword arguments as :func:`load_scenario`). ``written``: the document is a scenario
+    that ran (``scenario.json``), whose ``duration_s`` may be a run cut short (``--duration``):
+    UAVs that join after it are not refused."""
     if planner is not None:
         switch_planner(doc, planner)
     set_keys(doc, overrides or {}, source)
     allow = allowed(allow_planner_imports, planner)
     if run_duration_s is None:
-        return parse_scenario(doc, source, allow_planner_imports=allow)
+        return parse_scenario(doc, source, allow_planner_imports=allow, truncated=written)
     own = doc.get("duration_s", Scenario.model_fields["duration_s"].default)
     if isinstance(own, bool) or not isinstance(own, (int, float)) or not own > 0:
         return parse_scenario(doc, source, allow_planner_imports=allow)  # (says what is wrong with it)

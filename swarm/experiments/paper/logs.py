@@ -16,6 +16,7 @@ import numpy as np
 
 from comms.messages import MODE_SURVEIL
 from swarm.events import MODE_CODES, Handover, Mode, read_columns, records
+from swarm.experiments.sweep import run_folder
 from swarm.outputs import read_json, read_run_dir
 from swarm.scenario import load_scenario
 
@@ -41,7 +42,7 @@ def finished_runs(sweep_dir: Path, planner: str, seeds: Sequence[int]) -> list[d
     """Finished runs of one planner: ``{"seed", "folder", "metrics", "ts"}`` each, in seed order."""
     out = []
     for s in seeds:
-        folder = sweep_dir / "runs" / planner / "default" / f"seed-{int(s):03d}"
+        folder = sweep_dir / run_folder(planner, (), s)
         if (folder / "metrics.json").is_file() and (folder / "timeseries.csv").is_file():
             out.append({"seed": int(s), "folder": folder, "metrics": json.loads((folder / "metrics.json").read_text()),
                         "ts": read_timeseries(folder)})

@@ -282,7 +282,7 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
         "run_report.html.j2",
         title=f"Report: {title}",
         heading=title,
-        run_dir=str(run_dir.resolve()),
+        run_dir=run_dir.resolve().name,  # its name, not where it is: the page travels (issue 32)
         nav=[("figures", "figures"), ("animation", "animation"), ("faults", "faults"), ("scenario", "scenario"),
              ("metrics", "metrics"), ("violations", "violations"), ("uavs", "UAVs"), ("watch", "detection and watch")]
             + ([("handovers", "handovers")] if handovers else []),

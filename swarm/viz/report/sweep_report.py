@@ -47,6 +47,23 @@ def _metric_names(groups: list[dict]) -> list[str]:
     return names
 
 
+def _split_breakdowns(names: list[str], prefixes: object) -> tuple[list[str], dict[str, int]]:
+    """``(shown, {prefix: count})``: the metrics outside the summary's ``breakdowns`` (its
+    tables kept per UAV or per target), and how many metrics each breakdown holds. The report
+    shows the swarm's metrics; a per-UAV column for each of 300 UAVs would bury them (the
+    breakdowns stay in summary.json, summary.csv and runs.csv)."""
+    tables = [str(p) for p in prefixes] if isinstance(prefixes, list) else []
+    counts = dict.fromkeys(tables, 0)
+    shown = []
+    for name in names:
+        owner = next((p for p in tables if name.startswith(f"{p}.")), None)
+        if owner is None:
+            shown.append(name)
+        else:
+            counts[owner] += 1
+    return shown, {p: n for p, n in counts.items() if n}
+
+
 def _stat(g: dict, metric: str) -> dict:
     s = (g.get("metrics") or {}).get(metric)
     return s if isinstance(s, dict) else {}
@@ -239,12 +256,12 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
     groups = summary.get("groups")
     if not isinstance(groups, list):
         raise ReportError(f"{sweep_dir}: summary has no 'groups' list")
-    every = _metric_names(groups)
+    every, per_entity = _split_breakdowns(_metric_names(groups), summary.get("breakdowns"))
     constant = constant_metrics(groups, every)
     metrics = [m for m in every if m not in constant]
     title = f"Sweep: {summary.get('scenario', sweep_dir.name)}"
     settings_rows = [(k, ", ".join(fmt(x) for x in v) if isinstance(v, list) else fmt(v)) for k, v in summary.items()
-                     if k not in ("groups", "comparisons", "interval")
+                     if k not in ("groups", "comparisons", "interval", "breakdowns")
                      and (isinstance(v, (str, int, float, bool)) or v is None
                           or (isinstance(v, list) and all(isinstance(x, (str, int, float)) for x in v)))]
     units = {m: _column_unit(groups, m) for m in metrics}
@@ -269,7 +286,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
         "sweep_report.html.j2",
         title=title,
         heading=title,
-        sweep_dir=str(sweep_dir.resolve()),
+        sweep_dir=sweep_dir.resolve().name,  # its name, not where it is: the page travels (issue 32)
         n_groups=len(groups),
         n_runs=n_runs,
         nav=nav,
@@ -277,6 +294,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
         summary_header=["planner", "settings", "runs", *(_with_unit(m, units[m]) for m in metrics)],
         summary_rows=summary_rows,
         left_out=left_out,
+        breakdowns=[f"{prefix}.* ({n})" for prefix, n in per_entity.items()],
         sweep_figure=sweep_figure,
         differences=differences,
         order_text="first planner minus second" if first_minus_second else "second planner minus first",
