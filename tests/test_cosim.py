@@ -21,6 +21,9 @@ import math
 import socket
 
 import pytest
+from budget import examples
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from faults.schedule import Crash, Drop
 from swarm import Simulation
@@ -380,3 +383,49 @@ def test_swarm_rerun_reproduces_an_embedded_run(tmp_path):
         write_run(sim.result(), tmp_path / "run", sim.scenario.to_dict(), figures=False)
     res = rerun(tmp_path / "run", tmp_path / "again")
     assert res.equal and res.first_difference_s is None
+
+
+# --- the contract as a property -----------------------------------------------------------------
+
+_CHANGE = st.one_of(
+    st.tuples(st.just("target"), st.floats(1000.0, 49000.0), st.floats(1000.0, 49000.0)),
+    st.tuples(st.just("drop"), st.floats(0.1, 0.9), st.integers(1, 8)),
+    st.tuples(st.just("crash"), st.sampled_from(["B1", "B2", "A1"]), st.integers(0, 3)),
+    st.tuples(st.just("waypoint"), st.floats(1000.0, 49000.0), st.floats(1000.0, 49000.0)),
+)
+
+
+def _make(sim: Simulation, change: tuple, t: float) -> None:
+    kind, a, b = change
+    if kind == "target":
+        sim.add_target(a, b)
+    elif kind == "drop":
+        sim.add_fault(Drop(rate=a, start_s=t, end_s=t + b))
+    elif kind == "crash":
+        sim.add_fault(Crash(uav=a, at_s=t + b))
+    else:
+        sim.set_waypoint("A1", a, b)
+
+
+@pytest.mark.slow
+@settings(max_examples=examples(10), deadline=None)
+@given(plan=st.lists(st.tuples(st.integers(0, 19), _CHANGE), max_size=6))
+def test_chunked_call_at_and_replayed_changes_give_one_log(plan):
+    """Any changes at any boundaries: made between steps, from call_at callbacks, and replayed
+    from the first run's log, they give one event log."""
+    plan = sorted(plan, key=lambda p: p[0])
+    with Simulation(SCENARIO, duration_s=20.0) as chunked:
+        for t, change in plan:
+            if t > chunked.now:
+                chunked.step(int(t - chunked.now))
+            _make(chunked, change, float(t))
+        if chunked.now < 20:
+            chunked.step(int(20 - chunked.now))
+        first = chunked.result()
+    with Simulation(SCENARIO, duration_s=20.0) as called:
+        for t, change in plan:
+            called.call_at(float(t), lambda c=change, t=t: _make(called, c, float(t)))
+        assert called.run().metrics["event_log_sha256"] == first.metrics["event_log_sha256"]
+    with Simulation(SCENARIO, duration_s=20.0) as replay:
+        assert schedule_recorded_host_changes(replay, read_events(first.events)) == len(plan)
+        assert replay.run().metrics["event_log_sha256"] == first.metrics["event_log_sha256"]
