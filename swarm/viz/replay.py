@@ -82,7 +82,7 @@ class Replay:
     lost_causes: list[str]
     metrics: dict | None = None
     timeseries: dict[str, list] | None = None  # column name -> values (numbers or mode strings)
-    faults: list[dict] = field(default_factory=list)
+    faults: list[dict] = field(default_factory=list)  # the start header's schedule, then faults a host added
 
     # --- geometry from the scenario ---------------------------------------------------------
     @property
@@ -319,7 +319,8 @@ def fault_events(rp: Replay) -> list[tuple[float, str, str, int]]:
     """Every fault-related change, in time order: ``(t, text, kind, uid or -1)``.
 
     Windowed faults (drop, burst, delay, duplicate, corrupt, partition) from the ``start``
-    header's schedule (start and end), crashes and late joins from their events.
+    header's schedule and the faults a host added (``host`` events) (start and end), crashes
+    and late joins from their events.
     """
     out: list[tuple[float, str, str, int]] = []
     for f in rp.faults:
