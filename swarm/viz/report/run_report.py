@@ -265,8 +265,8 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
     figures = [figure_item(fig, caption, alt, width) if fig is not None else {"uri": None, "alt": alt}
                for fig, caption, alt, width in specs]
     timeline = figure_item(fig_fault_timeline(rp), "Fault windows from the schedule in the event log's start header "
-                       "and those a host added while it ran (host events) (orange: link faults, red: partitions), crashes and late joins, and every UAV's state over "
-                       "time.", "fault timeline")
+                           "and those a host added while it ran (orange: link faults, red: partitions), crashes and "
+                           "late joins, and every UAV's state over time.", "fault timeline")
     secs = rp.mode_seconds()
     per = m.get("per_uav", {}) or {}
     uav_rows = []
