@@ -429,3 +429,20 @@ def test_chunked_call_at_and_replayed_changes_give_one_log(plan):
     with Simulation(SCENARIO, duration_s=20.0) as replay:
         assert schedule_recorded_host_changes(replay, read_events(first.events)) == len(plan)
         assert replay.run().metrics["event_log_sha256"] == first.metrics["event_log_sha256"]
+
+
+def test_snapshots_say_homebound_and_landed_with_the_energy_left():
+    from faults.energy import Battery
+
+    with Simulation("geo-coast", duration_s=300.0) as sim:
+        name = sim.snapshot().uavs[0].name
+        sim.add_fault(Battery(uav=name, start_s=2.0, loss_frac=0.9))
+        seen: list[tuple[str, float]] = []
+        while not sim.done and (not seen or seen[-1][0] != "landed"):
+            sim.step()
+            u = sim.snapshot().uavs[0]
+            if not seen or seen[-1][0] != u.state:
+                assert u.energy_wh is not None
+                seen.append((u.state, u.energy_wh))
+        assert [s for s, _ in seen] == ["alive", "homebound", "landed"]
+        assert seen[0][1] > seen[1][1] > seen[2][1] > 0.0
