@@ -86,12 +86,6 @@ class Host:
                                   f"the tick boundary where a change made now takes effect)")
         return k
 
-    def check_time(self, t: float, what: str) -> None:
-        """A time a change names (a fault's, a join's) must not be before the present."""
-        present = self.present() * self._sim.dt
-        if t < present - 1e-9 * self._sim.dt:
-            raise TimeInPastError(f"{what}: t = {t:g} s is in the past (the present is {present:g} s)")
-
     # --- changes --------------------------------------------------------------------------------
 
     def submit(self, change: str, args: dict[str, Any]) -> None:
@@ -124,6 +118,8 @@ class Host:
                 raise UsageError(f"{what}: give x and y (metres) or lon and lat, not both")
             if lon is None or lat is None:
                 raise UsageError(f"{what}: give both lon and lat")
+            if not self._sim.geographic:
+                raise not_geographic(what)
             x, y = self._sim.to_local(lon, lat)
         if x is None or y is None:
             raise UsageError(f"{what}: give x and y (metres){' or lon and lat' if self._sim.geographic else ''}")
