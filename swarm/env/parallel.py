@@ -43,6 +43,7 @@ from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event, Found, Pose, Restart, Violation
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 from swarm.simulation import Simulation
+from swarm.mission import LANDED
 from swarm.world import ALIVE, CRASHED, PENDING
 
 __all__ = ["ENV_NAME", "ExternalPlanner", "RewardWeights", "SwarmSearchEnv", "parallel_env"]
@@ -383,7 +384,7 @@ class SwarmSearchEnv(ParallelEnv):
         c, s = math.cos(b.theta), math.sin(b.theta)
         fwd, left = float(a[0]) * reach, float(a[1]) * reach
         self._planners[agent].waypoint = clip_to_area(b.x + fwd * c - left * s, b.y + fwd * s + left * c, self.area_m)
-        sim.actors[uid].plan = None  # replan at its next tick: the new waypoint takes effect now
+        sim.actors[uid].replan_next_tick()  # the new waypoint takes effect at its next tick (not on the way home)
 
     def _on_event(self, event: Event) -> None:
         tally = self._tally
@@ -433,6 +434,8 @@ class SwarmSearchEnv(ParallelEnv):
         t = self._tally[uid]
         b = sim.world.uavs[uid]
         state = "restarting" if self._restarting(agent) else b.state
+        if state == ALIVE and sim.actors[uid].homebound:
+            state = "homebound"  # (endurance) flying home on its own: the actions wait for its relaunch
         return {"t": sim.now, "state": state, "type": b.kind.name, "new_cells": t.new_cells,
                 "new_area_km2": t.new_cells * sim.grid.cell_m ** 2 / _SQM_PER_KM2, "found": t.found,
                 "violations": t.violations, "waypoint": self._planners[agent].waypoint}
@@ -453,7 +456,8 @@ class SwarmSearchEnv(ParallelEnv):
         w, h = self.area_m
         c, s = math.cos(b.theta), math.sin(b.theta)
         plan = actor.plan
-        state = np.array([b.x / w, b.y / h, b.v / b.kind.speed_max, c, s,
+        speed = 0.0 if b.state == LANDED else b.v / b.kind.speed_max
+        state = np.array([b.x / w, b.y / h, speed, c, s,
                           1.0 if plan is not None and plan.mode == MODE_SURVEIL else 0.0,
                           now / sim.duration_s, b.kind.speed_max / self._fastest], dtype=np.float64)
         # Map window: q of the UAV's own map at the sample points of each window cell, averaged;
