@@ -139,14 +139,14 @@ def placement_problems(sc: Any, origins: Sequence[Origin], starts: Sequence[floa
         first.setdefault(key, k)
 
     outside = ~site.in_area(x, y) & in_box
-    for k in np.flatnonzero(outside):
-        add(int(k), "outside", f"{names[k]} at {site.where(x[k], y[k])}")
+    for kk in np.flatnonzero(outside).tolist():
+        add(kk, "outside", f"{names[kk]} at {site.where(x[kk], y[kk])}")
     for k, zone in enumerate(site.zone_at(x, y)):
         if zone is not None and in_box[k]:
             add(k, "zone", f"{names[k]} at {site.where(x[k], y[k])}, inside {zone}")
     by_start: dict[float, list[int]] = {}
-    for k, s in enumerate(starts):
-        by_start.setdefault(s, []).append(k)
+    for kk, s in enumerate(starts):
+        by_start.setdefault(s, []).append(kk)
     for s, ks in sorted(by_start.items()):
         idx = np.array(ks)
         for a, b, d in close_pairs(np.column_stack([x[idx], y[idx]]), site.min_separation_m):
@@ -158,8 +158,7 @@ def placement_problems(sc: Any, origins: Sequence[Origin], starts: Sequence[floa
 
     problems: list[Problem] = []
     for (origin, kind), items in sorted(per_origin.items(), key=lambda kv: first[kv[0]]):
-        k = first[(origin, kind)]
-        problems.append(_problem(origin, kind, items, uavs[k], site))
+        problems.append(_problem(origin, kind, items, uavs[first[(origin, kind)]], site))
     if sc.endurance is not None:
         e = sc.endurance
         if 0.0 <= e.x_m <= site.width_m and 0.0 <= e.y_m <= site.height_m:
@@ -227,8 +226,8 @@ def grid_slots(n: int, region: tuple[float, float, float, float], site: Site | N
     cols = max(1, math.ceil(math.sqrt(n * w / h)))
     for _ in range(200):
         rows = max(1, round(cols * h / w))
-        gx, gy = np.meshgrid(x0 + (np.arange(cols) + 0.5) * w / cols, y0 + (np.arange(rows) + 0.5) * h / rows)
-        gx, gy = gx.ravel(), gy.ravel()
+        mx, my = np.meshgrid(x0 + (np.arange(cols) + 0.5) * w / cols, y0 + (np.arange(rows) + 0.5) * h / rows)
+        gx, gy = mx.ravel(), my.ravel()
         keep = site.in_area(gx, gy)
         if int(keep.sum()) >= n:
             return gx[keep][:n].tolist(), gy[keep][:n].tolist()
