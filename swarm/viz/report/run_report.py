@@ -74,12 +74,19 @@ def _scenario_rows(rp: Replay) -> list[tuple]:
                                       f"detection radius {spec.get('detect_radius_m', 0) / 1000:g} km"))
     rows += [
         ("targets", f"{rp.n_targets} ({tg.get('count', 0)} random, {len(tg.get('placed', []))} placed)"),
-        ("threats", len(rp.threats)),
+        ("no-fly zones", _zone_words(rp)),
         ("radio", _radio_words(radio, rng)),
         ("faults scheduled", len(rp.faults)),
     ]
     return rows
 
+
+
+def _zone_words(rp: Replay) -> str:
+    """Every hazard UAVs keep out of: threat circles and no-fly polygons (swarm.viz.hazards)."""
+    circles, polygons = len(rp.threats), len(rp.scenario.get("no_fly") or [])
+    parts = [f"{n} {w}{'' if n == 1 else 's'}" for n, w in ((circles, "threat circle"), (polygons, "polygon")) if n]
+    return f"{circles + polygons}" + (f" ({', '.join(parts)})" if parts else "")
 
 
 def _radio_words(radio: dict, rng: float | None) -> str:
