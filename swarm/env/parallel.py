@@ -10,9 +10,12 @@ the scenario's planner behave as in any run.
 How the waypoint reaches the UAV, without a hook in the simulator: each controlled UAV's
 planner instance is replaced, before the first tick, by an :class:`ExternalPlanner`, which
 answers every plan request with the waypoint the environment last set. At each step the
-environment sets the waypoints and clears the actors' current plans (``UavActor.plan = None``:
-the actor asks for a plan at its next tick), so every action takes effect at the first tick of
-its step, even when the UAV reached its previous waypoint early and replanned in between.
+environment sets the waypoints and asks each actor for a plan at its next tick
+(:meth:`UavActor.replan_next_tick`), so every action takes effect at the first tick of its
+step, even when the UAV reached its previous waypoint early and replanned in between. A UAV
+flying home (``[endurance]``) does not replan: it keeps its way home whatever the action, and
+stays in ``agents`` while it goes home, lands and relaunches (``infos[agent]["state"]``
+``"homebound"``, ``"landed"``; issue 33: clearing its plan instead crashed the env).
 
 A ``restart`` fault gives the UAV a fresh actor with a new planner instance; the environment
 hears the ``restart`` event (emitted as the new actor is installed, before its first tick) and
