@@ -652,7 +652,8 @@ def _emit(lines: list[str], table: dict, path: list[str]) -> None:
 
 def scenario_toml(scenario: Scenario | dict, comment: str = "") -> str:
     """The scenario as a TOML document that loads back to an equal :class:`Scenario`."""
-    doc = scenario.model_dump(mode="python") if isinstance(scenario, Scenario) else scenario
+    # to_document: what validates to the scenario again (a [geo] area's size left to its polygon)
+    doc = scenario.to_document() if isinstance(scenario, Scenario) else scenario
     lines = [f"# {line}" for line in comment.splitlines()]
     _emit(lines, doc, [])
     return "\n".join(lines).strip("\n") + "\n"
