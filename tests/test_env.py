@@ -361,3 +361,34 @@ def test_going_home_landing_and_relaunching_as_an_agent():
                 infos["A2"]["waypoint"])  # under the policy again
     assert seen == ["alive", "homebound", "landed", "alive"]
     env.close()
+
+
+@pytest.mark.slow  # whole episodes of a few generated missions
+def test_pettingzoo_parallel_api_on_generated_endurance_missions():
+    """Issue 33: whole episodes with random actions pass the API test on generated missions
+    with batteries and a base (and lon/lat polygon areas, polygon no-fly zones, wind), where
+    UAVs go home, land and relaunch within the episode."""
+    from budget import examples
+    from hypothesis import HealthCheck, assume, given, settings
+
+    from swarm.testing.strategies import scenarios
+
+    homecomings = []
+
+    @settings(max_examples=examples(8), deadline=None, database=None,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+    @given(scenarios(geo=True, max_no_fly=2, wind=True, endurance=True, faults=False, min_uavs=2, max_uavs=3,
+                     min_duration_s=60, max_duration_s=150, planners=("greedy",)))
+    def episode(scenario):
+        assume(scenario.endurance is not None)
+        env = parallel_env(scenario=scenario)
+        parallel_api_test(env, num_cycles=1000)
+        sim = env.sim  # the API test's last episode
+        endurance = sim.result().metrics["endurance"]
+        homecomings.append((endurance["sorties"] - len(scenario.uavs),
+                            sum(1 for p in endurance["per_uav"].values() if p["state"] != "flying")))
+
+    episode()
+    # Some UAV went home (and relaunched) in the examples: the API test met those states.
+    assert any(relaunches or home for relaunches, home in homecomings), homecomings
+
