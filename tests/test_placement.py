@@ -137,3 +137,10 @@ def test_did_you_mean_for_fault_kinds_and_uav_types():
     e = one({"fleet": [{"type": "AA", "count": 2}]})
     assert e.key == "fleet[0].type" and e.hint == "did you mean 'A'?"
 
+
+
+def test_a_no_fly_polygon_with_lon_and_lat_swapped():
+    from test_geo import L_ZONE
+
+    e = one(geo_doc(no_fly=[{"polygon": [[lat, lon] for lon, lat in L_ZONE]}]))
+    assert e.key == "no_fly[0].polygon" and "look swapped" in e.hint

@@ -233,6 +233,12 @@ def geo_problems(sc: Any) -> list[Problem]:
     problems: list[Problem] = []
     frame = frame_for(sc.geo.crs, sc.geo.area, sc.area.cell_m) if sc.geo is not None else None
     for i, z in enumerate(sc.no_fly):
+        if sc.geo is not None and z.polygon and all(
+                len(p) == 2 and _swapped({"area": sc.geo.area}, sc.geo.crs, (float(p[0]), float(p[1]))) for p in z.polygon):
+            problems.append(Problem(("no_fly", i, "polygon"), z.polygon, "a ring of [lon, lat] pairs near the area",
+                                    hint="lon and lat look swapped: every corner would lie in the area's lon/lat box "
+                                         "the other way round (GeoJSON's order is longitude first)"))
+            continue
         try:
             ring = local_ring(frame, z.polygon, ("polygon",))
             check_simple(ring, ("polygon",), z.polygon, "a no-fly zone")

@@ -258,8 +258,10 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
              ("simulated", f"{fmt(rp.duration)} s")]
     specs = [
         (fig_trajectories(rp), "Trajectories: UAV paths (one colour each, end marker by type, a cross where a UAV "
-                               "crashed), target paths (dashed; filled star: found, hollow: never found), threats "
-                               "(red), over the map of when each cell was first scanned.", "trajectories", 820),
+                               "crashed), target paths (dashed; filled star: found, hollow: never found), no-fly zones "
+                               "(red: threat circles and polygons, influence dotted), the area polygon (outside "
+                               "it hatched) and the base (black square), over the map of when each cell was "
+                               "first scanned.", "trajectories", 820),
         (fig_coverage(rp), "Coverage and certainty over time (timeseries.csv); shaded: partitions; dashed: "
                            "crashes (red) and late joins (green).", "coverage and certainty", None),
         (fig_targets(rp), "Targets found (first detection) and targets watched by a UAV in surveillance mode.",
