@@ -38,6 +38,7 @@ class Site:
     circles: list[tuple[str, float, float, float]] = field(default_factory=list)  # (label, x, y, radius)
     zones: list[tuple[str, np.ndarray]] = field(default_factory=list)  # (label, ring)
     lonlat: Any = None  # the GeoFrame, to say where a point is in lon/lat
+    _cache: Any = field(default=None, repr=False)
 
     @classmethod
     def of(cls, sc: Any) -> Site:
@@ -69,6 +70,21 @@ class Site:
         return site
 
     # --- tests over many points at once -------------------------------------------------------
+    def _shapes(self) -> tuple[Any, list[tuple[str, Any]]]:
+        """The area polygon (its boundary counted inside) and the zones as prepared shapely
+        geometries, made once."""
+        cached = self._cache
+        if cached is None:
+            import shapely
+
+            area = shapely.Polygon(self.polygon).buffer(1e-6) if self.polygon is not None else None
+            zones = [(label, shapely.Polygon(ring)) for label, ring in self.zones]
+            for g in [area, *(z for _l, z in zones)]:
+                if g is not None:
+                    shapely.prepare(g)
+            cached = self._cache = (area, zones)
+        return cached
+
     def in_area(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Inside the area (its polygon's boundary counts as inside)."""
         x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
@@ -76,8 +92,7 @@ class Site:
         if self.polygon is not None and ok.any():
             import shapely
 
-            poly = shapely.Polygon(self.polygon).buffer(1e-6)
-            ok = ok & shapely.contains_xy(poly, x, y)
+            ok = ok & shapely.contains_xy(self._shapes()[0], x, y)
         return ok
 
     def zone_at(self, x: np.ndarray, y: np.ndarray) -> list[str | None]:
@@ -90,8 +105,8 @@ class Site:
         if self.zones:
             import shapely
 
-            for label, ring in self.zones:
-                for k in np.flatnonzero(shapely.contains_xy(shapely.Polygon(ring), x, y)):
+            for label, poly in self._shapes()[1]:
+                for k in np.flatnonzero(shapely.contains_xy(poly, x, y)):
                     out[k] = out[k] or label
         return out
 
@@ -271,16 +286,29 @@ def random_slots(n: int, region: tuple[float, float, float, float], site: Site |
 
     for qx, qy in placed:
         put(float(qx), float(qy))
+    # Redraws come in batches of 256 uniform points, the free ones used in order (a batch's
+    # geometry tested at once); at most 20 n + 10 000 of them, so a region too small fails fast.
+    pool: list[tuple[float, float]] = []
+    drawn, budget = 0, 20 * n + 10_000
+
+    def redraw(k: int) -> tuple[float, float]:
+        nonlocal pool, drawn
+        while not pool:
+            if drawn > budget:
+                raise ValueError(f"the free part of the region has no room for {n} UAVs {fmt(r)} m apart "
+                                 f"(placed {k} after {drawn:,} redraws)")
+            cx, cy = rng.uniform(x0, x1, 256), rng.uniform(y0, y1, 256)
+            free = site.free(cx, cy)
+            pool = [(float(a), float(b)) for a, b in zip(cx[free][::-1], cy[free][::-1])]
+            drawn += 256
+        return pool.pop()
+
     out_x, out_y = [], []
     for k in range(n):
         px, py, good = float(xs[k]), float(ys[k]), bool(ok[k])
-        tries = 0
         while not good or near(px, py):
-            tries += 1
-            if tries > 10_000:
-                raise ValueError("the free part of the region is too small for the fleet at the separation minimum")
-            px, py = float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))
-            good = bool(site.free(np.array([px]), np.array([py]))[0])
+            px, py = redraw(k)
+            good = True
         put(px, py)
         out_x.append(px)
         out_y.append(py)
