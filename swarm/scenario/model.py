@@ -189,10 +189,13 @@ class Scenario(Table):
         }
 
         def check_inside(path: tuple[str | int, ...], obj: Any) -> None:
-            for key, limit in (("x_m", area.width_m), ("y_m", area.height_m)):
-                value = getattr(obj, key)
-                if not 0.0 <= value <= limit:
-                    problems.append(Problem((*path, key), value, inside[key]))
+            out = [(key, getattr(obj, key)) for key, limit in (("x_m", area.width_m), ("y_m", area.height_m))
+                   if not 0.0 <= getattr(obj, key) <= limit]
+            if len(out) == 2:  # one mistake (a point far off, lon/lat mixed up), one line
+                problems.append(Problem((*path, "x_m"), obj.x_m, f"a point inside the area ({fmt(area.width_m)} x "
+                                        f"{fmt(area.height_m)} m)", found=f"({obj.x_m:g}, {obj.y_m:g}) m"))
+            elif out:
+                problems.append(Problem((*path, out[0][0]), out[0][1], inside[out[0][0]]))
 
         types_list = ", ".join(self.uav_types)
         first_with_name: dict[str, int] = {}
