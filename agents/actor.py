@@ -402,6 +402,12 @@ class UavActor:
         self._next_replan = -math.inf
         return False
 
+    def replan_next_tick(self) -> None:
+        """Ask for a plan at the next tick, keeping the current one until then (for a host whose
+        planner will now answer differently: the PettingZoo environment's new action). A UAV
+        flying home (endurance) does not replan: it keeps its way home."""
+        self._next_replan = -math.inf
+
     def relaunch(self) -> None:
         """(issue 26) Back in the air from the base with what it knew: plan afresh."""
         self.homebound = False

@@ -109,10 +109,17 @@ def _warn(source: str, scenario, duration_s: float | None = None) -> list[str]:
     return warnings
 
 
+# `swarm validate` prints at most this many problems of one scenario, then how many more.
+VALIDATE_MAX_PROBLEMS = 20
+
+
 def _cmd_validate(args) -> int:
     from swarm.errors import ScenarioError
+    from swarm.memory import MemoryLimitError, check_memory
     from swarm.scenario import load_scenario
 
+    if args.memory_limit is not None and not args.memory_limit > 0:
+        raise UsageError(f"--memory-limit {args.memory_limit:g}: expected a positive number of GB")
     reports = []
     for ref in args.scenario:
         try:
@@ -120,20 +127,40 @@ def _cmd_validate(args) -> int:
         except ScenarioError as err:
             reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
             continue
+        try:  # the same guard as `swarm run` (swarm.memory)
+            estimate = check_memory(sc, args.memory_limit)
+        except MemoryLimitError as err:
+            reports.append({"scenario": ref, "ok": False, "problems": [f"{ref}: {err}"]})
+            continue
         types = sorted({u.type for u in sc.uavs})
         reports.append({"scenario": ref, "ok": True, "name": sc.name, "uavs": len(sc.uavs), "types": types,
-                        "targets": len(sc.targets.placed) + sc.targets.count, "threats": len(sc.threats),
-                        "faults": len(sc.faults), "duration_s": sc.duration_s, "warnings": _warn(ref, sc)})
+                        "targets": len(sc.targets.placed) + sc.targets.count,
+                        "no_fly_zones": len(sc.threats) + len(sc.no_fly), "threats": len(sc.threats),
+                        "no_fly_polygons": len(sc.no_fly), "faults": len(sc.faults), "duration_s": sc.duration_s,
+                        "memory_estimate_bytes": estimate.total, "warnings": _warn(ref, sc)})
     if args.json:
         _print_json(reports)
     for r in reports:
         if r["ok"] and not args.json:
             print(f"ok: {r['scenario']}: scenario '{r['name']}', {r['uavs']} UAVs ({', '.join(r['types'])}), "
-                  f"{r['targets']} targets, {r['threats']} threats, {r['faults']} faults, {r['duration_s']:g} s")
+                  f"{r['targets']} targets, {_zone_words(r['threats'], r['no_fly_polygons'])}, {r['faults']} faults, "
+                  f"{r['duration_s']:g} s")
         elif not r["ok"]:
-            for problem in r["problems"]:
+            problems = r["problems"]
+            for problem in problems[:VALIDATE_MAX_PROBLEMS]:
                 print(f"error: {problem}", file=sys.stderr)
+            if len(problems) > VALIDATE_MAX_PROBLEMS:
+                print(f"error: {r['scenario']}: ... and {len(problems) - VALIDATE_MAX_PROBLEMS} more problems "
+                      f"(the first {VALIDATE_MAX_PROBLEMS} are shown; --json lists them all)", file=sys.stderr)
     return EXIT_USAGE if any(not r["ok"] for r in reports) else 0
+
+
+def _zone_words(circles: int, polygons: int) -> str:
+    """"3 no-fly zones (2 threat circles, 1 polygon)": every hazard a scenario keeps UAVs out of."""
+    total = circles + polygons
+    parts = [f"{n} {word}{'' if n == 1 else 's'}" for n, word in ((circles, "threat circle"), (polygons, "polygon")) if n]
+    detail = f" ({', '.join(parts)})" if circles and polygons else (f" ({parts[0].split(' ', 1)[1]})" if total else "")
+    return f"{total} no-fly zone{'' if total == 1 else 's'}{detail}"
 
 
 def _cmd_list(args) -> int:
@@ -683,6 +710,9 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
     v.add_argument("--json", action="store_true", help="print one JSON record per scenario on stdout")
+    v.add_argument("--memory-limit", type=float, default=None, metavar="GB",
+                   help="refuse a scenario estimated to need more, as `swarm run` does (default: SWARM_MEMORY_LIMIT_GB, "
+                        "else half of this machine's memory)")
     _add_allow_arg(v)
     v.set_defaults(func=_cmd_validate)
 

@@ -4,7 +4,9 @@ With no fault, generated surveillance scenarios (rule-abiding UAV types, any rad
 strategies draw, 2-4 UAVs with late joiners, up to three moving targets, threats) never break
 a rule: 500 examples under the ``ci`` profile (what CI runs), 5000 under ``deep``
 (``HYPOTHESIS_PROFILE=deep``). With faults of every kind, each violation names a fault that may
-explain it (:attr:`Violation.faults`); one that names none is the planner's.
+explain it (:attr:`Violation.faults`); one that names none is the planner's. The same over real
+missions (issue 33): geographic polygon areas, polygon no-fly zones, wind (and batteries, behind
+``swarm.testing.strategies.ENDURANCE_IN_RULE_TESTS``).
 
 Also here: the preconditions (agents.assignment) on Table 1 and on the rule-breaking weights
 the strategies used to draw, and the warning a scenario with such a type gets.
@@ -68,6 +70,32 @@ def test_under_faults_every_violation_names_a_fault_that_may_explain_it(doc):
 def test_no_fault_run_breaks_no_assignment_rule_short(doc):
     """The property above on shorter runs, in the quick loop too (5 examples there)."""
     _assert_none(_violations(doc))
+
+
+# (issue 33) The same rules over real missions: lon/lat polygon areas, polygon no-fly zones and
+# wind, each drawn or not per example; and batteries with a base (return, landing, turnaround,
+# relaunch) once swarm.testing.strategies.ENDURANCE_IN_RULE_TESTS is on. It is off until the
+# relief rule of issue 33 (a watcher that must go home is relieved on station; a UAV going home
+# is not free to take a target over) is in docs/modelling.md and the planner: with batteries, a
+# watcher turning for home with nobody to relieve it is flagged by no_drop today (branch
+# ``endurance``). The checkers are not weakened for it.
+MISSIONS = {"geo": True, "max_no_fly": 2, "wind": True, "endurance": None}
+
+
+@pytest.mark.slow  # 60 runs of 60-240 s
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=_HEALTH)
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, faults=False, min_uavs=2, max_uavs=4,
+                          min_duration_s=60, max_duration_s=240, **MISSIONS))
+def test_no_fault_mission_breaks_no_assignment_rule(doc):
+    _assert_none(_violations(doc))
+
+
+@pytest.mark.slow  # 40 runs of 60-180 s with up to 5 faults each
+@settings(max_examples=examples(40), deadline=None, suppress_health_check=_HEALTH)
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, fault_kinds=ALL_KINDS, min_uavs=2, max_uavs=4,
+                          min_duration_s=60, max_duration_s=180, **MISSIONS))
+def test_under_faults_every_mission_violation_names_a_fault_that_may_explain_it(doc):
+    _assert_none([v for v in _violations(doc) if not v.faults])
 
 
 # --- the preconditions --------------------------------------------------------------------------

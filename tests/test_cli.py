@@ -69,3 +69,32 @@ def test_bad_override_names_the_key(small_scenario_path):
 def test_builtins_validate(name, capsys):
     assert main(["validate", name]) == 0
     assert capsys.readouterr().out.startswith(f"ok: {name}")
+
+
+def test_validate_prints_at_most_20_problems_then_how_many_more(tmp_path, capsys):
+    """Issue 33: one scenario with many mistakes printed every one (26,588 lines)."""
+    uavs = "".join(f'[[uavs]]\ntype = "B"\nx_m = {-100 - k}\ny_m = 100\n' for k in range(25))
+    bad = tmp_path / "many.toml"
+    bad.write_text(uavs)
+    assert main(["validate", str(bad)]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 21 and all(line.startswith("error: ") for line in lines)
+    assert "uavs[19].x_m" in lines[19] and "... and 5 more problems" in lines[20]
+    assert main(["validate", "--json", str(bad)]) == 2
+    assert len(json.loads(capsys.readouterr().out)[0]["problems"]) == 25
+
+
+def test_validate_applies_the_memory_guard_of_run(tmp_path, capsys):
+    """Issue 33: validate said ok to a scenario that run refuses for memory."""
+    big = tmp_path / "big.toml"
+    big.write_text('[area]\nwidth_m = 500000\nheight_m = 500000\ncell_m = 1\n[[uavs]]\ntype = "B"\nx_m = 10\ny_m = 10\n')
+    assert main(["validate", str(big), "--memory-limit", "8"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {big}: scenario 'big' would need about") and "area.cell_m" in err[0]
+    assert main(["validate", "paper-case1", "--memory-limit", "8"]) == 0
+
+
+def test_validate_counts_no_fly_polygons_as_hazards(capsys):
+    assert main(["validate", "geo-coast", "paper-case2"]) == 0
+    out = capsys.readouterr().out
+    assert "1 no-fly zone (polygon)" in out and "4 no-fly zones (threat circles)" in out and "threats" not in out

@@ -312,3 +312,83 @@ def test_options_and_misuse():
         parallel_env(scenario=case1()).step({})
     with pytest.raises(UsageError, match="odd"):
         parallel_env(scenario=case1(), map_size=4)
+
+
+def geo_coast(duration_s: float = 1300.0):
+    """geo-coast, short enough to be quick, long enough that A2 (its battery fault at 600 s)
+    goes home, lands and relaunches (about 610 s, 910 s and 1210 s)."""
+    return apply_overrides(load_scenario("geo-coast"), {"duration_s": duration_s})
+
+
+@pytest.mark.slow  # a 1300 s episode of 6 UAVs (about 3 s)
+def test_pettingzoo_parallel_api_whole_mission_with_endurance():
+    """Issue 33: with [endurance] a controlled UAV turning for home crashed the env
+    (``'NoneType' object has no attribute 'wx'``: each step cleared the plan that takes it
+    home). Whole episodes now pass, through going home, landing and relaunching."""
+    parallel_api_test(parallel_env(scenario=geo_coast()), num_cycles=200)
+
+
+@pytest.mark.slow  # a 1300 s episode of 6 UAVs (about 3 s)
+def test_going_home_landing_and_relaunching_as_an_agent():
+    """docs/env.md, "Agents": a UAV going home flies its way home whatever the action (state
+    "homebound"); landed, it stays in ``agents`` (not terminated), observes speed 0 at the base
+    and earns 0; relaunched, it flies the policy's waypoints again."""
+    env = parallel_env(scenario=geo_coast())
+    env.reset(seed=0)
+    sim = env.sim
+    uid = next(u.uid for u in sim.snapshot().uavs if u.name == "A2")
+    seen: list[str] = []
+    while env.agents:
+        # Always "turn hard left": never the way home.
+        obs, rewards, term, trunc, infos = env.step({a: np.array([0.0, 1.0], np.float32) for a in env.agents})
+        if "A2" not in infos:
+            continue
+        state = infos["A2"]["state"]
+        if not seen or seen[-1] != state:
+            seen.append(state)
+        assert not term["A2"]
+        b = next(u for u in sim.snapshot().uavs if u.uid == uid)
+        if state == "homebound":
+            plan = sim.actors[uid].plan
+            e = sim.scenario.endurance
+            assert (plan.wx, plan.wy) == pytest.approx((e.x_m, e.y_m))  # home, not the action's waypoint
+        if state == "landed":
+            assert "A2" in env.agents or trunc["A2"]
+            assert rewards["A2"] == 0.0 and obs["A2"]["state"][2] == 0.0
+            assert math.hypot(b.x - e.x_m, b.y - e.y_m) <= e.land_radius_m
+        if state == "alive" and seen[:-1] == ["alive", "homebound", "landed"]:
+            assert sim.actors[uid].plan is None or (sim.actors[uid].plan.wx, sim.actors[uid].plan.wy) == pytest.approx(
+                infos["A2"]["waypoint"])  # under the policy again
+    assert seen == ["alive", "homebound", "landed", "alive"]
+    env.close()
+
+
+@pytest.mark.slow  # whole episodes of a few generated missions
+def test_pettingzoo_parallel_api_on_generated_endurance_missions():
+    """Issue 33: whole episodes with random actions pass the API test on generated missions
+    with batteries and a base (and lon/lat polygon areas, polygon no-fly zones, wind), where
+    UAVs go home, land and relaunch within the episode."""
+    from budget import examples
+    from hypothesis import HealthCheck, assume, given, settings
+
+    from swarm.testing.strategies import scenarios
+
+    homecomings = []
+
+    @settings(max_examples=examples(8), deadline=None, database=None,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+    @given(scenarios(geo=True, max_no_fly=2, wind=True, endurance=True, faults=False, min_uavs=2, max_uavs=3,
+                     min_duration_s=60, max_duration_s=150, planners=("greedy",)))
+    def episode(scenario):
+        assume(scenario.endurance is not None)
+        env = parallel_env(scenario=scenario)
+        parallel_api_test(env, num_cycles=1000)
+        sim = env.sim  # the API test's last episode
+        endurance = sim.result().metrics["endurance"]
+        homecomings.append((endurance["sorties"] - len(scenario.uavs),
+                            sum(1 for p in endurance["per_uav"].values() if p["state"] != "flying")))
+
+    episode()
+    # Some UAV went home (and relaunched) in the examples: the API test met those states.
+    assert any(relaunches or home for relaunches, home in homecomings), homecomings
+

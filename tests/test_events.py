@@ -26,12 +26,14 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def _doc(duration_s: float = 300.0, level: str = "frames") -> dict:
     """faults-small (a partition, a crash, a late joiner, corruption, drops; found, handover
-    and release happen) with a UAV starting inside a threat (a violation event)."""
+    and release happen) with a UAV that flies into a threat at once (a violation event)."""
     with open(DATA / "faults-small.toml", "rb") as fh:
         doc = tomllib.load(fh)
     doc["duration_s"] = duration_s
     doc["uavs"][3]["join_s"] = min(100.0, duration_s / 2)  # A2 joins late
-    doc["threats"].append({"x_m": 1000.0, "y_m": 2000.0, "radius_m": 300.0})  # around B1's start
+    # just ahead of B1's start (heading east at 90 m/s, a turn radius of over 2 km): it flies in.
+    # (A UAV may no longer start inside a no-fly zone: issue 33.)
+    doc["threats"].append({"x_m": 1650.0, "y_m": 2000.0, "radius_m": 500.0})
     doc["recording"] = {"level": level}
     return doc
 

@@ -133,3 +133,55 @@ def test_metric_units():
     assert (unit.suffix, unit.number(3.34e5), unit.format(4_121_000)) == ("MB", "0.33", "4.12 MB")
     counts = metric_unit("radio.sent", 322.0)
     assert (counts.number(322.4), counts.number(14.4), counts.number(2.0)) == ("322", "14", "2")
+
+
+@pytest.fixture(scope="module")
+def geo_run(tmp_path_factory):
+    """A short geographic run with a no-fly polygon, a threat circle and a base (issue 33)."""
+    pytest.importorskip("shapely")
+    from test_geo import geo_doc
+
+    from swarm.outputs import write_run
+    from swarm.scenario import parse_scenario
+
+    doc = geo_doc(duration_s=30.0, threats=[{"x_m": 15000.0, "y_m": 4000.0, "radius_m": 800.0}],
+                  endurance={"lon": 10.05, "lat": 54.05, "types": {"B": {"capacity_wh": 5000.0},
+                                                                    "A": {"capacity_wh": 5000.0}}})
+    with Simulation(parse_scenario(doc, "geo.toml")) as sim:
+        result = sim.run()
+    out = tmp_path_factory.mktemp("geo") / "run"
+    write_run(result, out, figures=False)
+    return result, out
+
+
+def test_hazards_are_drawn_in_every_map(geo_run):
+    """Issue 33: the area polygon, the no-fly polygons (and circles) and the base in
+    trajectories.png, the report's trajectories and the animation."""
+    from swarm.viz.animate import _Scene
+    from swarm.viz.replay import load_run
+    from swarm.viz.report.run_figures import fig_trajectories
+
+    result, out = geo_run
+    expected = {"outside the area polygon", "no-fly polygon (2)", "threat (1)", "base"}
+    assert expected <= set(_legend_labels(trajectories_plot(result)))
+    rp = load_run(out)
+    assert expected <= {t.get_text() for leg in fig_trajectories(rp).legends for t in leg.get_texts()}
+    import numpy as np
+
+    scene = _Scene(rp, np.array([0.0]), fps=10.0, speed=60.0, trail_s=60.0, dpi=50.0)
+    assert expected <= {t.get_text() for leg in scene.fig.legends for t in leg.get_texts()}
+    # the base square and the outside of the polygon are drawn, over the heat map
+    assert any(getattr(a, "get_marker", lambda: None)() == "s" for a in scene.threat_patches)
+    assert all(a.get_zorder() > scene.image.get_zorder() for a in scene.threat_patches)
+
+
+def test_zones_geojson_has_the_base(geo_run):
+    import json
+
+    _result, out = geo_run
+    zones = json.loads((out / "zones.geojson").read_text())["features"]
+    roles = [f["properties"]["role"] for f in zones]
+    assert roles.count("base") == 1 and roles.count("no_fly") == 2 and roles.count("threat") == 1
+    base = next(f for f in zones if f["properties"]["role"] == "base")
+    assert base["geometry"]["type"] == "Point" and base["geometry"]["coordinates"] == pytest.approx([10.05, 54.05])
+    assert base["properties"]["land_radius_m"] == 500.0

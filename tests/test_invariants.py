@@ -835,6 +835,23 @@ def test_separation_without_radio_greedy(tmp_path):
     assert dropped > 0  # (the radio really carried nothing)
 
 
+# (issue 33, found by the mission strategies) A fast watcher whose target is 0.4-0.7 km inside a
+# [geo] area polygon's edge: its loiter circle (1.26 km for a B) does not fit inside the area, the
+# area's boundary keeps it away, it loses sight of the target at 30 s and lets it go at 180 s,
+# before the track lifetime (1/tau = 200 s) after which no_drop counts a target lost. Near a
+# no-fly zone the rule keeps such a target (rule 5); the area's own edge has no such provision.
+# The same encounter in a rectangle of the same size keeps it (the control below).
+GEO_EDGE_WATCH = {
+    "name": "geo-edge-watch", "seed": 0, "duration_s": 200.0,
+    "geo": {"area": [[-80.902, 51.0124], [-80.9293, 51.0448], [-81.0, 51.0538], [-81.0508, 51.0133],
+                     [-81.0686, 50.9914], [-81.0382, 50.9415], [-81.0, 50.9652], [-80.9399, 50.9619],
+                     [-80.902, 51.0124]]},
+    "area": {"cell_m": 250.0},
+    "uavs": [{"name": "B1", "type": "B", "x_m": 2500.0, "y_m": 2500.0, "heading_deg": 135.0}],
+    "targets": {"count": 1, "speed_max": 20.0},
+    "planner": {"name": "formation", "surveillance": True},
+}
+
 KNOWN_FAILURES = {
     # A paused UAV flies its last command blind (issue 16's pause): it cannot turn away from a
     # no-fly zone ahead. The threat checker excuses a UAV while a node fault acts on it; judged
@@ -846,7 +863,19 @@ KNOWN_FAILURES = {
          "threats": [{"x_m": 7000.0, "y_m": 2500.0, "radius_m": 1000.0}],
          "planner": {"name": "greedy"}, "faults": [{"kind": "pause", "uav": "B1", "start_s": 2.0, "end_s": 80.0}]},
         lambda: [ThreatClearanceChecker(excuse_node_faults=False)]),
+    "watcher_near_the_area_polygon_edge": (GEO_EDGE_WATCH, lambda: [NoDropChecker()]),
 }
+
+
+def test_watcher_near_the_edge_of_a_rectangle_keeps_its_target():
+    """The control for the area-polygon-edge known failure: the same encounter in a rectangle."""
+    doc = {k: v for k, v in GEO_EDGE_WATCH.items() if k != "geo"}
+    doc["area"] = {"width_m": 11750.0, "height_m": 12500.0, "cell_m": 250.0}
+    scenario = _known(doc)
+    with Simulation(scenario) as sim:
+        result = sim.run()
+    assert check_events(result.events, scenario, [NoDropChecker()]) == []
+    assert any(e.mode == "surveil" for e in read_events(result.events, {"mode"}))  # it did watch (not vacuous)
 
 
 def test_radio_a_uav_resuming_from_a_pause_may_read_a_spoofed_frame_its_mailbox_held():

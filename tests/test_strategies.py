@@ -383,3 +383,62 @@ def test_swarm_testing_follows_the_switch_when_not_given(monkeypatch):
     assert strat.swarm_testing_enabled()
     sc = find(scenarios(max_duration_s=30), lambda s: s.radio.model == "log_distance", settings=SEARCH)
     assert sc.radio.model == "log_distance"  # scenarios() with swarm=None read the switch at draw time
+
+
+# --- real missions (issue 33) -------------------------------------------------------------------
+
+MISSION_FEATURES = {"geo": True, "max_no_fly": 2, "wind": True, "endurance": True}
+
+
+@settings(max_examples=examples(60), suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(scenario=scenarios(**MISSION_FEATURES))
+def test_mission_scenarios_keep_things_where_they_may_be_and_round_trip(scenario):
+    """Geographic areas, polygon zones, wind and endurance: valid, every UAV and the base inside
+    the area polygon and clear of the zones, and the reproduction TOML loads back equal."""
+    from swarm.scenario.placement import Site
+
+    site = Site.of(scenario)
+    xy = [(u.x_m, u.y_m) for u in scenario.uavs]
+    if scenario.endurance is not None:
+        xy.append((scenario.endurance.x_m, scenario.endurance.y_m))
+    xs, ys = [p[0] for p in xy], [p[1] for p in xy]
+    import numpy as np
+
+    assert site.free(np.array(xs), np.array(ys)).all()
+    if scenario.geo is not None:
+        assert site.polygon is not None and len(scenario.geo.area) >= 6
+    assert scenario_from_toml(scenario_toml(scenario), "generated.toml") == scenario
+
+
+@pytest.mark.slow  # 40 generated documents with geography (2-3 s)
+def test_mission_strategies_draw_every_feature():
+    """Each feature shows up (and each is left out too): not one silently never drawn."""
+    from swarm.testing.strategies import scenario_documents
+
+    seen: dict[str, set[bool]] = {"geo": set(), "no_fly": set(), "wind": set(), "endurance": set()}
+
+    @settings(max_examples=40, database=None, derandomize=True, phases=[Phase.generate],
+              suppress_health_check=list(HealthCheck))
+    @given(scenario_documents(faults=False, **MISSION_FEATURES))
+    def draw(doc):
+        for key in seen:
+            seen[key].add(bool(doc.get(key)))
+        if doc.get("endurance"):
+            assert doc["endurance"]["turnaround_s"] <= 60.0
+
+    draw()
+    assert all(v == {True, False} for v in seen.values()), seen
+
+
+def test_endurance_in_rule_tests_is_off_until_the_relief_rule_is_settled():
+    """``endurance=None`` follows the flag (branch ``endurance`` turns it on)."""
+    from swarm.testing import strategies
+
+    assert strategies.ENDURANCE_IN_RULE_TESTS is False
+
+    @settings(max_examples=10, database=None, derandomize=True, phases=[Phase.generate])
+    @given(strategies.scenario_documents(faults=False, endurance=None))
+    def draw(doc):
+        assert "endurance" not in doc
+
+    draw()

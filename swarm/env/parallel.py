@@ -10,9 +10,12 @@ the scenario's planner behave as in any run.
 How the waypoint reaches the UAV, without a hook in the simulator: each controlled UAV's
 planner instance is replaced, before the first tick, by an :class:`ExternalPlanner`, which
 answers every plan request with the waypoint the environment last set. At each step the
-environment sets the waypoints and clears the actors' current plans (``UavActor.plan = None``:
-the actor asks for a plan at its next tick), so every action takes effect at the first tick of
-its step, even when the UAV reached its previous waypoint early and replanned in between.
+environment sets the waypoints and asks each actor for a plan at its next tick
+(:meth:`UavActor.replan_next_tick`), so every action takes effect at the first tick of its
+step, even when the UAV reached its previous waypoint early and replanned in between. A UAV
+flying home (``[endurance]``) does not replan: it keeps its way home whatever the action, and
+stays in ``agents`` while it goes home, lands and relaunches (``infos[agent]["state"]``
+``"homebound"``, ``"landed"``; issue 33: clearing its plan instead crashed the env).
 
 A ``restart`` fault gives the UAV a fresh actor with a new planner instance; the environment
 hears the ``restart`` event (emitted as the new actor is installed, before its first tick) and
@@ -41,6 +44,7 @@ from agents.planners.base import Plan, PlanView
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event, Found, Pose, Restart, Violation
+from swarm.mission import LANDED
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 from swarm.simulation import Simulation
 from swarm.world import ALIVE, CRASHED, PENDING
@@ -388,7 +392,7 @@ class SwarmSearchEnv(ParallelEnv):
         c, s = math.cos(b.theta), math.sin(b.theta)
         fwd, left = float(a[0]) * reach, float(a[1]) * reach
         self._planners[agent].waypoint = clip_to_area(b.x + fwd * c - left * s, b.y + fwd * s + left * c, self.area_m)
-        sim.actors[uid].plan = None  # replan at its next tick: the new waypoint takes effect now
+        sim.actors[uid].replan_next_tick()  # the new waypoint takes effect at its next tick (not on the way home)
 
     def _on_event(self, event: Event) -> None:
         tally = self._tally
@@ -438,6 +442,8 @@ class SwarmSearchEnv(ParallelEnv):
         t = self._tally[uid]
         b = sim._world.uavs[uid]
         state = "restarting" if self._restarting(agent) else b.state
+        if state == ALIVE and sim.actors[uid].homebound:
+            state = "homebound"  # (endurance) flying home on its own: the actions wait for its relaunch
         return {"t": sim.now, "state": state, "type": b.kind.name, "new_cells": t.new_cells,
                 "new_area_km2": t.new_cells * sim._grid.cell_m ** 2 / _SQM_PER_KM2, "found": t.found,
                 "violations": t.violations, "waypoint": self._planners[agent].waypoint}
@@ -458,7 +464,8 @@ class SwarmSearchEnv(ParallelEnv):
         w, h = self.area_m
         c, s = math.cos(b.theta), math.sin(b.theta)
         plan = actor.plan
-        state = np.array([b.x / w, b.y / h, b.v / b.kind.speed_max, c, s,
+        speed = 0.0 if b.state == LANDED else b.v / b.kind.speed_max
+        state = np.array([b.x / w, b.y / h, speed, c, s,
                           1.0 if plan is not None and plan.mode == MODE_SURVEIL else 0.0,
                           now / sim.duration_s, b.kind.speed_max / self._fastest], dtype=np.float64)
         # Map window: q of the UAV's own map at the sample points of each window cell, averaged;

@@ -54,6 +54,7 @@ def _crs(crs: str) -> Any:
                          hint=str(exc).split("\n")[0][:120]) from None
 
 
+@functools.lru_cache(maxsize=32)
 def is_geographic(crs: str) -> bool:
     """Whether ``crs`` is a geographic (longitude/latitude) CRS."""
     return bool(_crs(crs).is_geographic)

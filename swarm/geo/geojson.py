@@ -92,6 +92,11 @@ def geojson_files(result: Any, scenario: Mapping[str, Any], extra_zones: list[di
         ring = np.column_stack([th["x_m"] + th["radius_m"] * np.cos(a), th["y_m"] + th["radius_m"] * np.sin(a)])
         zones.append({"type": "Feature", "geometry": _polygon(frame, ring),
                       "properties": {"role": "threat", "zone": k, "radius_m": th["radius_m"]}})
+    e = scenario.get("endurance")
+    if isinstance(e, dict) and e.get("x_m") is not None:  # the home base: where UAVs land and relaunch
+        zones.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": _coords(
+            frame, np.array([float(e["x_m"])]), np.array([float(e["y_m"])]))[0]},
+                      "properties": {"role": "base", "land_radius_m": e.get("land_radius_m")}})
     for feat in extra_zones or []:
         zones.append(feat)
     return {"paths.geojson": _collection(paths), "targets.geojson": _collection(targets), "zones.geojson": _collection(zones)}

@@ -194,7 +194,14 @@ def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
             for key, value in (("lon", lon), ("lat", lat)):
                 if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                     raise _Bad([Problem((*path, key), value, "a number (with lon and lat both given, in [geo] crs)")])
+            swapped = _swapped(geo, crs, (float(lon), float(lat)))
+            if swapped:
+                raise _Bad([Problem((*path, "lon"), lon, swapped, found=f"lon = {lon!r}, lat = {lat!r}",
+                                    hint="lon and lat look swapped: GeoJSON's order is longitude first")])
             x, y = frame.to_local([lon], [lat])
+            if not (math.isfinite(float(x[0])) and math.isfinite(float(y[0]))):
+                raise _Bad([Problem((*path, "lon"), lon, f"a point {crs} can place on the Earth",
+                                    found=f"lon = {lon!r}, lat = {lat!r}")])
             item["x_m"], item["y_m"] = float(x[0]), float(y[0])
     return data
 
@@ -206,35 +213,46 @@ def _same_size(given: Any, derived: float) -> bool:
     return math.isclose(float(given), derived, rel_tol=1e-9, abs_tol=1e-6)
 
 
+def _swapped(geo: dict, crs: str, point: tuple[float, float]) -> str:
+    """What was expected, when a geographic point lies outside the area's lon/lat bounding box
+    (or off the globe) and the same point with its two numbers swapped lies inside it; else ""."""
+    from swarm.geo.frame import is_geographic
+
+    if not is_geographic(crs):
+        return ""
+    ring = [p for p in geo["area"] if isinstance(p, (list, tuple)) and len(p) == 2]
+    if not ring:
+        return ""
+    lons, lats = [float(p[0]) for p in ring], [float(p[1]) for p in ring]
+
+    def inside(lon: float, lat: float) -> bool:
+        return min(lons) <= lon <= max(lons) and min(lats) <= lat <= max(lats)
+
+    a, b = point
+    if inside(a, b) or not inside(b, a):
+        return ""
+    return (f"a point in the area (lon in [{min(lons):g}, {max(lons):g}], lat in [{min(lats):g}, {max(lats):g}]); "
+            f"as lon = {b!r}, lat = {a!r} it would be")
+
+
 def geo_problems(sc: Any) -> list[Problem]:
-    """Checks of a validated scenario's geography: no-fly polygons closed and simple, positions
-    inside the area polygon."""
+    """Checks of a validated scenario's geography: no-fly polygons closed and simple (where
+    things are: :func:`swarm.scenario.placement.placement_problems`)."""
     from swarm.geo.frame import GeoProblem, check_simple, frame_for
     from swarm.geo.geography import local_ring
 
     problems: list[Problem] = []
     frame = frame_for(sc.geo.crs, sc.geo.area, sc.area.cell_m) if sc.geo is not None else None
     for i, z in enumerate(sc.no_fly):
+        if sc.geo is not None and z.polygon and all(
+                len(p) == 2 and _swapped({"area": sc.geo.area}, sc.geo.crs, (float(p[0]), float(p[1]))) for p in z.polygon):
+            problems.append(Problem(("no_fly", i, "polygon"), z.polygon, "a ring of [lon, lat] pairs near the area",
+                                    hint="lon and lat look swapped: every corner would lie in the area's lon/lat box "
+                                         "the other way round (GeoJSON's order is longitude first)"))
+            continue
         try:
             ring = local_ring(frame, z.polygon, ("polygon",))
             check_simple(ring, ("polygon",), z.polygon, "a no-fly zone")
         except GeoProblem as p:
             problems.append(Problem(("no_fly", i, *p.key), p.found, p.expected, hint=p.hint))
-    if frame is None:
-        return problems
-    from agents.zones import Keepout
-
-    area = Keepout(-1, frame.area, 1.0, inverted=True)
-
-    def outside(x: float, y: float) -> bool:
-        return area.clearance(x, y)[0] < -1e-6
-
-    for i, u in enumerate(sc.uavs):
-        if outside(u.x_m, u.y_m):
-            problems.append(Problem(("uavs", i, "x_m"), u.x_m, "a launch point inside the area polygon ([geo] area)",
-                                    found=f"({u.x_m:.0f}, {u.y_m:.0f}) m, outside the area polygon"))
-    for i, t in enumerate(sc.targets.placed):
-        if outside(t.x_m, t.y_m):
-            problems.append(Problem(("targets", "placed", i, "x_m"), t.x_m, "a position inside the area polygon ([geo] area)",
-                                    found=f"({t.x_m:.0f}, {t.y_m:.0f}) m, outside the area polygon"))
     return problems

@@ -34,6 +34,7 @@ from swarm.scenario.generated import FAULT_KINDS, Fault, JoinFault, RadioSetting
 from swarm.scenario.geo import GeoSettings, NoFlySpec, geo_problems, resolve_geography
 from swarm.scenario.mission import EnduranceSettings, WindSettings, endurance_problems
 from swarm.scenario.overrides import PLANNER_NAME_KEY, set_keys
+from swarm.scenario.placement import Site, placement_problems
 from swarm.scenario.positions import found_words
 from swarm.scenario.tables import (
     DEFAULT_UAV_TYPES,
@@ -120,10 +121,19 @@ class Scenario(Table):
     def _complete_and_cross_check(self, info: ValidationInfo) -> Scenario:
         # Filling in names and folding joins replaces items of lists this model has just built
         # (pydantic copies input lists), so the frozen model's attributes are never reassigned.
+        origins: list[tuple[str, int]] = [("uavs", i) for i in range(len(self.uavs))]
         if self.fleet:
             raise_if(self._fleet_problems())
+            site = Site.of(self)
             for i, fleet in enumerate(self.fleet):
-                self.uavs.extend(fleet.expand(i, self.area))
+                taken = [(u.x_m, u.y_m) for u in self.uavs if u.join_s == fleet.join_s]
+                try:
+                    expanded = fleet.expand(i, self.area, site, taken)
+                except ValueError as exc:
+                    raise_if([Problem(("fleet", i, "region"), fleet.region, "a region with room for the fleet inside the "
+                                      "area (its polygon), outside the no-fly zones", found=f"{exc}")])
+                self.uavs.extend(expanded)
+                origins += [("fleet", i)] * len(expanded)
             self.fleet.clear()  # consumed: the scenario now lists every UAV in uavs
         if not self.uavs:
             raise_if([Problem(("uavs",), self.uavs,
@@ -140,7 +150,7 @@ class Scenario(Table):
         context = info.context or {}
         truncated = bool(context.get("truncated"))
         join_end = context.get("scenario_duration_s") if truncated else self.duration_s
-        problems = self._cross_problems(join_end)
+        problems = self._cross_problems(join_end, origins)
         raise_if(problems)
 
         for fault in self.faults:
@@ -156,7 +166,8 @@ class Scenario(Table):
         for i, fleet in enumerate(self.fleet):
             spec = self.uav_types.get(fleet.type)
             if spec is None:
-                problems.append(Problem(("fleet", i, "type"), fleet.type, f"a UAV type defined in [uav_types]: {types_list}"))
+                problems.append(Problem(("fleet", i, "type"), fleet.type, f"a UAV type defined in [uav_types]: {types_list}",
+                                        _did_you_mean(fleet.type, self.uav_types)))
             elif fleet.speed is not None and not spec.speed_min <= fleet.speed <= spec.speed_max:
                 problems.append(Problem(("fleet", i, "speed"), fleet.speed,
                                          f"a number in [{fmt(spec.speed_min)}, {fmt(spec.speed_max)}] "
@@ -168,7 +179,7 @@ class Scenario(Table):
                                          f"and 0 <= y0 < y1 <= {fmt(area.height_m)} (inside the area)"))
         return problems
 
-    def _cross_problems(self, join_end: float | None) -> list[Problem]:
+    def _cross_problems(self, join_end: float | None, origins: list[tuple[str, int]]) -> list[Problem]:
         """Checks that need more than one table: names, types, positions, fault references."""
         problems: list[Problem] = []
         area = self.area
@@ -178,17 +189,21 @@ class Scenario(Table):
         }
 
         def check_inside(path: tuple[str | int, ...], obj: Any) -> None:
-            for key, limit in (("x_m", area.width_m), ("y_m", area.height_m)):
-                value = getattr(obj, key)
-                if not 0.0 <= value <= limit:
-                    problems.append(Problem((*path, key), value, inside[key]))
+            out = [(key, getattr(obj, key)) for key, limit in (("x_m", area.width_m), ("y_m", area.height_m))
+                   if not 0.0 <= getattr(obj, key) <= limit]
+            if len(out) == 2:  # one mistake (a point far off, lon/lat mixed up), one line
+                problems.append(Problem((*path, "x_m"), obj.x_m, f"a point inside the area ({fmt(area.width_m)} x "
+                                        f"{fmt(area.height_m)} m)", found=f"({obj.x_m:g}, {obj.y_m:g}) m"))
+            elif out:
+                problems.append(Problem((*path, out[0][0]), out[0][1], inside[out[0][0]]))
 
         types_list = ", ".join(self.uav_types)
         first_with_name: dict[str, int] = {}
         for i, uav in enumerate(self.uavs):
             spec = self.uav_types.get(uav.type)
             if spec is None:
-                problems.append(Problem(("uavs", i, "type"), uav.type, f"a UAV type defined in [uav_types]: {types_list}"))
+                problems.append(Problem(("uavs", i, "type"), uav.type, f"a UAV type defined in [uav_types]: {types_list}",
+                                        _did_you_mean(uav.type, self.uav_types)))
             name = typing.cast(str, uav.name)  # filled in (_complete_and_cross_check) before these checks
             if name in first_with_name:
                 problems.append(Problem(("uavs", i, "name"), name,
@@ -209,8 +224,12 @@ class Scenario(Table):
         names = set(first_with_name)
         valid_names = f"a UAV name defined in [[uavs]]: {', '.join(first_with_name)}"
 
+        # A UAV whose type is unknown may carry a name that type-based naming gave it (Bb1 for a
+        # mistyped B1): the fault references that follow from it are not judged (one mistake, one line).
+        mistyped = any(u.type not in self.uav_types for u in self.uavs)
+
         def check_name(path: tuple[str | int, ...], name: str) -> None:
-            if name not in names:
+            if name not in names and not mistyped:
                 close = difflib.get_close_matches(name, list(first_with_name), n=1)
                 problems.append(Problem(path, name, valid_names, f"did you mean {close[0]!r}?" if close else ""))
 
@@ -239,8 +258,13 @@ class Scenario(Table):
         if self.metrics.sample_s < self.dt_s:
             problems.append(Problem(("metrics", "sample_s"), self.metrics.sample_s, f"a number >= dt_s ({fmt(self.dt_s)})"))
         problems += self._runnable_problems(join_end)
-        if self.geo is not None or self.no_fly:  # (issue 26: polygons simple, positions inside the area)
+        if self.geo is not None or self.no_fly:  # (issue 26: polygons simple)
             problems += geo_problems(self)
+        if not any(p.path[:1] == ("uavs",) and p.path[-1:] == ("type",) for p in problems):
+            # (issues 32, 33) inside the area polygon, outside no-fly zones, apart at the start
+            joins = {f.uav: f.at_s for f in self.faults if isinstance(f, JoinFault)}
+            starts = [joins.get(str(u.name), u.join_s or 0.0) for u in self.uavs]
+            problems += placement_problems(self, origins, starts)
         if self.endurance is not None:  # (issue 26: types, the base, budgets that reach the area)
             problems += endurance_problems(self)
         return problems
@@ -316,6 +340,13 @@ class Scenario(Table):
             if uav["name"] in joins:
                 uav["join_s"] = None
         return doc
+
+
+def _did_you_mean(word: str, known: Iterable[str]) -> str:
+    """``did you mean 'B'?`` for a name close to a known one (as for an unknown key), else ""."""
+    known = list(known)
+    close = difflib.get_close_matches(word, known, n=1) or [k for k in known if k.lower() == word.lower()][:1]
+    return f"did you mean {close[0]!r}?" if close else ""
 
 
 def _finite_or_none(value: Any) -> Any:

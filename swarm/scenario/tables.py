@@ -11,6 +11,7 @@ settled defaults of ``DACMP-SPEC.md``. The tables generated from the simulator's
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Literal
 
 from pydantic import Field, ValidationInfo, model_validator
@@ -165,25 +166,25 @@ class FleetSpec(Table):
     # every seed flies the same fleet.
     layout_seed: Int = int_field(0, ge=0)
 
-    def expand(self, index: int, area: Area) -> list[UavSpec]:
+    def expand(self, index: int, area: Area, site: Any = None, taken: Sequence[tuple[float, float]] = ()) -> list[UavSpec]:
+        """The fleet's UAVs. ``site`` (a :class:`swarm.scenario.placement.Site`): a ``grid``
+        lattice keeps to the area polygon; a ``random`` layout to the free space, clear of
+        ``taken`` (the UAVs entering with it) and of each other by the separation minimum.
+        Raises ValueError when the region leaves no room for them."""
         import numpy as np
 
+        from swarm.scenario.placement import grid_slots, random_slots
+
         x0, y0, x1, y1 = self.region if self.region is not None else (0.0, 0.0, area.width_m, area.height_m)
-        w, h = x1 - x0, y1 - y0
         n = self.count
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy=self.layout_seed, spawn_key=(index,))))
+        headings: list[float] | None = None
         if self.layout == "grid":
-            cols = max(1, min(n, math.ceil(math.sqrt(n * w / h))))
-            rows = math.ceil(n / cols)
-            xs = [x0 + (k % cols + 0.5) * w / cols for k in range(n)]
-            ys = [y0 + (k // cols + 0.5) * h / rows for k in range(n)]
+            xs, ys = grid_slots(n, (x0, y0, x1, y1), site)
         else:
-            xs = rng.uniform(x0, x1, n).tolist()
-            ys = rng.uniform(y0, y1, n).tolist()
-        if self.heading_deg is None:
-            headings = rng.uniform(0.0, 360.0, n).tolist()
-        else:
-            headings = [self.heading_deg] * n
+            xs, ys, headings = random_slots(n, (x0, y0, x1, y1), site, rng, taken, self.heading_deg is None)
+        if headings is None:
+            headings = rng.uniform(0.0, 360.0, n).tolist() if self.heading_deg is None else [self.heading_deg] * n
         return [
             UavSpec(type=self.type, x_m=min(max(x, 0.0), area.width_m), y_m=min(max(y, 0.0), area.height_m),
                     heading_deg=hd, speed=self.speed, join_s=self.join_s)

@@ -120,7 +120,9 @@ def _issues(root: type[BaseModel], err: Any, doc: Any) -> list[_Issue]:
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         tag = value.get("kind") if isinstance(value, dict) else None
         found = found_words(tag) if kind == "union_tag_invalid" else "nothing (the key is missing)"
-        return [_Issue((*where.path, "kind"), found, f"one of: {', '.join(FAULT_TABLES)}")]
+        close = difflib.get_close_matches(str(tag), list(FAULT_TABLES), n=1) if isinstance(tag, str) else []
+        return [_Issue((*where.path, "kind"), found, f"one of: {', '.join(FAULT_TABLES)}",
+                       f"did you mean {close[0]!r}?" if close else "")]
     return [_Issue(where.path, found_words(value), expected)]
 
 

@@ -16,7 +16,9 @@ starts with the key path (or the run) and says why:
   scenario's own ``duration_s`` is an error: ``join_s`` must be ``< duration_s``);
 * an angle in degrees small enough to be radians: ``uav_types.X.bank_max_deg <= pi/2``
   (0.44 was meant as 0.44 rad = 25 degrees: read as degrees it gives a turn radius of tens of
-  kilometres). A warning, not an error: such a bank limit is legal, only implausible.
+  kilometres). A warning, not an error: such a bank limit is legal, only implausible;
+* two ``[[uavs]]`` entering at the same time closer than ``safety.min_separation_m`` (from a
+  ``[[fleet]]`` layout it is an error: :mod:`swarm.scenario.placement`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import math
 from agents.assignment import rule_breaks
 from agents.types import GRAVITY
 from swarm.scenario.model import Scenario
+from swarm.scenario.placement import close_starts
 
 __all__ = ["scenario_warnings"]
 
@@ -68,6 +71,12 @@ def scenario_warnings(scenario: Scenario, duration_s: float | None = None) -> li
     if cut:
         out.append(f"the run ends at {_s(end)}, before the scenario's end ({_s(own_end)}): {_list(cut)} "
                    f"never {'happens' if len(cut) == 1 else 'happen'}")
+    close = close_starts(scenario)
+    if close:
+        words = [f"uavs[{j}] ({scenario.uavs[j].name}) {d:.0f} m from uavs[{i}] ({scenario.uavs[i].name})"
+                 for i, j, d, _t in close]
+        out.append(f"uavs: {_list(words)} at the start, closer than safety.min_separation_m = "
+                   f"{scenario.safety.min_separation_m:g} m: the separation rule is broken from their first tick")
     for name, spec in scenario.uav_types.items():
         bank = spec.bank_max_deg
         if bank <= math.pi / 2:

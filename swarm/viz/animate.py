@@ -9,7 +9,8 @@ Each frame shows, at one simulated time:
 * UAVs (one colour each, one marker per type: :func:`swarm.viz.style.type_marker`), their
   trails, detection circles, wrecks;
 * targets: unknown (hollow), found, watched (by a UAV in surveillance mode);
-* threats (radius filled, influence dotted);
+* the no-fly zones (circles and polygons: filled, influence dotted), the area polygon (outside
+  shaded) and the base (swarm.viz.hazards);
 * radio links of the range graph between flying UAVs: working (grey), losing more than half
   of their copies in the last frame interval (orange, from ``rx`` / ``lost`` events), cut by an
   active partition (red dashed); a crashed UAV has no links from its crash on;
@@ -43,12 +44,13 @@ from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Patch, Rectangle
+from matplotlib.patches import Rectangle
 from PIL import Image
 
 from comms.messages import MODE_SURVEIL
 from swarm.errors import SwarmError
 from swarm.outputs import atomic_path
+from swarm.viz.hazards import draw_hazards, hazards_of
 from swarm.viz.replay import (
     CoverageRaster,
     Replay,
@@ -197,12 +199,8 @@ class _Scene:
         cb.set_ticks([0, 0.5, 1.0])
         cb.ax.tick_params(labelsize=7)
         cb.set_label("scan freshness exp(\u2212\u03c4\u00b7age); white: never scanned", fontsize=7)
-        self.threat_patches = []
-        for th in rp.threats:
-            self.threat_patches.append(ax.add_patch(Circle((th.x, th.y), th.radius, color="red", alpha=0.3, lw=0,
-                                                           zorder=1)))
-            self.threat_patches.append(ax.add_patch(Circle((th.x, th.y), th.d_max, fill=False, color="red", ls=":",
-                                                           lw=0.8, zorder=1)))
+        # The no-fly zones, the area polygon and the base (swarm.viz.hazards): over the heat map.
+        self.threat_patches, self.hazard_handles = draw_hazards(ax, hazards_of(rp.scenario, rp.threats))
 
         self.links_ok = LineCollection([], colors=[(0.35, 0.35, 0.35, 0.45)], linewidths=0.7 if not self.many else 0.3,
                                        zorder=2)
@@ -264,8 +262,7 @@ class _Scene:
             Line2D([], [], color="#ff8c00", lw=1.5, label=f"link losing >{LOSSY_FRACTION:.0%}"),
             Line2D([], [], color="#d62728", lw=1.5, ls="--", label="link cut (partition)"),
         ]
-        if rp.threats:
-            handles.append(Patch(color="red", alpha=0.35, label="threat"))
+        handles += self.hazard_handles
         self.fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.71, 0.93), fontsize=7.5,
                         ncol=1 if len(handles) <= 24 else 2, frameon=False)
 

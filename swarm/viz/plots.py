@@ -17,8 +17,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Patch
+from matplotlib.patches import Patch
 
+from swarm.viz.hazards import draw_hazards, hazards_of
 from swarm.viz.style import (
     COVERAGE_GREY,
     CRASH_MARKER,
@@ -123,12 +124,8 @@ def trajectories_plot(result, title: str | None = None) -> Figure:
     elif drew_path:  # metrics without per-target detection: one neutral symbol
         handles.append(Line2D([], [], ls="", marker="*", ms=10, mfc="0.5", mec="black",
                               label=f"target, end ({n_lost})"))
-    for th in result.threats:
-        ax.add_patch(Circle((th.x / 1000, th.y / 1000), th.radius / 1000, color="red", alpha=0.35, zorder=1))
-        ax.add_patch(Circle((th.x / 1000, th.y / 1000), th.d_max / 1000, fill=False, color="red",
-                            ls=":", lw=0.7, zorder=1))
-    if result.threats:
-        handles.append(Patch(color="red", alpha=0.35, label="threat"))
+    # The no-fly zones (circles and polygons), the area polygon and the base (swarm.viz.hazards).
+    handles += draw_hazards(ax, hazards_of(result.scenario or {}, result.threats), scale=1e-3)[1]
     handles.append(Patch(fc=COVERAGE_GREY, ec="0.5", lw=0.5, label="scanned at least once"))
     ax.set_xlim(0, w / 1000)
     ax.set_ylim(0, h / 1000)
@@ -148,7 +145,8 @@ def trajectories_plot(result, title: str | None = None) -> Figure:
 
 def trajectories_figure(result, path: str | Path | IO[bytes], title: str | None = None) -> None:
     """UAV paths (end marker by type; a cross where a UAV crashed), target paths with found and
-    never-found targets apart, threats and the final coverage map (like the paper's Fig. 9),
+    never-found targets apart, no-fly zones (circles and polygons), the area polygon, the base
+    and the final coverage map (like the paper's Fig. 9),
     saved to ``path``: a file name (format from its suffix) or a binary file object (PNG)."""
     fig = trajectories_plot(result, title)
     suffix = Path(path).suffix.lstrip(".").lower() if isinstance(path, (str, Path)) else ""

@@ -10,10 +10,11 @@ from matplotlib.artist import Artist
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Patch
+from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
 from comms.messages import MODE_SURVEIL
+from swarm.viz.hazards import draw_hazards, hazards_of
 from swarm.viz.replay import (
     Replay,
     fault_label,
@@ -40,7 +41,8 @@ def uav_order(rp: Replay) -> list[int]:
 
 
 def fig_trajectories(rp: Replay) -> Figure:
-    """UAV and target paths over the first-scan map, threats (the paper's Fig. 9 layout)."""
+    """UAV and target paths over the first-scan map, the no-fly zones, the area polygon and the
+    base (the paper's Fig. 9 layout)."""
     w, h, _c = rp.area
     fig = new_figure(8.2, 7.0)
     ax = fig.add_axes((0.08, 0.08, 0.7, 0.85))
@@ -58,9 +60,7 @@ def fig_trajectories(rp: Replay) -> Figure:
     markers = type_markers(rp.types)
     many = many_uavs(rp.n_uavs)
     lw = line_width(rp.n_uavs, 1.0)
-    for th in rp.threats:
-        ax.add_patch(Circle((th.x, th.y), th.radius, color="red", alpha=0.3, lw=0, zorder=1))
-        ax.add_patch(Circle((th.x, th.y), th.d_max, fill=False, color="red", ls=":", lw=0.7, zorder=1))
+    hazard_handles = draw_hazards(ax, hazards_of(rp.scenario, rp.threats))[1]
     crashed = {uid for _t, uid in rp.crashes}
     for u in uav_order(rp):
         xs, ys = rp.x[:, u], rp.y[:, u]
@@ -111,8 +111,7 @@ def fig_trajectories(rp: Replay) -> Figure:
     if crashed:
         handles.append(Line2D([], [], ls="", marker=CRASH_MARKER, ms=8, color="0.45", mec="black", mew=0.6,
                               label=f"crashed ({len(crashed)})"))
-    if rp.threats:
-        handles.append(Patch(color="red", alpha=0.35, label="threat"))
+    handles += hazard_handles
     fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.8, 0.94), fontsize=7, frameon=False)
     metrics = rp.metrics or {}
     ax.set_title(f"{rp.header.get('scenario', '?')} · {rp.header.get('planner', '?')} · seed "

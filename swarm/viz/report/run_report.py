@@ -74,12 +74,19 @@ def _scenario_rows(rp: Replay) -> list[tuple]:
                                       f"detection radius {spec.get('detect_radius_m', 0) / 1000:g} km"))
     rows += [
         ("targets", f"{rp.n_targets} ({tg.get('count', 0)} random, {len(tg.get('placed', []))} placed)"),
-        ("threats", len(rp.threats)),
+        ("no-fly zones", _zone_words(rp)),
         ("radio", _radio_words(radio, rng)),
         ("faults scheduled", len(rp.faults)),
     ]
     return rows
 
+
+
+def _zone_words(rp: Replay) -> str:
+    """Every hazard UAVs keep out of: threat circles and no-fly polygons (swarm.viz.hazards)."""
+    circles, polygons = len(rp.threats), len(rp.scenario.get("no_fly") or [])
+    parts = [f"{n} {w}{'' if n == 1 else 's'}" for n, w in ((circles, "threat circle"), (polygons, "polygon")) if n]
+    return f"{circles + polygons}" + (f" ({', '.join(parts)})" if parts else "")
 
 
 def _radio_words(radio: dict, rng: float | None) -> str:
@@ -251,8 +258,10 @@ def build_run_report(rp: Replay, run_dir: Path, animation: Path | None) -> str:
              ("simulated", f"{fmt(rp.duration)} s")]
     specs = [
         (fig_trajectories(rp), "Trajectories: UAV paths (one colour each, end marker by type, a cross where a UAV "
-                               "crashed), target paths (dashed; filled star: found, hollow: never found), threats "
-                               "(red), over the map of when each cell was first scanned.", "trajectories", 820),
+                               "crashed), target paths (dashed; filled star: found, hollow: never found), no-fly zones "
+                               "(red: threat circles and polygons, influence dotted), the area polygon (outside "
+                               "it hatched) and the base (black square), over the map of when each cell was "
+                               "first scanned.", "trajectories", 820),
         (fig_coverage(rp), "Coverage and certainty over time (timeseries.csv); shaded: partitions; dashed: "
                            "crashes (red) and late joins (green).", "coverage and certainty", None),
         (fig_targets(rp), "Targets found (first detection) and targets watched by a UAV in surveillance mode.",
