@@ -19,10 +19,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, Phase, given, settings
 
 from swarm.cli import main
 from swarm.events import read_events
 from swarm.scenario import builtin_scenarios, load_scenario
+from swarm.testing import scenarios
 from swarm.testing.invariants import check_events, load_run_log
 
 # Simulated seconds per built-in (default DEFAULT_S): the big ones build thousands of links.
@@ -123,5 +125,30 @@ def test_builtin_env_flies_a_whole_episode(name):
             assert all(math.isfinite(r) for r in rewards.values())
             steps += 1
         assert steps >= 1
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@settings(max_examples=3, derandomize=True, database=None, deadline=None, phases=[Phase.generate],
+          suppress_health_check=list(HealthCheck))
+@given(sc=scenarios(geo=True, max_no_fly=2, wind=True, endurance=None, max_uavs=4, min_duration_s=30,
+                    max_duration_s=40, max_faults=3))
+def test_generated_missions_through_every_path(sc, tmp_path_factory):
+    """Generated missions with a lon/lat area, polygon no-fly zones, wind, faults (and batteries
+    with a base where the rule tests have them: ``strategies.ENDURANCE_IN_RULE_TESTS``), written as
+    the toolkit's reproduction file, through every path; then a whole episode of the env."""
+    from swarm.env import parallel_env
+    from swarm.testing.strategies import reproduction
+
+    tmp = tmp_path_factory.mktemp("mission")
+    path, _command = reproduction(sc, tmp)
+    _through_every_path(str(path), tmp, sc.duration_s, extra=["--allow-planner-imports"])
+    env = parallel_env(scenario=str(path))
+    try:
+        env.reset(seed=1)
+        rng = np.random.default_rng(0)
+        while env.agents:
+            env.step({a: rng.uniform(-1.0, 1.0, 2).astype(np.float32) for a in env.agents})
     finally:
         env.close()
