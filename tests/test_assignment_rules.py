@@ -96,7 +96,35 @@ def test_each_precondition_is_named_when_broken():
     assert watch_break(_kind("A")) is None and watch_break(_kind("B")) is None
     # Eq. 25 met by a hair (5 * 51 > 5.1 * 50 by float noise): no pull left to draw A in.
     assert "may never be drawn in" in (handover_break(_kind("A"), _kind("B", speed_max=51.0)) or "")
-    assert handover_break(_kind("A"), _kind("B", speed_max=53.0)) is None  # net pull 3.8 at 10 km
+    assert handover_break(_kind("A"), _kind("B", speed_max=53.0)) is None  # net pull 7.5 at 10 km
+
+
+def test_the_documented_takeover_pull_is_the_planners():
+    """docs/modelling.md ("Preconditions") quotes the net pull of a target B watches on A at
+    10 km; it is agents.assignment.takeover_pull's number (to the digit quoted), and that is the
+    planner's own term for the target (UavSearch.own_pull: eq. 22 less eq. 23 of the watcher at
+    the target) just inside A's influence radius, so the page, the precondition and the planner
+    cannot drift apart. (The page said 8.7 until issue 33; the planner's field gives 86.7.)"""
+    import re
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    from agents.assignment import takeover_pull
+    from agents.planners.dacmp.planner import UavSearch
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "modelling.md").read_text(encoding="utf-8")
+    quoted = re.search(r"net pull of a target B watches on A at\s+10 km: ([0-9.]+)", page)
+    assert quoted is not None, "docs/modelling.md no longer quotes the takeover pull"
+    a, b = _kind("A"), _kind("B")
+    pull = takeover_pull(a, b, 10_000.0)
+    assert float(quoted.group(1)) == round(pull, 1)
+    # The planner's term for a target B watches, A's waypoint 10 km (less a millimetre: 0 at D) off.
+    unit = 1000.0
+    d = a.influence_radius - 1e-3
+    u = UavSearch(SimpleNamespace(kind=a), a.detect_radius, 0.0, 0.0, a.influence_radius, a.speed_max / unit, 0,
+                  [(0, 0.0, 0.0, 1.0)], [(0.0, 0.0, b.speed_max / unit, (0,), 0)], [])
+    assert u.own_pull(0, d, 0.0, unit, 0.1) == pytest.approx(takeover_pull(a, b, d), rel=1e-12)
+    assert takeover_pull(a, b, a.influence_radius) > 1.0  # beats the search term (at most 1) there
 
 
 def _doc(surveillance: bool) -> dict:
