@@ -531,9 +531,9 @@ class UavActor:
         at the loiter speed plus ``threat_margin_m``, agents.apf), is circled from outside while
         it is in sight: the circle's centre moves out along the line from the zone's centre
         through the target to where the circle just clears that band, at the edge nearest to
-        the target. Once nobody has seen it for a replanning period, the watcher patrols the
-        zone's boundary instead (:meth:`_patrol`), so that it sees the target come out wherever
-        it does (docs/modelling.md, "Assignment rules", rule 5).
+        the target. Once nobody has seen it for a replanning period and it is predicted inside
+        the zone, the watcher patrols the zone's boundary instead (:meth:`_patrol`), so that it
+        sees the target come out wherever it does (docs/modelling.md, "Assignment rules", rule 5).
         """
         s = self.settings
         kind = self.kind
@@ -552,8 +552,7 @@ class UavActor:
         # centre through it (the edge nearest to it).
         standoff = kind.r_min(v_l) + threat_margin_m + r_l
         if not fresh:
-            k = self.knowledge
-            lost_at = k.near_no_fly(tx, ty, standoff) or k.near_no_fly(track.x, track.y, standoff)
+            lost_at = self.knowledge.near_no_fly(tx, ty)  # (predicted inside one)
             if lost_at is not None:
                 return self._patrol(r, lost_at, kind.r_min(v_l) + threat_margin_m + s.patrol_margin_m, r_l, v_l)
         zone = self.knowledge.inside_threat(tx, ty, standoff) if self.knowledge.threats else None

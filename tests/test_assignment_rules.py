@@ -181,3 +181,51 @@ def test_a_watcher_keeps_a_target_inside_a_no_fly_zone_and_loiters_at_its_edge()
     edge = [math.hypot(e.x - 10_000.0, e.y - 10_000.0) - 2000.0 for e in poses]
     assert min(edge) > 0 and max(d for d, p in zip(edge, poses) if p.t >= 200) < 3000.0
     assert result.metrics["violations"]["threat"] == 0
+
+
+# A circle of radius 2 km at (10, 10) km and a polygon of about its size (a regular octagon, 2 km to
+# its corners, with one corner pointing at the target's way in and out).
+_CIRCLE = {"threats": [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 2000.0}]}
+_OCTAGON = {"no_fly": [{"name": "octagon", "polygon": [
+    [round(10_000.0 + 2000.0 * math.cos(i * math.pi / 4), 3), round(10_000.0 + 2000.0 * math.sin(i * math.pi / 4), 3)]
+    for i in (0, 1, 2, 3, 4, 5, 6, 7, 0)]}]}
+
+
+@pytest.mark.slow  # two runs of 1200 s
+@pytest.mark.parametrize("zone", [_OCTAGON, _CIRCLE], ids=["polygon", "circle"])
+def test_a_target_driven_through_a_no_fly_zone_is_kept_and_seen_again_where_it_comes_out(zone):
+    """Rule 5 for polygons as for circles (issue 33): a slow UAV watches a target that drives
+    straight through a no-fly zone, in on the west side and out on the east, out of every
+    sensor's sight for longer than the track's lifetime. The watcher keeps it assigned all the
+    way (before issue 33 a polygon zone lost it when its track expired), patrols the zone's
+    boundary without entering it, and has the target in sight again soon after it comes out on
+    the far side, which is not where it went in (it circled there before)."""
+    from swarm.events import read_events
+    from swarm.testing.invariants import NoDropChecker
+
+    doc = {"name": "through-the-zone", "seed": 1, "duration_s": 1200.0,
+           "area": {"width_m": 20_000.0, "height_m": 20_000.0},
+           "targets": {"count": 0, "accel_sigma": 0.0, "turn_sigma": 0.0,
+                       "placed": [{"x_m": 6800.0, "y_m": 10_000.0, "heading_deg": 0.0, "speed": 8.0}]},
+           "planner": {"name": "dacmp", "surveillance": True},
+           "uavs": [{"name": "A1", "type": "A", "x_m": 5000.0, "y_m": 10_000.0, "heading_deg": 0.0}], **zone}
+    scenario = parse_scenario(doc)
+    with Simulation(scenario) as sim:
+        result = sim.run()
+    r = DEFAULT_UAV_TYPES["A"].detect_radius_m
+    targets = {e.t: (e.x, e.y) for e in read_events(result.events, {"target"})}
+    poses = [e for e in read_events(result.events, {"pose"})]
+    first = next(e.t for e in poses if math.dist((e.x, e.y), targets[e.t]) <= r and e.mode == MODE_NAMES[MODE_SURVEIL])
+    assert first < 100
+    assert all((e.mode, e.target) == (MODE_NAMES[MODE_SURVEIL], 0) for e in poses if e.t >= first)
+    seen = [e.t for e in poses if math.dist((e.x, e.y), targets[e.t]) <= r]
+    gaps = [(a, b) for a, b in zip(seen, seen[1:]) if b - a > 1.0]
+    assert gaps, "the target never went out of sight"
+    a, b = max(gaps, key=lambda g: g[1] - g[0])
+    assert b - a > 200.0  # longer than the track's lifetime (1 / tau): kept, not lost
+    out_x = 12_000.0  # where the target comes out (the zone's east corner / edge)
+    assert targets[b][0] > out_x and targets[a][0] < out_x - 1000.0  # seen again after it came out, on the far side
+    assert b - next(t for t, (x, _y) in sorted(targets.items()) if x > out_x) < 400.0  # within one patrol lap
+    assert seen[-1] == max(targets)  # and watched in sight to the end
+    assert result.metrics["violations"]["threat"] == 0
+    assert check_events(result.events, scenario, [NoDropChecker()]) == []

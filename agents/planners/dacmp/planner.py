@@ -235,12 +235,18 @@ class DacmpPlanner(DacmpSettings):
                 if rival and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav):
                     continue  # a same-type rival farther away: we keep the target
                 # A slower UAV coming to take over the target we watch stands at it once it has
-                # the target in sight (inside its detection radius), not a planning step
+                # had the target in sight (inside its detection radius), not a planning step
                 # before: until then we keep it (docs/modelling.md, "Assignment rules", rule
                 # 3). Let go at one planning step, a fast watcher left a target its slow relief
-                # had not yet found (paper-case2 seeds 7 and 8: 40-50 s unwatched).
-                relief = claim == p.target and v_j < k.speed_max / unit
-                if rival or d_j <= (r_j if relief else self.ring_max_factor * r_j):
+                # had not yet found (paper-case2 seeds 7 and 8: 40-50 s unwatched). Its pose is
+                # as heard, up to a beacon or two old: the target may have moved that long since,
+                # so the radius is shrunk by that much (then it did have it in sight, then).
+                reach = self.ring_max_factor * r_j
+                if claim == p.target and v_j < k.speed_max / unit:
+                    tr = view.knowledge.tracks.get(p.target)
+                    moved = math.hypot(tr.vx, tr.vy) * max(t - p.t_pose, 0.0) if tr is not None else 0.0
+                    reach = r_j - moved
+                if rival or d_j <= reach:
                     wx, wy, at = tx, ty, i  # its next waypoint is the target
                 scope: tuple[int, ...] = (i,) if math.hypot(wx - tx, wy - ty) < D else ()
             else:
