@@ -241,8 +241,22 @@ def _handover_log(slow_modes, fast_modes, *, slow_at=5000.0, faults=(), t1=120) 
 
 
 def test_handover_good_story_passes():
-    log = _handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40))
+    # A1 watches target 0 from 20 s, 1 km off (in sight); B1 lets go at 41 s.
+    log = _handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40), slow_at=1000.0)
     assert _check(log, *handover_checkers()) == []
+
+
+def test_handover_flags_fast_uav_that_lets_go_before_its_relief_has_the_target_in_sight():
+    # Rule 3's "and not before" (issue 33): A1 watches target 0 from 5 km (on its way, out of
+    # its 1.5 km sight) when B1, which holds it, lets go at 41 s.
+    early = _handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40))
+    (v,) = _check(early, HandoverChecker())
+    assert v.t == 41.0 and v.uavs == ("B1", "A1") and v.data["rule"] == 3 and "before its slower relief" in v.message
+    # Once A1 has had it in sight (1 km off) the release is the rule's.
+    assert _check(_handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40), slow_at=1000.0),
+                  HandoverChecker()) == []
+    assert not _check(_handover_log(slow_modes=_watching(0, 999, target=1), fast_modes=_watching(0, 40)),
+                      HandoverChecker())  # no relief on its way (A1 busy): rule 5's business, not rule 3's
 
 
 def test_handover_flags_slow_uav_that_never_takes_over():
@@ -288,7 +302,7 @@ def test_handover_released_fast_uav_may_watch_a_target_nobody_watches():
     # Rule 4 (docs/modelling.md, "Assignment rules"): after the release the fast UAV may search
     # or watch a target that no UAV it can talk to watches (B1 goes on to target 1, unwatched).
     log = _handover_log(slow_modes=_watching(10, 999),
-                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
+                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1), slow_at=1000.0)
     assert _check(log, HandoverChecker()) == []
 
 
@@ -298,7 +312,7 @@ def _released_onto(b2_at: tuple[float, float], target_1_at: tuple[float, float] 
     ``leaves_at``, then searches; B2 watches target 1 from ``b2_at``."""
     log = _handover_log(slow_modes=_watching(10, 999),
                         fast_modes=lambda t: (MODE_SURVEIL, 0) if t < 30 else
-                        ((MODE_SURVEIL, 1) if t < leaves_at else (MODE_SEARCH, -1)))
+                        ((MODE_SURVEIL, 1) if t < leaves_at else (MODE_SEARCH, -1)), slow_at=1000.0)
     for t in range(0, 121):
         log.target(t, 1, *target_1_at)  # (after _handover_log's: the last one of the tick counts)
         log.pose(t, B2, *b2_at, 60.0, 0.0, MODE_SURVEIL, 1)
