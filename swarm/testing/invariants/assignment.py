@@ -272,8 +272,8 @@ class NoDropChecker(_WatchChecker):
     watching it within ``grace_s`` (a watcher that crashed is excused), unless the target is
     *lost*: no flying UAV has had it inside its detection radius for the track lifetime
     (``planner.dacmp.track_max_age_s``, default ``1 / tau``) and it was last seen farther than the
-    watcher's detection radius from every no-fly zone (a target inside one, or that near one, is
-    kept, not lost)."""
+    watcher's detection radius from every no-fly zone, circle or polygon (a target inside one, or
+    that near one, is kept, not lost)."""
 
     name = "no_drop"
 
