@@ -49,7 +49,7 @@ from swarm.testing.strategies import reproducible, scenario_toml, scenarios
 B1, B2, A1, A2 = 0, 1, 2, 3
 
 
-def _scenario(range_m: float | None = None, threats=(), faults=(), latency_s: float = 0.0):
+def _scenario(range_m: float | None = None, threats=(), faults=(), latency_s: float = 0.0, no_fly=()):
     doc = {
         "name": "synthetic", "duration_s": 300.0,
         "area": {"width_m": 40_000.0, "height_m": 40_000.0},
@@ -58,6 +58,7 @@ def _scenario(range_m: float | None = None, threats=(), faults=(), latency_s: fl
         "threats": list(threats),
         "radio": {"latency_s": latency_s, **({"range_m": range_m} if range_m is not None else {})},
         "faults": list(faults),
+        **({"no_fly": list(no_fly)} if no_fly else {}),
     }
     return parse_scenario(doc, "<synthetic>")
 
@@ -386,10 +387,10 @@ def test_no_drop_flags_an_abandoned_target_but_not_a_crash_or_a_handover():
     assert _check(log_with(20, a1_from=28), NoDropChecker()) == []  # within the grace time
 
 
-def _drop_log(b1_at, *, threats=(), t1: int = 100) -> Log:
+def _drop_log(b1_at, *, threats=(), no_fly=(), t1: int = 100) -> Log:
     """B1 watches target 0 (standing at 10 km, 10 km) from ``b1_at(t)`` until 20 s, then
     searches; nobody else watches it; A1 searches 29 km away."""
-    log = Log(_scenario(threats=threats))
+    log = Log(_scenario(threats=threats, no_fly=no_fly))
     for t in range(0, t1):
         log.target(t, 0, 10_000.0, 10_000.0)
         m, tg = _watching(0, 20)(t)
@@ -421,6 +422,12 @@ def test_no_drop_a_lost_target_is_not_dropped_unless_last_seen_in_a_no_fly_zone(
     # Last seen inside a no-fly zone: not lost, its watcher keeps it.
     zone = [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 300.0}]
     assert len(_check(_track_life(_drop_log(lost_at_5, threats=zone), 10.0), NoDropChecker())) == 1
+    # A polygon zone as a circle (issue 33: before, only circles kept a target).
+    square = [{"polygon": [[9700.0, 9700.0], [10_300.0, 9700.0], [10_300.0, 10_300.0], [9700.0, 10_300.0],
+                           [9700.0, 9700.0]]}]
+    assert len(_check(_track_life(_drop_log(lost_at_5, no_fly=square), 10.0), NoDropChecker())) == 1
+    far = [{"polygon": [[20_000.0, 20_000.0], [21_000.0, 20_000.0], [21_000.0, 21_000.0], [20_000.0, 20_000.0]]}]
+    assert _check(_track_life(_drop_log(lost_at_5, no_fly=far), 10.0), NoDropChecker()) == []  # 10 km off: lost
 
 
 def test_log_checkers_refuse_live_only_ones():
