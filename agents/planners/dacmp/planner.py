@@ -240,12 +240,16 @@ class DacmpPlanner(DacmpSettings):
                 # 3). Let go at one planning step, a fast watcher left a target its slow relief
                 # had not yet found (paper-case2 seeds 7 and 8: 40-50 s unwatched). Its pose is
                 # as heard, up to a beacon or two old: the target may have moved that long since,
-                # so the radius is shrunk by that much (then it did have it in sight, then).
+                # so the radius is shrunk by that much (then it did have it in sight, then). A
+                # target nobody has seen for a replanning period (kept at a no-fly zone: rule
+                # 5) is in nobody's sight: we keep it.
                 reach = self.ring_max_factor * r_j
                 if claim == p.target and v_j < k.speed_max / unit:
                     tr = view.knowledge.tracks.get(p.target)
-                    moved = math.hypot(tr.vx, tr.vy) * max(t - p.t_pose, 0.0) if tr is not None else 0.0
-                    reach = r_j - moved
+                    if tr is None or t - tr.t > view.replan_s:
+                        reach = -1.0
+                    else:
+                        reach = r_j - math.hypot(tr.vx, tr.vy) * max(t - p.t_pose, 0.0)
                 if rival or d_j <= reach:
                     wx, wy, at = tx, ty, i  # its next waypoint is the target
                 scope: tuple[int, ...] = (i,) if math.hypot(wx - tx, wy - ty) < D else ()
