@@ -39,7 +39,7 @@ def case2_table(per_seed: list[dict]) -> str:
 def test_case2_holds_on_at_least_18_of_20_seeds(tmp_path):
     """DACMP-SPEC "Reproduction targets": ``swarm sweep paper-case2 --seeds 20 --planner dacmp
     --duration 4000`` meets Case 2's criterion (swarm.experiments.paper.case2_conditions: all six
-    found; each watched by one UAV at the end, or kept from a no-fly zone's nearest edge; every
+    found; each watched by one UAV at the end, or kept from a no-fly zone's edge; every
     handover opportunity taken and released within 60 s, at least four fast -> slow handovers
     where four were offered; released fast UAVs search or watch a free target; no violation)
     on at least 18 of seeds 0-19. Prints the per-seed table."""
