@@ -146,7 +146,8 @@ def case2_conditions(log: RunLog, handover_violations: Sequence[Any] = (), oppor
       (docs/modelling.md, "Assignment rules");
     * ``handovers``: at least ``min(CASE2_MIN_HANDOVERS, opportunities)`` fast -> slow
       handovers, where ``opportunities`` counts the targets that were offered one (a fast UAV
-      watched it with a slower one free within its ``D``, or already on its way);
+      watched it with a slower one free within its ``D``, or, being the target's owner, with a
+      slower one already on its way: :attr:`HandoverChecker.opportunities`);
     * ``released``: a released fast UAV returns to search or watches a target nobody it can
       talk to holds (rule 4: no violation of it);
     * ``safe``: no separation, threat or dynamics violation.
