@@ -26,7 +26,7 @@ import numpy as np
 
 from agents.apf import ApfSettings, apf_command
 from agents.inbox import Heard, check_frame
-from agents.knowledge import Knowledge, KnownThreat, Peer, Track
+from agents.knowledge import Knowledge, KnownThreat, Peer, Track, zone_clearance
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import Disk, Grid
 from agents.maps.mapgroup import MapGroup
@@ -158,6 +158,11 @@ class ActorSettings:
     loiter_gain: float = 1.0
     # ... and feels the threats' repulsion (eq. 30) with apf.k_rep times this (see UavActor.act).
     loiter_threat_weight: float = 0.15
+    # A watcher whose target went out of sight inside (or by) a no-fly zone patrols the zone's
+    # boundary this far beyond the threat guard's band (UavActor._patrol; our choice: the
+    # guard, which turns a UAV closing on an edge within a turn radius plus threat_margin_m,
+    # stays quiet on the patrol line, and a type-A UAV sees 0.6 km into the zone).
+    patrol_margin_m: float = 150.0
     # The scenario's [radio] settings (comms.settings.RadioSettings, their one definition): the
     # frame size cap, the beacon and tracks periods, and anti-entropy (sync_*: agents.maps.scanlog),
     # with its knowledge horizon (horizon_m: heard scans centred farther than this from the UAV
@@ -248,7 +253,9 @@ class UavActor:
         # Heard scans older than this are anti-entropy resends (a beacon carries the scans of the
         # last beacon period): sent to this UAV alone, their disks are not worth sharing.
         self._fresh_s = radio.beacon_every_s + 2 * settings.dt
-        self.knowledge = Knowledge()
+        # (The polygon no-fly zones among the zones: a watcher keeps a target inside one as
+        # inside a circle, rule 5 of docs/modelling.md's "Assignment rules".)
+        self.knowledge = Knowledge(tuple(z for z in settings.zones if not z.inverted))
         self.plan: Plan | None = None
         # (issue 26) Endurance: flying home (no replanning on the way), the target it handed
         # over, and whether it is handing one over (its beacons then say it searches).
@@ -494,12 +501,13 @@ class UavActor:
         goal_x, goal_y = plan.wx, plan.wy
         apf = s.apf
         if plan.mode == MODE_SURVEIL and plan.target in k.tracks:
-            goal_x, goal_y, speed = self._loiter(r, k.tracks[plan.target], apf.threat_margin_m)
+            goal_x, goal_y, speed, patrol = self._loiter(r, k.tracks[plan.target], apf.threat_margin_m)
             # With the full eq. 30 field a watcher stays about 1.7 km off a no-fly zone's edge, and
             # its target, 1.5-2 km from it, is lost as soon as it nears the zone (most of Case 2's
             # lost targets). A weaker field lets it follow to about 0.75 km; the threat guard
-            # (agents.apf) still keeps it out.
-            apf = replace(apf, k_rep=apf.k_rep * s.loiter_threat_weight)
+            # (agents.apf) still keeps it out. On patrol (_patrol) none: the patrol line is the
+            # field (with 0.15 k_rep it flew 260 m farther out, seeing that much less of the zone).
+            apf = replace(apf, k_rep=apf.k_rep * (0.0 if patrol else s.loiter_threat_weight))
         others = self._others(r, k.recent_peers(t, s.peer_timeout_s))
         if s.zones:  # (issue 26: polygon zones and the area's boundary)
             a, omega = apf_command(self.kind, r.x, r.y, r.v, r.theta, goal_x, goal_y, speed,
@@ -539,8 +547,9 @@ class UavActor:
             merged.sort()
         return [o[1:] for o in merged]
 
-    def _loiter(self, r: SensorReading, track: Track, threat_margin_m: float) -> tuple[float, float, float]:
-        """Goal and speed for a watcher: circle the target inside the detection radius.
+    def _loiter(self, r: SensorReading, track: Track, threat_margin_m: float) -> tuple[float, float, float, bool]:
+        """Goal and speed for a watcher, and whether it patrols a zone's boundary: circle the
+        target inside the detection radius.
 
         A vector field (Nelson et al., 2007) around the target's predicted position: far out it
         points at the target, on the circle of radius ``r_l`` along it (keeping the UAV's
@@ -553,10 +562,12 @@ class UavActor:
 
         A target predicted inside a known no-fly zone (targets may enter one; we may not), or so
         close to one that a circle around it would cross the threat guard's band (a turn radius
-        at the loiter speed plus ``threat_margin_m``, agents.apf), is circled from outside: the
-        circle's centre moves out along the line from the zone's centre through the target to
-        where the circle just clears that band, at the edge nearest to the target
-        (docs/modelling.md, "Assignment rules", rule 5).
+        at the loiter speed plus ``threat_margin_m``, agents.apf), is circled from outside while
+        it is in sight: the circle's centre moves out along the line from the zone's centre
+        through the target to where the circle just clears that band, at the edge nearest to
+        the target. Once nobody has seen it for a replanning period and it is predicted inside
+        the zone, the watcher patrols the zone's boundary instead (:meth:`_patrol`), so that it
+        sees the target come out wherever it does (docs/modelling.md, "Assignment rules", rule 5).
         """
         s = self.settings
         kind = self.kind
@@ -574,6 +585,11 @@ class UavActor:
         # too close to one to be circled, is circled from outside, on the line from the zone's
         # centre through it (the edge nearest to it).
         standoff = kind.r_min(v_l) + threat_margin_m + r_l
+        if not fresh:
+            lost_at = self.knowledge.near_no_fly(tx, ty)  # (predicted inside one)
+            if lost_at is not None:
+                return (*self._patrol(r, track, lost_at, kind.r_min(v_l) + threat_margin_m + s.patrol_margin_m, r_l, v_l),
+                        True)
         zone = self.knowledge.inside_threat(tx, ty, standoff) if self.knowledge.threats else None
         if zone is not None:
             ux, uy = tx - zone.x, ty - zone.y
@@ -595,8 +611,41 @@ class UavActor:
         dx, dy = speed * math.cos(chi) + tvx, speed * math.sin(chi) + tvy
         n = math.hypot(dx, dy)
         if n < 1e-9:
-            return tx, ty, speed
-        return r.x + 1000.0 * dx / n, r.y + 1000.0 * dy / n, speed
+            return tx, ty, speed, False
+        return r.x + 1000.0 * dx / n, r.y + 1000.0 * dy / n, speed, False
+
+    def _patrol(self, r: SensorReading, track: Track, zone: KnownThreat | Keepout, clearance: float, scale: float,
+                v_patrol: float) -> tuple[float, float, float]:
+        """Goal and speed for a watcher whose target went out of sight in or by a no-fly zone
+        (circle or polygon): fly along the zone's boundary at ``clearance`` from it, round and
+        round, so that the target is seen again wherever it comes out (docs/modelling.md,
+        "Assignment rules", rule 5).
+
+        A vector field on the zone's clearance ``rho`` (signed distance, outward normal ``n``,
+        :func:`agents.knowledge.zone_clearance`): along the boundary's tangent, turned towards
+        the patrol line by ``atan((clearance - rho) / scale)``: straight at the zone from far
+        out, straight out from too near. The sense round the zone is against the target's last
+        known motion round it (its velocity across the zone's normal where it was last seen: a
+        patrol that goes the target's way overtakes it inside and may pass its exit just before
+        it comes out; going the other way it meets it more often); a target that went straight
+        in gives no sense, and the UAV keeps the one its heading has. Both are fixed while
+        nobody sees the target, so the sense holds. Full speed until within a detection radius
+        (plus braking) of the line, then ``v_patrol`` (the loiter speed: the threat guard's band
+        was reckoned with its turn radius)."""
+        kind = self.kind
+        rho, ux, uy = zone_clearance(zone, r.x, r.y)
+        _, nx, ny = zone_clearance(zone, track.x, track.y)
+        across = -ny * track.vx + nx * track.vy  # > 0: the target moved counter-clockwise round the zone
+        if abs(across) > 0.25 * math.hypot(track.vx, track.vy):
+            sense = -1.0 if across > 0.0 else 1.0
+        else:
+            sense = 1.0 if -uy * math.cos(r.theta) + ux * math.sin(r.theta) >= 0.0 else -1.0
+        phi = math.atan((clearance - rho) / scale)
+        c, s_ = math.cos(phi), math.sin(phi)
+        dx, dy = sense * -uy * c + ux * s_, sense * ux * c + uy * s_
+        brake = max(r.v * r.v - v_patrol * v_patrol, 0.0) / (2.0 * kind.accel_max)
+        speed = v_patrol if rho <= clearance + kind.detect_radius + brake else kind.speed_max
+        return r.x + 1000.0 * dx, r.y + 1000.0 * dy, speed
 
     def _plausible(self, x: float, y: float, radius: float) -> bool:
         m = self._max_scan_r

@@ -37,7 +37,7 @@ from collections.abc import Iterable
 
 from agents.types import UavType
 
-__all__ = ["exclusion_break", "handover_break", "rule_breaks", "watch_break"]
+__all__ = ["exclusion_break", "handover_break", "rule_breaks", "takeover_pull", "watch_break"]
 
 
 def _g(x: float) -> str:
@@ -64,6 +64,17 @@ def exclusion_break(k: UavType) -> str | None:
     return None
 
 
+def takeover_pull(slow: UavType, fast: UavType, d_m: float, unit_m: float = 1000.0) -> float:
+    """The net pull, in the planner's field units, of a target that a UAV of type ``fast``
+    watches on a UAV of type ``slow`` whose waypoint is ``d_m`` metres from it: eq. 22's
+    attraction ``w_t,s / (d v_s^2)`` less eq. 23's repulsion of the watcher standing at the
+    target, ``w_r,s / (d v_s v_f)`` (target value 1; distances and speeds in ``unit_m``, the
+    planner's ``field_unit_m``). The planner's own term for one target
+    (:meth:`agents.planners.dacmp.planner.UavSearch.own_pull`) is this number inside ``D``."""
+    vs, vf, d = slow.speed_max / unit_m, fast.speed_max / unit_m, d_m / unit_m
+    return (slow.w_t / vs - slow.w_r / vf) / (vs * d)
+
+
 def handover_break(slow: UavType, fast: UavType, unit_m: float = 1000.0) -> str | None:
     """Why a target watched by a UAV of type ``fast`` may not pass to one of the slower type
     ``slow`` (eq. 25 or 26 broken, or the pull too weak to draw it in from its influence radius;
@@ -77,7 +88,7 @@ def handover_break(slow: UavType, fast: UavType, unit_m: float = 1000.0) -> str 
         return (f"types {slow.name} and {fast.name}: w_t,{slow.name} / v_{slow.name} = {_g(slow.w_t / vs)} is not above "
                 f"w_r,{slow.name} / v_{fast.name} = {_g(slow.w_r / vf)} (eq. 25), so type {slow.name} does not take "
                 f"targets over from type {fast.name}")
-    net = (slow.w_t / (vs / unit_m) - slow.w_r / (vf / unit_m)) / (vs / unit_m) / (slow.influence_radius / unit_m)
+    net = takeover_pull(slow, fast, slow.influence_radius, unit_m)
     if not net > 1.0:
         return (f"types {slow.name} and {fast.name}: a target type {fast.name} watches pulls type {slow.name} at its "
                 f"influence radius ({_g(slow.influence_radius)} m) by {_g(net)} (eq. 22-23), not more than the search "

@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import math
 from bisect import insort
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from operator import attrgetter
+from typing import TYPE_CHECKING
 
 from comms.messages import NO_TARGET, TrackItem
+
+if TYPE_CHECKING:
+    from agents.zones import Keepout
 
 
 @dataclass(slots=True)
@@ -61,12 +65,34 @@ class Peer:
 _uav_of = attrgetter("uav")
 
 
-class Knowledge:
-    __slots__ = ("tracks", "threats", "peers", "_by_id")
+def threat_clearance(th: KnownThreat, x: float, y: float) -> tuple[float, float, float]:
+    """``(rho, ux, uy)`` of a circular zone, as :meth:`agents.zones.Keepout.clearance` gives
+    for a polygon: the signed distance from its edge (negative inside) and the unit normal
+    pointing away from it at ``(x, y)``."""
+    ex, ey = x - th.x, y - th.y
+    dc = math.hypot(ex, ey)
+    if dc <= 1e-9:
+        return -th.radius, 1.0, 0.0
+    return dc - th.radius, ex / dc, ey / dc
 
-    def __init__(self) -> None:
+
+def zone_clearance(zone: KnownThreat | Keepout, x: float, y: float) -> tuple[float, float, float]:
+    """``(rho, ux, uy)`` of a no-fly zone, a circle (sensed or heard) or a polygon (known before
+    take-off), alike (see :func:`threat_clearance`)."""
+    if isinstance(zone, KnownThreat):
+        return threat_clearance(zone, x, y)
+    return zone.clearance(x, y)
+
+
+class Knowledge:
+    __slots__ = ("tracks", "threats", "no_fly", "peers", "_by_id")
+
+    def __init__(self, no_fly: Sequence[Keepout] = ()) -> None:
         self.tracks: dict[int, Track] = {}
         self.threats: dict[int, KnownThreat] = {}
+        # (issue 33) The polygon no-fly zones (agents.zones, not the area's boundary): known
+        # before take-off, never learned or sent.
+        self.no_fly: tuple[Keepout, ...] = tuple(no_fly)
         self.peers: dict[int, Peer] = {}
         # The peers in id order, kept as they are added (peer()): recent_peers() runs for every
         # UAV every tick and peers only grow (issue 25: it sorted them all each time).
@@ -102,6 +128,18 @@ class Knowledge:
         for _, th in sorted(self.threats.items()):
             if math.hypot(x - th.x, y - th.y) < th.radius + margin:
                 return th
+        return None
+
+    def near_no_fly(self, x: float, y: float, reach: float = 0.0) -> KnownThreat | Keepout | None:
+        """The first no-fly zone, circle (by id) then polygon (in order), that holds ``(x, y)``
+        or lies within ``reach`` of it, or None: circles and polygons alike (docs/modelling.md,
+        "Assignment rules", rule 5)."""
+        th = self.inside_threat(x, y, reach) if self.threats else None
+        if th is not None:
+            return th
+        for z in self.no_fly:
+            if z.clearance(x, y)[0] < reach:
+                return z
         return None
 
     def add_threat(self, threat: int, x: float, y: float, radius: float, d_max: float) -> None:

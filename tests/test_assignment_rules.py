@@ -124,7 +124,35 @@ def test_each_precondition_is_named_when_broken():
     assert watch_break(_kind("A")) is None and watch_break(_kind("B")) is None
     # Eq. 25 met by a hair (5 * 51 > 5.1 * 50 by float noise): no pull left to draw A in.
     assert "may never be drawn in" in (handover_break(_kind("A"), _kind("B", speed_max=51.0)) or "")
-    assert handover_break(_kind("A"), _kind("B", speed_max=53.0)) is None  # net pull 3.8 at 10 km
+    assert handover_break(_kind("A"), _kind("B", speed_max=53.0)) is None  # net pull 7.5 at 10 km
+
+
+def test_the_documented_takeover_pull_is_the_planners():
+    """docs/modelling.md ("Preconditions") quotes the net pull of a target B watches on A at
+    10 km; it is agents.assignment.takeover_pull's number (to the digit quoted), and that is the
+    planner's own term for the target (UavSearch.own_pull: eq. 22 less eq. 23 of the watcher at
+    the target) just inside A's influence radius, so the page, the precondition and the planner
+    cannot drift apart. (The page said 8.7 until issue 33; the planner's field gives 86.7.)"""
+    import re
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    from agents.assignment import takeover_pull
+    from agents.planners.dacmp.planner import UavSearch
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "modelling.md").read_text(encoding="utf-8")
+    quoted = re.search(r"net pull of a target B watches on A at\s+10 km: ([0-9.]+)", page)
+    assert quoted is not None, "docs/modelling.md no longer quotes the takeover pull"
+    a, b = _kind("A"), _kind("B")
+    pull = takeover_pull(a, b, 10_000.0)
+    assert float(quoted.group(1)) == round(pull, 1)
+    # The planner's term for a target B watches, A's waypoint 10 km (less a millimetre: 0 at D) off.
+    unit = 1000.0
+    d = a.influence_radius - 1e-3
+    u = UavSearch(SimpleNamespace(kind=a), a.detect_radius, 0.0, 0.0, a.influence_radius, a.speed_max / unit, 0,
+                  [(0, 0.0, 0.0, 1.0)], [(0.0, 0.0, b.speed_max / unit, (0,), 0)], [])
+    assert u.own_pull(0, d, 0.0, unit, 0.1) == pytest.approx(takeover_pull(a, b, d), rel=1e-12)
+    assert takeover_pull(a, b, a.influence_radius) > 1.0  # beats the search term (at most 1) there
 
 
 def _doc(surveillance: bool) -> dict:
@@ -181,3 +209,51 @@ def test_a_watcher_keeps_a_target_inside_a_no_fly_zone_and_loiters_at_its_edge()
     edge = [math.hypot(e.x - 10_000.0, e.y - 10_000.0) - 2000.0 for e in poses]
     assert min(edge) > 0 and max(d for d, p in zip(edge, poses) if p.t >= 200) < 3000.0
     assert result.metrics["violations"]["threat"] == 0
+
+
+# A circle of radius 2 km at (10, 10) km and a polygon of about its size (a regular octagon, 2 km to
+# its corners, with one corner pointing at the target's way in and out).
+_CIRCLE = {"threats": [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 2000.0}]}
+_OCTAGON = {"no_fly": [{"name": "octagon", "polygon": [
+    [round(10_000.0 + 2000.0 * math.cos(i * math.pi / 4), 3), round(10_000.0 + 2000.0 * math.sin(i * math.pi / 4), 3)]
+    for i in (0, 1, 2, 3, 4, 5, 6, 7, 0)]}]}
+
+
+@pytest.mark.slow  # two runs of 1200 s
+@pytest.mark.parametrize("zone", [_OCTAGON, _CIRCLE], ids=["polygon", "circle"])
+def test_a_target_driven_through_a_no_fly_zone_is_kept_and_seen_again_where_it_comes_out(zone):
+    """Rule 5 for polygons as for circles (issue 33): a slow UAV watches a target that drives
+    straight through a no-fly zone, in on the west side and out on the east, out of every
+    sensor's sight for longer than the track's lifetime. The watcher keeps it assigned all the
+    way (before issue 33 a polygon zone lost it when its track expired), patrols the zone's
+    boundary without entering it, and has the target in sight again soon after it comes out on
+    the far side, which is not where it went in (it circled there before)."""
+    from swarm.events import read_events
+    from swarm.testing.invariants import NoDropChecker
+
+    doc = {"name": "through-the-zone", "seed": 1, "duration_s": 1200.0,
+           "area": {"width_m": 20_000.0, "height_m": 20_000.0},
+           "targets": {"count": 0, "accel_sigma": 0.0, "turn_sigma": 0.0,
+                       "placed": [{"x_m": 6800.0, "y_m": 10_000.0, "heading_deg": 0.0, "speed": 8.0}]},
+           "planner": {"name": "dacmp", "surveillance": True},
+           "uavs": [{"name": "A1", "type": "A", "x_m": 5000.0, "y_m": 10_000.0, "heading_deg": 0.0}], **zone}
+    scenario = parse_scenario(doc)
+    with Simulation(scenario) as sim:
+        result = sim.run()
+    r = DEFAULT_UAV_TYPES["A"].detect_radius_m
+    targets = {e.t: (e.x, e.y) for e in read_events(result.events, {"target"})}
+    poses = [e for e in read_events(result.events, {"pose"})]
+    first = next(e.t for e in poses if math.dist((e.x, e.y), targets[e.t]) <= r and e.mode == MODE_NAMES[MODE_SURVEIL])
+    assert first < 100
+    assert all((e.mode, e.target) == (MODE_NAMES[MODE_SURVEIL], 0) for e in poses if e.t >= first)
+    seen = [e.t for e in poses if math.dist((e.x, e.y), targets[e.t]) <= r]
+    gaps = [(a, b) for a, b in zip(seen, seen[1:]) if b - a > 1.0]
+    assert gaps, "the target never went out of sight"
+    a, b = max(gaps, key=lambda g: g[1] - g[0])
+    assert b - a > 200.0  # longer than the track's lifetime (1 / tau): kept, not lost
+    out_x = 12_000.0  # where the target comes out (the zone's east corner / edge)
+    assert targets[b][0] > out_x and targets[a][0] < out_x - 1000.0  # seen again after it came out, on the far side
+    assert b - next(t for t, (x, _y) in sorted(targets.items()) if x > out_x) < 400.0  # within one patrol lap
+    assert seen[-1] == max(targets)  # and watched in sight to the end
+    assert result.metrics["violations"]["threat"] == 0
+    assert check_events(result.events, scenario, [NoDropChecker()]) == []

@@ -49,7 +49,7 @@ from swarm.testing.strategies import reproducible, scenario_toml, scenarios
 B1, B2, A1, A2 = 0, 1, 2, 3
 
 
-def _scenario(range_m: float | None = None, threats=(), faults=(), latency_s: float = 0.0):
+def _scenario(range_m: float | None = None, threats=(), faults=(), latency_s: float = 0.0, no_fly=()):
     doc = {
         "name": "synthetic", "duration_s": 300.0,
         "area": {"width_m": 40_000.0, "height_m": 40_000.0},
@@ -58,6 +58,7 @@ def _scenario(range_m: float | None = None, threats=(), faults=(), latency_s: fl
         "threats": list(threats),
         "radio": {"latency_s": latency_s, **({"range_m": range_m} if range_m is not None else {})},
         "faults": list(faults),
+        **({"no_fly": list(no_fly)} if no_fly else {}),
     }
     return parse_scenario(doc, "<synthetic>")
 
@@ -241,8 +242,22 @@ def _handover_log(slow_modes, fast_modes, *, slow_at=5000.0, faults=(), t1=120) 
 
 
 def test_handover_good_story_passes():
-    log = _handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40))
+    # A1 watches target 0 from 20 s, 1 km off (in sight); B1 lets go at 41 s.
+    log = _handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40), slow_at=1000.0)
     assert _check(log, *handover_checkers()) == []
+
+
+def test_handover_flags_fast_uav_that_lets_go_before_its_relief_has_the_target_in_sight():
+    # Rule 3's "and not before" (issue 33): A1 watches target 0 from 5 km (on its way, out of
+    # its 1.5 km sight) when B1, which holds it, lets go at 41 s.
+    early = _handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40))
+    (v,) = _check(early, HandoverChecker())
+    assert v.t == 41.0 and v.uavs == ("B1", "A1") and v.data["rule"] == 3 and "before its slower relief" in v.message
+    # Once A1 has had it in sight (1 km off) the release is the rule's.
+    assert _check(_handover_log(slow_modes=_watching(20, 999), fast_modes=_watching(0, 40), slow_at=1000.0),
+                  HandoverChecker()) == []
+    assert not _check(_handover_log(slow_modes=_watching(0, 999, target=1), fast_modes=_watching(0, 40)),
+                      HandoverChecker())  # no relief on its way (A1 busy): rule 5's business, not rule 3's
 
 
 def test_handover_flags_slow_uav_that_never_takes_over():
@@ -288,7 +303,7 @@ def test_handover_released_fast_uav_may_watch_a_target_nobody_watches():
     # Rule 4 (docs/modelling.md, "Assignment rules"): after the release the fast UAV may search
     # or watch a target that no UAV it can talk to watches (B1 goes on to target 1, unwatched).
     log = _handover_log(slow_modes=_watching(10, 999),
-                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1))
+                        fast_modes=lambda t: (MODE_SURVEIL, 0 if t < 30 else 1), slow_at=1000.0)
     assert _check(log, HandoverChecker()) == []
 
 
@@ -298,7 +313,7 @@ def _released_onto(b2_at: tuple[float, float], target_1_at: tuple[float, float] 
     ``leaves_at``, then searches; B2 watches target 1 from ``b2_at``."""
     log = _handover_log(slow_modes=_watching(10, 999),
                         fast_modes=lambda t: (MODE_SURVEIL, 0) if t < 30 else
-                        ((MODE_SURVEIL, 1) if t < leaves_at else (MODE_SEARCH, -1)))
+                        ((MODE_SURVEIL, 1) if t < leaves_at else (MODE_SEARCH, -1)), slow_at=1000.0)
     for t in range(0, 121):
         log.target(t, 1, *target_1_at)  # (after _handover_log's: the last one of the tick counts)
         log.pose(t, B2, *b2_at, 60.0, 0.0, MODE_SURVEIL, 1)
@@ -372,10 +387,10 @@ def test_no_drop_flags_an_abandoned_target_but_not_a_crash_or_a_handover():
     assert _check(log_with(20, a1_from=28), NoDropChecker()) == []  # within the grace time
 
 
-def _drop_log(b1_at, *, threats=(), t1: int = 100) -> Log:
+def _drop_log(b1_at, *, threats=(), no_fly=(), t1: int = 100) -> Log:
     """B1 watches target 0 (standing at 10 km, 10 km) from ``b1_at(t)`` until 20 s, then
     searches; nobody else watches it; A1 searches 29 km away."""
-    log = Log(_scenario(threats=threats))
+    log = Log(_scenario(threats=threats, no_fly=no_fly))
     for t in range(0, t1):
         log.target(t, 0, 10_000.0, 10_000.0)
         m, tg = _watching(0, 20)(t)
@@ -407,6 +422,12 @@ def test_no_drop_a_lost_target_is_not_dropped_unless_last_seen_in_a_no_fly_zone(
     # Last seen inside a no-fly zone: not lost, its watcher keeps it.
     zone = [{"x_m": 10_000.0, "y_m": 10_000.0, "radius_m": 300.0}]
     assert len(_check(_track_life(_drop_log(lost_at_5, threats=zone), 10.0), NoDropChecker())) == 1
+    # A polygon zone as a circle (issue 33: before, only circles kept a target).
+    square = [{"polygon": [[9700.0, 9700.0], [10_300.0, 9700.0], [10_300.0, 10_300.0], [9700.0, 10_300.0],
+                           [9700.0, 9700.0]]}]
+    assert len(_check(_track_life(_drop_log(lost_at_5, no_fly=square), 10.0), NoDropChecker())) == 1
+    far = [{"polygon": [[20_000.0, 20_000.0], [21_000.0, 20_000.0], [21_000.0, 21_000.0], [20_000.0, 20_000.0]]}]
+    assert _check(_track_life(_drop_log(lost_at_5, no_fly=far), 10.0), NoDropChecker()) == []  # 10 km off: lost
 
 
 def test_log_checkers_refuse_live_only_ones():

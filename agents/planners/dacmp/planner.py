@@ -234,7 +234,23 @@ class DacmpPlanner(DacmpSettings):
                 rival = claim == p.target and p.type == k.name
                 if rival and (d_j, p.uav) > (math.hypot(view.x - tx, view.y - ty), view.uav):
                     continue  # a same-type rival farther away: we keep the target
-                if rival or d_j <= self.ring_max_factor * r_j:
+                # A slower UAV coming to take over the target we watch stands at it once it has
+                # had the target in sight (inside its detection radius), not a planning step
+                # before: until then we keep it (docs/modelling.md, "Assignment rules", rule
+                # 3). Let go at one planning step, a fast watcher left a target its slow relief
+                # had not yet found (paper-case2 seeds 7 and 8: 40-50 s unwatched). Its pose is
+                # as heard, up to a beacon or two old: the target may have moved that long since,
+                # so the radius is shrunk by that much (then it did have it in sight, then). A
+                # target nobody has seen for a replanning period (kept at a no-fly zone: rule
+                # 5) is in nobody's sight: we keep it.
+                reach = self.ring_max_factor * r_j
+                if claim == p.target and v_j < k.speed_max / unit:
+                    tr = view.knowledge.tracks.get(p.target)
+                    if tr is None or t - tr.t > view.replan_s:
+                        reach = -1.0
+                    else:
+                        reach = r_j - math.hypot(tr.vx, tr.vy) * max(t - p.t_pose, 0.0)
+                if rival or d_j <= reach:
                     wx, wy, at = tx, ty, i  # its next waypoint is the target
                 scope: tuple[int, ...] = (i,) if math.hypot(wx - tx, wy - ty) < D else ()
             else:
@@ -487,15 +503,17 @@ class UavSearch:
             watched = mine.target if mine is not None and mine.mode == MODE_SURVEIL else NO_TARGET
             for tid, tr in sorted(view.knowledge.tracks.items()):
                 # Nobody has seen it for a while: g_m(t) is unknown. Except our own target last
-                # seen (or predicted) inside a no-fly zone or within our detection radius of one,
-                # where we, kept outside, lose sight of a target we could otherwise follow:
-                # targets may enter a zone and we may not, so it is not lost,
-                # and we keep it until anyone sees it again (docs/modelling.md, "Assignment
-                # rules", rule 5; the actor loiters at the zone's edge nearest to it).
-                if t - tr.t > max_age and not (tid == watched and _near_zone(view.knowledge, tr, t, R)):
+                # seen (or predicted) inside a no-fly zone, circle or polygon, or within our
+                # detection radius of one, where we, kept outside, lose sight of a target we
+                # could otherwise follow: targets may enter a zone and we may not, so it is not
+                # lost, and we keep it until anyone sees it again (docs/modelling.md,
+                # "Assignment rules", rule 5; the actor patrols the zone's boundary), wherever
+                # on that boundary we are.
+                kept = tid == watched and _near_zone(view.knowledge, tr, t, R)
+                if t - tr.t > max_age and not kept:
                     continue
                 tx, ty = tr.predict(t)
-                if math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
+                if kept or math.hypot(tx - view.x, ty - view.y) < k.influence_radius + 2 * R:
                     targets.append((tid, tx, ty, tr.value))
         rivals = planner.rivals(view, targets, k.influence_radius)
         return cls(view, R, r_max, k.r_min(view.v), k.influence_radius, k.speed_max / planner.field_unit_m,
@@ -560,9 +578,11 @@ class UavSearch:
 
 def _near_zone(knowledge: Knowledge, track: Track, t: float, reach: float) -> bool:
     """Whether a track's last sighting or its predicted position lies inside a known no-fly
-    zone or within ``reach`` of one."""
-    return (knowledge.inside_threat(track.x, track.y, reach) is not None
-            or knowledge.inside_threat(*track.predict(t), reach) is not None)
+    zone (a circle or a polygon) or within ``reach`` of one."""
+    if not knowledge.threats and not knowledge.no_fly:
+        return False
+    return (knowledge.near_no_fly(track.x, track.y, reach) is not None
+            or knowledge.near_no_fly(*track.predict(t), reach) is not None)
 
 
 def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, int, int]:

@@ -114,9 +114,11 @@ def last_seen(log: RunLog, m: int) -> tuple[float, float, float] | None:
 def held_at_zone_edge(log: RunLog, m: int, uav: str) -> bool:
     """Whether ``uav`` holds target ``m`` the way rule 5 of docs/modelling.md ("Assignment
     rules") says a target inside a no-fly zone is held: at the last tick the target is inside a
-    zone, and the UAV, outside it, is within twice its detection radius of the point of that
-    zone's edge nearest to where the target was last seen (by anyone: the UAV cannot know where
-    inside the zone it went; it circles at that edge, docs/modelling.md)."""
+    zone, and the UAV, outside it, is at that zone's edge: within twice its detection radius of
+    the point of the edge nearest to where the target was last seen (by anyone: the UAV cannot
+    know where inside the zone it went), where it circles while it has the target in sight, or,
+    on patrol round the zone's boundary once it lost sight of it (issue 33), within twice its
+    detection radius of the edge anywhere round it. (The first is a case of the second.)"""
     uid = log.uid(uav)
     seen = last_seen(log, m)
     if uid is None or uid not in log.poses or seen is None:
@@ -127,10 +129,7 @@ def held_at_zone_edge(log: RunLog, m: int, uav: str) -> bool:
     for th in log.threats:
         cx, cy, rad = float(th["x_m"]), float(th["y_m"]), float(th["radius_m"])
         if math.hypot(tx - cx, ty - cy) < rad and math.hypot(x - cx, y - cy) >= rad:
-            _, sx, sy = seen
-            d = math.hypot(sx - cx, sy - cy)
-            ux, uy = ((sx - cx) / d, (sy - cy) / d) if d > 1e-9 else (1.0, 0.0)
-            return math.hypot(x - (cx + rad * ux), y - (cy + rad * uy)) <= 2 * r
+            return math.hypot(x - cx, y - cy) - rad <= 2 * r
     return False
 
 
@@ -140,14 +139,15 @@ def case2_conditions(log: RunLog, handover_violations: Sequence[Any] = (), oppor
     * ``found``: every target found;
     * ``watched``: at the last tick every target is watched by exactly one UAV (in surveillance
       mode assigned to it) that has it inside its detection radius, or that keeps a target
-      inside a no-fly zone from the zone's edge nearest to it (:func:`held_at_zone_edge`);
+      inside a no-fly zone from its edge (:func:`held_at_zone_edge`);
     * ``takeovers``: every handover opportunity (a free slower UAV within its ``D`` of a target
       a faster UAV watches, able to talk to it) taken within 60 s, and every release within
       60 s of the slower UAV's arrival: no ``handover`` violation of rules 2-3
       (docs/modelling.md, "Assignment rules");
     * ``handovers``: at least ``min(CASE2_MIN_HANDOVERS, opportunities)`` fast -> slow
       handovers, where ``opportunities`` counts the targets that were offered one (a fast UAV
-      watched it with a slower one free within its ``D``, or already on its way);
+      watched it with a slower one free within its ``D``, or, being the target's owner, with a
+      slower one already on its way: :attr:`HandoverChecker.opportunities`);
     * ``released``: a released fast UAV returns to search or watches a target nobody it can
       talk to holds (rule 4: no violation of it);
     * ``safe``: no separation, threat or dynamics violation.

@@ -97,7 +97,8 @@ class SingleWatcherChecker(_WatchChecker):
 class HandoverChecker(_WatchChecker):
     """Fast-to-slow handover (DACMP eq. 25-26) as observable obligations (see the module
     docstring): ``takeover_s`` for the slow UAV to start watching, ``release_s`` for the fast
-    one to stop; with ``require_search`` the fast one must then be searching, not watching."""
+    one to stop once the slow one has the target in sight, and not before (rule 3); with
+    ``require_search`` the fast one must then be searching, not watching."""
 
     name = "handover"
 
@@ -114,8 +115,14 @@ class HandoverChecker(_WatchChecker):
         self._prev_watchers: dict[int, set[int]] = {}
         self._targets: dict[int, tuple[float, float]] = {}
         self._seen: dict[int, tuple[float, float, float]] = {}
+        # target -> watchers that have held it since they began watching it (rule 3's "in sight")
+        self._held: dict[int, set[int]] = {}
+        # target -> its owner, as the handover metric (swarm.metrics) has it: the UAV that held
+        # it last, kept while it watches it (a newcomer takes it over only at its release)
+        self._owner: dict[int, int] = {}
         #: Every (target, faster watcher) pair that was offered a takeover at some time: a free
-        #: slower UAV within its D (rule 2), or one that already watches the target too.
+        #: slower UAV within its D (rule 2), or, the faster one being the target's owner (the one
+        #: a handover would be from), a slower one on its way to it (watching, not yet holding).
         self.opportunities: set[tuple[int, int]] = set()
 
     def on_group(self, t, events):
@@ -128,6 +135,15 @@ class HandoverChecker(_WatchChecker):
         self._sightings(t, poses)
         ctx = self.context
         watchers = self.watchers(poses)
+        held = {m: {w for w in self._held.get(m, ()) if w in ws} | {w for w in ws if self._holds(w, m, poses)}
+                for m, ws in watchers.items()}
+        for m, ws in watchers.items():
+            old = self._owner.get(m)
+            if old is None or old not in ws:
+                holders = sorted(w for w in ws if self._holds(w, m, poses))
+                if holders:
+                    self._owner[m] = holders[0]
+        self._early_release(t, poses, watchers, held)
         offers: set[tuple[int, int]] = set()
         overlaps: set[tuple[int, int, int]] = set()
         for m, ws in sorted(watchers.items()):
@@ -154,7 +170,8 @@ class HandoverChecker(_WatchChecker):
                             self.violate(t, f"fast {ctx.name(f)} kept watching target {m} for {t - since:g} s after "
                                             f"slower {ctx.name(s)} took it over (release bound {self.release_s:g} s)",
                                          [f, s], target=m, since=since, rule=3)
-                if slower_watching:  # an opportunity taken already (a slower UAV claimed it)
+                if slower_watching and self._owner.get(m) == f and not arrived:
+                    # an opportunity taken already: a slower UAV is on its way to take it from its owner
                     self.opportunities.add((m, f))
                 # Nobody knows where it is (kept from a no-fly zone's edge, unseen for the track
                 # lifetime: rule 5): no slower UAV can be drawn to it, so no takeover is owed.
@@ -207,6 +224,36 @@ class HandoverChecker(_WatchChecker):
         self._offer = {k: v for k, v in self._offer.items() if k in offers}
         self._overlap = {k: v for k, v in self._overlap.items() if k in overlaps}
         self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}
+        self._held = held
+
+    def _early_release(self, t: float, poses: dict[int, tuple], watchers: dict[int, set[int]],
+                       held: dict[int, set[int]]) -> None:
+        """Rule 3's "and not before": a faster watcher that has held a target stops watching it
+        while a slower UAV it can talk to watches it and none of the slower watchers has held
+        it since it began watching it (the relief does not have it in sight yet), nobody else
+        holds it, and the target is not lost (rule 5)."""
+        ctx = self.context
+        for m, prev in sorted(self._prev_watchers.items()):
+            now = watchers.get(m, set())
+            for f in sorted(prev - now):
+                kf = ctx.kind(f)
+                if kf is None or f not in poses or self.excused(f, t) or f not in self._held.get(m, ()):
+                    continue
+                slower = [s for s in sorted(now) if (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max
+                          and ctx.handover_judged(s, f) and not self.excused(s, t) and ctx.can_talk(f, s, t, poses)]
+                if not slower or any(s in held.get(m, ()) for s in slower):
+                    continue
+                if any(self._holds(w, m, poses) for w in now) or self._lost(m, t):
+                    continue
+                self.violate(t, f"fast {ctx.name(f)} stopped watching target {m} before its slower relief "
+                                f"{', '.join(ctx.name(s) for s in slower)} had it in sight (rule 3: a faster watcher keeps "
+                                f"the target until a slower one watching it has held it)",
+                             [f, *slower], target=m, rule=3)
+
+    def _lost(self, m: int, t: float) -> bool:
+        """Nobody has had ``m`` inside a detection radius for the track lifetime (rule 5)."""
+        seen = self._seen.get(m)
+        return seen is None or t - seen[0] > self._track_life() - EPS
 
 
     def _holders_besides(self, f: int, m: int, t: float, poses: dict[int, tuple],
@@ -225,8 +272,8 @@ class NoDropChecker(_WatchChecker):
     watching it within ``grace_s`` (a watcher that crashed is excused), unless the target is
     *lost*: no flying UAV has had it inside its detection radius for the track lifetime
     (``planner.dacmp.track_max_age_s``, default ``1 / tau``) and it was last seen farther than the
-    watcher's detection radius from every no-fly zone (a target inside one, or that near one, is
-    kept, not lost)."""
+    watcher's detection radius from every no-fly zone, circle or polygon (a target inside one, or
+    that near one, is kept, not lost)."""
 
     name = "no_drop"
 
@@ -249,7 +296,8 @@ class NoDropChecker(_WatchChecker):
         t_seen, x, y = seen
         k = self.context.kind(watcher)
         reach = k.detect_radius if k is not None else 0.0
-        near = any(math.hypot(x - cx, y - cy) < r + reach for _, cx, cy, r in self.context.threats)
+        near = (any(math.hypot(x - cx, y - cy) < r + reach for _, cx, cy, r in self.context.threats)
+                or any(z.clearance(x, y)[0] < reach for z in self.context.zones))  # circles and polygons alike
         return t - t_seen > self._track_life() - EPS and not near
 
     def on_group(self, t, events):

@@ -101,7 +101,8 @@ class RunContext:
         self.min_separation_m = scenario.safety.min_separation_m
         self.threats = [(i, th.x_m, th.y_m, th.radius_m) for i, th in enumerate(scenario.threats)]
         # (issue 26) Polygon no-fly zones (agents.zones.Keepout, ids after the circles'): judged
-        # by the threat checker with their signed distance, as the circles are.
+        # by the threat checker with their signed distance, as the circles are, and a target
+        # last seen in or near one is kept, not lost (no_drop, issue 33).
         self.zones: list[Any] = []
         if scenario.no_fly:
             from swarm.geo.frame import frame_for
