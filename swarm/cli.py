@@ -698,15 +698,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_allow_arg(r)
     r.set_defaults(func=_cmd_run)
 
-    rr = sub.add_parser("rerun", help="re-run a run folder and compare event-log hashes (exit 0 equal, 1 different)")
-    rr.add_argument("rundir", help="a run folder (`swarm run --out DIR`, a sweep's runs/PLANNER/SETTINGS/seed-NNN, ...)")
-    rr.add_argument("--out", default=None, metavar="DIR", help="folder for the new run (default: a new temporary folder)")
-    rr.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
-    rr.add_argument("--quiet", action="store_true", help="no progress bar")
-    rr.add_argument("--json", action="store_true", help="print the comparison as JSON on stdout")
-    _add_allow_arg(rr)
-    rr.set_defaults(func=_cmd_rerun)
-
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenario", nargs="+", help="built-in names or .toml files; every problem of each is reported")
     v.add_argument("--json", action="store_true", help="print one JSON record per scenario on stdout")
@@ -715,6 +706,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "else half of this machine's memory)")
     _add_allow_arg(v)
     v.set_defaults(func=_cmd_validate)
+
+    rr = sub.add_parser("rerun", help="re-run a run folder and compare event-log hashes (exit 0 equal, 1 different)")
+    rr.add_argument("rundir", help="a run folder (`swarm run --out DIR`, a sweep's runs/PLANNER/SETTINGS/seed-NNN, ...)")
+    rr.add_argument("--out", default=None, metavar="DIR", help="folder for the new run (default: a new temporary folder)")
+    rr.add_argument("--no-figures", action="store_true", help="skip trajectories.png")
+    rr.add_argument("--quiet", action="store_true", help="no progress bar")
+    rr.add_argument("--json", action="store_true", help="print the comparison as JSON on stdout")
+    _add_allow_arg(rr)
+    rr.set_defaults(func=_cmd_rerun)
 
     b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
     b.add_argument("--quick", action="store_true", help="only the quick cases")
