@@ -145,16 +145,20 @@ def random_start(g: np.random.Generator, sc: Scenario, geo: Geography | None) ->
     return x, y, float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, sc.targets.speed_max))
 
 
-def mission(sim: Any) -> Any:
-    """(issue 26) The run's wind and endurance (:mod:`swarm.mission`), hooked into the run's
-    fault host (its tick start and sense phase, and the battery fault's access), or None for a
-    scenario without ``[wind]`` and ``[endurance]``."""
-    if sim.scenario.wind is None and sim.scenario.endurance is None:
+def mission(sim: Any) -> Mission | None:
+    """(issues 26, 33) The run's wind and endurance (:mod:`swarm.mission`), its batteries handed
+    to the run's fault host (the battery fault's access), or None for a scenario without
+    ``[wind]`` and ``[endurance]``."""
+    sc, geo = sim.scenario, sim.geography
+    if sc.wind is None and sc.endurance is None:
         return None
     from swarm.mission import mission as build_mission
 
-    m = build_mission(sim)
-    sim.faults.mission = m
+    m = build_mission(sc, sim.world, sim.fleet, sim.log, sim.dt, (sim.grid.width_m, sim.grid.height_m),
+                      sim.rng.generator("wind"), list(geo.zones) if geo is not None else [],
+                      geo.area.vertices if geo is not None and geo.area is not None else None)
+    if m is not None:
+        sim.faults.batteries = m.battery_of
     return m
 
 
@@ -164,6 +168,8 @@ def actor_settings(sc: Scenario, geo: Geography | None = None) -> ActorSettings:
     settings = _actor_settings(sc)
     if geo is not None:
         settings = replace(settings, zones=geo.keepouts, outside=geo.outside)
+    if sc.endurance is not None and sc.planner.surveillance:  # (issue 33: relief on station)
+        settings = replace(settings, relief=True)
     return settings
 
 

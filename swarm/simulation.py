@@ -17,8 +17,9 @@ Library code never prints, exits or calls ``asyncio.run``.
 
 One tick at time ``t`` (see ARCHITECTURE.md): faults and joins due at ``t`` and frames that
 arrived by ``t`` are processed first (clock priorities), then the tick's phases, each a call
-into the part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), sense (the world,
-then the tick faults), wake the actors and wait for all of them (:mod:`swarm.fleet`), observe
+into the part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), mission (wind and
+endurance, :mod:`swarm.mission`), sense (the world, then the tick faults, then the energy
+readings), wake the actors and wait for all of them (:mod:`swarm.fleet`), observe
 (:mod:`swarm.observer`), transmit (:mod:`swarm.transmission`), integrate (the world), end
 (sampling, the log, the next tick). This class builds those parts, runs the phases, drives
 the clock, and is the embedding API; it knows no fault kind.
@@ -133,7 +134,7 @@ class Simulation:
         self.faults.radio = self.radio
         self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
         self._populate(sc)
-        self.mission = build.mission(self)  # (issue 26: wind, endurance, hooked into self.faults; None without)
+        self.mission = build.mission(self)  # (issues 26, 33: wind and endurance, the mission phase; None without)
         self.clock.schedule(0.0, self._tick, TICK)
         self.log.emit("start", 0.0, {
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
@@ -280,6 +281,8 @@ class Simulation:
         Faults, joins and frames due at ``t`` ran before this (clock priorities)."""
         t = self.now
         self.faults.begin_tick(t)
+        if self.mission is not None:  # the mission phase: energy, relief, landings, launches; the wind
+            self.mission.begin_tick(t)
         alive = self.world.alive_ids()
         self.fleet.start_tasks(alive)
         xy, readings = self._sense(t, alive)
@@ -299,6 +302,8 @@ class Simulation:
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
         self.faults.sense(t, alive, readings, self.fleet.outputs.__contains__)
+        if self.mission is not None:  # each UAV's energy reading and its way home
+            self.mission.sense(t, alive, readings)
         # Every live UAV scans its disk this tick (its own map, then the ground truth and every
         # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
         if len(alive) >= PREFETCH_MIN:

@@ -18,7 +18,7 @@ class UavSnapshot:
     uid: int
     name: str
     type: str
-    state: str  # pending | alive | crashed
+    state: str  # pending | alive | landed (at its base, [endurance]) | crashed
     x: float
     y: float
     v: float
