@@ -911,4 +911,5 @@ class UavActor:
         return frames
 
 
-__all__ = ["HOME_TARGET", "ActorOutput", "ActorSettings", "EnergyReading", "SensedTarget", "SensedUav", "SensorReading", "UavActor", "NO_TARGET"]
+__all__ = ["HOME_TARGET", "NO_TARGET", "ActorOutput", "ActorSettings", "EnergyReading", "SensedTarget", "SensedUav",
+           "SensorReading", "UavActor"]

@@ -31,6 +31,7 @@ from swarm.world import TargetMotion, Targets
 if TYPE_CHECKING:
     from agents.maps.grid import Grid
     from swarm.geo.geography import Geography
+    from swarm.mission import Mission
 
 __all__ = ["actor_settings", "add_random_targets", "auth_key", "geography", "radio", "random_targets", "target_motion", "threats",
            "uav_type_from_spec", "uav_types"]

@@ -11,6 +11,7 @@ sense, transmit) and never names a fault kind: each kind's behaviour is its own
 from __future__ import annotations
 
 from collections.abc import Callable
+
 import numpy as np
 
 from agents.actor import SensorReading
