@@ -119,6 +119,9 @@ class EnergyReading:
 
 # What a UAV flying home beacons as its intent's target (with search mode): not free (issue 33).
 HOME_TARGET = -2
+# A watcher asks for relief this many times the nearest free UAV's straight flight time ahead
+# (plus handover_s): room for its turns, the gusts and a way round a zone (issue 33, rule 6).
+RELIEF_MARGIN = 1.5
 
 
 # Another UAV as the detect-and-avoid sensor gives it: (uav id, x, y, vx, vy).
@@ -361,8 +364,8 @@ class UavActor:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
         for th in r.threats:
             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
-        if r.energy is not None and self._energy(r):
-            return None  # homebound: no replanning on the way home
+        if r.energy is not None and (self._energy(r) or self._releasing):
+            return None  # homebound, or keeping its target until a relief holds it: no replanning
         if self.settings.relief:
             if self._relieving == NO_TARGET:
                 self._answer_relief(r)
@@ -378,12 +381,14 @@ class UavActor:
         """(issues 26, 33) Endurance: True while flying home (along the way the reading gives).
 
         A watcher asks for relief (rule 6 of docs/modelling.md's assignment rules) once its spare
-        flight is down to ``handover_s`` plus the time the nearest free UAV it hears needs to
-        reach its target (:meth:`_relief_eta`); from then its beacons say it searches, with its
-        target's id (a relief request), while it keeps circling and sending the target's track.
+        flight is down to ``handover_s`` plus :data:`RELIEF_MARGIN` times the time the nearest
+        free UAV it hears needs to reach its target (:meth:`_relief_eta`); from then its beacons say it searches, with its
+        target's id (a relief request), while it keeps circling and sending the target's track
+        (it does not replan meanwhile: it keeps its target).
         It lets go and turns home when a peer watches the target with it inside its own
-        detection radius (a relief holds it), or when its energy says go. Any other UAV goes
-        home when its energy says go."""
+        detection radius (a relief holds it), when its plan no longer watches the target
+        (another took it over: it asked because it must go soon, so it goes), or when its energy
+        says go. Any other UAV goes home when its energy says go."""
         e = r.energy
         assert e is not None
         if self.homebound:
@@ -392,23 +397,23 @@ class UavActor:
         plan = self.plan
         watching = plan is not None and plan.mode == MODE_SURVEIL
         asked = self.relief_asked
-        if asked is not None and not (watching and plan is not None and plan.target == asked[0]):
-            self.relief_asked, self._releasing = None, False  # it no longer watches that target
-            asked = None
+        if asked is not None and watching and plan is not None and plan.target != asked[0]:
+            asked = self.relief_asked = (plan.target, asked[1])  # (it watches another now: relief for that one)
         held = False
         if watching:
             assert plan is not None
             m = plan.target
-            if asked is None and e.spare_s <= e.handover_s + self._relief_eta(r, m, e.wind_mps):
+            if asked is None and e.spare_s <= e.handover_s + RELIEF_MARGIN * self._relief_eta(r, m, e.wind_mps):
                 self.relief_asked = (m, r.t + e.spare_s)
                 self._releasing = True
             held = self.relief_asked is not None and self._relief_holds(r, m)
             if not (held or e.must_go):
                 return False
-        elif not e.must_go:
+        elif not e.must_go and asked is None:  # (asked, and its target taken over: it goes)
             return False
         self.homebound = True
         self.handed_target = plan.target if watching and plan is not None else NO_TARGET
+        held = held or (asked is not None and not watching)  # (its target taken over: relieved)
         if watching and self.relief_asked is None:
             self.relief_asked = (self.handed_target, r.t)  # (asked at the last moment: a fault's doing)
         self.relieved = held
@@ -442,7 +447,7 @@ class UavActor:
             return False
         tx, ty = tr.predict(r.t)
         t, timeout, radius = r.t, self.settings.peer_timeout_s, self.kind.detect_radius
-        return any(p.mode == MODE_SURVEIL and p.target == m and t - p.t_intent <= timeout
+        return any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
                    and math.hypot(p.x - tx, p.y - ty) <= radius
                    for p in self.knowledge.peers.values() if p.uav != self.uid)
 
@@ -456,7 +461,7 @@ class UavActor:
             return
         t, timeout = r.t, self.settings.peer_timeout_s
         peers = [p for p in self.knowledge.peers.values() if p.uav != self.uid and t - p.t_intent <= timeout]
-        asks = sorted((p.target, p.uav) for p in peers if p.mode == MODE_SEARCH and p.target >= 0)
+        asks = sorted((p.target, p.uav) for p in peers if p.asks)
         if not asks:
             return
         wind = r.energy.wind_mps if r.energy is not None else 0.0
@@ -464,6 +469,7 @@ class UavActor:
         for m, asker in asks:
             tr = self.knowledge.tracks.get(m)
             if tr is None or any(p.mode == MODE_SURVEIL and p.target == m for p in peers if p.uav != asker):
+                # (someone else watches it, or is on the way: a relief beacons that it watches)
                 continue
             tx, ty = tr.predict(t)
             mine = math.hypot(r.x - tx, r.y - ty) / max(self.kind.speed_max - wind, 1.0)
@@ -478,9 +484,11 @@ class UavActor:
 
     def _relieve(self, r: SensorReading) -> bool:
         """On its way to take target ``_relieving`` over: True while it flies there (towards the
-        target's predicted position); once the target is inside its detection radius it watches
-        it (and plans as usual from the next replan); it gives up when the target's track is
-        gone or another UAV holds it."""
+        target's predicted position), and while it watches the target from within its detection
+        radius until the watcher that asked has gone (it does not replan meanwhile: the asker,
+        still beaconing its request, would look like a watcher it should yield to); then it
+        plans as usual from the next replan. It gives up when the target's track is gone or
+        another UAV holds it."""
         m = self._relieving
         tr = self.knowledge.tracks.get(m)
         t = r.t
@@ -488,13 +496,15 @@ class UavActor:
             self._relieving, self.plan = NO_TARGET, None
             return False
         tx, ty = tr.predict(t)
-        if math.hypot(r.x - tx, r.y - ty) <= self.kind.detect_radius:
-            self._relieving = NO_TARGET
+        timeout, radius = self.settings.peer_timeout_s, self.kind.detect_radius
+        if math.hypot(r.x - tx, r.y - ty) <= radius:
             self.plan = Plan(tx, ty, MODE_SURVEIL, m)
+            if any(p.asks and p.target == m and t - p.t_intent <= timeout for p in self.knowledge.peers.values()):
+                return True  # it holds the target; the watcher that asked has not gone yet (no replanning)
+            self._relieving = NO_TARGET
             self._next_replan = t + self.settings.replan_s
             return False
-        timeout, radius = self.settings.peer_timeout_s, self.kind.detect_radius
-        if any(p.mode == MODE_SURVEIL and p.target == m and t - p.t_intent <= timeout
+        if any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
                and math.hypot(p.x - tx, p.y - ty) <= radius for p in self.knowledge.peers.values() if p.uav != self.uid):
             self._relieving, self.plan = NO_TARGET, None  # someone holds it
             return False
@@ -787,6 +797,10 @@ class UavActor:
                     p = peers.get(i.uav) or k.peer(i.uav)
                     if ft >= p.t_intent:
                         p.wx, p.wy, p.mode, p.target, p.t_intent = i.wx, i.wy, i.mode, i.target, ft
+                        if i.mode == MODE_SEARCH and i.target >= 0:  # (issue 33) a relief request
+                            p.mode, p.asks = MODE_SURVEIL, True
+                        elif p.asks:
+                            p.asks = False
             if heard.tracks:
                 k.merge_tracks(heard.tracks)
             for th in heard.threats:

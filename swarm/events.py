@@ -373,7 +373,8 @@ class Relief(Event):
 
 @dataclass(slots=True)
 class ReturnToBase(Event):
-    """A UAV turned home: its energy left is what it needs to fly home against the wind plus the reserve."""
+    """A UAV turned home: its energy left is what its way home takes against the wind plus the
+    reserve, or it had asked for relief and its target is taken over."""
 
     kind: ClassVar[str] = "rtb"
     uav: UavId

@@ -258,6 +258,8 @@ class NoDropChecker(_WatchChecker):
         self.grace_s = grace_s
         self._asks: dict[tuple[int, int], tuple[float, float, list[int]]] = {}  # (w, m) -> (t, by, who could reach)
         self._unrelieved: set[tuple[int, int]] = set()
+        self._departures: list[tuple[float, int, int]] = []  # unrelieved drops to judge: (t, watcher, target)
+        self._went_home: dict[int, list[float]] = {}  # uav -> its rtb times
         self._prev: dict[int, set[int]] = {}
         self._pending: dict[int, tuple[float, int, float]] = {}  # target -> (dropped at, by, last seen then)
         self._targets: dict[int, tuple[float, float]] = {}
@@ -292,6 +294,9 @@ class NoDropChecker(_WatchChecker):
                     self._asks[(e.uav, e.target)] = (t, e.by, self._could_reach(t, e.target, e.by, poses))
                 elif e.status == "unrelieved":
                     self._unrelieved.add((e.uav, e.target))
+            elif isinstance(e, event_schema.ReturnToBase):
+                self._went_home.setdefault(e.uav, []).append(t)
+        self._judge_departures(t)
         watchers = self.watchers(poses)
         held = {m: {w for w in self._held.get(m, ()) if w in ws} | {w for w in ws if self._holds(w, m, poses)}
                 for m, ws in watchers.items()}
@@ -301,13 +306,7 @@ class NoDropChecker(_WatchChecker):
             if t - t0 > self.grace_s + EPS:
                 del self._pending[m]
                 if (w, m) in self._unrelieved:
-                    ask = self._asks.get((w, m))
-                    if ask is None or not ask[2]:
-                        continue  # rule 6: nobody could have relieved it in time
-                    names = ", ".join(self.context.name(u) for u in ask[2])
-                    self.violate(t0, f"{self.context.name(w)} went home from target {m} unrelieved, but {names} "
-                                     f"could have reached it in the {ask[1] - ask[0]:g} s between its relief request "
-                                     f"at {ask[0]:g} s and its departure", [w, *ask[2]], target=m, since=ask[0], rule=6)
+                    self._departures.append((t0, w, m))  # (judged once the candidates' energy shows: _judge_departures)
                     continue
                 self.violate(t0, f"{self.context.name(w)} stopped watching target {m} while flying and nobody watched it "
                                  f"within {self.grace_s:g} s (not lost: seen {t0 - seen:g} s before, or last seen "
@@ -322,6 +321,31 @@ class NoDropChecker(_WatchChecker):
                 self._pending[m] = (t, alive[0], self._seen[m][0] if m in self._seen else -math.inf)
         self._prev = watchers
         self._held = held
+
+    def _judge_departures(self, t: float, final: bool = False) -> None:
+        """Rule 6: an unrelieved departure at ``t0`` is a drop if a UAV that could reach the
+        target when relief was asked did not itself turn home (its energy said go) before
+        ``t0 + 2 handover_s`` (a candidate needs energy for the way there and some watching).
+        Judged once that time has passed."""
+        e = self.context.scenario.endurance
+        wait = 2.0 * e.handover_s if e is not None else 0.0
+        for item in list(self._departures):
+            t0, w, m = item
+            if t < t0 + wait - EPS and not final:
+                continue
+            self._departures.remove(item)
+            if final and t < t0 + wait - EPS:
+                continue  # not enough time left to judge
+            ask = self._asks.get((w, m))
+            if ask is None:
+                continue  # (it never asked: it went at its first reading, nobody could have come)
+            could = [u for u in ask[2] if not any(ask[0] <= h <= t0 + wait + EPS for h in self._went_home.get(u, []))]
+            if not could:
+                continue  # nobody could have relieved it in time
+            names = ", ".join(self.context.name(u) for u in could)
+            self.violate(t0, f"{self.context.name(w)} went home from target {m} unrelieved, but {names} "
+                             f"could have reached it in the {ask[1] - ask[0]:g} s between its relief request at "
+                             f"{ask[0]:g} s and its departure", [w, *could], target=m, since=ask[0], rule=6)
 
     def _could_reach(self, t: float, m: int, by: float, poses: dict[int, tuple]) -> list[int]:
         """The free flying UAVs (not impaired) that could reach target ``m`` by ``by``: within
@@ -342,3 +366,4 @@ class NoDropChecker(_WatchChecker):
 
     def finish(self, t_end):
         self._pending.clear()  # not enough time left to judge
+        self._judge_departures(t_end, final=True)
