@@ -190,6 +190,7 @@ class ActorSettings:
     # (issue 33) [endurance]: free UAVs answer watchers' relief requests (rule 6 of
     # docs/modelling.md's assignment rules; UavActor._answer_relief). Off without endurance.
     relief: bool = False
+    uav_types: tuple[UavType, ...] = ()  # (the run's types: a relief's turn radius, _flight_s)
 
 
 @dataclass(slots=True)
@@ -275,6 +276,7 @@ class UavActor:
         self.relief_asked: tuple[int, float] | None = None
         self._releasing = False
         self._relieving = NO_TARGET
+        self._types = {k.name: k for k in settings.uav_types}
         self.counters = ActorCounters()
         self._next_replan = -math.inf
         self._next_beacon = -math.inf
@@ -430,14 +432,26 @@ class UavActor:
                 if p.uav != self.uid and p.mode == MODE_SEARCH and p.target == NO_TARGET
                 and t - p.t_intent <= timeout and t - p.t_pose <= timeout]
 
+    def _flight_s(self, x: float, y: float, v: float, theta: float, type_name: str, tx: float, ty: float,
+                  wind: float) -> float:
+        """Seconds a UAV at ``(x, y)`` flying ``v`` on heading ``theta`` needs to reach ``(tx, ty)``:
+        the turn towards it at its type's turn radius at that speed, then straight, at ``v`` less
+        the mean wind's speed (rule 6's reckoning)."""
+        kind = self._types.get(type_name)
+        turn = 0.0
+        if kind is not None:
+            off = abs(math.remainder(math.atan2(ty - y, tx - x) - theta, 2 * math.pi))
+            turn = off * kind.r_min(max(v, kind.speed_min))
+        return (turn + math.hypot(tx - x, ty - y)) / max(v - wind, 1.0)
+
     def _relief_eta(self, r: SensorReading, m: int, wind: float) -> float:
-        """Seconds the nearest free peer it hears needs to reach target ``m`` (at its speed less
-        the mean wind's, straight); 0 when it hears none or does not know where ``m`` is."""
+        """Seconds the nearest free peer it hears needs to reach target ``m`` (:meth:`_flight_s`);
+        0 when it hears none or does not know where ``m`` is."""
         tr = self.knowledge.tracks.get(m)
         if tr is None:
             return 0.0
         tx, ty = tr.predict(r.t)
-        etas = [math.hypot(p.x - tx, p.y - ty) / max(p.v - wind, 1.0) for p in self._free_peers(r.t)]
+        etas = [self._flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind) for p in self._free_peers(r.t)]
         return min(etas, default=0.0)
 
     def _relief_holds(self, r: SensorReading, m: int) -> bool:
@@ -472,8 +486,8 @@ class UavActor:
                 # (someone else watches it, or is on the way: a relief beacons that it watches)
                 continue
             tx, ty = tr.predict(t)
-            mine = math.hypot(r.x - tx, r.y - ty) / max(self.kind.speed_max - wind, 1.0)
-            if any((math.hypot(p.x - tx, p.y - ty) / max(p.v - wind, 1.0), p.uav) < (mine, self.uid) for p in free):
+            mine = self._flight_s(r.x, r.y, r.v, r.theta, self.kind.name, tx, ty, wind)
+            if any((self._flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind), p.uav) < (mine, self.uid) for p in free):
                 continue
             e = r.energy
             if e is not None and e.spare_s < mine + 2.0 * e.handover_s:

@@ -170,7 +170,7 @@ def actor_settings(sc: Scenario, geo: Geography | None = None) -> ActorSettings:
     if geo is not None:
         settings = replace(settings, zones=geo.keepouts, outside=geo.outside)
     if sc.endurance is not None and sc.planner.surveillance:  # (issue 33: relief on station)
-        settings = replace(settings, relief=True)
+        settings = replace(settings, relief=True, uav_types=tuple(uav_types(sc).values()))
     return settings
 
 
