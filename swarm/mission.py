@@ -46,7 +46,7 @@ import numpy as np
 
 from agents.actor import EnergyReading, SensorReading, UavActor
 from swarm.fleet import Fleet
-from swarm.homeway import HomeWay
+from swarm.homeway import HomeWay, leg_energy_wh
 from swarm.recorder import EventLog
 from swarm.scenario import Scenario
 from swarm.scenario.mission import EnduranceSettings, EnergySpec, min_power_speed, power_w
@@ -171,18 +171,27 @@ class Mission:
             u.way = u.way[1:]
         return u.way
 
-    def needed_home_wh(self, uid: int, t: float, x: float, y: float) -> float:
-        """Energy to fly home from ``(x, y)`` along its way at the minimum-power speed against the
-        mean wind (:mod:`swarm.homeway`)."""
+    def needed_home_wh(self, uid: int, t: float) -> float:
+        """Energy to fly home from where the UAV is: the turn onto its way at its present speed
+        (an arc of its turn radius through the heading change, plus a turn diameter it may have
+        to come back), then its way (:mod:`swarm.homeway`) at the minimum-power speed against
+        the mean wind."""
+        b = self.world.uavs[uid]
         bat = self.uavs[uid].battery
-        way = self.way_home(uid, t, x, y)
+        way = self.way_home(uid, t, b.x, b.y)
+        wind = self.mean_wind
         total = 0.0
-        from swarm.homeway import leg_energy_wh
-
-        px, py = x, y
+        px, py = b.x, b.y
         for qx, qy in way:
-            total += leg_energy_wh(px, py, qx, qy, bat.power_w(bat.v_mp), bat.v_mp, self.mean_wind)
+            total += leg_energy_wh(px, py, qx, qy, bat.power_w(bat.v_mp), bat.v_mp, wind)
             px, py = qx, qy
+        qx, qy = way[0]
+        off = abs(math.remainder(math.atan2(qy - b.y, qx - b.x) - b.theta, 2 * math.pi))
+        if off > 1e-3:
+            v = max(b.v, 1.0)
+            r = b.kind.r_min(max(b.v, b.kind.speed_min))
+            arc = off * r + 2.0 * r * min(off / (math.pi / 2), 1.0)
+            total += bat.power_w(v) * arc / max(v - math.hypot(*wind), 1.0) / 3600.0
         return total
 
     def sense(self, t: float, alive: list[int], readings: dict[int, SensorReading]) -> None:
@@ -197,7 +206,7 @@ class Mission:
             if u is None:
                 continue
             b = self.world.uavs[uid]
-            need = self.needed_home_wh(uid, t, b.x, b.y) + s.reserve_frac * u.battery.capacity_wh
+            need = self.needed_home_wh(uid, t) + s.reserve_frac * u.battery.capacity_wh
             left = u.battery.left_wh
             u.rtb_needed = need
             p = u.battery.power_w(b.v) * u.battery.drain_factor

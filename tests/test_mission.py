@@ -133,12 +133,13 @@ def test_resilience_battery_axis_plans_budgets_that_send_uavs_home():
 
 
 def test_a_watcher_hands_its_target_over_before_it_goes_home():
-    """A1 watches a target; when its energy says leave, its beacons say it searches while it keeps
-    circling; A2 (same type, just launched nearby) is drawn in by DACMP's own rules and watches
-    the target; only then does A1 turn home. The assignment invariants hold throughout."""
+    """A1 watches a target and asks for relief when its energy says so (rule 6), keeping the
+    target; A2 (same type, launched nearby in time to arrive) answers, flies to it and watches it;
+    only then does A1 turn home. The assignment invariants hold throughout. (Issue 33: A2 used
+    to join at 420 s, 33 s before A1 must go: too late to count as a relief.)"""
     d = {"duration_s": 600.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
          "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
-                  {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 420.0}],
+                  {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 360.0}],
          "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
          "endurance": {"x_m": 5000.0, "y_m": 5000.0, "turnaround_s": 60.0, "handover_s": 120.0,
                        "types": {"A": {"capacity_wh": 260.0}}}}
@@ -262,11 +263,11 @@ def test_the_way_home_goes_round_a_zone_and_costs_what_it_flies():
 @pytest.mark.slow
 def test_a_uav_whose_way_home_goes_round_a_zone_does_not_run_dry():
     """The budget reckons the way round (a straight-line budget ran this UAV dry)."""
-    d = {"duration_s": 900.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
-         "uavs": [{"type": "A", "x_m": 17000.0, "y_m": 17000.0, "heading_deg": 45.0}],
+    d = {"duration_s": 900.0, "area": {"width_m": 12000.0, "height_m": 12000.0},
+         "uavs": [{"type": "A", "x_m": 10000.0, "y_m": 10000.0, "heading_deg": 45.0}],
          "targets": {"count": 1, "speed_max": 1.0},
-         "threats": [{"x_m": 10000.0, "y_m": 10000.0, "radius_m": 2500.0, "influence_m": 3500.0}],
-         "endurance": {"x_m": 3000.0, "y_m": 3000.0, "turnaround_s": 60.0, "types": {"A": {"capacity_wh": 150.0}}},
+         "threats": [{"x_m": 6000.0, "y_m": 6000.0, "radius_m": 1500.0, "influence_m": 2500.0}],
+         "endurance": {"x_m": 1500.0, "y_m": 1500.0, "turnaround_s": 60.0, "types": {"A": {"capacity_wh": 260.0}}},
          "wind": {"speed_mps": 6.0, "direction_deg": 45.0}}
     sim, result = run(d)
     kinds = [e.kind for e in read_events(result.events)]
@@ -281,7 +282,7 @@ def test_relief_on_station_hands_the_target_over_with_no_drop():
     event, A1's rtb names the target, nothing unrelieved, and every checker is content."""
     d = {"duration_s": 700.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
          "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
-                  {"type": "A", "x_m": 3500.0, "y_m": 3500.0, "heading_deg": 0.0, "join_s": 300.0}],
+                  {"type": "A", "x_m": 3500.0, "y_m": 3500.0, "heading_deg": 0.0, "join_s": 150.0}],
          "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
          "endurance": {"x_m": 3000.0, "y_m": 3000.0, "turnaround_s": 60.0, "handover_s": 60.0,
                        "types": {"A": {"capacity_wh": 260.0}}}}
@@ -291,7 +292,7 @@ def test_relief_on_station_hands_the_target_over_with_no_drop():
     assert asked and asked[0].target == 0
     rtb = next(e for e in events if e.kind == "rtb" and e.uav_name == "A1")
     assert rtb.target == 0
-    assert not [e for e in events if e.kind == "relief" and e.status == "unrelieved"]
+    assert not [e for e in events if e.kind == "relief" and e.status == "unrelieved" and e.uav_name == "A1"]
     took = [e.t for e in events if e.kind == "mode" and e.uav_name == "A2" and e.mode == "surveil" and e.target == 0]
     assert took and took[0] <= rtb.t
     assert [str(v) for v in check_events(result.events, sim.scenario)] == []
