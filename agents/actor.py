@@ -455,14 +455,16 @@ class UavActor:
         return min(etas, default=0.0)
 
     def _relief_holds(self, r: SensorReading, m: int) -> bool:
-        """A peer watches ``m`` (its beacons say so) from within this UAV's detection radius of it."""
+        """A peer watches ``m`` (its beacons say so) from within its own detection radius of it
+        (as it last said where it is, against where this UAV predicts the target)."""
         tr = self.knowledge.tracks.get(m)
         if tr is None:
             return False
         tx, ty = tr.predict(r.t)
-        t, timeout, radius = r.t, self.settings.peer_timeout_s, self.kind.detect_radius
+        t, timeout, types = r.t, self.settings.peer_timeout_s, self._types
         return any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
-                   and math.hypot(p.x - tx, p.y - ty) <= radius
+                   and math.hypot(p.x - tx, p.y - ty) <= (types[p.type].detect_radius if p.type in types
+                                                          else self.kind.detect_radius)
                    for p in self.knowledge.peers.values() if p.uav != self.uid)
 
     def _answer_relief(self, r: SensorReading) -> None:
