@@ -233,6 +233,7 @@ class Mission:
         dt = self.dt
         world, fleet = self.world, self.fleet
         flew, self._flew = self._flew, []
+        landed: list[tuple[int, float]] = []  # (logged after the tick's own events: the log stays in time order)
         for uid in flew:
             u = self.uavs.get(uid)
             b = world.uavs[uid]
@@ -261,7 +262,9 @@ class Mission:
             if u.state == HOMEBOUND and math.hypot(b.x - u.pad[0], b.y - u.pad[1]) <= s.land_radius_m:
                 u.state, u.landed_at = LANDED, t + dt
                 fleet.land(uid)
-                self.log.emit("landed", t + dt, uid, u.battery.left_wh)
+                landed.append((uid, u.battery.left_wh))
+        for uid, left in landed:
+            self.log.emit("landed", t + dt, uid, left)
 
     def _launches(self, t: float) -> None:
         """Turned-around UAVs launch, one per slot (module docstring); a crashed one never."""

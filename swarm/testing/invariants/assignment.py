@@ -259,6 +259,7 @@ class NoDropChecker(_WatchChecker):
         self._asks: dict[tuple[int, int], tuple[float, float, list[int]]] = {}  # (w, m) -> (t, by, who could reach)
         self._unrelieved: set[tuple[int, int]] = set()
         self._departures: list[tuple[float, int, int]] = []  # unrelieved drops to judge: (t, watcher, target)
+        self._last_poses: dict[int, tuple] = {}
         self._went_home: dict[int, list[float]] = {}  # uav -> its rtb times
         self._prev: dict[int, set[int]] = {}
         self._pending: dict[int, tuple[float, int, float]] = {}  # target -> (dropped at, by, last seen then)
@@ -284,10 +285,7 @@ class NoDropChecker(_WatchChecker):
             if isinstance(e, event_schema.Target):
                 self._targets[e.target] = (e.x, e.y)
         self._homeward(events)
-        poses = poses_of(events)
-        if not poses:
-            return
-        self._sightings(t, poses)
+        poses = poses_of(events) or self._last_poses  # (the mission's events follow their tick's poses)
         for e in events:
             if isinstance(e, event_schema.Relief):
                 if e.status == "asked":
@@ -297,6 +295,10 @@ class NoDropChecker(_WatchChecker):
             elif isinstance(e, event_schema.ReturnToBase):
                 self._went_home.setdefault(e.uav, []).append(t)
         self._judge_departures(t)
+        if not poses_of(events):
+            return
+        self._last_poses = poses
+        self._sightings(t, poses)
         watchers = self.watchers(poses)
         held = {m: {w for w in self._held.get(m, ()) if w in ws} | {w for w in ws if self._holds(w, m, poses)}
                 for m, ws in watchers.items()}
