@@ -178,6 +178,11 @@ class HandoverChecker(_WatchChecker):
                 seen = self._seen.get(m)
                 if slower_watching or pos is None or seen is None or t - seen[0] > self._track_life() + EPS:
                     continue
+                # (issue 33) A slower UAV on its way to relieve the watcher (rule 6: its pose searches
+                # with the target's id) is taking the target over already.
+                if any(p[4] != SURVEIL and p[5] == m and s != f and (k_s := ctx.kind(s)) is not None
+                       and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f) for s, p in poses.items()):
+                    continue
                 free = [s for s, p in sorted(poses.items())
                         if s != f and self.free(s, p) and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
                         and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f)
