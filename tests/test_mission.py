@@ -309,3 +309,30 @@ def test_watch_continuity_is_measured_per_target():
     unheld = (1.0 - c["watched_share"]) * (300.0 - result.metrics["time_to_first_detection_s"]["0"])
     assert c["longest_gap_s"] <= unheld + 1e-6
     assert (c["gaps"] == 0) == (c["longest_gap_s"] == 0.0)
+
+
+def _takeover_log(going_home: bool) -> list:
+    """B1 (fast) watches target 0 at (5000, 5000) from 1 km; A1 (slower, 3 km off, within its
+    influence radius) searches for 90 s, with or without an ``rtb`` before."""
+    from swarm import events as ev
+
+    out: list = [ev.Start(0.0, {"uavs": [[0, "B1", "B"], [1, "A1", "A"]]})]
+    if going_home:
+        out.append(ev.ReturnToBase(0.0, 1, 50.0, 50.0, -1, "A1"))
+    for k in range(90):
+        t = float(k)
+        out += [ev.Target(t, 0, 5000.0, 5000.0),
+                ev.Pose(t, 0, 6000.0, 5000.0, 60.0, 0.0, "surveil", 0, "B1"),
+                ev.Pose(t, 1, 8000.0, 5000.0, 30.0, 0.0, "search", -1, "A1")]
+    return out
+
+
+def test_a_uav_going_home_is_not_free_to_take_a_target_over():
+    """Rule 2's wording: a free UAV searches and is not on its way home (its rtb); the handover
+    checker agrees (it flagged UAVs flying home as free takers that never came)."""
+    from swarm.testing.invariants import HandoverChecker
+
+    sc = parse_scenario(doc(), "m.toml")
+    flagged = check_events(_takeover_log(False), sc, [HandoverChecker()])
+    assert [v.data.get("rule") for v in flagged] == [2]  # a free slower UAV that did not come
+    assert check_events(_takeover_log(True), sc, [HandoverChecker()]) == []  # one going home owes nothing
