@@ -15,14 +15,13 @@ A simulation is bound to the first event loop that drives it: the host's running
 ``run_until``, or a private loop for ``step``/``run``. Mixing the two raises a clear error.
 Library code never prints, exits or calls ``asyncio.run``.
 
-One tick at time ``t`` (see ARCHITECTURE.md): faults and joins due at ``t`` and frames that
-arrived by ``t`` are processed first (clock priorities), then the tick's phases, each a call
-into the part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), mission (wind and
-endurance, :mod:`swarm.mission`), sense (the world, then the tick faults, then the energy
-readings), wake the actors and wait for all of them (:mod:`swarm.fleet`), observe
-(:mod:`swarm.observer`), transmit (:mod:`swarm.transmission`), integrate (the world), end
-(sampling, the log, the next tick). This class builds those parts, runs the phases, drives
-the clock, and is the embedding API; it knows no fault kind.
+One tick at time ``t`` (see ARCHITECTURE.md): faults, joins and frames due by ``t`` first
+(clock priorities), then the tick's phases, each a call into the part that owns it: start
+(:mod:`swarm.faulting`, :mod:`swarm.fleet`), mission (wind, energy: :mod:`swarm.mission`), sense
+(the world, the tick faults, the energy readings), wake the actors and wait for all of them
+(:mod:`swarm.fleet`), observe (:mod:`swarm.observer`), transmit (:mod:`swarm.transmission`),
+integrate (the world), end (sampling, the log, the next tick). This class builds those parts,
+runs the phases, drives the clock, and is the embedding API; it knows no fault kind.
 """
 
 from __future__ import annotations
@@ -50,6 +49,7 @@ from swarm.faulting import RunFaults
 from swarm.fleet import Fleet
 from swarm.memory import check_memory
 from swarm.metrics import Metrics
+from swarm.mission_phase import NO_MISSION
 from swarm.observer import Observer
 from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
@@ -112,9 +112,8 @@ class Simulation:
         self.geography = build.geography(sc, self.grid, self.world, self.metrics)  # (issue 26: polygons; None without)
         self.observer = Observer(self.world, self.metrics, self.log, self.dt, sc.recording.level == "summary",
                                  sc.safety.min_separation_m)
-        # The UAVs' maps share storage where they agree (same cells as maps of their own;
-        # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon
-        # keeps scans from ever reaching every map (maps_share).
+        # The UAVs' maps share storage where they agree (agents.maps.mapgroup): on areas small
+        # enough for dense maps, unless a knowledge horizon keeps scans from every map (maps_share).
         self.map_group = (MapGroup(self.grid, self.tau, self.dt)
                           if maps_share(self.grid.nx * self.grid.ny, self.grid.width_m, self.grid.height_m,
                                         sc.radio.horizon_m) else None)
@@ -134,7 +133,8 @@ class Simulation:
         self.faults.radio = self.radio
         self.transmission = Transmission(self.radio, self.clock, self.world, self.fleet.actors, self.observer.lost)
         self._populate(sc)
-        self.mission = build.mission(self)  # (issues 26, 33: wind and endurance, the mission phase; None without)
+        self.mission = build.mission(self)  # (issues 26, 33: wind and endurance; None without)
+        self._mission = self.mission or NO_MISSION  # (the mission phase; without them, one that does nothing)
         self.clock.schedule(0.0, self._tick, TICK)
         self.log.emit("start", 0.0, {
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
@@ -281,8 +281,7 @@ class Simulation:
         Faults, joins and frames due at ``t`` ran before this (clock priorities)."""
         t = self.now
         self.faults.begin_tick(t)
-        if self.mission is not None:  # the mission phase: energy, relief, landings, launches; the wind
-            self.mission.begin_tick(t)
+        self._mission.begin_tick(t)  # energy, relief, landings, launches; the wind
         alive = self.world.alive_ids()
         self.fleet.start_tasks(alive)
         xy, readings = self._sense(t, alive)
@@ -302,10 +301,9 @@ class Simulation:
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
         self.faults.sense(t, alive, readings, self.fleet.outputs.__contains__)
-        if self.mission is not None:  # each UAV's energy reading and its way home
-            self.mission.sense(t, alive, readings)
-        # Every live UAV scans its disk this tick (its own map, then the ground truth and every
-        # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
+        self._mission.sense(t, alive, readings)  # each UAV's energy reading and its way home
+        # Every live UAV scans its disk this tick (its map, the truth, every UAV hearing the
+        # record): build those disks in one vectorised pass. A pure memo.
         if len(alive) >= PREFETCH_MIN:
             bodies = [world.uavs[uid] for uid in alive]
             umap = self.actors[alive[0]].umap
@@ -376,8 +374,7 @@ class Simulation:
             self._binding.close(self.fleet.cancel())
 
     def __del__(self) -> None:
-        # Dropped without close() (``Simulation(...).run()`` in a script): close it here, or
-        # asyncio prints "Task was destroyed but it is pending!" once per UAV at exit.
+        # Dropped without close() (a script's run()): else asyncio prints "Task was destroyed" per UAV.
         binding = getattr(self, "_binding", None)
         try:
             if binding is not None and binding.can_close_in_finaliser():
