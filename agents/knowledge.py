@@ -60,6 +60,9 @@ class Peer:
     mode: int = 0
     target: int = NO_TARGET
     t_intent: float = -math.inf
+    # (issue 33) It watches ``target`` and asks for relief (its intent: search with the target's
+    # id); ``mode`` is then surveillance: the planners see it watching, as it does.
+    asks: bool = False
 
 
 _uav_of = attrgetter("uav")

@@ -31,6 +31,7 @@ from swarm.world import TargetMotion, Targets
 if TYPE_CHECKING:
     from agents.maps.grid import Grid
     from swarm.geo.geography import Geography
+    from swarm.mission import Mission
 
 __all__ = ["actor_settings", "add_random_targets", "auth_key", "geography", "radio", "random_targets", "target_motion", "threats",
            "uav_type_from_spec", "uav_types"]
@@ -145,16 +146,20 @@ def random_start(g: np.random.Generator, sc: Scenario, geo: Geography | None) ->
     return x, y, float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, sc.targets.speed_max))
 
 
-def mission(sim: Any) -> Any:
-    """(issue 26) The run's wind and endurance (:mod:`swarm.mission`), hooked into the run's
-    fault host (its tick start and sense phase, and the battery fault's access), or None for a
-    scenario without ``[wind]`` and ``[endurance]``."""
-    if sim.scenario.wind is None and sim.scenario.endurance is None:
+def mission(sim: Any) -> Mission | None:
+    """(issues 26, 33) The run's wind and endurance (:mod:`swarm.mission`), its batteries handed
+    to the run's fault host (the battery fault's access), or None for a scenario without
+    ``[wind]`` and ``[endurance]``."""
+    sc, geo = sim.scenario, sim._geography
+    if sc.wind is None and sc.endurance is None:
         return None
     from swarm.mission import mission as build_mission
 
-    m = build_mission(sim)
-    sim._faults.mission = m
+    m = build_mission(sc, sim._world, sim._fleet, sim._log, sim.dt, (sim._grid.width_m, sim._grid.height_m),
+                      sim._rng.generator("wind"), list(geo.zones) if geo is not None else [],
+                      geo.area.vertices if geo is not None and geo.area is not None else None)
+    if m is not None:
+        sim._faults.batteries = m.battery_of
     return m
 
 
@@ -164,6 +169,8 @@ def actor_settings(sc: Scenario, geo: Geography | None = None) -> ActorSettings:
     settings = _actor_settings(sc)
     if geo is not None:
         settings = replace(settings, zones=geo.keepouts, outside=geo.outside)
+    if sc.endurance is not None and sc.planner.surveillance:  # (issue 33: relief on station)
+        settings = replace(settings, relief=True, uav_types=tuple(uav_types(sc).values()))
     return settings
 
 

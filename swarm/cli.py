@@ -210,6 +210,9 @@ def _watch_rows(metrics: dict) -> list[tuple[str, str]]:
         (f"to slow watcher (s; {', '.join(metrics['slow_types'])})",
          _per_target(metrics["time_to_slow_watcher_s"], lambda v: f"{v:g}")),
         ("watched share (per found target)", _per_target(metrics["watched_share"], lambda v: f"{v:.3f}") or "none found"),
+        ("watch gaps, longest (per found target)",
+         _per_target(metrics.get("watch_continuity", {}), lambda c: f"{c['gaps']} ({c['longest_gap_s']:g} s)")
+         or "none found"),
         ("UAV time watching / searching", f"{share['watching']:.3f} / {share['searching']:.3f}"),
     ]
 

@@ -51,6 +51,7 @@ __all__ = [
     "EnergyOut",
     "Landed",
     "Launched",
+    "Relief",
     "ReturnToBase",
     "Wind",
     "Decoder",
@@ -365,8 +366,23 @@ class Wind(Event):
 
 
 @dataclass(slots=True)
+class Relief(Event):
+    """A watcher that must go home asked for relief on station (``asked``; ``by`` the time its
+    energy says go), or went home with nobody to take its target over (``unrelieved``): rule 6
+    of docs/modelling.md's assignment rules."""
+
+    kind: ClassVar[str] = "relief"
+    uav: UavId
+    target: TargetId
+    by: Seconds  # when it must go (asked); when it went (unrelieved)
+    status: Annotated[str, Meta(label="asked or unrelieved")]
+    uav_name: Annotated[str | None, _name_of("uav")]
+
+
+@dataclass(slots=True)
 class ReturnToBase(Event):
-    """A UAV turned home: its energy left is what it needs to fly home against the wind plus the reserve."""
+    """A UAV turned home: its energy left is what its way home takes against the wind plus the
+    reserve, or it had asked for relief and its target is taken over."""
 
     kind: ClassVar[str] = "rtb"
     uav: UavId
@@ -423,7 +439,7 @@ class Host(Event):
 # The kinds in the order docs/outputs.md lists them.
 _RECORDS: tuple[type[Event], ...] = (
     Start, Pose, Target, Mode, Found, Release, Handover, Rx, Lost, Radio, Join, Crash, Violation,
-    Pause, Resume, Restart, FaultOn, FaultOff, Wind, ReturnToBase, Landed, Launched, EnergyOut, Host,
+    Pause, Resume, Restart, FaultOn, FaultOff, Wind, Relief, ReturnToBase, Landed, Launched, EnergyOut, Host,
 )
 
 

@@ -11,14 +11,13 @@ sense, transmit) and never names a fault kind: each kind's behaviour is its own
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
 from agents.actor import SensorReading
 from agents.types import UavType
 from comms.radio import Delivery, Radio, RadioCounters
-from faults.base import FaultKind, TickFault
+from faults.base import BatteryLike, FaultKind, TickFault
 from faults.injector import FaultInjector
 from faults.registry import FaultSchedule, uav_names
 from faults.tick import TickFaults
@@ -46,7 +45,9 @@ class RunFaults:
                                       fault_rng=lambda kind, k: rng.generator("fault", kind, k))
         self.tick = TickFaults(rng.generator, names, area, dt)
         self.radio: Radio | None = None  # (set once the radio is built: it filters through the injector)
-        self.mission: Any = None  # (issue 26: swarm.mission.Mission, set when the run has wind or energy)
+        # (issue 33) The UAVs' batteries (swarm.mission.Mission.battery_of), which the battery
+        # fault acts on; none without [endurance].
+        self.batteries: Callable[[int], BatteryLike | None] = lambda uid: None
 
     @property
     def schedule(self) -> FaultSchedule:
@@ -134,13 +135,10 @@ class RunFaults:
     def begin_tick(self, t: float) -> None:
         """Select the link faults active at ``t``."""
         self.injector.begin_tick(t)
-        if self.mission is not None:  # (issue 26: energy, landings, relaunches; the tick's wind)
-            self.mission.begin_tick(t)
 
-    def battery(self, uid: int) -> Any:
-        """(issue 26) The UAV's battery (swarm.mission.Battery), or None without a budget: what
-        the battery fault acts on."""
-        return self.mission.battery_of(uid) if self.mission is not None else None
+    def battery(self, uid: int) -> BatteryLike | None:
+        """(issue 26) The UAV's battery, or None without a budget: what the battery fault acts on."""
+        return self.batteries(uid)
 
     def sense(self, t: float, alive: list[int], readings: dict[int, SensorReading],
               pausable: Callable[[int], bool]) -> None:
@@ -149,8 +147,6 @@ class RunFaults:
             self.tick.apply(t, alive, readings, self.fleet.actors, pausable, self.log.emit, self.fired)
         else:
             self.tick.reset()
-        if self.mission is not None:  # (issue 26: each UAV's energy reading)
-            self.mission.sense(t, alive, readings)
 
     def transmit(self, t: float, dt: float, alive: list[int], xy: np.ndarray) -> list[Delivery]:
         """Who is where (jammers), then the frames of the faults that transmit this tick."""

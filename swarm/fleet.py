@@ -27,7 +27,7 @@ from swarm.errors import SimulationError
 from swarm.recorder import EventLog
 from swarm.rng import RngTree
 from swarm.scenario import Scenario
-from swarm.world import ALIVE, CRASHED, PENDING, World
+from swarm.world import ALIVE, CRASHED, LANDED, PENDING, World
 
 # What a fleet reports of a frame copy it had to drop: (sender, receiver, bytes, cause).
 LostCopy = Callable[[int, int, int, str], None]
@@ -105,11 +105,12 @@ class Fleet:
 
     def fail_stop(self, uid: int, now: float) -> None:
         """Take the UAV down: it no longer senses, sends, receives or moves. A pending one never
-        flies; a flying one's task is cancelled and its unread frames are lost."""
+        flies; a flying (or landed) one's task is cancelled and its unread frames are lost. A
+        crash sticks: a landed UAV that crashes is never launched again (swarm.mission)."""
         b = self.world.uavs[uid]
         if b.state == CRASHED:
             return
-        was_alive = b.state == ALIVE
+        was_alive = b.state in (ALIVE, LANDED)
         b.state = CRASHED
         if was_alive:
             self.outputs.pop(uid, None)  # (its last command: nothing left to fly on a pause)
@@ -132,13 +133,36 @@ class Fleet:
         b.state = ALIVE
         self.log.emit("restart", now, uid, b.name, b.x, b.y)
 
+    def land(self, uid: int) -> None:
+        """(issue 33) A returning UAV lands at its base: it no longer flies, senses or sends
+        (from the next tick) until :meth:`launch`; its task waits, its plan is dropped."""
+        b = self.world.uavs[uid]
+        if b.state == ALIVE:
+            b.state = LANDED
+            self.plans.pop(uid, None)
+
+    def launch(self, uid: int, x: float, y: float, v: float, theta: float) -> None:
+        """(issue 33) A landed UAV takes off from ``(x, y)``: the frames that reached it on the
+        ground are lost, and its actor plans afresh with what it knew."""
+        b = self.world.uavs[uid]
+        if b.state != LANDED:
+            return
+        b.x, b.y, b.v, b.theta = x, y, v, theta
+        b.state = ALIVE
+        actor = self.actors[uid]
+        for _arrival, sender, data in actor.mailbox.drain():
+            self.lost(sender, uid, len(data), "receiver_down")
+        actor.relaunch()
+
     def mode_name(self, uid: int) -> str:
-        """search / surveil for a flying UAV, else down / pending."""
+        """search / surveil for a flying UAV, else down / pending / landed."""
         state = self.world.uavs[uid].state
         if state == CRASHED:
             return "down"
         if state == PENDING:
             return "pending"
+        if state == LANDED:
+            return "landed"
         plan = self.plans.get(uid)
         return MODE_NAMES[plan.mode] if plan else "search"
 

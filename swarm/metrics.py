@@ -67,6 +67,11 @@ class Metrics:
     handovers: list[Handover] = field(default_factory=list)
     appeared_t: dict[int, float] = field(default_factory=dict)  # target -> when it was added (0 at the start)
     held_s: dict[int, float] = field(default_factory=dict)  # found target -> seconds some UAV held it
+    # (issue 33) Watch continuity: found target -> the last tick some UAV held it, and its gaps
+    # (unheld stretches after it was first found) so far: (count, longest s).
+    last_held: dict[int, float] = field(default_factory=dict)
+    gaps: dict[int, tuple[int, float]] = field(default_factory=dict)
+    tick_s: float = 0.0  # (the run's dt, noted by observe)
     first_hold: dict[tuple[int, str], float] = field(default_factory=dict)  # (target, UAV type) -> first hold
     rows: list[dict] = field(default_factory=list)
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
@@ -186,9 +191,16 @@ class Metrics:
         for m in covered:
             if m in found:
                 watched_s[m] = watched_s.get(m, 0.0) + dt
+        last_held, gaps = self.last_held, self.gaps
+        self.tick_s = dt
         for m in holding:
             if m in found:
                 held_s[m] = held_s.get(m, 0.0) + dt
+                since = last_held.get(m, found[m] - dt)
+                if t - since > dt + 1e-9:
+                    n, longest = gaps.get(m, (0, 0.0))
+                    gaps[m] = (n + 1, max(longest, t - since - dt))
+                last_held[m] = t
         for m, uids in holding.items():
             for uid in uids:
                 self.first_hold.setdefault((m, types.get(uid, "?")), t)
@@ -238,6 +250,7 @@ class Metrics:
         detection: dict[str, float | None] = {}
         to_slow: dict[str, float | None] = {}
         watched: dict[str, float] = {}
+        continuity: dict[str, dict[str, float]] = {}
         for m in range(targets):
             t0 = self.found_t.get(m)
             detection[str(m)] = None if t0 is None else t0 - self.appeared_t.get(m, 0.0)
@@ -248,6 +261,11 @@ class Metrics:
             to_slow[str(m)] = min(firsts) - t0 if firsts else None
             span = t_end - t0
             watched[str(m)] = self.held_s.get(m, 0.0) / span if span > 0 else 0.0
+            n, longest = self.gaps.get(m, (0, 0.0))
+            open_gap = t_end - self.last_held.get(m, t0 - self.tick_s) - self.tick_s
+            if open_gap > 1e-9:  # (unheld at the end: that stretch is a gap too)
+                n, longest = n + 1, max(longest, open_gap)
+            continuity[str(m)] = {"gaps": n, "longest_gap_s": longest, "watched_share": watched[str(m)]}
         per_uav: dict[int, dict[str, float]] = {}
         total = {"search": 0.0, "surveil": 0.0}
         for uid in sorted(uav_types):
@@ -263,6 +281,7 @@ class Metrics:
             "time_to_slow_watcher_s": to_slow,
             "watched_share": watched,
             "watched_share_mean": float(np.mean(list(watched.values()))) if watched else 0.0,
+            "watch_continuity": continuity,
             "slow_types": sorted(slow),
             "uav_time_share": {"watching": total["surveil"] / flying if flying > 0 else 0.0,
                                "searching": total["search"] / flying if flying > 0 else 0.0},

@@ -1,7 +1,13 @@
-"""Real-world missions (issue 26): wind, and energy with return to base, landing, turnaround
-and relaunch. The simulation's side of ``[wind]`` and ``[endurance]``
-(:mod:`swarm.scenario.mission`); :func:`mission` returns None for a scenario with neither, and
-then nothing here runs.
+"""The mission phase of a tick (issues 26 and 33): wind, and energy with return to base, relief
+on station, landing, turnaround and relaunch. The simulation's side of ``[wind]`` and
+``[endurance]`` (:mod:`swarm.scenario.mission`); :func:`mission` returns None for a scenario
+with neither, and then nothing here runs.
+
+The simulation calls it at two points of a tick: :meth:`Mission.begin_tick` right after the
+faults' tick start (the last tick's drain, homecomings, landings, launches; this tick's wind),
+and :meth:`Mission.sense` after the tick faults have acted on the readings (each UAV's energy
+reading). It acts on the fleet only through :meth:`swarm.fleet.Fleet.land`,
+:meth:`~swarm.fleet.Fleet.launch` and :meth:`~swarm.fleet.Fleet.fail_stop`.
 
 Wind. ``w(t) = mean + g(t)``, uniform over the area; each gust component an
 Ornstein-Uhlenbeck process with standard deviation ``sigma`` and time constant ``tau``, stepped
@@ -12,16 +18,22 @@ its ground velocity is its air velocity plus the wind; its speed, heading, turn 
 airframe limits stay air-relative (the dynamics invariant reads the tick's ``wind`` event).
 
 Energy. A UAV of a type with an energy budget drains ``P(v) dt`` a tick at its airspeed ``v``
-(times a battery fault's drain factor). Each tick it is told (:class:`agents.actor.EnergyReading`)
-whether its energy left is down to what it needs to fly home (at its minimum-power speed,
-against the mean wind's component, plus ``reserve_frac`` of its capacity): ``must_go``; or to
-that plus the energy of ``handover_s`` of flight at its speed: ``leave``, where a watcher hands
-its target over first (its beacons say it searches while it keeps circling, until a peer
-watches the target: :meth:`agents.actor.UavActor._energy`). Within ``land_radius_m`` of the
-base a returning UAV lands (it no longer flies, senses or sends), is turned around in
-``turnaround_s`` (a full battery) and launches again from the base towards the area's centre,
-with its memory. A UAV whose energy runs out in flight is lost (``energy_out``, then a crash):
-never without a battery fault, since it turns home with the reserve to spare.
+(times a battery fault's drain factor), never below zero: a UAV that reaches zero in flight is
+lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.actor.EnergyReading`)
+the way home to its pad (:mod:`swarm.homeway`: round the no-fly zones, inside the area), the
+energy that way takes at its minimum-power speed against the mean wind plus ``reserve_frac``
+of its capacity, and what it has beyond that as seconds of flight at its present power
+(``spare_s``): at 0 it must go (``must_go``). A watcher asks for relief early enough that a
+relief can arrive before then (docs/modelling.md, "Assignment rules", rule 6;
+:meth:`agents.actor.UavActor._energy`): the ``relief`` events say when it asked and, if it had
+to leave unrelieved, that it did.
+
+Base. Each UAV with a budget has its own pad, ``pad_spacing_m`` apart in a row east-west through
+the base. A returning UAV lands within ``land_radius_m`` of its pad (``landed``: it no longer
+flies, senses or sends), is turned around in ``turnaround_s`` (a full battery) and launches
+again from its pad towards the area's centre, with its memory, in the first launch slot: at
+least ``launch_spacing_s`` after the base's last launch, and only while no flying UAV is within
+``pad_spacing_m`` of the pad. A UAV that crashes while landed stays crashed.
 """
 
 from __future__ import annotations
@@ -32,12 +44,20 @@ from typing import Any
 
 import numpy as np
 
-from agents.actor import EnergyReading, SensorReading
-from swarm.scenario.mission import EnergySpec, min_power_speed, power_w
+from agents.actor import EnergyReading, SensorReading, UavActor
+from swarm.fleet import Fleet
+from swarm.homeway import HomeWay, leg_energy_wh
+from swarm.recorder import EventLog
+from swarm.scenario import Scenario
+from swarm.scenario.mission import EnduranceSettings, EnergySpec, min_power_speed, power_w
+from swarm.world import ALIVE, CRASHED, LANDED, World
 
 __all__ = ["Battery", "Mission", "WindField", "mission"]
 
-LANDED = "landed"
+# A UAV's endurance state (metrics.json endurance.per_uav.state).
+FLYING, HOMEBOUND = "flying", "homebound"
+# How often a UAV's way home is planned afresh (s): it changes little between two.
+_REROUTE_S = 5.0
 
 
 class WindField:
@@ -83,143 +103,209 @@ class Battery:
 @dataclass
 class _Uav:
     battery: Battery
-    state: str = "flying"  # flying, homebound, landed
+    pad: tuple[float, float]
+    state: str = FLYING  # flying, homebound, landed, crashed
     landed_at: float = 0.0
     sorties: int = 1
     on_station_s: float = 0.0
     rtb_needed: float = 0.0
+    way: list[tuple[float, float]] = field(default_factory=list)  # the way home planned at way_t
+    way_t: float = -math.inf
+    asked: int = -1  # the target it asked relief for (logged), -1: none
 
 
-@dataclass
 class Mission:
-    sim: Any
-    wind: WindField | None
-    base: tuple[float, float] | None
-    settings: Any  # EnduranceSettings or None
-    uavs: dict[int, _Uav] = field(default_factory=dict)
-    lost_to_energy: int = 0
-    wind_now: tuple[float, float] = (0.0, 0.0)
-    _flew: list[int] = field(default_factory=list)  # who flew the last tick (drained at the next one's start)
+    """A run's wind and endurance (module docstring)."""
+
+    def __init__(self, world: World, fleet: Fleet, log: EventLog, dt: float, area: tuple[float, float],
+                 wind: WindField | None, endurance: EnduranceSettings | None, homeway: HomeWay | None):
+        self.world = world
+        self.fleet = fleet
+        self.log = log
+        self.dt = dt
+        self.area = area
+        self.wind = wind
+        self.settings = endurance
+        self.homeway = homeway
+        self.uavs: dict[int, _Uav] = {}
+        self.lost_to_energy = 0
+        self.wind_now: tuple[float, float] = (0.0, 0.0)
+        self._flew: list[int] = []  # who flew the last tick (drained at the next one's start)
+        self._last_launch = -math.inf
+
+    @property
+    def mean_wind(self) -> tuple[float, float]:
+        return self.wind.mean if self.wind is not None else (0.0, 0.0)
 
     # --- set-up --------------------------------------------------------------------------------
     def battery_of(self, uid: int) -> Battery | None:
+        """The UAV's battery, or None when its type has no budget (what the battery fault acts on)."""
         u = self.uavs.get(uid)
         if u is None and self.settings is not None:
-            b = self.sim._world.uavs[uid]
-            spec = self.settings.types.get(b.kind.name)
+            s = self.settings
+            b = self.world.uavs[uid]
+            spec = s.types.get(b.kind.name)
             if spec is None:
                 return None
             v_mp = min_power_speed(spec, b.kind.speed_min, b.kind.speed_max)
-            u = self.uavs[uid] = _Uav(Battery(spec, v_mp, spec.capacity_wh, spec.capacity_wh))
+            k = len(self.uavs)
+            pad = (s.x_m + (k - 0.5 * (self._budgeted() - 1)) * s.pad_spacing_m, s.y_m)
+            u = self.uavs[uid] = _Uav(Battery(spec, v_mp, spec.capacity_wh, spec.capacity_wh), pad)
         return u.battery if u is not None else None
 
+    def _budgeted(self) -> int:
+        s = self.settings
+        assert s is not None
+        return sum(1 for b in self.world.uavs.values() if b.kind.name in s.types)
+
     # --- the tick -----------------------------------------------------------------------------
-    def needed_home_wh(self, uid: int, x: float, y: float) -> float:
-        """Energy to fly home from ``(x, y)`` at the minimum-power speed against the mean wind."""
-        assert self.base is not None
+    def way_home(self, uid: int, t: float, x: float, y: float) -> list[tuple[float, float]]:
+        """The points of the UAV's way home to its pad from ``(x, y)`` (planned afresh every
+        few seconds; the points already passed are dropped)."""
+        u = self.uavs[uid]
+        if self.homeway is None:
+            return [u.pad]
+        if t - u.way_t >= _REROUTE_S - 1e-9 or not u.way:
+            u.way, u.way_t = self.homeway.route((x, y), u.pad), t
+        elif len(u.way) > 1 and math.hypot(u.way[0][0] - x, u.way[0][1] - y) < 300.0:
+            u.way = u.way[1:]
+        return u.way
+
+    def needed_home_wh(self, uid: int, t: float) -> float:
+        """Energy to fly home from where the UAV is: the turn onto its way at its present speed
+        (an arc of its turn radius through the heading change, plus a turn diameter it may have
+        to come back), then its way (:mod:`swarm.homeway`) at the minimum-power speed against
+        the mean wind."""
+        b = self.world.uavs[uid]
         bat = self.uavs[uid].battery
-        dx, dy = self.base[0] - x, self.base[1] - y
-        d = math.hypot(dx, dy)
-        if d < 1e-9:
-            return 0.0
-        ux, uy = dx / d, dy / d
-        wx, wy = self.wind.mean if self.wind is not None else (0.0, 0.0)
-        along, across = wx * ux + wy * uy, -wx * uy + wy * ux
-        v = bat.v_mp
-        ground = along + math.sqrt(max(v * v - across * across, 0.0))
-        if ground <= 1e-6:
-            return math.inf
-        return bat.power_w(v) * d / ground / 3600.0
+        way = self.way_home(uid, t, b.x, b.y)
+        wind = self.mean_wind
+        total = 0.0
+        px, py = b.x, b.y
+        for qx, qy in way:
+            total += leg_energy_wh(px, py, qx, qy, bat.power_w(bat.v_mp), bat.v_mp, wind)
+            px, py = qx, qy
+        qx, qy = way[0]
+        off = abs(math.remainder(math.atan2(qy - b.y, qx - b.x) - b.theta, 2 * math.pi))
+        if off > 1e-3:
+            v = max(b.v, 1.0)
+            r = b.kind.r_min(max(b.v, b.kind.speed_min))
+            arc = off * r + 2.0 * r * min(off / (math.pi / 2), 1.0)
+            total += bat.power_w(v) * arc / max(v - math.hypot(*wind), 1.0) / 3600.0
+        return total
 
     def sense(self, t: float, alive: list[int], readings: dict[int, SensorReading]) -> None:
-        """Tell each UAV with a budget where it stands (before the actors wake)."""
+        """Tell each flying UAV with a budget where it stands (before the actors wake)."""
         self._flew = alive
-        if self.settings is None:
-            return
         s = self.settings
+        if s is None:
+            return
+        wind = math.hypot(*self.mean_wind)
         for uid in alive:
-            if self.battery_of(uid) is None:
+            u = self.uavs.get(uid)
+            if u is None:
                 continue
-            u = self.uavs[uid]
-            b = self.sim._world.uavs[uid]
-            reserve = s.reserve_frac * u.battery.capacity_wh
-            need = self.needed_home_wh(uid, b.x, b.y) + reserve
-            allowance = u.battery.power_w(b.v) * s.handover_s / 3600.0
+            b = self.world.uavs[uid]
+            need = self.needed_home_wh(uid, t) + s.reserve_frac * u.battery.capacity_wh
             left = u.battery.left_wh
             u.rtb_needed = need
-            readings[uid].energy = EnergyReading(s.x_m, s.y_m, left <= need + allowance, left <= need, u.battery.v_mp)
+            p = u.battery.power_w(b.v) * u.battery.drain_factor
+            spare_s = max(left - need, 0.0) * 3600.0 / p if p > 0 else math.inf
+            wx, wy = u.way[0] if u.way else u.pad
+            readings[uid].energy = EnergyReading(u.pad[0], u.pad[1], wx, wy, left <= need, u.battery.v_mp,
+                                                 spare_s, s.handover_s, wind)
 
     def begin_tick(self, t: float) -> None:
         """At the start of the tick at ``t`` (before anyone senses): the energy the last tick's
-        flight drained, homecomings, landings and relaunches; then this tick's wind."""
-        sim = self.sim
-        dt = sim.dt
+        flight drained, relief asked, homecomings, landings and launches; then this tick's wind."""
         if self.settings is not None:
-            self._energy(t - dt, dt)
+            self._energy(t - self.dt)
+            self._launches(t)
         if self.wind is not None:
-            self.wind_now = self.wind.advance(t, dt)
-            sim._world.wind = self.wind_now
-            sim._log.emit("wind", t, self.wind_now[0], self.wind_now[1])
+            self.wind_now = self.wind.advance(t, self.dt)
+            self.world.wind = self.wind_now
+            self.log.emit("wind", t, self.wind_now[0], self.wind_now[1])
 
-    def _energy(self, t: float, dt: float) -> None:
-        """The last tick's (at ``t``) flight: energy drained; its homecomings and landings."""
-        sim = self.sim
+    def _energy(self, t: float) -> None:
+        """The last tick's (at ``t``) flight: energy drained; relief asked; homecomings, landings."""
         s = self.settings
-        world, fleet = sim._world, sim._fleet
+        assert s is not None
+        dt = self.dt
+        world, fleet = self.world, self.fleet
         flew, self._flew = self._flew, []
+        landed: list[tuple[int, float]] = []  # (logged after the tick's own events: the log stays in time order)
         for uid in flew:
             u = self.uavs.get(uid)
             b = world.uavs[uid]
-            if u is None or b.state != "alive":
+            if u is None or b.state != ALIVE:
                 continue
-            actor = fleet.actors[uid]
-            u.battery.left_wh -= u.battery.power_w(b.v) * dt / 3600.0 * u.battery.drain_factor
-            if actor.homebound and u.state == "flying":
-                u.state = "homebound"
-                sim._log.emit("rtb", t, uid, u.battery.left_wh, u.rtb_needed, actor.handed_target)
-            if u.state == "flying":
+            actor: UavActor = fleet.actors[uid]
+            u.battery.left_wh = max(u.battery.left_wh - u.battery.power_w(b.v) * dt / 3600.0 * u.battery.drain_factor,
+                                    0.0)
+            ask = actor.relief_asked
+            if ask is not None and ask[0] != u.asked and u.state == FLYING:
+                u.asked = ask[0]
+                self.log.emit("relief", t, uid, ask[0], ask[1], "asked")
+            if actor.homebound and u.state == FLYING:
+                u.state = HOMEBOUND
+                if actor.handed_target >= 0 and not actor.relieved:
+                    self.log.emit("relief", t, uid, actor.handed_target, t, "unrelieved")
+                self.log.emit("rtb", t, uid, u.battery.left_wh, u.rtb_needed, actor.handed_target)
+            if u.state == FLYING:
                 u.on_station_s += dt
             if u.battery.left_wh <= 0.0:
                 self.lost_to_energy += 1
-                sim._log.emit("energy_out", t, uid)
+                u.state = CRASHED
+                self.log.emit("energy_out", t, uid)
                 fleet.fail_stop(uid, t + dt)
                 continue
-            if u.state == "homebound" and math.hypot(b.x - s.x_m, b.y - s.y_m) <= s.land_radius_m:
+            if u.state == HOMEBOUND and math.hypot(b.x - u.pad[0], b.y - u.pad[1]) <= s.land_radius_m:
                 u.state, u.landed_at = LANDED, t + dt
-                b.state = LANDED  # (not alive from the next tick: it neither flies, senses nor sends)
-                fleet.plans.pop(uid, None)
-                sim._log.emit("landed", t + dt, uid, u.battery.left_wh)
-        for uid, u in self.uavs.items():
-            if u.state == LANDED and t + dt + 1e-9 >= u.landed_at + s.turnaround_s:
-                self._launch(t + dt, uid, u)
+                fleet.land(uid)
+                landed.append((uid, u.battery.left_wh))
+        for uid, left in landed:
+            self.log.emit("landed", t + dt, uid, left)
 
-    def _launch(self, t: float, uid: int, u: _Uav) -> None:
-        sim = self.sim
+    def _launches(self, t: float) -> None:
+        """Turned-around UAVs launch, one per slot (module docstring); a crashed one never."""
         s = self.settings
-        b = sim._world.uavs[uid]
-        u.battery.left_wh = u.battery.capacity_wh
-        u.state = "flying"
-        u.sorties += 1
-        b.x, b.y = s.x_m, s.y_m
-        b.v = b.kind.speed_min
-        b.theta = math.atan2(sim._grid.height_m / 2 - s.y_m, sim._grid.width_m / 2 - s.x_m)
-        b.state = "alive"
-        actor = sim._fleet.actors[uid]
-        for _arrival, sender, data in actor.mailbox.drain():  # (frames that reached it on the ground: lost)
-            sim._fleet.lost(sender, uid, len(data), "receiver_down")
-        actor.relaunch()
-        sim._log.emit("launched", t, uid, b.x, b.y)
+        assert s is not None
+        flying = [b for b in self.world.uavs.values() if b.state == ALIVE]
+        for uid, u in self.uavs.items():
+            b = self.world.uavs[uid]
+            if b.state == CRASHED:
+                u.state = CRASHED  # (wherever it crashed: in flight, or on the ground)
+                continue
+            if u.state != LANDED or t + 1e-9 < u.landed_at + s.turnaround_s:
+                continue
+            if t + 1e-9 < self._last_launch + s.launch_spacing_s:
+                continue
+            px, py = u.pad
+            if any(math.hypot(o.x - px, o.y - py) < s.pad_spacing_m for o in flying):
+                continue
+            u.battery.left_wh = u.battery.capacity_wh
+            u.state = FLYING
+            u.sorties += 1
+            u.way, u.way_t = [], -math.inf
+            u.asked = -1
+            self._last_launch = t
+            theta = math.atan2(self.area[1] / 2 - py, self.area[0] / 2 - px)
+            fleet = self.fleet
+            fleet.launch(uid, px, py, b.kind.speed_min, theta)
+            self.log.emit("launched", t, uid, px, py)
+            flying.append(b)
 
     # --- results ------------------------------------------------------------------------------
-    def metrics(self, t: float) -> dict[str, Any]:
+    def metrics(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if self.settings is not None:
-            names = self.sim._world.uavs
+            names = self.world.uavs
             out["endurance"] = {
                 "sorties": sum(u.sorties for u in self.uavs.values()),
                 "lost_to_energy": self.lost_to_energy,
                 "per_uav": {names[uid].name: {"sorties": u.sorties, "time_on_station_s": u.on_station_s,
-                                              "energy_left_wh": u.battery.left_wh, "state": u.state}
+                                              "energy_left_wh": u.battery.left_wh,
+                                              "state": CRASHED if names[uid].state == CRASHED else u.state}
                             for uid, u in sorted(self.uavs.items())},
                 "time_on_station_s": sum(u.on_station_s for u in self.uavs.values()),
             }
@@ -228,19 +314,33 @@ class Mission:
         return out
 
 
-def mission(sim: Any) -> Mission | None:
+def homeway(sc: Scenario, zones: list[Any], area_ring: np.ndarray | None, area: tuple[float, float]) -> HomeWay | None:
+    """The routes home round the scenario's no-fly zones (circles and polygons) inside its area,
+    or None when there is nothing to route round (a rectangle and no zone)."""
+    rings: list[tuple[np.ndarray, float]] = []
+    for th in sc.threats:
+        a = np.linspace(0.0, 2 * math.pi, 16, endpoint=False)
+        rings.append((np.stack([th.x_m + th.radius_m * np.cos(a), th.y_m + th.radius_m * np.sin(a)], axis=1),
+                      max(th.d_max - th.radius_m, 0.0)))
+    for z in zones:
+        rings.append((z.vertices, z.reach_m))
+    if not rings and area_ring is None:
+        return None
+    return HomeWay(rings, area_ring, area)
+
+
+def mission(sc: Scenario, world: World, fleet: Fleet, log: EventLog, dt: float, area: tuple[float, float],
+            wind_rng: np.random.Generator, zones: list[Any], area_ring: np.ndarray | None) -> Mission | None:
     """The run's wind and endurance, or None for a scenario without ``[wind]`` and ``[endurance]``."""
-    sc = sim.scenario
     if sc.wind is None and sc.endurance is None:
         return None
     wind = None
     if sc.wind is not None:
         w = sc.wind
-        wind = WindField(w.mean, w.gust_sigma_mps, w.gust_tau_s, sim._rng.generator("wind"))
+        wind = WindField(w.mean, w.gust_sigma_mps, w.gust_tau_s, wind_rng)
     e = sc.endurance
-    m = Mission(sim, wind, (e.x_m, e.y_m) if e is not None else None, e)
-    for uid in sim._world.uavs:
+    way = homeway(sc, zones, area_ring, area) if e is not None else None
+    m = Mission(world, fleet, log, dt, area, wind, e, way)
+    for uid in world.uavs:
         m.battery_of(uid)
     return m
-
-

@@ -169,7 +169,7 @@ def _mission_metrics(sim: Run) -> dict:
         out["geo"] = {**geo.frame.describe(), "cells_inside": int(geo.inside.sum()) if geo.inside is not None else None}
     mission = getattr(sim, "_mission", None)
     if mission is not None:
-        out.update(mission.metrics(sim.now))
+        out.update(mission.metrics())
     return out
 
 

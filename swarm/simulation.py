@@ -17,13 +17,14 @@ Library code never prints, exits or calls ``asyncio.run``.
 
 Between two ticks the simulation stands at a tick boundary, where a host acts
 (:mod:`swarm.host`: its changes, ``call_at``, ``wait_until``; logged by :mod:`swarm.hostlog`).
-One tick at time ``t`` (see ARCHITECTURE.md): the host's changes at boundary ``t``, then faults
-and joins due at ``t`` and frames that arrived by ``t`` (clock priorities), then the tick's phases, each a call
-into the part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), sense (the world,
-then the tick faults), wake the actors and wait for all of them (:mod:`swarm.fleet`), observe
-(:mod:`swarm.observer`), transmit (:mod:`swarm.transmission`), integrate (the world), end
-(sampling, the log, the next tick). This class builds those parts, runs the phases, drives
-the clock, and is the embedding API; it knows no fault kind.
+One tick at time ``t`` (see ARCHITECTURE.md): the host's changes at boundary ``t``, then faults,
+joins and frames due by ``t`` (clock priorities), then the tick's phases, each a call into the
+part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), mission (wind, energy:
+:mod:`swarm.mission`), sense (the world, the tick faults, the energy readings), wake the actors
+and wait for all of them (:mod:`swarm.fleet`), observe (:mod:`swarm.observer`), transmit
+(:mod:`swarm.transmission`), integrate (the world), end (sampling, the log, the next tick). This
+class builds those parts, runs the phases, drives the clock, and is the embedding API; it knows
+no fault kind.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from swarm.fleet import Fleet
 from swarm.host import Host, HostApi
 from swarm.memory import check_memory
 from swarm.metrics import Metrics
+from swarm.mission_phase import NO_MISSION
 from swarm.observer import Observer
 from swarm.recorder import EventLog
 from swarm.results import RunResult, radio_totals, run_metrics, run_result
@@ -139,7 +141,8 @@ class Simulation(HostApi):
         self._faults.radio = self._radio
         self._transmission = Transmission(self._radio, self._clock, self._world, self._fleet.actors, self._observer.lost)
         self._populate(sc)
-        self._mission = build.mission(self)  # (issue 26: wind, endurance, hooked into self._faults; None without)
+        self._mission = build.mission(self)  # (issues 26, 33: wind and endurance; None without)
+        self._mission_phase = self._mission or NO_MISSION  # (without them, a phase that does nothing)
         self._clock.schedule(0.0, self._tick, TICK)
         self._log.emit("start", 0.0, {
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
@@ -245,6 +248,7 @@ class Simulation(HostApi):
         t = self.now
         self._host.in_tick = True
         self._faults.begin_tick(t)
+        self._mission_phase.begin_tick(t)  # energy, relief, landings, launches; the wind
         alive = self._world.alive_ids()
         self._fleet.start_tasks(alive)
         xy, readings = self._sense(t, alive)
@@ -265,8 +269,9 @@ class Simulation(HostApi):
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
         self._faults.sense(t, alive, readings, self._fleet.outputs.__contains__)
-        # Every live UAV scans its disk this tick (its own map, then the ground truth and every
-        # UAV that hears the record): build those disks in one vectorised pass. A pure memo.
+        self._mission_phase.sense(t, alive, readings)  # each UAV's energy reading and its way home
+        # Every live UAV scans its disk this tick (its map, the truth, every UAV hearing the
+        # record): build those disks in one vectorised pass. A pure memo.
         if len(alive) >= PREFETCH_MIN:
             bodies = [world.uavs[uid] for uid in alive]
             umap = self.actors[alive[0]].umap
@@ -362,8 +367,7 @@ class Simulation(HostApi):
             self._binding.close(self._fleet.cancel())
 
     def __del__(self) -> None:
-        # Dropped without close() (``Simulation(...).run()`` in a script): close it here, or
-        # asyncio prints "Task was destroyed but it is pending!" once per UAV at exit.
+        # Dropped without close() (a script's run()): else asyncio prints "Task was destroyed" per UAV.
         binding = getattr(self, "_binding", None)
         try:
             if binding is not None and binding.can_close_in_finaliser():

@@ -16,7 +16,7 @@ class UavSnapshot:
     uid: int
     name: str
     type: str
-    state: str  # pending | alive | homebound | landed | crashed
+    state: str  # pending | alive | homebound | landed (at its base, [endurance]) | crashed
     x: float
     y: float
     v: float

@@ -22,7 +22,9 @@ from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from agents.types import UavType
 
-PENDING, ALIVE, CRASHED = "pending", "alive", "crashed"
+# A UAV's state: not yet flying, flying, on the ground at its base between two sorties (issue
+# 33: [endurance]; it neither flies, senses nor sends), or down for good (or until a restart).
+PENDING, ALIVE, LANDED, CRASHED = "pending", "alive", "landed", "crashed"
 
 
 @dataclass(slots=True)

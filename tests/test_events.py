@@ -80,10 +80,12 @@ def _wire(data: bytes) -> list[list]:
 
 
 def _mission_run():
-    """(issue 26) Wind, and endurance with a quick return to base, landing, relaunch and a
-    battery fault that empties one UAV: the mission kinds, checked as they are written."""
+    """(issues 26, 33) Wind, and endurance with a watcher that asks for relief and goes home
+    unrelieved, a landing, a relaunch and a battery fault that empties one UAV: the mission
+    kinds, checked as they are written."""
     doc = {"duration_s": 200.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
            "uavs": [{"type": "A", "x_m": 2800.0, "y_m": 3000.0}, {"type": "A", "x_m": 3200.0, "y_m": 3000.0}],
+           "targets": {"placed": [{"x_m": 3800.0, "y_m": 3400.0}]},  # (A1 watches it, asks for relief, leaves unrelieved)
            "wind": {"speed_mps": 3.0, "gust_sigma_mps": 1.0},
            "endurance": {"x_m": 2500.0, "y_m": 2500.0, "turnaround_s": 20.0, "types": {"A": {"capacity_wh": 60.0}}},
            "faults": [{"kind": "battery", "uav": "A2", "start_s": 5.0, "loss_frac": 1.0}]}

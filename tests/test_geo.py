@@ -222,4 +222,4 @@ def test_swarm_run_geo_coast_exits_0(tmp_path):
     for name in ("paths.geojson", "targets.geojson", "zones.geojson", "metrics.json"):
         assert (out / name).is_file(), name
     m = json.loads((out / "metrics.json").read_text())
-    assert m["violations"]["threat"] == 0 and m["faults_applied"].get("battery", 0) == 0  # (at 600 s: not yet)
+    assert m["violations"]["threat"] == 0 and m["faults_applied"].get("battery", 0) == 0  # (at 1200 s: not yet)

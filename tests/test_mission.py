@@ -133,12 +133,13 @@ def test_resilience_battery_axis_plans_budgets_that_send_uavs_home():
 
 
 def test_a_watcher_hands_its_target_over_before_it_goes_home():
-    """A1 watches a target; when its energy says leave, its beacons say it searches while it keeps
-    circling; A2 (same type, just launched nearby) is drawn in by DACMP's own rules and watches
-    the target; only then does A1 turn home. The assignment invariants hold throughout."""
+    """A1 watches a target and asks for relief when its energy says so (rule 6), keeping the
+    target; A2 (same type, launched nearby in time to arrive) answers, flies to it and watches it;
+    only then does A1 turn home. The assignment invariants hold throughout. (Issue 33: A2 used
+    to join at 420 s, 33 s before A1 must go: too late to count as a relief.)"""
     d = {"duration_s": 600.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
          "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
-                  {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 420.0}],
+                  {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 360.0}],
          "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
          "endurance": {"x_m": 5000.0, "y_m": 5000.0, "turnaround_s": 60.0, "handover_s": 120.0,
                        "types": {"A": {"capacity_wh": 260.0}}}}
@@ -163,3 +164,175 @@ def test_an_endurance_table_for_no_uav_type_is_said_as_that_first():
     with pytest.raises(ScenarioError) as err:
         parse_scenario(doc, "<doc>")
     assert err.value.key == "endurance.types.B_" and "not a UAV type" in str(err.value)
+
+
+# --- issue 33: relief on station, base operations, the way home, states and energy at the edges ---
+
+
+def _landing_doc(**over) -> dict:
+    """Two A UAVs with a battery so small they land within a few minutes."""
+    d = {"duration_s": 500.0, "area": {"width_m": 12000.0, "height_m": 12000.0},
+         "uavs": [{"type": "A", "x_m": 3000.0, "y_m": 2000.0}, {"type": "A", "x_m": 3200.0, "y_m": 3000.0}],
+         "targets": {"count": 1, "speed_max": 1.0},
+         "endurance": {"x_m": 2000.0, "y_m": 2000.0, "turnaround_s": 30.0, "launch_spacing_s": 20.0,
+                       "types": {"A": {"capacity_wh": 60.0}}}}
+    d.update(over)
+    return d
+
+
+def test_a_crash_on_the_ground_sticks_and_its_state_says_crashed():
+    _, first = run(_landing_doc())
+    landed = next(e for e in read_events(first.events) if e.kind == "landed" and e.uav_name == "A1")
+    crash_at = landed.t + 5.0
+    sim, result = run(_landing_doc(faults=[{"kind": "crash", "uav": "A1", "at_s": crash_at}]))
+    events = list(read_events(result.events))
+    assert any(e.kind == "crash" and e.uav_name == "A1" for e in events)
+    assert not [e for e in events if e.kind == "launched" and e.uav_name == "A1" and e.t > crash_at]
+    assert not [e for e in events if e.kind == "pose" and e.uav_name == "A1" and e.t > crash_at]
+    assert sim._world.uavs[0].state == "crashed"
+    assert result.metrics["endurance"]["per_uav"]["A1"]["state"] == "crashed"
+
+
+def test_landed_is_a_state_the_snapshot_and_mode_names_know():
+    sc = parse_scenario(_landing_doc(), "m.toml")
+    with Simulation(sc) as sim:
+        seen = set()
+        while not sim.done:
+            sim.step()
+            states = {u.state for u in sim.snapshot().uavs}
+            seen |= states
+            if "landed" in states:
+                assert "landed" in sim.mode_names().values()
+                break
+    assert "landed" in seen
+
+
+def test_energy_never_goes_below_zero_and_energy_out_is_logged_once():
+    faults = [{"kind": "battery", "uav": "A1", "start_s": 50.0, "loss_frac": 1.0}]
+    _, result = run(_landing_doc(faults=faults))
+    events = list(read_events(result.events))
+    assert [e.uav_name for e in events if e.kind == "energy_out"] == ["A1"]
+    assert result.metrics["endurance"]["per_uav"]["A1"]["energy_left_wh"] == 0.0
+    assert result.metrics["endurance"]["per_uav"]["A1"]["state"] == "crashed"
+
+
+def test_launch_slots_keep_the_base_clear():
+    """Four UAVs that land at about the same time relaunch from their own pads, at least
+    launch_spacing_s apart; neither metrics.json nor the separation checker finds anyone too
+    close, and the checker no longer excuses a launch (one definition)."""
+    uavs = [{"type": "A", "x_m": 2600.0 + 300.0 * k, "y_m": 2600.0 + 250.0 * k} for k in range(4)]
+    sim, result = run(_landing_doc(uavs=uavs, duration_s=700.0))
+    events = list(read_events(result.events))
+    launches = [e for e in events if e.kind == "launched"]
+    assert len(launches) >= 3
+    times = sorted(e.t for e in launches)
+    assert all(b - a >= 20.0 - 1e-9 for a, b in zip(times, times[1:]))
+    assert len({(e.x, e.y) for e in launches}) == len({e.uav for e in launches})  # a pad each
+    assert result.metrics["violations"]["separation"] == 0
+    assert [str(v) for v in check_events(result.events, sim.scenario) if v.checker == "separation"] == []
+
+
+def test_pads_closer_than_the_separation_minimum_are_refused():
+    bad = _landing_doc()
+    bad["endurance"] = {**bad["endurance"], "pad_spacing_m": 50.0}
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(bad, "m.toml")
+    assert err.value.key == "endurance.pad_spacing_m"
+
+
+def test_the_way_home_goes_round_a_zone_and_costs_what_it_flies():
+    import numpy as np
+
+    from swarm.homeway import HomeWay, leg_energy_wh
+
+    square = np.array([[4000.0, 4000.0], [6000.0, 4000.0], [6000.0, 6000.0], [4000.0, 6000.0]])
+    way = HomeWay([(square, 500.0)], None, (10000.0, 10000.0))
+    route = way.route((8000.0, 8000.0), (2000.0, 2000.0))
+    assert len(route) > 1 and route[-1] == (2000.0, 2000.0)
+    pts = [(8000.0, 8000.0), *route]
+    for a, b in zip(pts, pts[1:]):
+        assert way.visible(a, b)
+    straight = leg_energy_wh(8000.0, 8000.0, 2000.0, 2000.0, 1000.0, 30.0, (0.0, 0.0))
+    around = way.energy_wh((8000.0, 8000.0), route, 1000.0, 30.0, (0.0, 0.0))
+    assert around > straight
+    assert way.route((1000.0, 9000.0), (2000.0, 2000.0)) == [(2000.0, 2000.0)]  # nothing in the way
+    # against the wind a leg costs more than with it
+    assert leg_energy_wh(0, 0, 1000, 0, 1000.0, 30.0, (-5.0, 0.0)) > leg_energy_wh(0, 0, 1000, 0, 1000.0, 30.0, (5.0, 0.0))
+
+
+@pytest.mark.slow
+def test_a_uav_whose_way_home_goes_round_a_zone_does_not_run_dry():
+    """The budget reckons the way round (a straight-line budget ran this UAV dry)."""
+    d = {"duration_s": 900.0, "area": {"width_m": 12000.0, "height_m": 12000.0},
+         "uavs": [{"type": "A", "x_m": 10000.0, "y_m": 10000.0, "heading_deg": 45.0}],
+         "targets": {"count": 1, "speed_max": 1.0},
+         "threats": [{"x_m": 6000.0, "y_m": 6000.0, "radius_m": 1500.0, "influence_m": 2500.0}],
+         "endurance": {"x_m": 1500.0, "y_m": 1500.0, "turnaround_s": 60.0, "types": {"A": {"capacity_wh": 260.0}}},
+         "wind": {"speed_mps": 6.0, "direction_deg": 45.0}}
+    sim, result = run(d)
+    kinds = [e.kind for e in read_events(result.events)]
+    assert "landed" in kinds and "energy_out" not in kinds
+    assert result.metrics["violations"]["threat"] == 0
+
+
+@pytest.mark.slow
+def test_relief_on_station_hands_the_target_over_with_no_drop():
+    """A1 watches a target and must go home; A2, searching nearby with a full battery, is asked
+    for relief early enough, flies to the target and holds it before A1 leaves: a relief
+    event, A1's rtb names the target, nothing unrelieved, and every checker is content."""
+    d = {"duration_s": 700.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
+         "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
+                  {"type": "A", "x_m": 3500.0, "y_m": 3500.0, "heading_deg": 0.0, "join_s": 150.0}],
+         "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
+         "endurance": {"x_m": 3000.0, "y_m": 3000.0, "turnaround_s": 60.0, "handover_s": 60.0,
+                       "types": {"A": {"capacity_wh": 260.0}}}}
+    sim, result = run(d)
+    events = list(read_events(result.events))
+    asked = [e for e in events if e.kind == "relief" and e.status == "asked" and e.uav_name == "A1"]
+    assert asked and asked[0].target == 0
+    rtb = next(e for e in events if e.kind == "rtb" and e.uav_name == "A1")
+    assert rtb.target == 0
+    assert not [e for e in events if e.kind == "relief" and e.status == "unrelieved" and e.uav_name == "A1"]
+    took = [e.t for e in events if e.kind == "mode" and e.uav_name == "A2" and e.mode == "surveil" and e.target == 0]
+    assert took and took[0] <= rtb.t
+    assert [str(v) for v in check_events(result.events, sim.scenario)] == []
+
+
+def test_watch_continuity_is_measured_per_target():
+    """A target found at once and watched: its gaps, the longest, and its watched share agree."""
+    _, result = run(doc(duration_s=300.0, targets={"placed": [{"x_m": 5400.0, "y_m": 5000.0}]}))
+    m = result.metrics
+    cont = m["watch_continuity"]
+    assert set(cont) == set(m["watched_share"]) == {"0"}
+    c = cont["0"]
+    assert c["watched_share"] == m["watched_share"]["0"] > 0.5
+    unheld = (1.0 - c["watched_share"]) * (300.0 - result.metrics["time_to_first_detection_s"]["0"])
+    assert c["longest_gap_s"] <= unheld + 1e-6
+    assert (c["gaps"] == 0) == (c["longest_gap_s"] == 0.0)
+
+
+def _takeover_log(going_home: bool) -> list:
+    """B1 (fast) watches target 0 at (5000, 5000) from 1 km; A1 (slower, 3 km off, within its
+    influence radius) searches for 90 s, with or without an ``rtb`` before."""
+    from swarm import events as ev
+
+    out: list = [ev.Start(0.0, {"uavs": [[0, "B1", "B"], [1, "A1", "A"]]})]
+    if going_home:
+        out.append(ev.ReturnToBase(0.0, 1, 50.0, 50.0, -1, "A1"))
+    for k in range(90):
+        t = float(k)
+        out += [ev.Target(t, 0, 5000.0, 5000.0),
+                ev.Pose(t, 0, 6000.0, 5000.0, 60.0, 0.0, "surveil", 0, "B1"),
+                ev.Pose(t, 1, 8000.0, 5000.0, 30.0, 0.0, "search", -1, "A1")]
+    return out
+
+
+def test_a_uav_going_home_is_not_free_to_take_a_target_over():
+    """Rule 2's wording: a free UAV searches and is not on its way home (its rtb); the handover
+    checker agrees (it flagged UAVs flying home as free takers that never came)."""
+    from swarm.testing.invariants import HandoverChecker
+
+    sc = parse_scenario(doc(), "m.toml")
+    flagged = check_events(_takeover_log(False), sc, [HandoverChecker()])
+    assert [v.data.get("rule") for v in flagged] == [2]  # a free slower UAV that did not come
+    assert check_events(_takeover_log(True), sc, [HandoverChecker()]) == []  # one going home owes nothing

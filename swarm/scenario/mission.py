@@ -64,7 +64,12 @@ class EnduranceSettings(Table):
     reserve_frac: Num = num_field(0.1, ge=0, lt=0.9, note="of the capacity, kept on arrival home")
     handover_s: Num = num_field(60.0, ge=0, note="s of loitering a watcher may spend handing its target over")
     turnaround_s: Num = num_field(300.0, ge=0, note="s on the ground between landing and relaunch")
-    land_radius_m: Num = num_field(500.0, gt=0, note="m from the base where a returning UAV lands")
+    land_radius_m: Num = num_field(500.0, gt=0, note="m from its pad where a returning UAV lands")
+    # (issue 33) Base operations: each UAV its own pad, in a row east-west through the base; a
+    # launch waits for its slot (launch_spacing_s after the last one, no flying UAV within
+    # pad_spacing_m of the pad), so no two UAVs come within the separation minimum at the base.
+    pad_spacing_m: Num = num_field(400.0, gt=0, note="m between two pads (at least safety.min_separation_m)")
+    launch_spacing_s: Num = num_field(20.0, ge=0, note="s between two launches from the base")
 
     @model_validator(mode="after")
     def _some_type(self) -> EnduranceSettings:
@@ -84,6 +89,10 @@ def endurance_problems(sc: Any) -> list[Problem]:
     at its minimum-power speed against the mean wind, plus the reserve)."""
     e = sc.endurance
     problems: list[Problem] = []
+    if e.pad_spacing_m < sc.safety.min_separation_m:
+        problems.append(Problem(("endurance", "pad_spacing_m"), e.pad_spacing_m,
+                                f"at least safety.min_separation_m ({fmt(sc.safety.min_separation_m)} m): two UAVs on "
+                                f"neighbouring pads must not be too close"))
     if not (0.0 <= e.x_m <= sc.area.width_m and 0.0 <= e.y_m <= sc.area.height_m):
         problems.append(Problem(("endurance", "x_m"), e.x_m, f"a base inside the area ({fmt(sc.area.width_m)} x "
                                 f"{fmt(sc.area.height_m)} m)", found=f"({e.x_m:.0f}, {e.y_m:.0f}) m"))

@@ -43,7 +43,8 @@ __all__ = [
 
 
 # The kinds a replay reads.
-_REPLAYED = ("start", "pose", "target", "rx", "lost", "found", "crash", "join", "handover", "violation", "host")
+_REPLAYED = ("start", "pose", "target", "rx", "lost", "found", "crash", "join", "handover", "violation", "host",
+             "landed", "launched")
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,9 @@ class Replay:
     metrics: dict | None = None
     timeseries: dict[str, list] | None = None  # column name -> values (numbers or mode strings)
     faults: list[dict] = field(default_factory=list)  # the start header's schedule, then faults a host added
+    # (issue 33, [endurance]) when each UAV landed at its base and launched again: (t, uid)
+    landings: list[tuple[float, int]] = field(default_factory=list)
+    launches: list[tuple[float, int]] = field(default_factory=list)
 
     # --- geometry from the scenario ---------------------------------------------------------
     @property
@@ -212,6 +216,8 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
     join_names = {int(u): name for u, name in zip(j["uav"], j["uav_name"])}
     c = cols["crash"]
     crashes = [(float(t), int(u)) for t, u in zip(c["t"], c["uav"])]
+    landings = [(float(t), int(u)) for t, u in zip(cols["landed"]["t"], cols["landed"]["uav"])]
+    launches = [(float(t), int(u)) for t, u in zip(cols["launched"]["t"], cols["launched"]["uav"])]
     h = cols["handover"]
     handovers = [(float(t), int(m), int(a), int(b)) for t, m, a, b in zip(h["t"], h["target"], h["from_uav"], h["to_uav"])]
     v = cols["violation"]
@@ -286,6 +292,8 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
         crashes=crashes,
         joins=joins,
         handovers=handovers,
+        landings=landings,
+        launches=launches,
         violations=violations,
         rx=columns(rx, ("t", "src", "dst", "accepted"), (float, np.int32, np.int32, bool)),
         lost=columns({**lost, "cause": lost_cause}, ("t", "src", "dst", "cause"), (float, np.int32, np.int32, np.int16)),

@@ -16,6 +16,22 @@ class _WatchChecker(Checker):
 
     _targets: dict[int, tuple[float, float]]  # target -> last logged (x, y), kept by the subclasses that need it
     _seen: dict[int, tuple[float, float, float]]  # target -> last (t, x, y) inside some UAV's sensor (_sightings)
+    _home: set[int]  # (issue 33) UAVs on their way home: from their rtb to their landing (_homeward)
+
+    def _homeward(self, events: list) -> None:
+        """Note who turns home (``rtb``) and who is no longer on the way (landed, launched, crashed)."""
+        if not hasattr(self, "_home"):
+            self._home = set()
+        for e in events:
+            if isinstance(e, event_schema.ReturnToBase):
+                self._home.add(e.uav)
+            elif isinstance(e, (event_schema.Landed, event_schema.Launched, event_schema.Crash)):
+                self._home.discard(e.uav)
+
+    def free(self, uid: int, p: tuple) -> bool:
+        """A UAV is free while it searches with no target (not on its way to take one over) and
+        is not on its way home (rule 2's wording)."""
+        return p[4] != SURVEIL and p[5] < 0 and uid not in self._home
 
     @staticmethod
     def watchers(poses: dict[int, tuple]) -> dict[int, set[int]]:
@@ -129,6 +145,7 @@ class HandoverChecker(_WatchChecker):
         for e in events:
             if isinstance(e, event_schema.Target):
                 self._targets[e.target] = (e.x, e.y)
+        self._homeward(events)
         poses = poses_of(events)
         if not poses:
             return
@@ -178,8 +195,13 @@ class HandoverChecker(_WatchChecker):
                 seen = self._seen.get(m)
                 if slower_watching or pos is None or seen is None or t - seen[0] > self._track_life() + EPS:
                     continue
+                # (issue 33) A slower UAV on its way to relieve the watcher (rule 6: its pose searches
+                # with the target's id) is taking the target over already.
+                if any(p[4] != SURVEIL and p[5] == m and s != f and (k_s := ctx.kind(s)) is not None
+                       and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f) for s, p in poses.items()):
+                    continue
                 free = [s for s, p in sorted(poses.items())
-                        if s != f and p[4] != SURVEIL and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
+                        if s != f and self.free(s, p) and not self.excused(s, t) and (k_s := ctx.kind(s)) is not None
                         and k_s.speed_max < kf.speed_max and ctx.handover_judged(s, f)
                         and math.hypot(p[0] - pos[0], p[1] - pos[1]) < k_s.influence_radius
                         and ctx.can_talk(f, s, t, poses)]
@@ -273,13 +295,24 @@ class NoDropChecker(_WatchChecker):
     *lost*: no flying UAV has had it inside its detection radius for the track lifetime
     (``planner.dacmp.track_max_age_s``, default ``1 / tau``) and it was last seen farther than the
     watcher's detection radius from every no-fly zone, circle or polygon (a target inside one, or
-    that near one, is kept, not lost)."""
+    that near one, is kept, not lost).
+
+    (Issue 33, rule 6.) A watcher that turns home (its ``rtb``) is judged the same way, but its
+    departure is excused when it left unrelieved (its ``relief`` event says ``unrelieved``) and,
+    when it asked for relief (``relief`` ``asked``, by the time ``by`` it had to go), no free
+    flying UAV could have reached the target by then: each was farther from it than its
+    ``speed_max`` plus the mean wind's speed times the time left."""
 
     name = "no_drop"
 
     def __init__(self, grace_s: float = 10.0):
         super().__init__()
         self.grace_s = grace_s
+        self._asks: dict[tuple[int, int], tuple[float, float, list[int]]] = {}  # (w, m) -> (t, by, who could reach)
+        self._unrelieved: set[tuple[int, int]] = set()
+        self._departures: list[tuple[float, int, int]] = []  # unrelieved drops to judge: (t, watcher, target)
+        self._last_poses: dict[int, tuple] = {}
+        self._went_home: dict[int, list[float]] = {}  # uav -> its rtb times
         self._prev: dict[int, set[int]] = {}
         self._pending: dict[int, tuple[float, int, float]] = {}  # target -> (dropped at, by, last seen then)
         self._targets: dict[int, tuple[float, float]] = {}
@@ -304,9 +337,20 @@ class NoDropChecker(_WatchChecker):
         for e in events:
             if isinstance(e, event_schema.Target):
                 self._targets[e.target] = (e.x, e.y)
-        poses = poses_of(events)
-        if not poses:
+        self._homeward(events)
+        poses = poses_of(events) or self._last_poses  # (the mission's events follow their tick's poses)
+        for e in events:
+            if isinstance(e, event_schema.Relief):
+                if e.status == "asked":
+                    self._asks[(e.uav, e.target)] = (t, e.by, self._could_reach(t, e.target, e.by, poses))
+                elif e.status == "unrelieved":
+                    self._unrelieved.add((e.uav, e.target))
+            elif isinstance(e, event_schema.ReturnToBase):
+                self._went_home.setdefault(e.uav, []).append(t)
+        self._judge_departures(t)
+        if not poses_of(events):
             return
+        self._last_poses = poses
         self._sightings(t, poses)
         watchers = self.watchers(poses)
         held = {m: {w for w in self._held.get(m, ()) if w in ws} | {w for w in ws if self._holds(w, m, poses)}
@@ -316,6 +360,9 @@ class NoDropChecker(_WatchChecker):
         for m, (t0, w, seen) in list(self._pending.items()):
             if t - t0 > self.grace_s + EPS:
                 del self._pending[m]
+                if (w, m) in self._unrelieved:
+                    self._departures.append((t0, w, m))  # (judged once the candidates' energy shows: _judge_departures)
+                    continue
                 self.violate(t0, f"{self.context.name(w)} stopped watching target {m} while flying and nobody watched it "
                                  f"within {self.grace_s:g} s (not lost: seen {t0 - seen:g} s before, or last seen "
                                  f"inside a no-fly zone)", [w], target=m, now=poses.get(w, (None,) * 6)[4:6])
@@ -330,5 +377,48 @@ class NoDropChecker(_WatchChecker):
         self._prev = watchers
         self._held = held
 
+    def _judge_departures(self, t: float, final: bool = False) -> None:
+        """Rule 6: an unrelieved departure at ``t0`` is a drop if a UAV that could reach the
+        target when relief was asked did not itself turn home (its energy said go) before
+        ``t0 + 2 handover_s`` (a candidate needs energy for the way there and some watching).
+        Judged once that time has passed."""
+        e = self.context.scenario.endurance
+        wait = 2.0 * e.handover_s if e is not None else 0.0
+        for item in list(self._departures):
+            t0, w, m = item
+            if t < t0 + wait - EPS and not final:
+                continue
+            self._departures.remove(item)
+            if final and t < t0 + wait - EPS:
+                continue  # not enough time left to judge
+            ask = self._asks.get((w, m))
+            if ask is None:
+                continue  # (it never asked: it went at its first reading, nobody could have come)
+            could = [u for u in ask[2] if not any(ask[0] <= h <= t0 + wait + EPS for h in self._went_home.get(u, []))]
+            if not could:
+                continue  # nobody could have relieved it in time
+            names = ", ".join(self.context.name(u) for u in could)
+            self.violate(t0, f"{self.context.name(w)} went home from target {m} unrelieved, but {names} "
+                             f"could have reached it in the {ask[1] - ask[0]:g} s between its relief request at "
+                             f"{ask[0]:g} s and its departure", [w, *could], target=m, since=ask[0], rule=6)
+
+    def _could_reach(self, t: float, m: int, by: float, poses: dict[int, tuple]) -> list[int]:
+        """The free flying UAVs (not impaired) that could reach target ``m`` by ``by``: within
+        ``(by - t)`` times their ``speed_max`` plus the mean wind's speed (rule 6)."""
+        pos = self._targets.get(m)
+        if pos is None:
+            return []
+        sc = self.context.scenario
+        wind = sc.wind.speed_mps if sc.wind is not None else 0.0
+        out = []
+        for uid, p in sorted(poses.items()):
+            k = self.context.kind(uid)
+            if k is None or not self.free(uid, p) or self.excused(uid, t):
+                continue
+            if math.hypot(p[0] - pos[0], p[1] - pos[1]) <= (by - t) * (k.speed_max + wind) + EPS:
+                out.append(uid)
+        return out
+
     def finish(self, t_end):
         self._pending.clear()  # not enough time left to judge
+        self._judge_departures(t_end, final=True)

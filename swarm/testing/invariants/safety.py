@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from agents.dynamics import integrate, wrap_angle
+from swarm import events as event_schema
 from swarm.testing.invariants.checker import Checker, poses_of
 from swarm.testing.invariants.context import RECOVER_S
 
@@ -29,6 +30,9 @@ class SeparationChecker(Checker):
         poses = poses_of(events)
         if not poses:
             return
+        # (issue 33) A UAV launched from its base is judged from its first pose: the base is no
+        # excuse (launch slots keep the pads clear; metrics.json counts the same).
+        launched = {e.uav for e in events if isinstance(e, event_schema.Launched)}
         d_min = self.min_separation_m if self.min_separation_m is not None else self.context.min_separation_m
         ids = sorted(poses)
         close: set[tuple[int, int]] = set()
@@ -40,7 +44,8 @@ class SeparationChecker(Checker):
                 pair = (ids[int(i)], ids[int(j)])
                 if pair in self._active or pair in self._excused:
                     continue
-                if pair[0] not in self._prev or pair[1] not in self._prev:
+                new = {u for u in pair if u not in self._prev}
+                if new and not new & launched:
                     self._excused.add(pair)  # too close from the moment they were both flying
                     continue
                 ctx = self.context

@@ -188,7 +188,7 @@ def fig_targets(rp: Replay) -> Figure:
     return fig
 
 
-_MODE_LABELS = {"search": "search", "surveil": "surveillance", "not flying": "not flying (pending / crashed)"}
+_MODE_LABELS = {"search": "search", "surveil": "surveillance", "not flying": "not flying (pending / landed / crashed)"}
 
 
 def fig_task_load(rp: Replay) -> Figure:
@@ -268,9 +268,13 @@ def fig_radio(rp: Replay) -> Figure | None:
 
 
 def uav_state_matrix(rp: Replay) -> np.ndarray:
-    """(uavs, ticks) codes: 0 pending, 1 search, 2 surveillance, 3 crashed."""
+    """(uavs, ticks) codes: 0 pending, 1 search, 2 surveillance, 3 crashed, 4 landed (at its
+    base between two sorties, [endurance])."""
     state = np.where(rp.mode == MODE_SURVEIL, 2, np.where(rp.mode >= 0, 1, 0)).T.astype(np.int8)
     times = rp.times
+    for t, uid in rp.landings:
+        back = min((t1 for t1, u in rp.launches if u == uid and t1 > t), default=math.inf)
+        state[uid, (times >= t - 1e-9) & (times < back - 1e-9)] = 4
     for t, uid in rp.crashes:
         state[uid, times >= t - 1e-9] = 3
     return state
@@ -310,8 +314,8 @@ def fig_fault_timeline(rp: Replay) -> Figure:
     ax1.grid(axis="x", alpha=0.3)
     ax1.set_title("fault schedule and UAV states", fontsize=9)
     state = uav_state_matrix(rp)[order]
-    cmap = ListedColormap(["#ffffff", MODE_COLOURS["search"], MODE_COLOURS["surveil"], "#404040"])
-    ax2.imshow(state, aspect="auto", cmap=cmap, vmin=-0.5, vmax=3.5, interpolation="nearest",
+    cmap = ListedColormap(["#ffffff", MODE_COLOURS["search"], MODE_COLOURS["surveil"], "#404040", "#9ecae1"])
+    ax2.imshow(state, aspect="auto", cmap=cmap, vmin=-0.5, vmax=4.5, interpolation="nearest",
                extent=(0, rp.n_ticks * rp.dt, len(order) - 0.5, -0.5))
     step = max(1, math.ceil(len(order) / 40))
     ax2.set_yticks(np.arange(len(order))[::step])
@@ -319,7 +323,8 @@ def fig_fault_timeline(rp: Replay) -> Figure:
     ax2.set_xlim(0, rp.duration)
     ax2.set_xlabel("time (s)")
     handles = [Patch(fc="#ffffff", ec="0.5", label="pending"), Patch(color=MODE_COLOURS["search"], label="search"),
-               Patch(color=MODE_COLOURS["surveil"], label="surveillance"), Patch(color="#404040", label="crashed")]
-    fig.legend(handles=handles, fontsize=7, ncol=4, loc="lower center", frameon=False)
+               Patch(color=MODE_COLOURS["surveil"], label="surveillance"), Patch(color="#404040", label="crashed"),
+               Patch(color="#9ecae1", label="landed")]
+    fig.legend(handles=handles, fontsize=7, ncol=5, loc="lower center", frameon=False)
     fig.tight_layout(rect=(0, 0.3 / (h_top + h_bot), 1, 1))
     return fig

@@ -142,7 +142,7 @@ def _share_or_dash(v) -> str:
 
 def _detection_watch_rows(m: dict, rp: Replay) -> tuple[list[tuple], list[tuple]]:
     """The "Detection and watch" section (metrics.json, docs/outputs.md): one row per target
-    (time to first detection, to a slow watcher, watched share, surveillance ratio), one per UAV
+    (time to first detection, to a slow watcher, watched share, surveillance ratio, watch gaps), one per UAV
     and the swarm (share of flying time watching and searching). Empty for an older metrics.json."""
     detection = m.get("time_to_first_detection_s")
     if detection is None:
@@ -150,8 +150,14 @@ def _detection_watch_rows(m: dict, rp: Replay) -> tuple[list[tuple], list[tuple]
     to_slow = m.get("time_to_slow_watcher_s") or {}
     watched = m.get("watched_share") or {}
     ratio = m.get("surveillance_ratio") or {}
+    gaps = m.get("watch_continuity") or {}  # (issue 33: absent from an older metrics.json)
+
+    def gap_words(k: str) -> str:
+        c = gaps.get(k)
+        return "–" if c is None else f"{c['gaps']} ({c['longest_gap_s']:g} s)"
+
     targets = [(k, detection[k], to_slow.get(k), watched.get(k), ratio.get(k)) for k in sorted(detection, key=int)]
-    target_rows = [(k, _seconds_or_dash(d), _seconds_or_dash(s), _share_or_dash(w), _share_or_dash(r))
+    target_rows = [(k, _seconds_or_dash(d), _seconds_or_dash(s), _share_or_dash(w), _share_or_dash(r), gap_words(k))
                    for k, d, s, w, r in targets]
     per = m.get("per_uav", {}) or {}
     uav_rows = []
