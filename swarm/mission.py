@@ -203,8 +203,10 @@ class Mission:
         wind = math.hypot(*self.mean_wind)
         for uid in alive:
             u = self.uavs.get(uid)
-            if u is None:
-                continue
+            if u is None:  # (a UAV a host added since: its battery now, full, if its type has a budget)
+                if self.battery_of(uid) is None:
+                    continue
+                u = self.uavs[uid]
             b = self.world.uavs[uid]
             need = self.needed_home_wh(uid, t) + s.reserve_frac * u.battery.capacity_wh
             left = u.battery.left_wh

@@ -25,8 +25,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _doc(duration_s: float = 300.0, level: str = "frames") -> dict:
-    """faults-small (a partition, a crash, a late joiner, corruption, drops; found, handover
-    and release happen) with a UAV that flies into a threat at once (a violation event)."""
+    """faults-small (a partition, a crash, a late joiner, corruption, drops; targets found) with a
+    UAV that flies into a threat at once (a violation event)."""
     with open(DATA / "faults-small.toml", "rb") as fh:
         doc = tomllib.load(fh)
     doc["duration_s"] = duration_s
@@ -115,14 +115,31 @@ def _release_run():
         EventLog.check_schema = saved
 
 
+def _handover_run():
+    """A ``handover``: a fast UAV watches a target it found at once, a slow one comes and takes it
+    over (rule 2). (faults-small's run wrote one until issue 33 moved its threat and made a fast
+    watcher wait for its relief to have the target in sight.)"""
+    doc = {"duration_s": 120.0, "area": {"width_m": 10000.0, "height_m": 10000.0},
+           "targets": {"count": 0, "placed": [{"x_m": 6000.0, "y_m": 5000.0}]},
+           "uavs": [{"type": "B", "x_m": 5000.0, "y_m": 5000.0}, {"type": "A", "x_m": 2500.0, "y_m": 5000.0}]}
+    saved = EventLog.check_schema
+    EventLog.check_schema = True
+    try:
+        with Simulation(parse_scenario(doc)) as sim:
+            return sim.run()
+    finally:
+        EventLog.check_schema = saved
+
+
 def test_every_kind_is_written_and_every_event_is_as_the_schema_says(runs):
     frames, _, summary = runs
     mission = _mission_run()
     released = _release_run()
+    handed = _handover_run()
     assert "release" in {e.kind for e in read_events(released.events)}
-    seen = Counter(e.kind for r in (frames, summary, mission, released) for e in read_events(r.events))
+    seen = Counter(e.kind for r in (frames, summary, mission, released, handed) for e in read_events(r.events))
     assert set(seen) == set(KINDS), f"kinds never written by these runs: {set(KINDS) - set(seen)}"
-    for r in (frames, summary, mission, released):
+    for r in (frames, summary, mission, released, handed):
         for wire in _wire(r.events):
             check_wire(wire)
 
@@ -148,8 +165,8 @@ def test_records_carry_names_and_mode_names(runs):
     assert {e.mode for e in poses} == {"search", "surveil"}
     assert all(e.uav_name == names[e.uav] for e in poses)
     assert all(e.dst_name == names[e.dst] for e in records if isinstance(e, (ev.Rx, ev.Lost)))
-    handover = next(e for e in records if isinstance(e, ev.Handover))
-    assert (handover.from_name, handover.to_name) == (names[handover.from_uav], names[handover.to_uav])
+    handover = next(e for e in read_events(_handover_run().events) if isinstance(e, ev.Handover))
+    assert (handover.from_name, handover.to_name) == ("B1", "A1")
     threat = next(e for e in records if isinstance(e, ev.Violation))
     assert threat.invariant == "threat" and threat.uav_name == "B1" and threat.other_name is None
     assert isinstance(records[0], ev.Start) and records[0].uavs == names
