@@ -7,6 +7,7 @@ is left as it was. (Every built-in through every path that reads a run: test_eve
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -42,6 +43,24 @@ def test_every_builtin_round_trips_through_its_written_document(name):
 def test_generated_scenarios_round_trip(sc):
     assert parse_scenario(_written(sc), "scenario.json", truncated=True) == sc
     assert parse_scenario(sc.to_document(), "generated") == sc
+
+
+def test_generated_missions_round_trip():
+    """Geographic areas (lon/lat polygons), polygon no-fly zones, wind and endurance with a base
+    (each drawn or not per example): the written document reads back as the scenario, as does
+    its input document; and the examples did include every one of those tables."""
+    drawn: Counter[str] = Counter()
+
+    @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow], database=None,
+              derandomize=True)
+    @given(sc=scenarios(geo=True, max_no_fly=2, wind=True, endurance=True, max_uavs=3))
+    def round_trip(sc):
+        drawn.update(k for k in ("geo", "no_fly", "wind", "endurance") if getattr(sc, k))
+        assert parse_scenario(_written(sc), "scenario.json", truncated=True) == sc
+        assert parse_scenario(sc.to_document(), "generated") == sc
+
+    round_trip()
+    assert set(drawn) == {"geo", "no_fly", "wind", "endurance"}, drawn
 
 
 def test_a_geographic_size_that_contradicts_its_polygon_is_still_refused():
