@@ -79,6 +79,17 @@ def _wire(data: bytes) -> list[list]:
 # --- one schema, and what is written is what it says --------------------------------------------
 
 
+def _checked_run(doc: dict):
+    """A run of ``doc`` with every event checked against the schema as it is written."""
+    saved = EventLog.check_schema
+    EventLog.check_schema = True
+    try:
+        with Simulation(parse_scenario(doc)) as sim:
+            return sim.run()
+    finally:
+        EventLog.check_schema = saved
+
+
 def _mission_run():
     """(issues 26, 33) Wind, and endurance with a watcher that asks for relief and goes home
     unrelieved, a landing, a relaunch and a battery fault that empties one UAV: the mission
@@ -89,13 +100,7 @@ def _mission_run():
            "wind": {"speed_mps": 3.0, "gust_sigma_mps": 1.0},
            "endurance": {"x_m": 2500.0, "y_m": 2500.0, "turnaround_s": 20.0, "types": {"A": {"capacity_wh": 60.0}}},
            "faults": [{"kind": "battery", "uav": "A2", "start_s": 5.0, "loss_frac": 1.0}]}
-    saved = EventLog.check_schema
-    EventLog.check_schema = True
-    try:
-        with Simulation(parse_scenario(doc)) as sim:
-            return sim.run()
-    finally:
-        EventLog.check_schema = saved
+    return _checked_run(doc)
 
 
 def _release_run():
@@ -106,13 +111,7 @@ def _release_run():
            "targets": {"count": 0, "placed": [{"x_m": 6000.0, "y_m": 5000.0}]},
            "uavs": [{"type": "B", "x_m": 5000.0, "y_m": 5000.0}],
            "faults": [{"kind": "crash", "uav": "B1", "at_s": 60.0}]}
-    saved = EventLog.check_schema
-    EventLog.check_schema = True
-    try:
-        with Simulation(parse_scenario(doc)) as sim:
-            return sim.run()
-    finally:
-        EventLog.check_schema = saved
+    return _checked_run(doc)
 
 
 def _handover_run():
@@ -122,13 +121,7 @@ def _handover_run():
     doc = {"duration_s": 120.0, "area": {"width_m": 10000.0, "height_m": 10000.0},
            "targets": {"count": 0, "placed": [{"x_m": 6000.0, "y_m": 5000.0}]},
            "uavs": [{"type": "B", "x_m": 5000.0, "y_m": 5000.0}, {"type": "A", "x_m": 2500.0, "y_m": 5000.0}]}
-    saved = EventLog.check_schema
-    EventLog.check_schema = True
-    try:
-        with Simulation(parse_scenario(doc)) as sim:
-            return sim.run()
-    finally:
-        EventLog.check_schema = saved
+    return _checked_run(doc)
 
 
 def test_every_kind_is_written_and_every_event_is_as_the_schema_says(runs):
