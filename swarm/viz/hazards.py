@@ -15,6 +15,7 @@ the same as the run that wrote it.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -69,8 +70,9 @@ def hazards_of(scenario: dict, threats: Sequence[Any] = ()) -> Hazards:
             for z in no_fly:
                 hz.polygons.append((str(z.get("name") or ""), local_ring(frame, z["polygon"], ("polygon",)),
                                     float(z.get("influence_m") or 0.0)))
-        except (GeoProblem, KeyError, TypeError, ValueError):
-            pass  # (a scenario.json that validated when it ran; a hand-edited one draws what it can)
+        except (GeoProblem, KeyError, TypeError, ValueError) as exc:
+            # (a scenario.json validated when it ran; a hand-edited one draws what it can, and says what not)
+            warnings.warn(f"the area polygon or no-fly zones are not drawn: {exc}", stacklevel=2)
     e = scenario.get("endurance")
     if isinstance(e, dict) and e.get("x_m") is not None and e.get("y_m") is not None:
         hz.base = (float(e["x_m"]), float(e["y_m"]))
