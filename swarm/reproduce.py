@@ -61,6 +61,7 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
 
     Raises :class:`swarm.outputs.RunDirError` (a :class:`~swarm.errors.SwarmError`) when the folder
     cannot be re-run: a file missing or damaged, a log cut short."""
+    from swarm.hostlog import schedule_recorded_host_changes
     from swarm.scenario.model import parse_scenario
     from swarm.simulation import Simulation
 
@@ -69,7 +70,7 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
     provenance, events = _read_log(run.path / "events.msgpack", run.events)
     metrics = read_json(run.path / "metrics.json") if (run.path / "metrics.json").is_file() else {}
     then = provenance or metrics.get("versions")
-    original = log_sha256(run.events)
+    original = log_sha256(events)
     recorded = metrics.get("event_log_sha256")
     if recorded is not None and recorded != original:
         raise RunDirError(f"{run.path / 'events.msgpack'}: its hash {original[:16]}… is not the one metrics.json "
@@ -85,7 +86,8 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
     if target.resolve() == run.path.resolve():
         raise RunDirError(f"--out {target}: the re-run must go to another folder than the one re-run")
     with Simulation(scenario) as sim:  # (its own seed; no overrides, which would judge it afresh)
-        _replay_host_changes(sim, events)
+        # Changes a host made while the original ran (embedded runs): applied again at the same ticks.
+        schedule_recorded_host_changes(sim, list(read_events(events)))
         if end >= sim.duration_s:
             result = sim.run(progress=progress)
         else:  # an embedded run written before the scenario's end: stop where it stopped
@@ -106,8 +108,8 @@ def _read_log(path: Path, data: bytes) -> tuple[dict | None, bytes]:
     """The provenance record and the events of a folder's log, every event checked (a log cut
     short or damaged is said here, before anything runs)."""
     try:
-        check_log(data)
         provenance, events = split_provenance(data)
+        check_log(events)
     except EventLogError as exc:
         raise RunDirError(f"{path}: cannot be re-run: {exc}") from None
     return provenance, events
@@ -120,10 +122,3 @@ def _end_of(metrics: dict, duration_s: float, scenario_path: Path) -> float:
     if isinstance(end, bool) or not isinstance(end, (int, float)) or not math.isfinite(end) or end < 0:
         raise RunDirError(f"{scenario_path.parent / 'metrics.json'}: sim_seconds {end!r} is not a time")
     return min(float(end), duration_s)
-
-
-def _replay_host_changes(sim, events: bytes) -> None:
-    """Changes a host made while the original ran (embedded runs): applied again at the same ticks."""
-    from swarm.hostlog import schedule_recorded_host_changes
-
-    schedule_recorded_host_changes(sim, list(read_events(events)))
