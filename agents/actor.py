@@ -5,9 +5,10 @@ all have answered. An actor's step only touches its own state and returns an
 :class:`ActorOutput` (command, encoded frames, task); the simulator then processes outputs in
 UAV-id order, so the result does not depend on which task the event loop happens to run first.
 
-A step: drain the inbox (decode, schema-check, merge; malformed frames, and with ``[radio]
-auth`` frames failing their MAC, are counted as rejected and skipped) -> own scan and sightings
--> replan if due -> local planner (APF) -> outbox.
+A step: merge the inbox (:mod:`agents.inbox`: decode, schema-check, merge; malformed frames,
+and with ``[radio] auth`` frames failing their MAC, are counted as rejected and skipped) -> own
+scan (and what an :class:`OutboxHook` claims) and sightings -> replan if due -> local planner
+(APF) -> outbox (beacons, tracks, and answers to the digests heard: :mod:`agents.antientropy`).
 The replan sits between two halves (:meth:`UavActor.observe`, :meth:`UavActor.act`) so that the
 simulator can serve every UAV due in one tick with one batched planner call
 (:mod:`agents.planners.batching`); a decision is still made from the UAV's own view and random stream.
@@ -20,14 +21,14 @@ import math
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import cast
+from typing import Protocol, cast
 
 import numpy as np
 
+from agents.antientropy import AntiEntropy
 from agents.apf import ApfSettings, apf_command
-from agents.inbox import Heard, check_frame
+from agents.inbox import Inbox
 from agents.knowledge import Knowledge, KnownThreat, Peer, Track, zone_clearance
-from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import Disk, Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
@@ -35,7 +36,7 @@ from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.types import GRAVITY, UavType
 from agents.zones import Keepout
-from comms.codec import AuthError, FrameError, Packed, decode, encode, pack_hello, pack_intent, pack_scans, pack_tracks
+from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
@@ -43,18 +44,13 @@ from comms.messages import (
     MODE_SURVEIL,
     NO_TARGET,
     Message,
-    ScanDigest,
-    ScanRecords,
     ThreatItem,
     Threats,
-    TrackItem,
 )
 from comms.settings import RadioSettings
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
 _TRACKS_PER_FRAME = 400
-# Neighbours expected to answer one digest (see UavActor._answer_digests).
-_ANSWERERS = 2
 
 
 def _planner_name(planner: object) -> str:
@@ -65,26 +61,6 @@ def _planner_error(planner: object, exc: Exception) -> PlannerError:
     if isinstance(exc, PlannerError):
         return exc
     return PlannerError(f"planner {_planner_name(planner)} raised {type(exc).__name__}: {exc}")
-
-
-def _answer_hash(me: int, sender: int, t_cut: float) -> int:
-    """A well-mixed non-negative integer of (me, sender, round): who answers which digest."""
-    h = (me * 0x9E3779B97F4A7C15 + sender * 0xC2B2AE3D27D4EB4F + int(t_cut * 16) * 0x165667B19E3779F9)
-    h &= 0xFFFFFFFFFFFFFFFF
-    h ^= h >> 31
-    h = (h * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
-    return h ^ (h >> 29)
-
-
-# Bytes of a packed scan (four msgpack floats) and room left in a frame for its header.
-_SCAN_BYTES = 36
-_FRAME_SLACK = 256
-# A liar's fabrications (UavActor.lie): bytes of a ScanRecords message's own header (at most),
-# of a packed track item, and the made-up origin ids its fake scans carry (see lie()).
-_MSG_BYTES = 16
-_TRACK_BYTES = 80
-_GHOST_ORIGIN = 1_000_000_000
-_GHOSTS_PER_UAV = 4096
 
 
 @dataclass(frozen=True, slots=True)
@@ -212,7 +188,21 @@ class ActorCounters:
     digests_sent: int = 0  # anti-entropy digests (one per sync_every_s, on the beacon)
     digest_bytes: int = 0  # their bitmaps' bytes, plus 8 per origin listed (ScanLog.digest's measure)
     resent_bytes: int = 0  # bytes of the frames answering neighbours' digests
-    messages_ignored: int = 0  # other heard messages no honest UAV sends (see _drain_inbox)
+    messages_ignored: int = 0  # other heard messages no honest UAV sends (agents.inbox.check_frame)
+
+
+class OutboxHook(Protocol):
+    """What a fault adds to a UAV's own claims and beacons (:attr:`UavActor.outbox_hook`;
+    :class:`faults.adversary.Lies`, for one). The actor calls it and does not know what it
+    adds."""
+
+    def observed(self, actor: UavActor, t: float) -> None:
+        """After the UAV's own scan at ``t`` (in :meth:`UavActor.observe`, before its sightings):
+        scans to claim as made (:meth:`UavActor.claim_scan`)."""
+
+    def beacon(self, t: float, messages: list[Message | Packed], room: int) -> int:
+        """Messages to add to the beacon frame sent at ``t`` (after its Hello, Intent and own
+        scans, before a digest) while they fit in ``room`` bytes; returns the room left."""
 
 
 class UavActor:
@@ -244,32 +234,22 @@ class UavActor:
         radio = settings.radio
         self.scans = ScanLog(settings.dt, radio.sync_horizon_s)
         self._log_scans = radio.sync_every_s > 0  # without anti-entropy nothing reads the log
-        # The knowledge horizon, its square (None: none), and where the UAV is this tick (set by observe).
-        h = self._horizon_m = radio.horizon_m
-        self._horizon2 = None if math.isinf(h) else h * h
-        self._here = (0.0, 0.0)
-        self._digests: list[ScanDigest] = []  # heard this tick, answered in the outbox
-        self._next_digest = -math.inf
-        self._digest_start = 0  # where the next digest begins when one frame cannot hold it all
-        self._scans_per_frame = max(1, (radio.frame_max_bytes - _FRAME_SLACK) // _SCAN_BYTES)
+        self.anti_entropy = AntiEntropy(uid, radio, self.scans)  # (its digests and answers)
         # A scan is applied and logged only if it is plausible: a radius up to the area's size and
         # a centre at most that far outside the area (absurd numbers would make the disk's bounds
         # overflow). Own scans obey the same rule, so every logged scan is one peers accept.
         self._max_scan_r = max(grid.width_m, grid.height_m)
-        # Shared by the simulation's actors so each broadcast frame is decoded once (a pure
-        # memo: the same bytes give the same immutable Frame).
-        # (A shared decoder decodes with the swarm's key, as settings.auth_key.)
-        self._decode = decoder.decode if decoder is not None else partial(decode, max_bytes=radio.frame_max_bytes,
-                                                                          key=settings.auth_key)
-        self._cache = decoder
+        # What it hears (agents.inbox). ``decoder``: shared by the simulation's actors so each
+        # broadcast frame is decoded and checked once (a pure memo: the same bytes give the same
+        # immutable Frame); it decodes with the swarm's key, as settings.auth_key. Heard scans older
+        # than beacon_every_s + 2 dt are anti-entropy resends (a beacon carries the scans of the
+        # last beacon period): sent to this UAV alone, their disks are not worth sharing.
+        self.inbox = Inbox(uid, grid, (self._max_scan_r, grid.width_m, grid.height_m, settings.dt), radio.horizon_m,
+                           radio.beacon_every_s + 2 * settings.dt, decoder, radio.frame_max_bytes, settings.auth_key)
         # Sent through a shared decoder with the swarm's key, a frame is remembered there as
         # decoded (DecodeCache.encode): its receivers find it without running the codec.
         self._encode = (decoder.encode if decoder is not None and decoder.key == settings.auth_key
                         else partial(encode, key=settings.auth_key))
-        self._bounds = (self._max_scan_r, grid.width_m, grid.height_m, settings.dt)  # agents.inbox.check_frame's
-        # Heard scans older than this are anti-entropy resends (a beacon carries the scans of the
-        # last beacon period): sent to this UAV alone, their disks are not worth sharing.
-        self._fresh_s = radio.beacon_every_s + 2 * settings.dt
         # (The polygon no-fly zones among the zones: a watcher keeps a target inside one as
         # inside a circle, rule 5 of docs/modelling.md's "Assignment rules".)
         self.knowledge = Knowledge(tuple(z for z in settings.zones if not z.inverted))
@@ -293,11 +273,8 @@ class UavActor:
         self._pending_scans: list[float] = []
         self._received: list[tuple[int, int, bool]] = []
         self._seq = 0
-        # A liar's fabrications (see lie()): scans to make this tick, then to send; tracks to send.
-        self._lies: list[tuple[float, float, float]] = []
-        self._lie_scans: list[tuple[int, float, float, float, float]] = []
-        self._lie_tracks: list[tuple[int, float, float]] = []
-        self.lie_sink: Callable[[int], None] | None = None  # told how many fabrications were sent
+        # What a fault adds to its claims and beacons (an OutboxHook); None: nothing.
+        self.outbox_hook: OutboxHook | None = None
         # Task plumbing (see run()).
         self._pending: SensorReading | None = None
         self._waiter: asyncio.Future[SensorReading] | None = None
@@ -357,19 +334,15 @@ class UavActor:
         """First half of a tick: merge the inbox, own scan and sightings. Returns the view to
         plan from when a replan is due (time, or waypoint reached), else ``None``."""
         t = r.t
-        self._here = (r.x, r.y)  # the knowledge horizon's centre (_drain_inbox)
-        self._received = self._drain_inbox(t)
+        self._received = self.inbox.merge(self.mailbox.drain(), t, r.x, r.y, self.umap, self.knowledge,
+                                          self.scans if self._log_scans else None, self.counters)
         radius = self.kind.detect_radius
-        d = self.grid.disk_stamp(r.x, r.y, radius)  # = umap.scan(); the disk is shared
-        if d is not None:
-            self.umap.stamp(d, t)
+        self.claim_scan(self.uid, t, r.x, r.y, radius)
         if self.settings.outside is not None:  # (issue 26: outside the area polygon, always "seen")
             self.umap.stamp(self.settings.outside, t)
         self._pending_scans.extend((t, r.x, r.y, radius))
-        if self._log_scans and self._plausible(r.x, r.y, radius):
-            self.scans.add(self.uid, t, r.x, r.y, radius)
-        if self._lies:
-            self._fabricate(t)
+        if self.outbox_hook is not None:
+            self.outbox_hook.observed(self, t)
         k = self.knowledge
         for st in r.targets:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
@@ -577,65 +550,15 @@ class UavActor:
         self.plan = None
         self._next_replan = -math.inf
 
-    # --- a liar (the liar fault; swarm.node_faults) ----------------------------------------
-
-    def lie(self, scans: Sequence[tuple[float, float, float]], tracks: Sequence[tuple[int, float, float]]) -> None:
-        """Make this Byzantine UAV claim, this tick, the scans ``(x, y, radius)`` it never made
-        and sightings ``(target, x, y)`` of targets that do not exist (set by the simulation
-        before it wakes the actor; the draws are the fault's).
-
-        The fake scans are stamped with the UAV's own time, stamped into its own map and scan
-        log as if real (so its map, its log and what it sends agree: anti-entropy spreads them
-        like any scan) and sent with its next beacon; the tracks go with that beacon, stamped
-        then. Receivers keep one scan per origin and tick (agents.maps.scanlog), so the j-th
-        fake scan of a tick carries the made-up origin ``_GHOST_ORIGIN + uid * 4096 + j``, as a
-        member holding the swarm key can. What does not fit in the beacon frame is dropped;
-        :attr:`lie_sink` is told how many were sent."""
-        self._lies.extend(scans)
-        self._lie_tracks.extend(tracks)
-
-    def _fabricate(self, t: float) -> None:
-        ghost = _GHOST_ORIGIN + (self.uid * _GHOSTS_PER_UAV) % (2**30)
-        for j, (x, y, radius) in enumerate(self._lies):
-            origin = ghost + j % _GHOSTS_PER_UAV
-            d = self.grid.disk_stamp(x, y, radius)
-            if d is not None:
-                self.umap.stamp(d, t)
-            if self._log_scans and self._plausible(x, y, radius):
-                self.scans.add(origin, t, x, y, radius)
-            self._lie_scans.append((origin, t, x, y, radius))
-        self._lies = []
-
-    def _pack_lies(self, t: float, msgs: list[Message | Packed], room: int) -> int:
-        """Add the pending fabrications to a beacon's messages while they fit; returns the room
-        left."""
-        sent = 0
-        by_origin: dict[int, list[float]] = {}
-        for origin, tr, x, y, radius in self._lie_scans:
-            flat = by_origin.get(origin)
-            cost = _SCAN_BYTES + (0 if flat is not None else _MSG_BYTES)
-            if room - cost < 2 * _FRAME_SLACK:
-                break
-            if flat is None:
-                flat = by_origin[origin] = []
-            flat.extend((tr, x, y, radius))
-            room -= cost
-            sent += 1
-        for origin, flat in by_origin.items():
-            msgs.append(pack_scans(origin, flat))
-        items = []
-        for target, x, y in self._lie_tracks:
-            if room - _TRACK_BYTES < 2 * _FRAME_SLACK:
-                break
-            items.append(TrackItem(target, x, y, 0.0, 0.0, t, 1.0))
-            room -= _TRACK_BYTES
-        if items:
-            msgs.append(pack_tracks(items))
-            sent += len(items)
-        self._lie_scans, self._lie_tracks = [], []
-        if sent and self.lie_sink is not None:
-            self.lie_sink(sent)
-        return room
+    def claim_scan(self, origin: int, t: float, x: float, y: float, radius: float) -> None:
+        """Take the scan of a disk ``(x, y, radius)`` at ``t`` as made: stamped into the UAV's map
+        (the disk is shared, grid memo) and logged as ``origin``'s when plausible. Its own scan
+        each tick, and what an :class:`OutboxHook` claims."""
+        d = self.grid.disk_stamp(x, y, radius)  # = umap.scan()
+        if d is not None:
+            self.umap.stamp(d, t)
+        if self._log_scans and self._plausible(x, y, radius):
+            self.scans.add(origin, t, x, y, radius)
 
     def adopt(self, plan: Plan, t: float) -> None:
         """Take a new plan (made from this tick's :class:`PlanView`)."""
@@ -671,7 +594,11 @@ class UavActor:
                                    list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
-        replies = self._answer_digests(t) if self._digests else []
+        replies: list[tuple[int, bytes]] = []
+        if self.inbox.digests:  # (heard this tick)
+            replies = self.anti_entropy.answer(self.inbox.digests, t, k.peers, s.peer_timeout_s, self._frame,
+                                               self.counters)
+            self.inbox.digests = []
         return ActorOutput(a, omega, frames, plan, received, replies, speed)
 
     def _others(self, r: SensorReading, peers: list[Peer]) -> list[tuple[float, float, float, float]]:
@@ -810,156 +737,6 @@ class UavActor:
         # A watcher circles its target: reaching that waypoint is not a reason to replan.
         return p is not None and p.mode != MODE_SURVEIL and math.hypot(p.wx - r.x, p.wy - r.y) < 1.5 * r.v * self.settings.dt
 
-    def _drain_inbox(self, t: float) -> list[tuple[int, int, bool]]:
-        received: list[tuple[int, int, bool]] = []
-        frames = self.mailbox.drain()
-        if not frames:
-            return received
-        append = received.append
-        k = self.knowledge
-        peers = k.peers
-        me = self.uid
-        stamp = self.umap.stamp
-        disk_stamp = self.grid.disk_stamp
-        known_disk = self.grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
-        umap = self.umap
-        # A resent scan missing from the memo is stamped into a tiled map of its own directly
-        # (UncertaintyMap.stamp_once: 35 -> 15 us; group maps keep their own bookkeeping).
-        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
-        old = t - self._fresh_s
-        decode_frame = self._decode
-        cache = self._cache
-        counters = self.counters
-        log_add = self.scans.add_tick if self._log_scans else None
-        # A frame that decodes can still carry numbers no honest UAV sends (a time of 1e308 s,
-        # a threat with no influence ring): the receiver ignores and counts such messages.
-        # What it accepts of a frame (agents.inbox.check_frame) is the same for every receiver
-        # at this tick: checked once, kept beside the shared decoded frame.
-        bounds, grid = self._bounds, self.grid
-        derived = cache.derived if cache is not None else None
-        delivered = ignored = strange = beyond = 0
-        horizon2 = self._horizon2
-        here_x, here_y = self._here
-        for _arrival, sender, data in frames:
-            heard: Heard | None = None
-            frame = None
-            # Another receiver may have decoded (and checked) these very bytes already (shared cache).
-            if derived is not None and type(data) is bytes:
-                heard = derived(data)  # type: ignore[assignment]  # (a Heard: only actors keep values)
-                if heard is None or heard.t != t or heard.grid is not grid or heard.bounds != bounds:
-                    heard = None
-                    frame = cache.lookup(data)  # type: ignore[union-attr]  # (derived: cache is not None)
-            if heard is None:
-                if frame is None:
-                    try:
-                        frame = decode_frame(data)
-                    except AuthError:  # (a FrameError too)
-                        counters.rejected += 1
-                        counters.rejected_auth += 1
-                        append((sender, len(data), False))
-                        continue
-                    except FrameError:
-                        counters.rejected += 1
-                        append((sender, len(data), False))
-                        continue
-                heard = check_frame(frame, t, bounds, grid)
-                if cache is not None and type(data) is bytes:
-                    cache.keep(data, heard)
-            delivered += 1
-            append((sender, len(data), True))
-            ignored += heard.ignored
-            strange += heard.strange
-            for origin, tick, scan, key in heard.scans:
-                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
-                    beyond += 1  # beyond the knowledge horizon (= not scanlog.within(...))
-                elif log_add is None or log_add(origin, tick, scan):  # new to us (else already applied)
-                    # = umap.scan(x, y, r, t_rec); the disk is shared by every map applying
-                    # this record (grid memo).
-                    d = known_disk(key, _MISSING)
-                    if d is _MISSING:
-                        if once is not None and scan[0] < old:
-                            once(*key, scan[0])  # (a resend: this map's cells only, no shared disk)
-                            continue
-                        d = disk_stamp(*key)
-                    if d is not None:
-                        stamp(d, scan[0])
-            ft = heard.t_frame
-            for m in heard.hellos:
-                if m.uav != me:
-                    p = peers.get(m.uav) or k.peer(m.uav)
-                    if ft >= p.t_pose:
-                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
-            for i in heard.intents:
-                if i.uav != me:
-                    p = peers.get(i.uav) or k.peer(i.uav)
-                    if ft >= p.t_intent:
-                        p.wx, p.wy, p.mode, p.target, p.t_intent = i.wx, i.wy, i.mode, i.target, ft
-                        if i.mode == MODE_SEARCH and i.target >= 0:  # (issue 33) a relief request
-                            p.mode, p.asks = MODE_SURVEIL, True
-                        elif p.asks:
-                            p.asks = False
-            if heard.tracks:
-                k.merge_tracks(heard.tracks)
-            for th in heard.threats:
-                k.add_threat(*th)
-            for dg in heard.digests:
-                if dg.uav != me:
-                    self._digests.append(dg)
-        counters.delivered += delivered
-        counters.scans_ignored += ignored
-        counters.scans_beyond += beyond
-        counters.messages_ignored += strange
-        return received
-
-    def _answer_digests(self, t: float) -> list[tuple[int, bytes]]:
-        """Send each digest's sender the scans it lacks (anti-entropy, agents.maps.scanlog), as
-        frames addressed to it alone.
-
-        Not every neighbour answers: in a dense swarm a digest is heard by hundreds of UAVs,
-        and all answering would send the same scans hundreds of times. Each UAV answers when a
-        hash of (itself, the sender, the digest's cut) falls in the first ``2 / n`` of its range,
-        ``n`` the neighbours it hears: about two answer each digest, different ones each round
-        (no random draw: the UAVs' streams are their planners'). With two or fewer neighbours
-        every one answers.
-        """
-        replies: list[tuple[int, bytes]] = []
-        budget = self.settings.radio.sync_max_records
-        per_frame = self._scans_per_frame
-        timeout = self.settings.peer_timeout_s
-        peers = self.knowledge.peers
-        n = sum(1 for p in peers.values() if t - p.t_pose <= timeout)
-        horizon = self._horizon_m
-        for dg in self._digests:
-            if n > _ANSWERERS and _answer_hash(self.uid, dg.uav, dg.t_cut) % n >= _ANSWERERS:
-                continue
-            near = None
-            if not math.isinf(horizon):
-                # The sender's horizon, centred where its Hello (on the digest's own beacon) put it.
-                p = peers.get(dg.uav)
-                if p is None or math.isinf(p.t_pose):
-                    continue  # no pose heard: where its horizon lies is unknown
-                near = (p.x, p.y, horizon)
-            msgs: list[Message | Packed] = []
-            room = per_frame  # scans the current frame can still take
-            for origin, flat in self.scans.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget,
-                                                   near):
-                budget -= len(flat) // 4
-                self.counters.scans_resent += len(flat) // 4
-                while flat:
-                    take, flat = flat[:4 * room], flat[4 * room:]
-                    msgs.append(ScanRecords(origin, tuple(take)))
-                    room -= len(take) // 4
-                    if room == 0:
-                        replies.append((dg.uav, self._frame(t, msgs)))
-                        msgs, room = [], per_frame
-            if msgs:
-                replies.append((dg.uav, self._frame(t, msgs)))
-            if budget <= 0:
-                break
-        self._digests = []
-        self.counters.resent_bytes += sum(len(f) for _, f in replies)
-        return replies
-
     def _frame(self, t: float, messages: Sequence[Message | Packed]) -> bytes:
         self._seq += 1
         self.counters.frames_sent += 1
@@ -987,22 +764,15 @@ class UavActor:
                 pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
                 pack_intent(self.uid, plan.wx, plan.wy, *self._intent(plan)),
             ]
-            room = s.frame_max_bytes - _FRAME_SLACK - _SCAN_BYTES * (len(self._pending_scans) // 4)
+            room = s.frame_max_bytes - FRAME_SLACK - SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:
                 msgs.append(pack_scans(self.uid, self._pending_scans))
                 self._pending_scans = []
-            if self._lie_scans or self._lie_tracks:
-                room = self._pack_lies(t, msgs, room)
-            if s.sync_every_s > 0 and t >= self._next_digest and room > _FRAME_SLACK:
-                # The digest rides on the beacon (no extra frame); a long run's digest is split
-                # over several beacons (agents.maps.scanlog.ScanLog.digest).
-                t_cut = t - s.sync_settle_s
-                self.scans.forget_before(t)
-                tick0, lo, hi, bitmaps, self._digest_start = self.scans.digest(t_cut, self._digest_start, room)
-                msgs.append(ScanDigest(self.uid, t_cut, tick0, lo, hi, bitmaps))
-                self.counters.digests_sent += 1
-                self.counters.digest_bytes += sum(len(b) + 8 for _, b in bitmaps)
-                self._next_digest = t + s.sync_every_s - 1e-9
+            if self.outbox_hook is not None:
+                room = self.outbox_hook.beacon(t, msgs, room)
+            digest = self.anti_entropy.digest(t, room, self.counters)  # (riding on the beacon: no extra frame)
+            if digest is not None:
+                msgs.append(digest)
             frames.append(self._frame(t, msgs))
             self._next_beacon = t + s.beacon_every_s - 1e-9
         k = self.knowledge
@@ -1022,5 +792,5 @@ class UavActor:
         return frames
 
 
-__all__ = ["HOME_TARGET", "NO_TARGET", "ActorOutput", "ActorSettings", "EnergyReading", "SensedTarget", "SensedUav",
-           "SensorReading", "UavActor"]
+__all__ = ["HOME_TARGET", "NO_TARGET", "ActorOutput", "ActorSettings", "EnergyReading", "OutboxHook", "SensedTarget",
+           "SensedUav", "SensorReading", "UavActor"]

@@ -1,22 +1,31 @@
-"""What a receiver accepts of one decoded frame, checked once for all its receivers.
+"""What a UAV hears: its inbox merged into its map, scan log and knowledge.
 
 A broadcast frame reaches hundreds of UAVs in a dense swarm as the same bytes, decoded once
 (:class:`comms.framecache.DecodeCache`). Checking its numbers (:func:`check_frame`) depends only
 on the frame, the receiver's clock ``t`` and the area's bounds, which every receiver in a tick
-shares, so the result (:class:`Heard`) is memoised beside the decoded frame
-(:attr:`DecodeCache.derived`) and each receiver (:meth:`agents.actor.UavActor._drain_inbox`)
-only does what depends on its own state: its knowledge horizon, its scan log, its map, its
-peers. A pure function of ``(frame, t, bounds)``: the memo changes how often it runs, never
-what a receiver gets.
+shares, so the result (:class:`Heard`) is kept beside the decoded frame: a receiver makes one
+call per frame (:meth:`DecodeCache.derive`, keyed by ``(t, bounds)``) and gets the checked
+frame, and :meth:`Inbox.merge` only does what depends on its own state: its knowledge horizon,
+its scan log, its map, its peers. A pure function of ``(frame, t, bounds)``: the memo changes
+how often it runs, never what a receiver gets.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
+from functools import partial
+from typing import Protocol
 
+from agents.knowledge import Knowledge
+from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import DiskKey, Grid
-from comms.codec import Frame
-from comms.messages import Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
+from agents.maps.scanlog import ScanLog
+from agents.maps.umap import UncertaintyMap
+from comms.codec import AuthError, Frame, FrameError, decode
+from comms.framecache import DecodeCache
+from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
 
 # What a receiver accepts of heard numbers: ids below 2**31, speeds and velocities within
 # 10 km/s, headings within 1000 rad, track values within 1e12, digest cuts no earlier than
@@ -38,9 +47,6 @@ Bounds = tuple[float, float, float, float]  # (max scan radius, width, height, d
 class Heard:
     """A frame's messages as a receiver at ``t`` accepts them (in the frame's order per kind)."""
 
-    t: float  # the receiver's clock it was checked for
-    bounds: Bounds  # and the bounds
-    grid: Grid  # and the grid (whose disks these are)
     t_frame: float  # the frame's time (what heard poses and intents are stamped with)
     scans: tuple[HeardScan, ...]
     ignored: int  # implausible scans (counters.scans_ignored)
@@ -52,17 +58,17 @@ class Heard:
     digests: tuple[ScanDigest, ...]
 
 
-def check_frame(frame: Frame, t: float, bounds: Bounds, grid: Grid) -> Heard:
+def check_frame(frame: Frame, t: float, bounds: Bounds) -> Heard:
     """The messages of ``frame`` a receiver at ``t`` accepts. ``bounds`` = ``(max_r, width,
     height, dt)``: places may lie up to ``max_r`` outside the ``width x height`` area, scan radii
     up to ``max_r``; times not after ``t``; ids and speeds in ranges no arithmetic can overflow.
     A frame stamped in the future (or before the run) is ignored whole. Each plausible scan
-    comes with its tick (``round(t / dt)``, the scan log's) and its disk's key. ``grid``: whose
-    disks the receivers look up (a Heard is only reused by receivers of the same grid)."""
+    comes with its tick (``round(t / dt)``, the scan log's) and its disk's key (in any grid of
+    that size: each receiver looks it up in its own)."""
     max_r, width, height, dt = bounds
     ft = frame.t
     if not 0.0 <= ft <= t:
-        return Heard(t, bounds, grid, ft, (), 0, len(frame.messages), (), (), (), (), ())
+        return Heard(ft, (), 0, len(frame.messages), (), (), (), (), ())
     lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
     scans: list[HeardScan] = []
     hellos: list[Hello] = []
@@ -112,8 +118,151 @@ def check_frame(frame: Frame, t: float, bounds: Bounds, grid: Grid) -> Heard:
                 digests.append(m)
             else:
                 strange += 1
-    return Heard(t, bounds, grid, ft, tuple(scans), ignored, strange, tuple(hellos), tuple(intents), tuple(tracks),
+    return Heard(ft, tuple(scans), ignored, strange, tuple(hellos), tuple(intents), tuple(tracks),
                  tuple(threats), tuple(digests))
 
 
-__all__ = ["Bounds", "Heard", "HeardScan", "check_frame"]
+class InboxCounters(Protocol):
+    """The tallies :meth:`Inbox.merge` adds to (the actor's ``ActorCounters``)."""
+
+    delivered: int
+    rejected: int
+    rejected_auth: int
+    scans_ignored: int
+    scans_beyond: int
+    messages_ignored: int
+
+
+Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each frame drained
+
+
+class Inbox:
+    """A UAV's receiving side: decodes, checks and merges the frames it drained.
+
+    Holds what does not change over a run (the UAV's id, grid, bounds, knowledge horizon, the
+    age of a resend, how frames are decoded and checked); the state it merges into (map, scan
+    log, knowledge, counters) is the actor's, passed in each tick. The digests heard are kept
+    in :attr:`digests` until the actor answers them.
+    """
+
+    __slots__ = ("uid", "grid", "bounds", "horizon2", "fresh_s", "digests", "_heard")
+
+    def __init__(self, uid: int, grid: Grid, bounds: Bounds, horizon_m: float, fresh_s: float,
+                 decoder: DecodeCache | None, max_bytes: int, key: bytes | None):
+        """``bounds``: :func:`check_frame`'s. ``horizon_m``: the knowledge horizon (heard scans
+        centred farther than this from the UAV are neither applied nor logged; inf: none).
+        ``fresh_s``: heard scans older than this are anti-entropy resends (their disks are not
+        worth sharing). ``decoder``: the simulation's shared cache (it decodes with the swarm's
+        key); without one, frames are decoded with ``max_bytes`` and ``key``, each time."""
+        self.uid = uid
+        self.grid = grid
+        self.bounds = bounds
+        self.horizon2 = None if math.isinf(horizon_m) else horizon_m * horizon_m
+        self.fresh_s = fresh_s
+        self.digests: list[ScanDigest] = []  # heard, not yet answered
+        # heard(data, key, check) -> the Heard of data's frame for key = (t, bounds), raising
+        # FrameError: one call into the shared cache (the value kept beside the frame, or
+        # derived and kept), or decode and check.
+        self._heard: Callable[[bytes, Hashable, Callable[[Frame], Heard]], Heard]
+        if decoder is not None:
+            self._heard = decoder.derive
+        else:
+            decode_frame = partial(decode, max_bytes=max_bytes, key=key)
+            self._heard = lambda data, _key, check: check(decode_frame(data))
+
+    def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
+              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:
+        """Merge ``frames`` (a mailbox's ``(arrival, sender, data)``), heard at ``t`` by the UAV
+        at ``(here_x, here_y)``, into its map, scan log (None: not kept) and knowledge; count
+        them in ``counters``. Returns ``(sender, nbytes, accepted)`` per frame.
+
+        A frame that does not decode (with ``[radio] auth``, one failing its MAC too) is
+        rejected. One that decodes can still carry numbers no honest UAV sends (a time of
+        1e308 s, a threat with no influence ring): those messages are ignored and counted
+        (:func:`check_frame`)."""
+        received: Received = []
+        if not frames:
+            return received
+        append = received.append
+        k = knowledge
+        peers = k.peers
+        me = self.uid
+        stamp = umap.stamp
+        grid = self.grid
+        disk_stamp = grid.disk_stamp
+        known_disk = grid.disk_lookup()  # disk_stamp's memo, without the call (hot loop)
+        # A resent scan missing from the memo is stamped into a tiled map of its own directly
+        # (UncertaintyMap.stamp_once: 35 -> 15 us; group maps keep their own bookkeeping).
+        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
+        old = t - self.fresh_s
+        log_add = scans.add_tick if scans is not None else None
+        bounds = self.bounds
+        key = (t, bounds)  # what a Heard is checked for (and kept beside its frame for)
+
+        def check(frame: Frame) -> Heard:
+            return check_frame(frame, t, bounds)
+
+        heard_of = self._heard
+        digests = self.digests
+        delivered = ignored = strange = beyond = 0
+        horizon2 = self.horizon2
+        for _arrival, sender, data in frames:
+            try:
+                heard = heard_of(data, key, check)
+            except AuthError:  # (a FrameError too)
+                counters.rejected += 1
+                counters.rejected_auth += 1
+                append((sender, len(data), False))
+                continue
+            except FrameError:
+                counters.rejected += 1
+                append((sender, len(data), False))
+                continue
+            delivered += 1
+            append((sender, len(data), True))
+            ignored += heard.ignored
+            strange += heard.strange
+            for origin, tick, scan, disk_key in heard.scans:
+                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
+                    beyond += 1  # beyond the knowledge horizon (= not scanlog.within(...))
+                elif log_add is None or log_add(origin, tick, scan):  # new to us (else already applied)
+                    # = umap.scan(x, y, r, t_rec); the disk is shared by every map applying
+                    # this record (grid memo).
+                    d = known_disk(disk_key, _MISSING)
+                    if d is _MISSING:
+                        if once is not None and scan[0] < old:
+                            once(*disk_key, scan[0])  # (a resend: this map's cells only, no shared disk)
+                            continue
+                        d = disk_stamp(*disk_key)
+                    if d is not None:
+                        stamp(d, scan[0])
+            ft = heard.t_frame
+            for m in heard.hellos:
+                if m.uav != me:
+                    p = peers.get(m.uav) or k.peer(m.uav)
+                    if ft >= p.t_pose:
+                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = m.type, m.x, m.y, m.v, m.theta, ft
+            for i in heard.intents:
+                if i.uav != me:
+                    p = peers.get(i.uav) or k.peer(i.uav)
+                    if ft >= p.t_intent:
+                        p.wx, p.wy, p.mode, p.target, p.t_intent = i.wx, i.wy, i.mode, i.target, ft
+                        if i.mode == MODE_SEARCH and i.target >= 0:  # (issue 33) a relief request
+                            p.mode, p.asks = MODE_SURVEIL, True
+                        elif p.asks:
+                            p.asks = False
+            if heard.tracks:
+                k.merge_tracks(heard.tracks)
+            for th in heard.threats:
+                k.add_threat(*th)
+            for dg in heard.digests:
+                if dg.uav != me:
+                    digests.append(dg)
+        counters.delivered += delivered
+        counters.scans_ignored += ignored
+        counters.scans_beyond += beyond
+        counters.messages_ignored += strange
+        return received
+
+
+__all__ = ["Bounds", "Heard", "HeardScan", "Inbox", "InboxCounters", "Received", "check_frame"]

@@ -51,6 +51,10 @@ MAGIC = 0x5357  # "SW"
 VERSION = 1
 DEFAULT_MAX_BYTES = 65536
 MAC_BYTES = 16  # HMAC-SHA256 truncated to 128 bits
+# What a sender budgets in a frame: the bytes of one scan in a ScanRecords message (four msgpack
+# floats) and the room it keeps for the frame's own header (and MAC and CRC).
+SCAN_BYTES = 36
+FRAME_SLACK = 256
 
 K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST = 1, 2, 3, 4, 5, 6
 

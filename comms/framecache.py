@@ -14,44 +14,43 @@ gets it, each time (a corrupted copy is almost always unique to one link anyway)
 only changes how often the codec runs, never what a receiver gets: a hit returns the frame
 decoding those bytes would give, a miss decodes them.
 
-Beside each frame the cache keeps one value derived from it by its receivers
-(:meth:`DecodeCache.keep`, :attr:`DecodeCache.derived`; the actors keep what they accept of the
-frame at the tick's time, :func:`agents.inbox.check_frame`): also a pure memo, dropped with its
-frame.
-
-The receivers' fast paths are plain dict lookups, bound once: :attr:`DecodeCache.lookup` (the
-frame of some bytes) and :attr:`DecodeCache.derived` (the value kept for them).
+Beside each frame the cache keeps one value derived from it by its receivers, with what it
+was derived for (:meth:`DecodeCache.derive`: the actors keep what they accept of the frame at
+the tick's time, :func:`agents.inbox.check_frame`): also a pure memo, dropped with its frame.
+A receiver makes one call per heard frame: the value kept, or (decoding the bytes if the frame
+is not held) the value derived now and kept.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from itertools import islice
+from typing import Any, TypeVar
 
 from comms.codec import DEFAULT_MAX_BYTES, Frame, Packed, decode, encode_decoded
 from comms.messages import Message
 
 DECODE_CACHE_SIZE = 8192
 
+V = TypeVar("V")
+
 
 class DecodeCache:
-    __slots__ = ("max_bytes", "key", "size", "_frames", "_derived", "decoded", "lookup", "derived")
+    __slots__ = ("max_bytes", "key", "size", "_frames", "_derived", "decoded", "lookup")
 
     lookup: Callable[[bytes], Frame | None]
-    derived: Callable[[bytes], object | None]
 
     def __init__(self, max_bytes: int = DEFAULT_MAX_BYTES, size: int = DECODE_CACHE_SIZE, key: bytes | None = None):
         self.max_bytes = max_bytes
         self.key = key
         self.size = max(1, size)
         self._frames: dict[bytes, Frame] = {}
-        self._derived: dict[bytes, object] = {}  # bytes -> a value derived from the frame: see keep()
+        # bytes -> (what a value was derived for, the value derived from their frame): derive()
+        self._derived: dict[bytes, tuple[Hashable, Any]] = {}
         self.decoded = 0  # frames actually run through the codec
-        # lookup(data) -> the cached Frame or None, without decoding (``data`` must be bytes);
-        # derived(data) -> the value kept for the frame of ``data`` (keep()), or None. The
-        # receivers' fast paths: plain dict lookups.
+        # lookup(data) -> the cached Frame or None, without decoding (``data`` must be bytes):
+        # a plain dict lookup.
         self.lookup = self._frames.get
-        self.derived = self._derived.get
 
     def decode(self, data: bytes) -> Frame:
         """:func:`comms.codec.decode` ``(data, max_bytes, key)``, memoised for ``bytes`` that decode."""
@@ -84,13 +83,26 @@ class DecodeCache:
                 derived.pop(k, None)
         frames[data] = frame
 
-    def keep(self, data: bytes, value: object) -> None:
-        """Keep ``value``, derived from the frame of ``data`` (a cached frame), in place of any
-        value kept for it before. The value must say what it was derived for (the receivers'
-        clock, say) and be a pure function of the frame and that, so that using it where that
-        matches is the same as deriving it again."""
-        if data in self._frames:
-            self._derived[data] = value
+    def derive(self, data: bytes, key: Hashable, derive: Callable[[Frame], V]) -> V:
+        """``derive(frame)`` of the frame ``data`` decodes to, kept beside the frame for ``key``.
+
+        ``key`` says what the value is derived for (the receivers' clock and bounds, say):
+        ``derive`` must be a pure function of the frame and ``key``, so that the value kept for
+        an equal key is the value deriving it again would give. If a value is kept for ``data``
+        with an equal key, that value; else the frame (the cached one, or ``data`` decoded now,
+        which raises :class:`~comms.codec.FrameError` and keeps nothing) is derived, and the
+        value kept for ``key`` in place of any kept before. One call per heard frame, one dict
+        lookup when the value is kept. ``data`` that is not ``bytes`` is decoded and derived,
+        nothing kept."""
+        if type(data) is not bytes:
+            return derive(self.decode(data))
+        kept = self._derived.get(data)
+        if kept is not None and kept[0] == key:
+            value: V = kept[1]
+            return value
+        value = derive(self.decode(data))  # (the frame held, or decoded: a FrameError keeps nothing)
+        self._derived[data] = (key, value)
+        return value
 
     def __len__(self) -> int:
         return len(self._frames)

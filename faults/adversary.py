@@ -1,17 +1,17 @@
-"""Adversaries: a lying member (liar, a tick fault) and a spoofing outsider (spoofer, a
-transmitter of its own)."""
+"""Adversaries: a lying member (liar, a tick fault, with what it fabricates: its actor's
+outbox hook) and a spoofing outsider (spoofer, a transmitter of its own)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 
-from comms.codec import encode
+from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, encode, pack_scans, pack_tracks
 from comms.messages import Hello, Message, ScanRecords, TrackItem, Tracks
 from comms.radio import SPOOF_SENDER, Delivery
 from faults.base import END, PHANTOM_TARGET_ID, START, UAV, FaultRng, RadioHost, TickFault, Transmitter, Windowed
@@ -19,12 +19,19 @@ from faults.registry import register
 from faults.sensing import PHANTOM_ID_SPAN
 
 if TYPE_CHECKING:
+    from agents.actor import UavActor
     from faults.tick import TickFaults
 
 # Liars' track ids count up from here (false alarms use the span below it).
 LIAR_TRACK_IDS = PHANTOM_TARGET_ID + PHANTOM_ID_SPAN
 # Scan records in each spoofed frame.
 SPOOF_SCANS = 4
+# A liar's fabrications (Lies): bytes of a ScanRecords message's own header (at most), of a
+# packed track item, and the made-up origin ids its fake scans carry.
+_MSG_BYTES = 16
+_TRACK_BYTES = 80
+_GHOST_ORIGIN = 1_000_000_000
+_GHOSTS_PER_UAV = 4096
 
 
 @register
@@ -49,7 +56,7 @@ class Liar(TickFault):
     def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
         """This tick's fabrications for the liar's actor: scans at uniform points of the area
         with its detection radius, tracks of phantom targets at uniform positions. It fires
-        per fabrication sent (the actor's ``lie_sink``), not when it starts."""
+        per fabrication sent (:class:`Lies`, the actor's outbox hook), not when it starts."""
         if faults.first(index, uid):
             faults.emit("fault_on", faults.t, self.kind, uid)
         actor = faults.actors[uid]
@@ -60,9 +67,74 @@ class Liar(TickFault):
         scans = [(x * w, y * h, actor.kind.detect_radius) for x, y in g.random((n_scans, 2)).tolist()]
         tracks = [(faults.serial("liar", LIAR_TRACK_IDS, PHANTOM_ID_SPAN), x * w, y * h)
                   for x, y in g.random((n_tracks, 2)).tolist()]
-        actor.lie(scans, tracks)
-        if actor.lie_sink is None:
-            actor.lie_sink = partial(faults.fired, self.kind)
+        lies = actor.outbox_hook
+        if not isinstance(lies, Lies):
+            lies = actor.outbox_hook = Lies(uid, partial(faults.fired, self.kind))
+        lies.add(scans, tracks)
+
+
+class Lies:
+    """A liar's fabrications on their way out: its actor's outbox hook
+    (:class:`agents.actor.OutboxHook`).
+
+    The fake scans of a tick (:meth:`add`) are stamped with the UAV's own time, stamped into
+    its own map and scan log as if real (:meth:`observed`: so its map, its log and what it sends
+    agree, and anti-entropy spreads them like any scan) and sent with its next beacon; the
+    tracks go with that beacon, stamped then (:meth:`beacon`). Receivers keep one scan per
+    origin and tick (agents.maps.scanlog), so the j-th fake scan of a tick carries the made-up
+    origin ``1_000_000_000 + uid * 4096 + j``, as a member holding the swarm key can. What does
+    not fit in the beacon frame is dropped; ``sink`` is told how many were sent."""
+
+    def __init__(self, uid: int, sink: Callable[[int], None]):
+        self.ghost = _GHOST_ORIGIN + (uid * _GHOSTS_PER_UAV) % (2**30)
+        self.sink = sink
+        self.to_make: list[tuple[float, float, float]] = []  # (x, y, radius): claimed at the next step
+        self.scans: list[tuple[int, float, float, float, float]] = []  # (origin, t, x, y, radius): to send
+        self.tracks: list[tuple[int, float, float]] = []  # (target, x, y): to send
+
+    def add(self, scans: Sequence[tuple[float, float, float]], tracks: Sequence[tuple[int, float, float]]) -> None:
+        """This tick's fabrications: scans ``(x, y, radius)`` the UAV never made and sightings
+        ``(target, x, y)`` of targets that do not exist (added before the actor wakes; the
+        draws are the fault's)."""
+        self.to_make.extend(scans)
+        self.tracks.extend(tracks)
+
+    def observed(self, actor: UavActor, t: float) -> None:
+        ghost = self.ghost
+        for j, (x, y, radius) in enumerate(self.to_make):
+            origin = ghost + j % _GHOSTS_PER_UAV
+            actor.claim_scan(origin, t, x, y, radius)
+            self.scans.append((origin, t, x, y, radius))
+        self.to_make = []
+
+    def beacon(self, t: float, messages: list[Message | Packed], room: int) -> int:
+        sent = 0
+        by_origin: dict[int, list[float]] = {}
+        for origin, tr, x, y, radius in self.scans:
+            flat = by_origin.get(origin)
+            cost = SCAN_BYTES + (0 if flat is not None else _MSG_BYTES)
+            if room - cost < 2 * FRAME_SLACK:
+                break
+            if flat is None:
+                flat = by_origin[origin] = []
+            flat.extend((tr, x, y, radius))
+            room -= cost
+            sent += 1
+        for origin, flat in by_origin.items():
+            messages.append(pack_scans(origin, flat))
+        items = []
+        for target, x, y in self.tracks:
+            if room - _TRACK_BYTES < 2 * FRAME_SLACK:
+                break
+            items.append(TrackItem(target, x, y, 0.0, 0.0, t, 1.0))
+            room -= _TRACK_BYTES
+        if items:
+            messages.append(pack_tracks(items))
+            sent += len(items)
+        self.scans, self.tracks = [], []
+        if sent:
+            self.sink(sent)
+        return room
 
 
 @register

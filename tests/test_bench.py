@@ -141,6 +141,7 @@ def test_samples_are_filed_under_the_innermost_phase():
         return frame
 
     from agents.actor import UavActor
+    from agents.inbox import Inbox
     from agents.planners.greedy import GreedyPlanner
     from comms.radio import Radio
     from swarm.metrics import Metrics
@@ -148,8 +149,8 @@ def test_samples_are_filed_under_the_innermost_phase():
 
     tick = Simulation._tick
     assert bench.classify(chain(tick, UavActor.step, GreedyPlanner.plan, UncertaintyMap.q_at)) == "planning"
-    assert bench.classify(chain(tick, UavActor.step, UavActor._drain_inbox, UncertaintyMap.stamp)) == "map"
-    assert bench.classify(chain(tick, UavActor.step, UavActor._drain_inbox)) == "actors"
+    assert bench.classify(chain(tick, UavActor.step, UavActor.observe, Inbox.merge, UncertaintyMap.stamp)) == "map"
+    assert bench.classify(chain(tick, UavActor.step, UavActor.observe, Inbox.merge)) == "actors"
     assert bench.classify(chain(tick, Metrics.scan, UncertaintyMap.cover)) == "world"
     assert bench.classify(chain(tick, Radio.broadcast)) == "radio"
     assert bench.classify(chain(tick, Grid.prefetch_disks)) == "map"

@@ -288,6 +288,31 @@ def test_the_others_believe_the_liars_scans():
     assert (believed & ~truth).sum() > 0  # cells nobody scanned, which B2 takes for scanned
 
 
+def test_a_liars_fabrications_ride_on_its_actors_outbox_hook():
+    """faults.adversary.Lies is the liar's actor's outbox hook (agents.actor.OutboxHook), the
+    others have none; what it claimed is in the liar's own scan log under made-up origins and
+    reached another UAV's log; agents/actor.py itself names no liar and no fabrication."""
+    from pathlib import Path
+
+    import agents.actor
+    from faults.adversary import Lies
+
+    f = Liar(uav="B1", scans_per_s=2.0, tracks_per_s=0.5)
+    sc = _scenario(20.0)
+    assert sc.radio.sync_every_s > 0  # (anti-entropy on: scan logs are kept)
+    with Simulation(sc, seed=1) as sim:
+        sim.add_fault(f)
+        result = sim.run()
+        hooks = {u: type(a.outbox_hook) for u, a in sim.actors.items()}
+        origins = {u: {o for o, _ in a.scans.scans()} for u, a in sim.actors.items()}
+    assert hooks == {B1: Lies, B2: type(None), A1: type(None), A2: type(None)}
+    ghosts = {o for o in origins[B1] if o >= 1_000_000_000}
+    assert len(ghosts) >= 2 and ghosts & origins[B2]
+    assert result.metrics["faults_applied"] == {"liar": 20 * 2 + 10}
+    source = Path(agents.actor.__file__).read_text().lower()
+    assert "liar" not in source and "fabricat" not in source and "lie(" not in source
+
+
 # --- as data, and together ----------------------------------------------------------------------
 
 ALL_SIX = [

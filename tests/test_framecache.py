@@ -50,6 +50,41 @@ def test_size_bound_evicts_oldest_without_changing_results():
     assert [cache.decode(d) for d in frames] == [decode(d) for d in frames]
 
 
+def hear(actor, t: float):
+    """The actor's inbox merged at ``t`` (agents.inbox.Inbox.merge), as its step does first."""
+    return actor.inbox.merge(actor.mailbox.drain(), t, 0.0, 0.0, actor.umap, actor.knowledge, actor.scans,
+                             actor.counters)
+
+
+def test_derive_keeps_one_value_per_frame_for_what_it_was_derived_for():
+    """DecodeCache.derive: the value kept for an equal key without deriving again; another key
+    derives from the frame held (no decoding) and replaces it; the value goes with its frame;
+    a frame that does not decode raises each time and keeps nothing; bytes-like data that is
+    not bytes is derived every time."""
+    cache = DecodeCache(size=1)
+    data = frame(1)
+    calls = []
+
+    def derive(f):
+        calls.append(f)
+        return len(calls)
+
+    assert cache.derive(data, "a", derive) == 1 and calls == [decode(data)] and cache.decoded == 1
+    assert cache.derive(data, "a", derive) == 1 and len(calls) == 1  # kept
+    assert cache.derive(data, "b", derive) == 2 and cache.decoded == 1  # derived again, not decoded
+    assert cache.derive(data, "a", derive) == 3  # one value a frame: the last key's
+    cache.decode(frame(9))  # evicts the frame (size 1), and what was kept with it
+    assert cache.lookup(data) is None
+    assert cache.derive(data, "a", derive) == 4 and cache.decoded == 3
+    bad = bytearray(data)
+    bad[-1] ^= 0xFF  # the CRC
+    for _ in range(2):
+        with pytest.raises(FrameError):
+            cache.derive(bytes(bad), "a", derive)
+    assert len(calls) == 4 and cache.decoded == 5 and cache.lookup(bytes(bad)) is None
+    assert cache.derive(bytearray(data), "a", derive) == 5 and cache.derive(bytearray(data), "a", derive) == 6
+
+
 def test_receivers_sharing_a_cache_count_their_own_rejections():
     import numpy as np
 
@@ -69,8 +104,8 @@ def test_receivers_sharing_a_cache_count_their_own_rejections():
     bad[-1] ^= 0xFF  # the CRC
     actors[0].mailbox.put(1.0, 3, bytes(bad))
     actors[1].mailbox.put(1.0, 3, good)
-    assert actors[0]._drain_inbox(10.0) == [(3, len(good), False)]
-    assert actors[1]._drain_inbox(10.0) == [(3, len(good), True)]
+    assert hear(actors[0], 10.0) == [(3, len(good), False)]
+    assert hear(actors[1], 10.0) == [(3, len(good), True)]
     assert (actors[0].counters.rejected, actors[0].counters.delivered) == (1, 0)
     assert (actors[1].counters.rejected, actors[1].counters.delivered) == (0, 1)
     assert 3 in actors[1].knowledge.peers and 3 not in actors[0].knowledge.peers
@@ -98,17 +133,13 @@ def test_a_checked_frame_is_reused_only_at_the_clock_it_was_checked_for():
     data = encode(3, 1, 1.0, [Hello(3, "B", 1.0, 2.0, 80.0, 0.1), ScanRecords(3, (1.5, 10.0, 20.0, 2000.0))])
     for a in actors:
         a.mailbox.put(1.0, 3, data)
-    actors[0]._drain_inbox(1.0)
-    actors[1]._drain_inbox(2.0)
-    actors[2]._drain_inbox(1.0)
+    hear(actors[0], 1.0)
+    hear(actors[1], 2.0)
+    hear(actors[2], 1.0)
     assert [a.counters.scans_ignored for a in actors] == [1, 0, 1]
     assert [int(np.isfinite(a.umap.to_dense()).any()) for a in actors] == [0, 1, 0]
     assert all(a.knowledge.peers[3].t_pose == 1.0 for a in actors)
-    assert cache.decoded == 1 and cache.derived(data) is not None
-    cache.decode(frame(9))  # evicts the frame (size 1), and what was kept with it
-    assert cache.lookup(data) is None and cache.derived(data) is None
-    cache.keep(data, "x")  # nothing is kept for a frame the cache does not hold
-    assert cache.derived(data) is None
+    assert cache.decoded == 1
 
 
 def test_a_sent_frame_is_found_as_decoding_it_would_give():

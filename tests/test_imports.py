@@ -168,7 +168,7 @@ def test_import_circles_are_found_at_any_depth_but_not_through_type_checking():
 # instance of the same class (a map merging or copying another map, a pyramid batching the work of
 # several, the shared surveillance logic preparing the plans of several of its instances).
 # Another class's internals are read through a public name (issue 24: the radio's
-# RadioGraph.edge_data, DecodeCache.derived, Disk.values_memo / stamps_memo, MapGroup.base_cells
+# RadioGraph.edge_data, DecodeCache.derive, Disk.values_memo / stamps_memo, MapGroup.base_cells
 # and the extra scans a MapGroup keeps for its members, DacmpPlanner.keep / search_weights / scratch).
 SAME_CLASS = {
     "agents/maps/umap.py": {"new._tiles", "new._changes", "new._nty", "new._ntx", "other._materialize", "other._tiles"},
