@@ -58,7 +58,7 @@ class Liar(TickFault):
         with its detection radius, tracks of phantom targets at uniform positions. It fires
         per fabrication sent (:class:`Lies`, the actor's outbox hook), not when it starts."""
         if faults.first(index, uid):
-            faults.emit("fault_on", faults.t, self.kind, uid)
+            faults.events.fault_on(t=faults.t, fault=self.kind, uav=uid)
         actor = faults.actors[uid]
         g = faults.stream(index, self.kind, uid)
         w, h = faults.area

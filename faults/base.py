@@ -107,6 +107,27 @@ class BatteryLike(Protocol):
         ...
 
 
+class FaultEvents(Protocol):
+    """The event log as the tick faults write to it (the simulation's, through the writers of
+    ``swarm.events``): one call per kind, every field named."""
+
+    def fault_on(self, *, t: float, fault: str, uav: int) -> None:
+        """A node or sensing fault began to act on a UAV."""
+        ...
+
+    def fault_off(self, *, t: float, fault: str, uav: int) -> None:
+        """A node or sensing fault's window closed for a UAV it acted on."""
+        ...
+
+    def pause(self, *, t: float, uav: int) -> None:
+        """A pause fault stopped a UAV's process."""
+        ...
+
+    def resume(self, *, t: float, uav: int) -> None:
+        """A paused UAV's process runs again."""
+        ...
+
+
 class RadioHost(Protocol):
     """What a fault that transmits frames of its own (:meth:`FaultKind.transmitter`) may read
     and use of a run, in the tick's transmit phase."""
@@ -313,6 +334,6 @@ class TickFault(Windowed):
         if math.isfinite(self.end_s):
             host.at(self.end_s, lambda: host.close_window(index, self))
 
-    def off_event(self, t: float, uid: int) -> tuple[Any, ...]:
-        """The event that says it stopped acting on ``uid`` (its window closed)."""
-        return ("fault_off", t, self.kind, uid)
+    def ended(self, events: FaultEvents, t: float, uid: int) -> None:
+        """Write that it stopped acting on ``uid`` (its window closed at ``t``)."""
+        events.fault_off(t=t, fault=self.kind, uav=uid)

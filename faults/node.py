@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
-from faults.base import START, UAV, FaultHost, FaultKind, TickFault
+from faults.base import START, UAV, FaultEvents, FaultHost, FaultKind, TickFault
 from faults.registry import register
 
 if TYPE_CHECKING:
@@ -120,9 +120,9 @@ class Pause(TickFault):
             return  # never woken yet (just joined or restarted): no last command to fly
         faults.paused.add(uid)
         if faults.first(index, uid):
-            faults.emit("pause", faults.t, uid)
+            faults.events.pause(t=faults.t, uav=uid)
             faults.fired(self.kind, 1)
 
-    def off_event(self, t: float, uid: int) -> tuple[Any, ...]:
-        return ("resume", t, uid)
+    def ended(self, events: FaultEvents, t: float, uid: int) -> None:
+        events.resume(t=t, uav=uid)
 

@@ -49,7 +49,7 @@ class ClockSkew(TickFault):
 
     def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
         if faults.first(index, uid):
-            faults.emit("fault_on", faults.t, self.kind, uid)
+            faults.events.fault_on(t=faults.t, fault=self.kind, uav=uid)
             faults.fired(self.kind, 1)
         faults.readings[uid].t += self.error(faults.t)
 
@@ -73,7 +73,7 @@ class NavError(TickFault):
 
     def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
         if faults.first(index, uid):
-            faults.emit("fault_on", faults.t, self.kind, uid)
+            faults.events.fault_on(t=faults.t, fault=self.kind, uav=uid)
             faults.fired(self.kind, 1)
         r = faults.readings[uid]
         ex, ey = self.bias_x_m, self.bias_y_m
@@ -130,7 +130,7 @@ class Sensor(TickFault):
         if n:
             faults.fired(self.kind, n)
         if faults.first(index, uid):
-            faults.emit("fault_on", faults.t, self.kind, uid)
+            faults.events.fault_on(t=faults.t, fault=self.kind, uav=uid)
 
 
 def skewed_stamps(faults: Iterable[object], duration_s: float) -> list[tuple[float, float]]:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from agents.actor import SensorReading, UavActor
-from faults.base import TickFault
+from faults.base import FaultEvents, TickFault
 
 Stream = Callable[..., np.random.Generator]
 
@@ -28,8 +28,10 @@ Stream = Callable[..., np.random.Generator]
 class TickFaults:
     """The open tick faults of one simulation, and what they did this tick."""
 
-    def __init__(self, stream: Stream, names: Mapping[str, int], area: tuple[float, float], dt: float):
+    def __init__(self, stream: Stream, names: Mapping[str, int], area: tuple[float, float], dt: float,
+                 events: FaultEvents):
         self._stream_of = stream
+        self.events = events  # where the faults write their events (fault_on, pause, ...)
         self.names = names
         self.area = area
         self.dt = dt
@@ -48,7 +50,6 @@ class TickFaults:
         self.readings: dict[int, SensorReading] = {}
         self.actors: Mapping[int, UavActor] = {}
         self.pausable: Callable[[int], bool] = lambda uid: False
-        self.emit: Callable[..., None] = lambda *event: None
         self.fired: Callable[[str, int], None] = lambda kind, n: None
 
     def stream(self, index: int, kind: str, uid: int) -> np.random.Generator:
@@ -91,11 +92,13 @@ class TickFaults:
     def open(self, index: int, fault: TickFault) -> None:
         self.active.append((index, fault))
 
-    def close(self, index: int, fault: TickFault, t: float, uids: Sequence[int]) -> list[tuple[Any, ...]]:
-        """Fault ``index``'s window closed at ``t``: the events that say it stopped acting on
-        those of ``uids`` it had acted on."""
+    def close(self, index: int, fault: TickFault, t: float, uids: Sequence[int]) -> None:
+        """Fault ``index``'s window closed at ``t``: write that it stopped acting on those of
+        ``uids`` it had acted on (:meth:`TickFault.ended`)."""
         self.active = [(i, f) for i, f in self.active if i != index]
-        return [fault.off_event(t, uid) for uid in uids if self.forget(index, uid)]
+        for uid in uids:
+            if self.forget(index, uid):
+                fault.ended(self.events, t, uid)
 
     def node_down(self, uid: int) -> None:
         """UAV ``uid`` went down: the faults that end with its process forget it (no event)."""
@@ -112,13 +115,13 @@ class TickFaults:
 
     def apply(self, t: float, alive: list[int], readings: dict[int, SensorReading],
               actors: Mapping[int, UavActor], pausable: Callable[[int], bool],
-              emit: Callable[..., None], fired: Callable[[str, int], None]) -> None:
+              fired: Callable[[str, int], None]) -> None:
         """Let the active faults act on this tick's readings (in place) and actors."""
         self.paused = set()
         self.truth = {}
         self.detected = None
         self.t, self.readings, self.actors = t, readings, actors
-        self.pausable, self.emit, self.fired = pausable, emit, fired
+        self.pausable, self.fired = pausable, fired
         alive_set = set(alive)
         for index, f in sorted(self.active, key=lambda p: (p[1].tick_order, p[0])):
             for uid in f.tick_uavs(alive, self.names):

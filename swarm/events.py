@@ -24,8 +24,13 @@ Records are slots dataclasses, not tuples: a reader names the field it wants (``
 indexing a record by position fails loudly instead of reading the wrong field. They are not
 frozen: a frozen dataclass costs four times as much to build (1.2 against 0.3 microseconds for
 a pose), and live subscribers and full-log readers build one per event. Treat them as read-only.
-The simulation itself still writes plain tuples (a tuple is three times cheaper than a record,
-and the bytes are the same); nothing is converted unless someone subscribes.
+
+The simulation writes an event as the log's array, a tuple (three times cheaper than a record,
+and the bytes are the same; nothing is converted unless someone subscribes), made by this
+module's writer of its kind: one function per kind, named after it (:func:`pose`,
+:func:`found`, ...), whose arguments are keywords, so that a write site names every field and
+never knows their order (a :data:`Wire`, the one type the recorder takes). A tick's many
+``target`` events are packed from arrays by :func:`pack_target_events`.
 """
 
 from __future__ import annotations
@@ -36,9 +41,10 @@ import typing
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, ClassVar, NewType
 
 import msgpack
+import numpy as np
 
 from comms.messages import MODE_NAMES
 from swarm.errors import SwarmError, UsageError
@@ -80,6 +86,33 @@ __all__ = [
     "Target",
     "Violation",
     "PROVENANCE_KEY",
+    "Wire",
+    "crash",
+    "energy_out",
+    "fault_off",
+    "fault_on",
+    "found",
+    "handover",
+    "host",
+    "join",
+    "landed",
+    "launched",
+    "lost",
+    "mode",
+    "pack_target_events",
+    "pause",
+    "pose",
+    "radio",
+    "release",
+    "relief",
+    "restart",
+    "resume",
+    "rtb",
+    "rx",
+    "start",
+    "target",
+    "violation",
+    "wind",
     "check_kinds",
     "check_log",
     "check_wire",
@@ -441,6 +474,154 @@ _RECORDS: tuple[type[Event], ...] = (
     Start, Pose, Target, Mode, Found, Release, Handover, Rx, Lost, Radio, Join, Crash, Violation,
     Pause, Resume, Restart, FaultOn, FaultOff, Wind, Relief, ReturnToBase, Landed, Launched, EnergyOut, Host,
 )
+
+
+# --- writing: one call per kind -------------------------------------------------------------------
+# What the simulation writes: the log's array of an event, as a tuple, from the writer of its
+# kind below. The arguments are keywords (a write site names each field; the order is known
+# here only). tests/test_events.py checks each writer against its record: the written fields,
+# in order, of the same types.
+
+Wire = NewType("Wire", tuple[Any, ...])  # an event as the log holds it: (kind, t, field, ...)
+
+
+def start(*, t: float, header: dict[str, Any]) -> Wire:
+    return Wire(("start", t, header))
+
+
+def pose(*, t: float, uav: int, x: float, y: float, v: float, theta: float, mode: int, target: int) -> Wire:
+    return Wire(("pose", t, uav, x, y, v, theta, mode, target))
+
+
+def target(*, t: float, target: int, x: float, y: float) -> Wire:
+    return Wire(("target", t, target, x, y))
+
+
+def mode(*, t: float, uav: int, mode: int, target: int) -> Wire:
+    return Wire(("mode", t, uav, mode, target))
+
+
+def found(*, t: float, target: int, uav: int) -> Wire:
+    return Wire(("found", t, target, uav))
+
+
+def release(*, t: float, target: int, uav: int) -> Wire:
+    return Wire(("release", t, target, uav))
+
+
+def handover(*, t: float, target: int, from_uav: int, to_uav: int) -> Wire:
+    return Wire(("handover", t, target, from_uav, to_uav))
+
+
+def rx(*, t: float, src: int, dst: int, bytes: int, accepted: bool) -> Wire:
+    return Wire(("rx", t, src, dst, bytes, accepted))
+
+
+def lost(*, t: float, src: int, dst: int, bytes: int, cause: str) -> Wire:
+    return Wire(("lost", t, src, dst, bytes, cause))
+
+
+def radio(*, t: float, read: int, rejected: int, bytes_read: int, lost: dict[str, list[int]]) -> Wire:
+    return Wire(("radio", t, read, rejected, bytes_read, lost))
+
+
+def join(*, t: float, uav: int, uav_name: str, x: float, y: float) -> Wire:
+    return Wire(("join", t, uav, uav_name, x, y))
+
+
+def crash(*, t: float, uav: int, uav_name: str) -> Wire:
+    return Wire(("crash", t, uav, uav_name))
+
+
+def violation(*, t: float, invariant: str, uav: int, other: int) -> Wire:
+    return Wire(("violation", t, invariant, uav, other))
+
+
+def pause(*, t: float, uav: int) -> Wire:
+    return Wire(("pause", t, uav))
+
+
+def resume(*, t: float, uav: int) -> Wire:
+    return Wire(("resume", t, uav))
+
+
+def restart(*, t: float, uav: int, uav_name: str, x: float, y: float) -> Wire:
+    return Wire(("restart", t, uav, uav_name, x, y))
+
+
+def fault_on(*, t: float, fault: str, uav: int) -> Wire:
+    return Wire(("fault_on", t, fault, uav))
+
+
+def fault_off(*, t: float, fault: str, uav: int) -> Wire:
+    return Wire(("fault_off", t, fault, uav))
+
+
+def wind(*, t: float, wx: float, wy: float) -> Wire:
+    return Wire(("wind", t, wx, wy))
+
+
+def relief(*, t: float, uav: int, target: int, by: float, status: str) -> Wire:
+    return Wire(("relief", t, uav, target, by, status))
+
+
+def rtb(*, t: float, uav: int, energy_wh: float, needed_wh: float, target: int) -> Wire:
+    return Wire(("rtb", t, uav, energy_wh, needed_wh, target))
+
+
+def landed(*, t: float, uav: int, energy_wh: float) -> Wire:
+    return Wire(("landed", t, uav, energy_wh))
+
+
+def launched(*, t: float, uav: int, x: float, y: float) -> Wire:
+    return Wire(("launched", t, uav, x, y))
+
+
+def energy_out(*, t: float, uav: int) -> Wire:
+    return Wire(("energy_out", t, uav))
+
+
+def host(*, t: float, change: str, args: dict[str, Any]) -> Wire:
+    return Wire(("host", t, change, args))
+
+
+def _target_event_dtype(id_tag: bytes, id_type: str) -> np.dtype:
+    """The msgpack bytes of one :func:`target` event, as a packed record: a fixarray of 5, the
+    fixstr "target", float 64 t, the id (as msgpack writes that many bits of it) and float 64 x
+    and y, big-endian."""
+    fields: list[tuple[str, str]] = [("head", "S8"), ("tt", "u1"), ("t", ">f8")]
+    if id_tag:
+        fields.append(("it", "u1"))
+    fields += [("i", id_type), ("xt", "u1"), ("x", ">f8"), ("yt", "u1"), ("y", ">f8")]
+    return np.dtype(fields)
+
+
+# (first id, last id + 1, id tag, id type): msgpack's positive fixint, uint 8, 16 and 32.
+_ID_FORMS = ((0, 0x80, b"", "u1"), (0x80, 0x100, b"\xcc", "u1"), (0x100, 0x10000, b"\xcd", ">u2"),
+             (0x10000, 0x100000000, b"\xce", ">u4"))
+
+
+def pack_target_events(t: float, xy: np.ndarray) -> bytes:
+    """``b"".join(msgpack.packb(target(t=t, target=i, x=x, y=y)) for i, (x, y) in enumerate(xy))``,
+    from the arrays (``t`` a float, ``xy`` float64 (n, 2), n < 2**32): what the observer logs of
+    every target each tick when there are many (tests/test_many_targets.py checks the bytes)."""
+    n = len(xy)
+    parts = []
+    for lo, hi, tag, id_type in _ID_FORMS:
+        if n <= lo:
+            break
+        k = min(n, hi) - lo
+        rec = np.empty(k, _target_event_dtype(tag, id_type))
+        rec["head"] = b"\x95\xa6target"
+        rec["tt"] = rec["xt"] = rec["yt"] = 0xCB
+        rec["t"] = t
+        if tag:
+            rec["it"] = tag[0]
+        rec["i"] = np.arange(lo, lo + k)
+        rec["x"] = xy[lo:lo + k, 0]
+        rec["y"] = xy[lo:lo + k, 1]
+        parts.append(rec.tobytes())
+    return b"".join(parts)
 
 
 # --- the schema as data -----------------------------------------------------------------------------

@@ -275,6 +275,81 @@ def test_no_event_is_read_by_position_outside_the_schema():
     assert not offences, "read events by name through swarm.events:\n" + "\n".join(offences)
 
 
+# --- every event is written through its kind's writer ---------------------------------------------
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_each_kind_has_a_writer_with_its_fields_by_name_in_log_order(kind):
+    """swarm.events.<kind>(**fields): keyword-only parameters, the kind's written fields with
+    their log types, and the array it returns holds each one where the schema says."""
+    import inspect
+    import typing
+
+    spec = KINDS[kind]
+    writer = getattr(ev, kind)
+    params = inspect.signature(writer).parameters
+    assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in params.values())
+    assert list(params) == [f.name for f in spec.wire]
+    hints = typing.get_type_hints(writer)
+    for f in spec.wire:
+        assert (typing.get_origin(hints[f.name]) or hints[f.name]) is f.wire_type, f.name
+    marks = {f.name: object() for f in spec.wire}  # each field a value of its own
+    written = writer(**marks)
+    assert type(written) is tuple and written == (kind, *(marks[f.name] for f in spec.wire))
+    assert len(written) == spec.arity
+
+
+def _event_writes(tree):
+    """(line, what) of each event spelled out by hand in a module: a tuple literal beginning
+    with an event kind's name and holding that kind's number of items, or an ``emit`` /
+    ``_emit`` call whose one argument is not a call of a swarm.events writer."""
+    import ast
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Tuple) and node.elts and isinstance(node.elts[0], ast.Constant):
+            kind = node.elts[0].value
+            kinds_only = all(isinstance(e, ast.Constant) and e.value in KINDS for e in node.elts)  # (a list of kinds)
+            if isinstance(kind, str) and kind in KINDS and len(node.elts) == KINDS[kind].arity and not kinds_only:
+                yield node.lineno, f"a {kind!r} tuple"
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in ("emit", "_emit"):
+            arg = node.args[0] if node.args else None
+            writer = getattr(arg, "func", None)
+            name = getattr(writer, "attr", getattr(writer, "id", None))
+            if len(node.args) != 1 or node.keywords or not isinstance(arg, ast.Call) or name not in KINDS:
+                yield node.lineno, "an emit() not given a writer's event"
+
+
+def test_the_simulation_writes_every_event_through_the_writers():
+    """No event is spelled out as a tuple outside swarm/events.py: every write site calls the
+    writer of its kind (the type gate does its part: EventLog.emit and extend take a
+    swarm.events.Wire, which only the writers make; mypy refuses a plain tuple)."""
+    import ast
+
+    offences = []
+    for package in ("swarm", "agents", "comms", "faults"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            if path == ROOT / "swarm" / "events.py":
+                continue
+            for line, what in _event_writes(ast.parse(path.read_text(encoding="utf-8"))):
+                offences.append(f"{path.relative_to(ROOT)}:{line}: {what}")
+    assert not offences, "write events through swarm.events' writers:\n" + "\n".join(offences)
+
+
+def test_a_hand_written_event_is_found():
+    """The check above catches a hand-made event, in a tuple or handed to emit() piecewise."""
+    import ast
+
+    planted = (
+        'log.emit(ev.pose(t=t, uav=u, x=x, y=y, v=v, theta=h, mode=m, target=g))\n'  # fine
+        'events.append(("found", t, m, uid))\n'
+        'log.emit("crash", t, uid, name)\n'
+        'self._emit(("pause", t, uid))\n'
+        'key = ("target", i)\n'  # (not an event: a random stream's key)
+        'wanted = ("start", "join", "restart")\n'  # (nor kinds' names)
+    )
+    assert sorted({line for line, _ in _event_writes(ast.parse(planted))}) == [2, 3, 4]
+
+
 # --- the docs ----------------------------------------------------------------------------------------
 
 

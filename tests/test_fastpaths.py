@@ -182,7 +182,7 @@ def _check_flush(ticks: list[list[tuple]]) -> None:
     expected = bytearray()
     for events in ticks:
         for e in events:
-            log.emit(*e)
+            log.emit(e)
             expected += packer.pack(e)
         log.flush()
     assert log.to_bytes() == bytes(expected)

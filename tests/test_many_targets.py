@@ -9,7 +9,7 @@ per array, with the numbers of the per-target code it stands in for.
 * :meth:`Targets._step_all` (numpy, every target at once) moves targets exactly as
   :meth:`Targets._step_each` (one by one), reflections and limits included, over several draw
   blocks and with targets added on the way;
-* :func:`swarm.kernel.observer.pack_target_events` writes the bytes of packing each event on its own,
+* :func:`swarm.events.pack_target_events` writes the bytes of packing each event on its own,
   :meth:`EventLog.extend_packed` logs them as ``extend`` would (subscribers get the tuples);
 * the observer's target paths are the per-target rows it kept before;
 * the memory guard refuses a million targets over paper-case1's 600 s with one error naming
@@ -26,8 +26,9 @@ import pytest
 
 from agents.maps.grid import Grid
 from swarm import Simulation
+from swarm import events as ev
+from swarm.events import pack_target_events
 from swarm.kernel.memory import MemoryLimitError, estimate_memory
-from swarm.kernel.observer import pack_target_events
 from swarm.kernel.recorder import EventLog
 from swarm.kernel.rng import RngTree, first_randoms, generator_from_state, stream_states
 from swarm.kernel.world import _DRAW_BLOCK, TargetMotion, Targets
@@ -134,18 +135,18 @@ def test_packed_target_events_are_the_events_packed(n):
 
 
 def test_extend_packed_logs_what_extend_would():
-    events = [("target", 1.0, i, float(i), 2.0 * i) for i in range(300)]
+    events = [ev.target(t=1.0, target=i, x=float(i), y=2.0 * i) for i in range(300)]
     data = pack_target_events(1.0, np.array([[e[3], e[4]] for e in events]))
     a, b, c = EventLog(), EventLog(), EventLog()
     got: list[tuple] = []
     c.subscribe(got.append, ["target"])
     for log in (a, b, c):
-        log.emit("pose", 1.0, 0)
+        log.emit(ev.pose(t=1.0, uav=0, x=0.0, y=0.0, v=0.0, theta=0.0, mode=0, target=-1))
     a.extend(events)
     b.extend_packed(data, len(events), lambda: events)
     c.extend_packed(data, len(events), lambda: events)
     for log in (a, b, c):
-        log.emit("violation", 1.0, "x", 0, 1)
+        log.emit(ev.violation(t=1.0, invariant="separation", uav=0, other=1))
     assert a.to_bytes() == b.to_bytes() == c.to_bytes() and a.total == b.total == c.total
     assert [(g.kind, g.t, g.target, g.x, g.y) for g in got] == events  # (subscribers get records)
 

@@ -21,12 +21,32 @@ from faults.base import BatteryLike, FaultKind, TickFault
 from faults.injector import FaultInjector
 from faults.registry import FaultSchedule, uav_names
 from faults.tick import TickFaults
+from swarm import events as ev
 from swarm.errors import UsageError
 from swarm.kernel.clock import FAULT, Clock
 from swarm.kernel.fleet import Fleet
 from swarm.kernel.recorder import EventLog
 from swarm.kernel.rng import RngTree
 from swarm.kernel.world import World
+
+
+class _FaultEvents:
+    """:class:`faults.base.FaultEvents` on the run's event log, through :mod:`swarm.events`' writers."""
+
+    def __init__(self, log: EventLog):
+        self._emit = log.emit
+
+    def fault_on(self, *, t: float, fault: str, uav: int) -> None:
+        self._emit(ev.fault_on(t=t, fault=fault, uav=uav))
+
+    def fault_off(self, *, t: float, fault: str, uav: int) -> None:
+        self._emit(ev.fault_off(t=t, fault=fault, uav=uav))
+
+    def pause(self, *, t: float, uav: int) -> None:
+        self._emit(ev.pause(t=t, uav=uav))
+
+    def resume(self, *, t: float, uav: int) -> None:
+        self._emit(ev.resume(t=t, uav=uav))
 
 
 class RunFaults:
@@ -43,7 +63,7 @@ class RunFaults:
         self._latency_s = latency_s
         self.injector = FaultInjector(FaultSchedule([]), names,
                                       fault_rng=lambda kind, k: rng.generator("fault", kind, k))
-        self.tick = TickFaults(rng.generator, names, area, dt)
+        self.tick = TickFaults(rng.generator, names, area, dt, _FaultEvents(log))
         self.radio: Radio | None = None  # (set once the radio is built: it filters through the injector)
         # (issue 33) The UAVs' batteries (swarm.kernel.mission.Mission.battery_of), which the battery
         # fault acts on; none without [endurance].
@@ -107,7 +127,7 @@ class RunFaults:
 
     def close_window(self, index: int, fault: FaultKind) -> None:
         assert isinstance(fault, TickFault)
-        self.log.extend(self.tick.close(index, fault, self.clock.now, sorted(self.world.uavs)))
+        self.tick.close(index, fault, self.clock.now, sorted(self.world.uavs))
 
     # --- RadioHost -----------------------------------------------------------------------------
 
@@ -144,7 +164,7 @@ class RunFaults:
               pausable: Callable[[int], bool]) -> None:
         """Let the open tick faults act on this tick's readings and actors."""
         if self.tick.active:
-            self.tick.apply(t, alive, readings, self.fleet.actors, pausable, self.log.emit, self.fired)
+            self.tick.apply(t, alive, readings, self.fleet.actors, pausable, self.fired)
         else:
             self.tick.reset()
 

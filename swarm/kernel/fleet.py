@@ -23,6 +23,7 @@ from agents.types import UavType
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import MODE_NAMES
+from swarm import events as ev
 from swarm.errors import SimulationError
 from swarm.kernel.recorder import EventLog
 from swarm.kernel.rng import RngTree
@@ -100,7 +101,7 @@ class Fleet:
         if b.state != PENDING or now + 1e-9 < b.join_s:
             return False  # already joined, crashed, or this was a superseded join time
         b.state = ALIVE
-        self.log.emit("join", now, uid, b.name, b.x, b.y)
+        self.log.emit(ev.join(t=now, uav=uid, uav_name=b.name, x=b.x, y=b.y))
         return b.join_s > 0
 
     def fail_stop(self, uid: int, now: float) -> None:
@@ -120,7 +121,7 @@ class Fleet:
             for _arrival, sender, data in self.actors[uid].mailbox.drain():
                 self.lost(sender, uid, len(data), "receiver_down")
             self.plans.pop(uid, None)
-        self.log.emit("crash", now, uid, b.name)
+        self.log.emit(ev.crash(t=now, uav=uid, uav_name=b.name))
 
     def revive(self, uid: int, now: float, stream_key: tuple[str | int, ...]) -> None:
         """A UAV that is down flies again where it went down, with the speed and heading it had,
@@ -131,7 +132,7 @@ class Fleet:
         self.returning.pop(uid, None)
         self.add(uid, stream_key, mailbox=old.mailbox).counters = old.counters
         b.state = ALIVE
-        self.log.emit("restart", now, uid, b.name, b.x, b.y)
+        self.log.emit(ev.restart(t=now, uav=uid, uav_name=b.name, x=b.x, y=b.y))
 
     def land(self, uid: int) -> None:
         """(issue 33) A returning UAV lands at its base: it no longer flies, senses or sends

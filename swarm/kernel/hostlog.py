@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 from faults.registry import fault_from_dict
+from swarm import events as ev
 from swarm.errors import UsageError
 from swarm.events import Event
 from swarm.scenario import UavSpec
@@ -77,7 +78,7 @@ def apply_change(sim: Simulation, change: str, args: dict[str, Any]) -> None:
     """Apply one host change now: ``sim`` is at a tick boundary (``sim.now``), nothing of that
     tick has run yet. Logs it first (so the log reads cause, then effects)."""
     sim._clock.advance_to(sim.now)
-    sim._log.emit("host", sim.now, change, args)
+    sim._log.emit(ev.host(t=sim.now, change=change, args=args))
     CHANGES[change](sim, args)
 
 

@@ -37,6 +37,8 @@ import numpy as np
 from agents.maps.grid import Grid
 from agents.maps.umap import DENSE_MAX_CELLS, NEVER, UncertaintyMap
 from comms.messages import MODE_SURVEIL
+from swarm import events as ev
+from swarm.events import Wire
 
 _BLOCK = 64  # cells per side of the blocks whose q certainty() recomputes on large areas
 
@@ -150,21 +152,21 @@ class Metrics:
 
     def observe(self, t: float, dt: float, plans: dict[int, tuple[int, int]], sensed: dict[int, list[int]],
                 types: dict[int, str], speed_max: dict[str, float],
-                detected: dict[int, list[int]] | None = None) -> list[tuple]:
+                detected: dict[int, list[int]] | None = None) -> list[Wire]:
         """Account one tick. ``plans``: uid -> (mode, target); ``sensed``: uid -> target ids
         inside its detection radius. ``detected`` (a sensor fault: some UAVs' sensors miss
         targets): uid -> the real targets its sensor reported, for those UAVs; a target is
         found when a sensor reports it (a miss is not a find, a false alarm is never a target),
         while holding and watching stay the ground truth of ``sensed``. Returns events to log
         (found, handover, release)."""
-        events: list[tuple] = []
+        events: list[Wire] = []
         for uid, targets in sensed.items():
             if detected is not None:
                 targets = detected.get(uid, targets)
             for m in targets:
                 if m not in self.found_t:
                     self.found_t[m] = t
-                    events.append(("found", t, m, uid))
+                    events.append(ev.found(t=t, target=m, uav=uid))
         watching: dict[int, set[int]] = {}
         holding: dict[int, set[int]] = {}
         covered: set[int] = set()
@@ -212,7 +214,7 @@ class Metrics:
             if old is not None and m not in self.released_at:
                 self.released_at[m] = t
                 if not holding.get(m):
-                    events.append(("release", t, m, old))
+                    events.append(ev.release(t=t, target=m, uav=old))
             arrivals = sorted((self.arrived[(u, m)], u) for u in holding.get(m, ()) if u != old)
             if not arrivals:
                 continue
@@ -220,7 +222,7 @@ class Metrics:
             if old is not None and self.watch_since[(new, m)] <= self.released_at[m]:
                 latency = self.released_at[m] - arrived
                 self.handovers.append(Handover(t, m, old, new, types.get(old, "?"), types.get(new, "?"), latency))
-                events.append(("handover", t, m, old, new))
+                events.append(ev.handover(t=t, target=m, from_uav=old, to_uav=new))
             self.owner[m] = new
             self.released_at.pop(m, None)
         return events

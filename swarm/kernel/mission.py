@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from agents.actor import EnergyReading, SensorReading, UavActor
+from swarm import events as ev
 from swarm.kernel.fleet import Fleet
 from swarm.kernel.homeway import HomeWay, leg_energy_wh
 from swarm.kernel.recorder import EventLog
@@ -226,7 +227,7 @@ class Mission:
         if self.wind is not None:
             self.wind_now = self.wind.advance(t, self.dt)
             self.world.wind = self.wind_now
-            self.log.emit("wind", t, self.wind_now[0], self.wind_now[1])
+            self.log.emit(ev.wind(t=t, wx=self.wind_now[0], wy=self.wind_now[1]))
 
     def _energy(self, t: float) -> None:
         """The last tick's (at ``t``) flight: energy drained; relief asked; homecomings, landings."""
@@ -247,18 +248,19 @@ class Mission:
             ask = actor.relief_asked
             if ask is not None and ask[0] != u.asked and u.state == FLYING:
                 u.asked = ask[0]
-                self.log.emit("relief", t, uid, ask[0], ask[1], "asked")
+                self.log.emit(ev.relief(t=t, uav=uid, target=ask[0], by=ask[1], status="asked"))
             if actor.homebound and u.state == FLYING:
                 u.state = HOMEBOUND
                 if actor.handed_target >= 0 and not actor.relieved:
-                    self.log.emit("relief", t, uid, actor.handed_target, t, "unrelieved")
-                self.log.emit("rtb", t, uid, u.battery.left_wh, u.rtb_needed, actor.handed_target)
+                    self.log.emit(ev.relief(t=t, uav=uid, target=actor.handed_target, by=t, status="unrelieved"))
+                self.log.emit(ev.rtb(t=t, uav=uid, energy_wh=u.battery.left_wh, needed_wh=u.rtb_needed,
+                                     target=actor.handed_target))
             if u.state == FLYING:
                 u.on_station_s += dt
             if u.battery.left_wh <= 0.0:
                 self.lost_to_energy += 1
                 u.state = CRASHED
-                self.log.emit("energy_out", t, uid)
+                self.log.emit(ev.energy_out(t=t, uav=uid))
                 fleet.fail_stop(uid, t + dt)
                 continue
             if u.state == HOMEBOUND and math.hypot(b.x - u.pad[0], b.y - u.pad[1]) <= s.land_radius_m:
@@ -266,7 +268,7 @@ class Mission:
                 fleet.land(uid)
                 landed.append((uid, u.battery.left_wh))
         for uid, left in landed:
-            self.log.emit("landed", t + dt, uid, left)
+            self.log.emit(ev.landed(t=t + dt, uav=uid, energy_wh=left))
 
     def _launches(self, t: float) -> None:
         """Turned-around UAVs launch, one per slot (module docstring); a crashed one never."""
@@ -294,7 +296,7 @@ class Mission:
             theta = math.atan2(self.area[1] / 2 - py, self.area[0] / 2 - px)
             fleet = self.fleet
             fleet.launch(uid, px, py, b.kind.speed_min, theta)
-            self.log.emit("launched", t, uid, px, py)
+            self.log.emit(ev.launched(t=t, uav=uid, x=px, y=py))
             flying.append(b)
 
     # --- results ------------------------------------------------------------------------------

@@ -17,6 +17,8 @@ import numpy as np
 from agents.actor import ActorOutput, SensorReading
 from agents.planners.base import Plan
 from faults.tick import TickFaults
+from swarm import events as ev
+from swarm.events import Wire, pack_target_events
 from swarm.kernel.metrics import Metrics
 from swarm.kernel.recorder import EventLog
 from swarm.kernel.world import World
@@ -24,45 +26,6 @@ from swarm.kernel.world import World
 # From this many targets on, a tick's ``target`` events are packed from the positions' array
 # (pack_target_events) instead of tuple by tuple: 10^5 targets cost 50 ms a tick that way.
 _PACK_MIN = 256
-
-
-def _target_event_dtype(id_tag: bytes, id_type: str) -> np.dtype:
-    """The msgpack bytes of one ``("target", t, i, x, y)`` event, as a packed record: a fixarray
-    of 5, the fixstr "target", float 64 t, the id (as msgpack writes that many bits of it) and
-    float 64 x and y, big-endian."""
-    fields: list[tuple[str, str]] = [("head", "S8"), ("tt", "u1"), ("t", ">f8")]
-    if id_tag:
-        fields.append(("it", "u1"))
-    fields += [("i", id_type), ("xt", "u1"), ("x", ">f8"), ("yt", "u1"), ("y", ">f8")]
-    return np.dtype(fields)
-
-
-# (first id, last id + 1, id tag, id type): msgpack's positive fixint, uint 8, 16 and 32.
-_ID_FORMS = ((0, 0x80, b"", "u1"), (0x80, 0x100, b"\xcc", "u1"), (0x100, 0x10000, b"\xcd", ">u2"),
-             (0x10000, 0x100000000, b"\xce", ">u4"))
-
-
-def pack_target_events(t: float, xy: np.ndarray) -> bytes:
-    """``b"".join(msgpack.packb(("target", t, i, x, y)) for i, (x, y) in enumerate(xy))``, from
-    the arrays (``t`` a float, ``xy`` float64 (n, 2), n < 2**32): what :meth:`Observer.observe`
-    logs of every target each tick (tests/test_observer_pack.py checks the bytes)."""
-    n = len(xy)
-    parts = []
-    for lo, hi, tag, id_type in _ID_FORMS:
-        if n <= lo:
-            break
-        k = min(n, hi) - lo
-        rec = np.empty(k, _target_event_dtype(tag, id_type))
-        rec["head"] = b"\x95\xa6target"
-        rec["tt"] = rec["xt"] = rec["yt"] = 0xCB
-        rec["t"] = t
-        if tag:
-            rec["it"] = tag[0]
-        rec["i"] = np.arange(lo, lo + k)
-        rec["x"] = xy[lo:lo + k, 0]
-        rec["y"] = xy[lo:lo + k, 1]
-        parts.append(rec.tobytes())
-    return b"".join(parts)
 
 
 class Observer:
@@ -98,7 +61,7 @@ class Observer:
             c[0] += 1
             c[1] += nbytes
         else:
-            self.log.emit("lost", t, src, dst, nbytes, cause)
+            self.log.emit(ev.lost(t=t, src=src, dst=dst, bytes=nbytes, cause=cause))
 
     def observe(self, t: float, alive: list[int], outputs: Mapping[int, ActorOutput],
                 readings: Mapping[int, SensorReading], xy: np.ndarray, last_plans: dict[int, Plan],
@@ -115,10 +78,11 @@ class Observer:
         paths = self.paths
         # The tick's many events are gathered and logged with one extend() per batch (the same
         # events in the same order as one emit() each, subscribers included).
-        events: list[tuple] = []
+        events: list[Wire] = []
         add = events.append
         paused, truth = faults.paused, faults.truth
         summary, rx = self.summary, self._rx
+        pose, rx_event = ev.pose, ev.rx
         for uid in alive:
             b = uavs[uid]
             out = outputs[uid]
@@ -126,7 +90,7 @@ class Observer:
             prev = last_plans.get(uid)
             last_plans[uid] = plan
             if prev is None or prev.mode != plan.mode or prev.target != plan.target:
-                add(("mode", t, uid, plan.mode, plan.target))
+                add(ev.mode(t=t, uav=uid, mode=plan.mode, target=plan.target))
             plans[uid] = (plan.mode, plan.target)
             if paused and uid in paused:
                 sensed[uid] = []  # a paused process reads no sensor: it scans and sees nothing
@@ -137,7 +101,7 @@ class Observer:
                 # The truth inside its detection radius (a sensor fault's misses and phantoms
                 # are what the UAV believes, not what is there; see Metrics.observe).
                 sensed[uid] = truth[uid] if truth and uid in truth else [s.target for s in readings[uid].targets]
-            add(("pose", t, uid, b.x, b.y, b.v, b.theta, plan.mode, plan.target))
+            add(pose(t=t, uav=uid, x=b.x, y=b.y, v=b.v, theta=b.theta, mode=plan.mode, target=plan.target))
             paths[uid].extend((t, b.x, b.y))
             if summary:
                 for _sender, nbytes, ok in out.received:
@@ -145,7 +109,7 @@ class Observer:
                     rx[1] += not ok
                     rx[2] += nbytes
             else:
-                events += [("rx", t, sender, uid, nbytes, ok) for sender, nbytes, ok in out.received]
+                events += [rx_event(t=t, src=sender, dst=uid, bytes=nbytes, accepted=ok) for sender, nbytes, ok in out.received]
         types = {u: uavs[u].kind.name for u in alive}
         events += self.metrics.observe(t, self.dt, plans, sensed, types, speed_max_by_type, faults.detected)
         tg = world.targets
@@ -155,14 +119,14 @@ class Observer:
         log = self.log
         n = len(txy)
         if n < _PACK_MIN or type(t) is not float:
-            events += [("target", t, i, x, y) for i, (x, y) in enumerate(txy.tolist())]
+            events += [ev.target(t=t, target=i, x=x, y=y) for i, (x, y) in enumerate(txy.tolist())]
             log.extend(events)
         else:  # every target's event of the tick packed from the arrays at once (the same bytes)
             log.extend(events)
-            log.extend_packed(pack_target_events(t, txy), n, lambda: [("target", t, i, x, y)
+            log.extend_packed(pack_target_events(t, txy), n, lambda: [ev.target(t=t, target=i, x=x, y=y)
                                                                        for i, (x, y) in enumerate(txy.tolist())])
         for kind, a, b2 in world.check_safety(alive, xy, self.min_separation_m):
-            log.emit("violation", t, kind, a, b2)
+            log.emit(ev.violation(t=t, invariant=kind, uav=a, other=b2))
 
     def target_path_arrays(self) -> dict[int, np.ndarray]:
         """Each target's path so far: ``(ticks, 3)`` rows of ``(t, x, y)`` from the first tick
@@ -193,7 +157,7 @@ class Observer:
             return
         rx, lost = self._rx, self._lost
         if rx[0] or lost:
-            self.log.emit("radio", t, rx[0], rx[1], rx[2], {c: lost[c] for c in sorted(lost)})
+            self.log.emit(ev.radio(t=t, read=rx[0], rejected=rx[1], bytes_read=rx[2], lost={c: lost[c] for c in sorted(lost)}))
             self._rx = [0, 0, 0]
             self._lost = {}
 

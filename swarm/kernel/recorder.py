@@ -7,21 +7,21 @@ hash is of exactly the bytes written to ``events.msgpack``. Nothing in an event 
 wall clock or from Python's ``hash``: the same scenario and seed give the same bytes in any
 process.
 
-The simulation emits plain tuples (cheapest to build and pack). Subscribers (the embedding
-API) get each event live as a record of :mod:`swarm.events`, with UAV and mode names; the
-conversion happens only when someone subscribes, once per event whatever the number of
-subscribers.
+The simulation emits events as :mod:`swarm.events` writes them (:data:`swarm.events.Wire`, a
+tuple: cheapest to build and pack), one writer per kind. Subscribers (the embedding API) get
+each event live as a record of :mod:`swarm.events`, with UAV and mode names; the conversion
+happens only when someone subscribes, once per event whatever the number of subscribers.
 """
 
 from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable, Iterable
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import msgpack
 
-from swarm.events import NAMING_KINDS, Decoder, Event, check_kinds, check_wire, read_events, wire_kind
+from swarm.events import NAMING_KINDS, Decoder, Event, Wire, check_kinds, check_wire, read_events, wire_kind
 
 __all__ = ["EventLog", "read_events"]  # read_events lives in swarm.events (kept here for older code)
 
@@ -38,7 +38,7 @@ class EventLog:
     check_schema: ClassVar[bool] = False
 
     def __init__(self) -> None:
-        self._pending: list[tuple[Any, ...]] = []
+        self._pending: list[Wire] = []
         self._buf = bytearray()
         self._sha = hashlib.sha256()
         self._packer = msgpack.Packer(use_bin_type=True)
@@ -48,13 +48,14 @@ class EventLog:
         self._decoder: Decoder | None = None
         self.count = 0
 
-    def emit(self, *event: Any) -> None:
+    def emit(self, event: Wire) -> None:
+        """Log ``event`` (made by its kind's writer in :mod:`swarm.events`)."""
         self._pending.append(event)
         if self._subs:
             self._notify(event)
 
-    def extend(self, events: list[tuple[Any, ...]]) -> None:
-        """``emit(*e)`` for each event tuple of ``events``, in order (one call for many)."""
+    def extend(self, events: list[Wire]) -> None:
+        """``emit(e)`` for each event of ``events``, in order (one call for many)."""
         if not self._subs:
             self._pending.extend(events)
             return
@@ -63,7 +64,7 @@ class EventLog:
             append(event)
             self._notify(event)
 
-    def extend_packed(self, data: bytes, count: int, events: Callable[[], list[tuple[Any, ...]]]) -> None:
+    def extend_packed(self, data: bytes, count: int, events: Callable[[], list[Wire]]) -> None:
         """``extend(events())`` for events given already packed: ``data`` is the bytes of packing
         each of the ``count`` events of ``events()`` in order (issue 25: a tick's 10^5 ``target``
         events are packed from arrays at once, not made into tuples and packed one by one). The
@@ -80,7 +81,7 @@ class EventLog:
         self._buf += data
         self._sha.update(data)
 
-    def _notify(self, event: tuple[Any, ...]) -> None:
+    def _notify(self, event: Wire) -> None:
         decode = self._decoder
         assert decode is not None  # (made by subscribe)
         kind = wire_kind(event)

@@ -38,6 +38,7 @@ from agents.maps.mapgroup import MapGroup, maps_share
 from comms.framecache import DecodeCache
 from faults.injector import FaultInjector
 from faults.registry import fault_from_dict
+from swarm import events as ev
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event
 from swarm.kernel import build
@@ -139,14 +140,14 @@ class Simulation(HostApi):
         self._mission = build.mission(self)  # (issues 26, 33: wind and endurance; None without)
         self._mission_phase = self._mission or NO_MISSION  # (without them, a phase that does nothing)
         self._clock.schedule(0.0, self._tick, TICK)
-        self._log.emit("start", 0.0, {
+        self._log.emit(ev.start(t=0.0, header={
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
             "uavs": [[b.uid, b.name, b.kind.name] for b in self._world.uavs.values()],
             "targets": len(self._targets), "threats": len(self._world.threats),
             "faults": self._faults.schedule.to_list(),
             # (only when not the default, so a "frames" log is byte for byte what it always was)
             **({"recording": sc.recording.level} if self._observer.summary else {}),
-        })
+        }))
 
     def _populate(self, sc: Scenario) -> None:
         """The scenario's targets (placed, then random), UAVs and faults, in that order."""
