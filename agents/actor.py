@@ -34,6 +34,7 @@ from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
+from agents.relief import HOME_TARGET, EnergyReading, Relief
 from agents.types import GRAVITY, UavType
 from agents.zones import Keepout
 from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, encode, pack_hello, pack_intent, pack_scans, pack_tracks
@@ -71,33 +72,6 @@ class SensedTarget:
     vx: float
     vy: float
     value: float
-
-
-@dataclass(frozen=True, slots=True)
-class EnergyReading:
-    """What a UAV with an energy budget knows of it this tick (issues 26, 33, swarm.mission):
-    its pad at the base; the next point of its way home (round the no-fly zones); ``must_go``:
-    its energy left is down to what that way home takes against the mean wind, plus the
-    reserve; ``spare_s``: the seconds of flight at its present power it has beyond that (0
-    when it must go); ``handover_s``: the setting of that name; ``wind_mps``: the mean wind's
-    speed (what it budgets a relief's way against)."""
-
-    home_x: float
-    home_y: float
-    way_x: float
-    way_y: float
-    must_go: bool
-    cruise_mps: float  # the airspeed it flies home at (its type's minimum-power speed)
-    spare_s: float = math.inf
-    handover_s: float = 60.0
-    wind_mps: float = 0.0
-
-
-# What a UAV flying home beacons as its intent's target (with search mode): not free (issue 33).
-HOME_TARGET = -2
-# A watcher asks for relief this many times the nearest free UAV's straight flight time ahead
-# (plus handover_s): room for its turns, the gusts and a way round a zone (issue 33, rule 6).
-RELIEF_MARGIN = 1.5
 
 
 # Another UAV as the detect-and-avoid sensor gives it: (uav id, x, y, vx, vy).
@@ -170,9 +144,9 @@ class ActorSettings:
     zones: tuple[Keepout, ...] = ()
     outside: Disk | None = None
     # (issue 33) [endurance]: free UAVs answer watchers' relief requests (rule 6 of
-    # docs/modelling.md's assignment rules; UavActor._answer_relief). Off without endurance.
+    # docs/modelling.md's assignment rules; agents.relief). Off without endurance.
     relief: bool = False
-    uav_types: tuple[UavType, ...] = ()  # (the run's types: a relief's turn radius, _flight_s)
+    uav_types: tuple[UavType, ...] = ()  # (the run's types: a relief's turn radius, agents.relief)
 
 
 @dataclass(slots=True)
@@ -254,18 +228,10 @@ class UavActor:
         # inside a circle, rule 5 of docs/modelling.md's "Assignment rules".)
         self.knowledge = Knowledge(tuple(z for z in settings.zones if not z.inverted))
         self.plan: Plan | None = None
-        # (issues 26, 33) Endurance: flying home (no replanning on the way), the target it
-        # handed over and whether a relief held it then; the relief it asked for (target, when it
-        # must go: its beacons then say it searches, with that target); the target it is on
-        # its way to take over from a watcher that asked (no replanning until it holds it).
-        self.homebound = False
+        # (issues 26, 33) Endurance: going home, relief on station (agents.relief).
+        self.relief = Relief(uid, kind, self.knowledge, settings.peer_timeout_s, settings.replan_s,
+                             {k.name: k for k in settings.uav_types})
         self.operator_goal: tuple[float, float] | None = None  # (set_waypoint: an operator's waypoint)
-        self.handed_target = NO_TARGET
-        self.relieved = False
-        self.relief_asked: tuple[int, float] | None = None
-        self._releasing = False
-        self._relieving = NO_TARGET
-        self._types = {k.name: k for k in settings.uav_types}
         self.counters = ActorCounters()
         self._next_replan = -math.inf
         self._next_beacon = -math.inf
@@ -348,177 +314,41 @@ class UavActor:
             k.see_target(st.target, st.x, st.y, st.vx, st.vy, t, st.value)
         for th in r.threats:
             k.add_threat(th.threat, th.x, th.y, th.radius, th.d_max)
-        if r.energy is not None and (self._energy(r) or self._releasing):
-            return None  # homebound, or keeping its target until a relief holds it: no replanning
+        relief = self.relief
+        if r.energy is not None:
+            home = relief.home(r, self.plan)
+            if home is not None:
+                self.plan = home
+                return None  # homebound: no replanning on the way
+            if relief.releasing:
+                return None  # keeping its target until a relief holds it: no replanning
         if self.operator_goal is not None and self._to_operator_goal(r):
             return None  # flying to the operator's waypoint: no replanning on the way
         if self.settings.relief:
-            if self._relieving == NO_TARGET:
-                self._answer_relief(r)
-            if self._relieving != NO_TARGET and self._relieve(r):
-                return None  # on its way to take a target over: no replanning
+            if relief.relieving == NO_TARGET:
+                plan = relief.answer(r, self.plan)
+                if plan is not None:
+                    self.plan = plan
+            if relief.relieving != NO_TARGET:
+                going, self.plan = relief.relieve(r)
+                if going:
+                    return None  # on its way to take a target over: no replanning
+                if self.plan is not None:
+                    self._next_replan = t + self.settings.replan_s  # (it holds the target: plans as usual)
         if self.plan is None or t >= self._next_replan or self._reached(r):
             s = self.settings
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
                             self.grid, s.replan_s, s.surveillance, self.plan)
         return None
 
-    def _energy(self, r: SensorReading) -> bool:
-        """(issues 26, 33) Endurance: True while flying home (along the way the reading gives).
-
-        A watcher asks for relief (rule 6 of docs/modelling.md's assignment rules) once its spare
-        flight is down to ``handover_s`` plus :data:`RELIEF_MARGIN` times the time the nearest
-        free UAV it hears needs to reach its target (:meth:`_relief_eta`); from then its beacons say it searches, with its
-        target's id (a relief request), while it keeps circling and sending the target's track
-        (it does not replan meanwhile: it keeps its target).
-        It lets go and turns home when a peer watches the target with it inside its own
-        detection radius (a relief holds it), when its plan no longer watches the target
-        (another took it over: it asked because it must go soon, so it goes), or when its energy
-        says go. Any other UAV goes home when its energy says go."""
-        e = r.energy
-        assert e is not None
-        if self.homebound:
-            self.plan = Plan(e.way_x, e.way_y)
-            return True
-        plan = self.plan
-        watching = plan is not None and plan.mode == MODE_SURVEIL
-        asked = self.relief_asked
-        if asked is not None and watching and plan is not None and plan.target != asked[0]:
-            asked = self.relief_asked = (plan.target, asked[1])  # (it watches another now: relief for that one)
-        held = False
-        if watching:
-            assert plan is not None
-            m = plan.target
-            if asked is None and e.spare_s <= e.handover_s + RELIEF_MARGIN * self._relief_eta(r, m, e.wind_mps):
-                self.relief_asked = (m, r.t + e.spare_s)
-                self._releasing = True
-            held = self.relief_asked is not None and self._relief_holds(r, m)
-            if not (held or e.must_go):
-                return False
-        elif not e.must_go and asked is None:  # (asked, and its target taken over: it goes)
-            return False
-        self.homebound = True
-        self.handed_target = plan.target if watching and plan is not None else NO_TARGET
-        held = held or (asked is not None and not watching)  # (its target taken over: relieved)
-        if watching and self.relief_asked is None:
-            self.relief_asked = (self.handed_target, r.t)  # (asked at the last moment: a fault's doing)
-        self.relieved = held
-        self.plan = Plan(e.way_x, e.way_y)
-        self._releasing = False
-        self._relieving = NO_TARGET
-        return True
-
-    def _free_peers(self, t: float) -> list[Peer]:
-        """The peers heard within the peer timeout that search with no target (not watching,
-        not on their way to a target, not going home)."""
-        timeout = self.settings.peer_timeout_s
-        return [p for p in self.knowledge.peers.values()
-                if p.uav != self.uid and p.mode == MODE_SEARCH and p.target == NO_TARGET
-                and t - p.t_intent <= timeout and t - p.t_pose <= timeout]
-
-    def _flight_s(self, x: float, y: float, v: float, theta: float, type_name: str, tx: float, ty: float,
-                  wind: float) -> float:
-        """Seconds a UAV at ``(x, y)`` flying ``v`` on heading ``theta`` needs to reach ``(tx, ty)``:
-        the turn towards it at its type's turn radius at that speed, then straight, at ``v`` less
-        the mean wind's speed (rule 6's reckoning)."""
-        kind = self._types.get(type_name)
-        turn = 0.0
-        if kind is not None:
-            off = abs(math.remainder(math.atan2(ty - y, tx - x) - theta, 2 * math.pi))
-            turn = off * kind.r_min(max(v, kind.speed_min))
-        return (turn + math.hypot(tx - x, ty - y)) / max(v - wind, 1.0)
-
-    def _relief_eta(self, r: SensorReading, m: int, wind: float) -> float:
-        """Seconds the nearest free peer it hears needs to reach target ``m`` (:meth:`_flight_s`);
-        0 when it hears none or does not know where ``m`` is."""
-        tr = self.knowledge.tracks.get(m)
-        if tr is None:
-            return 0.0
-        tx, ty = tr.predict(r.t)
-        etas = [self._flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind) for p in self._free_peers(r.t)]
-        return min(etas, default=0.0)
-
-    def _relief_holds(self, r: SensorReading, m: int) -> bool:
-        """A peer watches ``m`` (its beacons say so) from within its own detection radius of it
-        (as it last said where it is, against where this UAV predicts the target)."""
-        tr = self.knowledge.tracks.get(m)
-        if tr is None:
-            return False
-        tx, ty = tr.predict(r.t)
-        t, timeout, types = r.t, self.settings.peer_timeout_s, self._types
-        return any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
-                   and math.hypot(p.x - tx, p.y - ty) <= (types[p.type].detect_radius if p.type in types
-                                                          else self.kind.detect_radius)
-                   for p in self.knowledge.peers.values() if p.uav != self.uid)
-
-    def _answer_relief(self, r: SensorReading) -> None:
-        """A free UAV that hears a relief request (a peer searching with a target's id) goes to
-        take that target over when it is the one of the free UAVs it hears (and itself) that
-        reaches the target first (ties: the lowest id), nobody else already watches or relieves
-        the target, and its own energy leaves it the way there plus ``handover_s`` twice."""
-        plan = self.plan
-        if self.homebound or (plan is not None and (plan.mode != MODE_SEARCH or plan.target != NO_TARGET)):
-            return
-        t, timeout = r.t, self.settings.peer_timeout_s
-        peers = [p for p in self.knowledge.peers.values() if p.uav != self.uid and t - p.t_intent <= timeout]
-        asks = sorted((p.target, p.uav) for p in peers if p.asks)
-        if not asks:
-            return
-        wind = r.energy.wind_mps if r.energy is not None else 0.0
-        free = self._free_peers(t)
-        for m, asker in asks:
-            tr = self.knowledge.tracks.get(m)
-            if tr is None or any(p.mode == MODE_SURVEIL and p.target == m for p in peers if p.uav != asker):
-                # (someone else watches it, or is on the way: a relief beacons that it watches)
-                continue
-            tx, ty = tr.predict(t)
-            mine = self._flight_s(r.x, r.y, r.v, r.theta, self.kind.name, tx, ty, wind)
-            if any((self._flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind), p.uav) < (mine, self.uid) for p in free):
-                continue
-            e = r.energy
-            if e is not None and e.spare_s < mine + 2.0 * e.handover_s:
-                continue
-            self._relieving = m
-            self.plan = Plan(tx, ty, MODE_SEARCH, m)
-            return
-
-    def _relieve(self, r: SensorReading) -> bool:
-        """On its way to take target ``_relieving`` over: True while it flies there (towards the
-        target's predicted position), and while it watches the target from within its detection
-        radius until the watcher that asked has gone (it does not replan meanwhile: the asker,
-        still beaconing its request, would look like a watcher it should yield to); then it
-        plans as usual from the next replan. It gives up when the target's track is gone or
-        another UAV holds it."""
-        m = self._relieving
-        tr = self.knowledge.tracks.get(m)
-        t = r.t
-        if tr is None or t - tr.t > self.settings.replan_s * 20:
-            self._relieving, self.plan = NO_TARGET, None
-            return False
-        tx, ty = tr.predict(t)
-        timeout, radius = self.settings.peer_timeout_s, self.kind.detect_radius
-        if math.hypot(r.x - tx, r.y - ty) <= radius:
-            self.plan = Plan(tx, ty, MODE_SURVEIL, m)
-            if any(p.asks and p.target == m and t - p.t_intent <= timeout for p in self.knowledge.peers.values()):
-                return True  # it holds the target; the watcher that asked has not gone yet (no replanning)
-            self._relieving = NO_TARGET
-            self._next_replan = t + self.settings.replan_s
-            return False
-        if any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
-               and math.hypot(p.x - tx, p.y - ty) <= radius for p in self.knowledge.peers.values() if p.uav != self.uid):
-            self._relieving, self.plan = NO_TARGET, None  # someone holds it
-            return False
-        self.plan = Plan(tx, ty, MODE_SEARCH, m)
-        return True
-
     def goto(self, x: float, y: float) -> None:
         """An operator's waypoint (the embedding API's ``set_waypoint``, a ground station's
         reposition): fly to ``(x, y)`` searching, without replanning, until there (within one
         turn radius, or 1.5 ticks of flight); then plan afresh. Energy still sends it home first."""
         self.operator_goal = (x, y)
-        if not self.homebound:
+        if not self.relief.homebound:
             self.plan = Plan(x, y)
-            self._releasing = False
+            self.relief.releasing = False
 
     def _to_operator_goal(self, r: SensorReading) -> bool:
         """True while on the way to the operator's waypoint; at it, forget it and replan now."""
@@ -541,12 +371,7 @@ class UavActor:
 
     def relaunch(self) -> None:
         """(issue 26) Back in the air from the base with what it knew: plan afresh."""
-        self.homebound = False
-        self.handed_target = NO_TARGET
-        self.relieved = False
-        self.relief_asked = None
-        self._releasing = False
-        self._relieving = NO_TARGET
+        self.relief.reset()
         self.plan = None
         self._next_replan = -math.inf
 
@@ -573,7 +398,7 @@ class UavActor:
         k = self.knowledge
         plan = cast(Plan, self.plan)  # (set: observe() asks for a plan while there is none)
         speed = self.kind.speed_max
-        if self.homebound and r.energy is not None:  # (issue 26) home at the minimum-power speed
+        if self.relief.homebound and r.energy is not None:  # (issue 26) home at the minimum-power speed
             speed = r.energy.cruise_mps
         goal_x, goal_y = plan.wx, plan.wy
         apf = s.apf
@@ -742,18 +567,6 @@ class UavActor:
         self.counters.frames_sent += 1
         return self._encode(self.uid, self._seq, t, messages)
 
-    def _intent(self, plan: Plan) -> tuple[int, int]:
-        """The mode and target its beacons announce: its plan's, but (issue 33) a watcher asking
-        for relief says it searches with its target's id, a relief on its way says it watches
-        the target, and a UAV going home says it searches with :data:`HOME_TARGET`."""
-        if self._releasing and self.relief_asked is not None:
-            return MODE_SEARCH, self.relief_asked[0]
-        if self.homebound:
-            return MODE_SEARCH, HOME_TARGET
-        if self._relieving != NO_TARGET:
-            return MODE_SURVEIL, self._relieving
-        return plan.mode, plan.target
-
     def _outbox(self, r: SensorReading, plan: Plan) -> list[bytes]:
         t = r.t
         s = self.settings.radio
@@ -762,7 +575,7 @@ class UavActor:
             # Hello, Intent and ScanRecords, packed straight away (the same bytes; see codec).
             msgs: list[Message | Packed] = [
                 pack_hello(self.uid, self.kind.name, r.x, r.y, r.v, r.theta),
-                pack_intent(self.uid, plan.wx, plan.wy, *self._intent(plan)),
+                pack_intent(self.uid, plan.wx, plan.wy, *self.relief.intent(plan)),
             ]
             room = s.frame_max_bytes - FRAME_SLACK - SCAN_BYTES * (len(self._pending_scans) // 4)
             if self._pending_scans:

@@ -442,7 +442,7 @@ class SwarmSearchEnv(ParallelEnv):
         t = self._tally[uid]
         b = sim._world.uavs[uid]
         state = "restarting" if self._restarting(agent) else b.state
-        if state == ALIVE and sim.actors[uid].homebound:
+        if state == ALIVE and sim.actors[uid].relief.homebound:
             state = "homebound"  # (endurance) flying home on its own: the actions wait for its relaunch
         return {"t": sim.now, "state": state, "type": b.kind.name, "new_cells": t.new_cells,
                 "new_area_km2": t.new_cells * sim._grid.cell_m ** 2 / _SQM_PER_KM2, "found": t.found,

@@ -19,13 +19,13 @@ airframe limits stay air-relative (the dynamics invariant reads the tick's ``win
 
 Energy. A UAV of a type with an energy budget drains ``P(v) dt`` a tick at its airspeed ``v``
 (times a battery fault's drain factor), never below zero: a UAV that reaches zero in flight is
-lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.actor.EnergyReading`)
+lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.relief.EnergyReading`)
 the way home to its pad (:mod:`swarm.kernel.homeway`: round the no-fly zones, inside the area), the
 energy that way takes at its minimum-power speed against the mean wind plus ``reserve_frac``
 of its capacity, and what it has beyond that as seconds of flight at its present power
 (``spare_s``): at 0 it must go (``must_go``). A watcher asks for relief early enough that a
 relief can arrive before then (docs/modelling.md, "Assignment rules", rule 6;
-:meth:`agents.actor.UavActor._energy`): the ``relief`` events say when it asked and, if it had
+:meth:`agents.relief.Relief.home`): the ``relief`` events say when it asked and, if it had
 to leave unrelieved, that it did.
 
 Base. Each UAV with a budget has its own pad, ``pad_spacing_m`` apart in a row east-west through
@@ -44,7 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.actor import EnergyReading, SensorReading, UavActor
+from agents.actor import SensorReading, UavActor
+from agents.relief import EnergyReading
 from swarm import events as ev
 from swarm.kernel.fleet import Fleet
 from swarm.kernel.homeway import HomeWay, leg_energy_wh
@@ -245,16 +246,17 @@ class Mission:
             actor: UavActor = fleet.actors[uid]
             u.battery.left_wh = max(u.battery.left_wh - u.battery.power_w(b.v) * dt / 3600.0 * u.battery.drain_factor,
                                     0.0)
-            ask = actor.relief_asked
+            ask = actor.relief.asked
             if ask is not None and ask[0] != u.asked and u.state == FLYING:
                 u.asked = ask[0]
                 self.log.emit(ev.relief(t=t, uav=uid, target=ask[0], by=ask[1], status="asked"))
-            if actor.homebound and u.state == FLYING:
+            if actor.relief.homebound and u.state == FLYING:
                 u.state = HOMEBOUND
-                if actor.handed_target >= 0 and not actor.relieved:
-                    self.log.emit(ev.relief(t=t, uav=uid, target=actor.handed_target, by=t, status="unrelieved"))
+                relief = actor.relief
+                if relief.handed_target >= 0 and not relief.relieved:
+                    self.log.emit(ev.relief(t=t, uav=uid, target=relief.handed_target, by=t, status="unrelieved"))
                 self.log.emit(ev.rtb(t=t, uav=uid, energy_wh=u.battery.left_wh, needed_wh=u.rtb_needed,
-                                     target=actor.handed_target))
+                                     target=relief.handed_target))
             if u.state == FLYING:
                 u.on_station_s += dt
             if u.battery.left_wh <= 0.0:
