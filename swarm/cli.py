@@ -291,7 +291,9 @@ def _cmd_run(args) -> int:
     sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports,
                        overrides=sets, run_duration_s=args.duration)
     own_duration = sc.duration_s  # the scenario's end, before --duration
-    sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
+    if args.duration is not None:  # (the loader judged it as run for --duration: not judged again)
+        sc = sc.model_copy(update={"duration_s": args.duration})
+    sim = Simulation(sc, seed=args.seed, memory_limit_gb=args.memory_limit)
     if args.duration is None:
         _warn(args.scenario, sim.scenario)
     else:  # the scenario as written, run for --duration (what the shortened run leaves out)

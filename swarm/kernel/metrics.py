@@ -74,6 +74,9 @@ class Metrics:
     tick_s: float = 0.0  # (the run's dt, noted by observe)
     first_hold: dict[tuple[int, str], float] = field(default_factory=dict)  # (target, UAV type) -> first hold
     rows: list[dict] = field(default_factory=list)
+    # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
+    # count those only. None: every cell (a rectangle).
+    inside: np.ndarray | None = None
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
 
     def __post_init__(self) -> None:
@@ -87,9 +90,6 @@ class Metrics:
         # Needs the union to be written through scan() only.
         self._touched: np.ndarray | None = None
         self._q: np.ndarray | None = None
-        # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
-        # count those only. None: every cell (a rectangle).
-        self.inside: np.ndarray | None = None
         if self.grid.nx * self.grid.ny > DENSE_MAX_CELLS:
             self._touched = np.zeros((-(-self.grid.ny // _BLOCK), -(-self.grid.nx // _BLOCK)), dtype=bool)
 
