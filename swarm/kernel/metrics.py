@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,7 @@ class Metrics:
     gaps: dict[int, tuple[int, float]] = field(default_factory=dict)
     tick_s: float = 0.0  # (the run's dt, noted by observe)
     first_hold: dict[tuple[int, str], float] = field(default_factory=dict)  # (target, UAV type) -> first hold
-    rows: list[dict] = field(default_factory=list)
+    rows: list[dict[str, Any]] = field(default_factory=list)
     # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
     # count those only. None: every cell (a rectangle).
     inside: np.ndarray | None = None
@@ -150,14 +151,14 @@ class Metrics:
 
     def observe(self, t: float, dt: float, plans: dict[int, tuple[int, int]], sensed: dict[int, list[int]],
                 types: dict[int, str], speed_max: dict[str, float],
-                detected: dict[int, list[int]] | None = None) -> list[tuple]:
+                detected: dict[int, list[int]] | None = None) -> list[tuple[Any, ...]]:
         """Account one tick. ``plans``: uid -> (mode, target); ``sensed``: uid -> target ids
         inside its detection radius. ``detected`` (a sensor fault: some UAVs' sensors miss
         targets): uid -> the real targets its sensor reported, for those UAVs; a target is
         found when a sensor reports it (a miss is not a find, a false alarm is never a target),
         while holding and watching stay the ground truth of ``sensed``. Returns events to log
         (found, handover, release)."""
-        events: list[tuple] = []
+        events: list[tuple[Any, ...]] = []
         for uid, targets in sensed.items():
             if detected is not None:
                 targets = detected.get(uid, targets)
@@ -239,7 +240,7 @@ class Metrics:
         )
 
     def assignment(self, targets: int, uav_types: dict[int, str], speed_max_by_type: dict[str, float],
-                   t_end: float) -> dict:
+                   t_end: float) -> dict[str, Any]:
         """The detection-to-watch measures of a run (module docstring; names in docs/outputs.md).
 
         ``targets``: how many the run has (ids ``0 .. targets - 1``); ``uav_types``: uid -> type

@@ -129,10 +129,11 @@ class Simulation(HostApi):
                 self._faults.add(fault)
 
     @classmethod
-    def from_file(cls, ref: str | Path, **kw) -> Simulation:
+    def from_file(cls, ref: str | Path, **kw: Any) -> Simulation:
         return cls(ref, **kw)
 
-    def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
+    def _add_target_rng(self, x: float, y: float, theta: float, v: float, value: float,
+                        rng: np.random.Generator) -> int:
         tid = self._targets.add(x, y, theta, v, value, rng)
         self._metrics.appeared_t[tid] = self._clock.now  # (time to first detection counts from here)
         return tid
@@ -339,12 +340,12 @@ class Simulation(HostApi):
     def __enter__(self) -> Simulation:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # --- results ---------------------------------------------------------------------------
 
-    def metrics_dict(self) -> dict:
+    def metrics_dict(self) -> dict[str, Any]:
         """The run's metrics so far (what ``metrics.json`` holds; see :mod:`swarm.kernel.results`)."""
         return run_metrics(self)
 
