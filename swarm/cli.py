@@ -10,11 +10,25 @@ import argparse
 import asyncio
 import shlex
 import sys
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from swarm.errors import SwarmError, UsageError
+
+if TYPE_CHECKING:
+    from concurrent.futures import Executor
+
+    from rich.console import Console
+    from rich.progress import Progress, TaskID
+    from rich.table import Table
+
+    from swarm.experiments.resilience.runs import ResilienceReport
+    from swarm.experiments.sweep import RunSpec
+    from swarm.kernel.results import RunResult
+    from swarm.kernel.simulation import Simulation
+    from swarm.scenario import Scenario
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
@@ -24,7 +38,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one grammar for every subcommand: no abbreviations (``--seed`` is never
     taken for ``--seeds``), and a "did you mean" for a mistyped option."""
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
 
@@ -32,7 +46,7 @@ class _Parser(argparse.ArgumentParser):
         # One line, like every other mistake the command reports (argparse would add its usage).
         self.exit(EXIT_USAGE, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
 
-    def _check_value(self, action, value):
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
         # An invalid choice (a subcommand, an experiment, an axis) names the closest valid one.
         import difflib
 
@@ -83,13 +97,13 @@ def _version() -> str:
     return __version__
 
 
-def _print_json(data) -> None:
+def _print_json(data: Any) -> None:
     import json
 
     print(json.dumps(data, indent=2, allow_nan=False, default=str))
 
 
-def _console(stderr: bool = False):
+def _console(stderr: bool = False) -> Console:
     from rich.console import Console
 
     # Piped into a file or another program, rich would cut tables to 80 columns: give it room.
@@ -98,7 +112,7 @@ def _console(stderr: bool = False):
     return Console(stderr=stderr, highlight=False, width=width)
 
 
-def _warn(source: str, scenario, duration_s: float | None = None) -> list[str]:
+def _warn(source: str, scenario: Scenario, duration_s: float | None = None) -> list[str]:
     """Print a ``warning:`` line on stderr for each value that runs but looks unintended
     (:mod:`swarm.scenario.warnings`); return them."""
     from swarm.scenario import scenario_warnings
@@ -113,7 +127,7 @@ def _warn(source: str, scenario, duration_s: float | None = None) -> list[str]:
 VALIDATE_MAX_PROBLEMS = 20
 
 
-def _cmd_validate(args) -> int:
+def _cmd_validate(args: argparse.Namespace) -> int:
     from swarm.errors import ScenarioError
     from swarm.kernel.memory import MemoryLimitError, check_memory
     from swarm.scenario import load_scenario
@@ -163,7 +177,7 @@ def _zone_words(circles: int, polygons: int) -> str:
     return f"{total} no-fly zone{'' if total == 1 else 's'}{detail}"
 
 
-def _cmd_list(args) -> int:
+def _cmd_list(args: argparse.Namespace) -> int:
     from swarm.scenario import builtin_scenarios, load_scenario
 
     if args.planners:
@@ -183,7 +197,7 @@ def _cmd_list(args) -> int:
     return 0
 
 
-def _progress(*, quiet: bool, transient: bool = False, count: bool = False):
+def _progress(*, quiet: bool, transient: bool = False, count: bool = False) -> Progress:
     """The one progress display of every long command, on stderr: description, bar, an
     optional done/total count, a ``note`` field the command updates, elapsed and remaining."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -195,12 +209,12 @@ def _progress(*, quiet: bool, transient: bool = False, count: bool = False):
     return Progress(*columns, console=_console(stderr=True), transient=transient, disable=quiet)
 
 
-def _per_target(values: dict, fmt) -> str:
+def _per_target(values: dict[str, Any], fmt: Callable[[Any], str]) -> str:
     """``0: 7 s, 1: –`` (a dash: never), target by target."""
     return ", ".join(f"{k}: {'–' if v is None else fmt(v)}" for k, v in sorted(values.items(), key=lambda kv: int(kv[0])))
 
 
-def _watch_rows(metrics: dict) -> list[tuple[str, str]]:
+def _watch_rows(metrics: dict[str, Any]) -> list[tuple[str, str]]:
     """The detection and watch rows of the summary (docs/outputs.md)."""
     if "time_to_first_detection_s" not in metrics:
         return []
@@ -217,7 +231,7 @@ def _watch_rows(metrics: dict) -> list[tuple[str, str]]:
     ]
 
 
-def _summary_table(metrics: dict, out_dir: Path | None):
+def _summary_table(metrics: dict[str, Any], out_dir: Path | None) -> Table:
     from rich.table import Table
 
     t = Table(title=f"{metrics['scenario']} · planner {metrics['planner']} · seed {metrics['seed']}", show_header=True)
@@ -245,7 +259,7 @@ def _summary_table(metrics: dict, out_dir: Path | None):
     return t
 
 
-def _cmd_view(args) -> int:
+def _cmd_view(args: argparse.Namespace) -> int:
     """(issue 26) Open a recording in the rerun viewer where a display exists; otherwise say how."""
     import os
     import shutil
@@ -268,7 +282,7 @@ def _cmd_view(args) -> int:
     return subprocess.call([viewer, str(rrds[0])] if viewer else [sys.executable, "-m", "rerun", str(rrds[0])])
 
 
-def _cmd_run(args) -> int:
+def _cmd_run(args: argparse.Namespace) -> int:
     from swarm.kernel.simulation import Simulation
     from swarm.outputs import write_run
     from swarm.scenario import load_scenario, parse_assignment
@@ -291,7 +305,9 @@ def _cmd_run(args) -> int:
     sc = load_scenario(args.scenario, planner=args.planner, allow_planner_imports=args.allow_planner_imports,
                        overrides=sets, run_duration_s=args.duration)
     own_duration = sc.duration_s  # the scenario's end, before --duration
-    sim = Simulation(sc, seed=args.seed, duration_s=args.duration, memory_limit_gb=args.memory_limit)
+    if args.duration is not None:  # (the loader judged it as run for --duration: not judged again)
+        sc = sc.model_copy(update={"duration_s": args.duration})
+    sim = Simulation(sc, seed=args.seed, memory_limit_gb=args.memory_limit)
     if args.duration is None:
         _warn(args.scenario, sim.scenario)
     else:  # the scenario as written, run for --duration (what the shortened run leaves out)
@@ -321,7 +337,8 @@ def _cmd_run(args) -> int:
     return 0
 
 
-async def _hosted(sim, mavlink: str | None, pace_factor: float | None, progress):
+async def _hosted(sim: Simulation, mavlink: str | None, pace_factor: float | None,
+                  progress: Callable[[float, float], None]) -> RunResult:
     """Run ``sim`` to its end in this loop beside the MAVLink bridge and the pacer."""
     from swarm.mavlink import MavlinkBridge, pace
 
@@ -342,7 +359,7 @@ async def _hosted(sim, mavlink: str | None, pace_factor: float | None, progress)
     return sim.result()
 
 
-def _cmd_rerun(args) -> int:
+def _cmd_rerun(args: argparse.Namespace) -> int:
     """Re-run a run folder and compare event-log hashes: 0 equal, 1 different, 2 cannot re-run."""
     from contextlib import ExitStack
 
@@ -350,7 +367,7 @@ def _cmd_rerun(args) -> int:
 
     quiet = args.quiet or args.json
     with ExitStack() as stack:
-        shown: list = []  # the bar, made at the first tick (a folder that cannot be re-run shows none)
+        shown: list[Any] = []  # the bar, made at the first tick (a folder that cannot be re-run shows none)
 
         def on_progress(now: float, end: float) -> None:
             if not shown:
@@ -381,11 +398,11 @@ def _cmd_rerun(args) -> int:
     return 0 if res.equal else 1
 
 
-def _parse_grid(assignments: list[str]) -> dict[str, list]:
+def _parse_grid(assignments: list[str]) -> dict[str, list[Any]]:
     from swarm.experiments.sweep import split_values
     from swarm.scenario import parse_assignment
 
-    grid: dict[str, list] = {}
+    grid: dict[str, list[Any]] = {}
     for text in assignments:
         key, sep, values = text.partition("=")
         if not sep or not key.strip() or not values.strip():
@@ -394,20 +411,20 @@ def _parse_grid(assignments: list[str]) -> dict[str, list]:
     return grid
 
 
-def _dask_executor(args):
+def _dask_executor(args: argparse.Namespace) -> tuple[Executor | None, Any]:
     """``(executor, client)`` for ``--scheduler ADDRESS``, or ``(None, None)`` for a local pool."""
     if not args.scheduler:
         return None, None
     from distributed import Client
 
     try:
-        client = Client(args.scheduler, timeout=args.connect_timeout)
+        client = Client(args.scheduler, timeout=args.connect_timeout)  # type: ignore[no-untyped-call]  # (distributed: unannotated)
     except OSError as exc:
         raise UsageError(f"--scheduler {args.scheduler}: cannot reach a Dask scheduler there ({exc})") from exc
-    return client.get_executor(), client
+    return client.get_executor(), client  # type: ignore[no-untyped-call]  # (distributed: unannotated)
 
 
-def _cmd_sweep(args) -> int:
+def _cmd_sweep(args: argparse.Namespace) -> int:
     from agents.planners import PlannerError, resolve_planner
     from swarm.experiments.sweep import SweepInterrupted, check_baseline, graceful_interrupts, plan_runs, run_sweep
     from swarm.scenario import load_scenario
@@ -435,7 +452,7 @@ def _cmd_sweep(args) -> int:
                 _progress(quiet=args.quiet or args.json, count=True) as progress:
             task = progress.add_task("sweep", total=len(runs), note="")
 
-            def on_progress(done: int, total: int, spec, status: str) -> None:
+            def on_progress(done: int, total: int, spec: RunSpec, status: str) -> None:
                 progress.update(task, completed=done, note=f"{status}: {spec.label}")
 
             result = run_sweep(runs, args.out, executor=executor, workers=args.workers, progress=on_progress,
@@ -468,7 +485,7 @@ def _cmd_sweep(args) -> int:
     return 1 if result.failed else 0
 
 
-def _sweep_table(summary: dict):
+def _sweep_table(summary: dict[str, Any]) -> Table:
     from rich.table import Table
 
     shown = ["coverage", "certainty", "targets_found", "surveillance_ratio_mean", "handovers_fast_to_slow"]
@@ -489,14 +506,15 @@ def _sweep_table(summary: dict):
 
 
 @contextmanager
-def _experiment_runner(args):
+def _experiment_runner(args: argparse.Namespace,
+                       ) -> Iterator[tuple[Executor | None, Callable[[str, str, float, float, str], None]]]:
     """``(executor, on_progress)`` for the multi-sweep commands (paper, resilience): the Dask
     executor of ``--scheduler`` (closed on exit) or None, and a progress callback
     ``(key, description, done, total, info)`` drawing one rich bar per key."""
     executor, client = _dask_executor(args)
     try:
         with _progress(quiet=args.quiet, count=True) as progress:
-            tasks: dict[str, int] = {}
+            tasks: dict[str, TaskID] = {}
 
             def on_progress(key: str, desc: str, done: float, total: float, info: str) -> None:
                 if key not in tasks:
@@ -509,7 +527,7 @@ def _experiment_runner(args):
             client.close()
 
 
-def _cmd_paper(args) -> int:
+def _cmd_paper(args: argparse.Namespace) -> int:
     from swarm.experiments.paper import run_paper
 
     with _experiment_runner(args) as (executor, on_progress):
@@ -540,7 +558,7 @@ def _cmd_paper(args) -> int:
     return 1 if failed else 0
 
 
-def _cmd_resilience(args) -> int:
+def _cmd_resilience(args: argparse.Namespace) -> int:
     from swarm.experiments.resilience import parse_values, run_resilience
 
     if args.duration is not None and not args.duration > 0:
@@ -578,14 +596,14 @@ def _cmd_resilience(args) -> int:
     return 1 if failed else 0
 
 
-def _resilience_table(report):
+def _resilience_table(report: ResilienceReport) -> Table:
     from rich.table import Table
 
     t = Table(title="resilience (mean [95% interval] over seeds)")
     for col in ("axis", "value", "coverage DACMP", "coverage greedy", "targets DACMP", "targets greedy"):
         t.add_column(col, justify="right" if col != "axis" else "left")
 
-    def cell(d, digits):
+    def cell(d: dict[str, Any] | None, digits: int) -> str:
         return f"{d['mean']:.{digits}f} [{d['ci95'][0]:.{digits}f}, {d['ci95'][1]:.{digits}f}]" if d else "-"
 
     for rep in report.axes:
@@ -596,7 +614,7 @@ def _resilience_table(report):
     return t
 
 
-def _cmd_bench(args) -> int:
+def _cmd_bench(args: argparse.Namespace) -> int:
     from swarm.experiments.bench import CASES
     from swarm.experiments.bench import main as bench_main
 
@@ -606,7 +624,7 @@ def _cmd_bench(args) -> int:
     return bench_main(quick=args.quick, only=args.case or None, as_array=args.json)
 
 
-def _cmd_animate(args) -> int:
+def _cmd_animate(args: argparse.Namespace) -> int:
     from swarm.viz.animate import prepare_animation
 
     job = prepare_animation(args.rundir, args.out, fps=args.fps, speed=args.speed, trail_s=args.trail)
@@ -627,7 +645,7 @@ def _cmd_animate(args) -> int:
     return 0
 
 
-def _cmd_report(args) -> int:
+def _cmd_report(args: argparse.Namespace) -> int:
     from swarm.viz.report import find_animation, write_report
 
     path = write_report(args.rundir, args.out, animation=args.animation)
@@ -640,7 +658,7 @@ def _cmd_report(args) -> int:
     return 0
 
 
-def _cmd_export(args) -> int:
+def _cmd_export(args: argparse.Namespace) -> int:
     from swarm.export import export_parquet
 
     result = export_parquet(args.folder, args.out)
@@ -832,7 +850,8 @@ def main(argv: list[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     args.argv = argv  # what the user typed (a stopped sweep says how to resume it)
     try:
-        return args.func(args)
+        code: int = args.func(args)
+        return code
     except SwarmError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -836,7 +836,8 @@ PROVENANCE_KEY = "provenance"
 
 def with_provenance(events: bytes, provenance: Mapping[str, Any]) -> bytes:
     """The bytes of an ``events.msgpack`` file: the provenance record, then the events."""
-    return msgpack.packb({PROVENANCE_KEY: dict(provenance)}, use_bin_type=True) + events
+    header: bytes = msgpack.packb({PROVENANCE_KEY: dict(provenance)}, use_bin_type=True)
+    return header + events
 
 
 def split_provenance(data: bytes) -> tuple[dict[str, Any] | None, bytes]:

@@ -27,9 +27,13 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from swarm.errors import SwarmError
 from swarm.events import with_provenance
+
+if TYPE_CHECKING:
+    from swarm.kernel.results import RunResult
 
 __all__ = [
     "RunDirError",
@@ -68,7 +72,7 @@ def atomic_write(path: str | os.PathLike[str], data: bytes) -> Path:
     return Path(path)
 
 
-def run_files(result, scenario_dict: dict | None = None, figures: bool = True) -> dict[str, bytes]:
+def run_files(result: RunResult, scenario_dict: dict[str, Any] | None = None, figures: bool = True) -> dict[str, bytes]:
     """A run's result files as ``{name: bytes}``, ``metrics.json`` last.
 
     Built in memory so a sweep worker on another machine can ship a finished run back to the
@@ -111,7 +115,7 @@ def write_files(out_dir: str | Path, files: dict[str, bytes]) -> Path:
     return out
 
 
-def write_run(result, out_dir: str | Path, scenario_dict: dict | None = None, figures: bool = True) -> Path:
+def write_run(result: RunResult, out_dir: str | Path, scenario_dict: dict[str, Any] | None = None, figures: bool = True) -> Path:
     return write_files(out_dir, run_files(result, scenario_dict, figures))
 
 
@@ -150,10 +154,11 @@ def _sweep_folder_message(d: Path) -> str:
             f"{d / 'runs'}/PLANNER/SETTINGS/seed-NNN{runs}")
 
 
-def read_json(path: Path) -> dict:
+def read_json(path: Path) -> dict[str, Any]:
     """A JSON file of a run folder; :class:`RunDirError` if it cannot be read."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        return data
     except (OSError, ValueError) as exc:
         raise RunDirError(f"{path}: cannot be read as JSON ({exc})") from None
 
@@ -164,7 +169,7 @@ class RunFolder:
     validated) and ``events.msgpack`` (bytes, see :func:`swarm.events.read_events`)."""
 
     path: Path
-    scenario: dict
+    scenario: dict[str, Any]
     events: bytes
 
 

@@ -18,6 +18,7 @@ import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from swarm.errors import SwarmError
 from swarm.events import EventLogError, check_log, first_difference_s, log_sha256, read_events, split_provenance
@@ -104,7 +105,7 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
     return RerunResult(run.path, target, original, new, then, versions(), first)
 
 
-def _read_log(path: Path, data: bytes) -> tuple[dict | None, bytes]:
+def _read_log(path: Path, data: bytes) -> tuple[dict[str, Any] | None, bytes]:
     """The provenance record and the events of a folder's log, every event checked (a log cut
     short or damaged is said here, before anything runs)."""
     try:
@@ -115,7 +116,7 @@ def _read_log(path: Path, data: bytes) -> tuple[dict | None, bytes]:
     return provenance, events
 
 
-def _end_of(metrics: dict, duration_s: float, scenario_path: Path) -> float:
+def _end_of(metrics: dict[str, Any], duration_s: float, scenario_path: Path) -> float:
     """Where the original run stopped: metrics.json's ``sim_seconds`` (an embedded run may stop
     before its scenario's end), else the scenario's duration."""
     end = metrics.get("sim_seconds", duration_s)

@@ -11,7 +11,7 @@ from collections import Counter
 import numpy as np
 import pytest
 
-import swarm.kernel.simulation as simulation_module
+import swarm.kernel.assembly as assembly_module
 from agents.maps.umap import NEVER
 from faults.schedule import (
     PHANTOM_TARGET_ID,
@@ -187,7 +187,7 @@ def test_maps_in_a_group_stay_a_max_of_what_they_applied_under_skew(monkeypatch)
 
     def maps(group: bool):
         if not group:
-            monkeypatch.setattr(simulation_module, "maps_share", lambda *_: False)
+            monkeypatch.setattr(assembly_module, "maps_share", lambda *_: False)
         with Simulation(sc, seed=2) as sim:
             assert (sim._map_group is not None) == group
             for f in faults:

@@ -57,6 +57,80 @@ def test_simulation_is_at_most_400_lines():
     assert n <= 400, f"swarm/kernel/simulation.py has {n} lines"
 
 
+def _assigned_attributes(fn: ast.AST) -> list[str]:
+    """``a.b = ...`` (also ``a.b += ...``) targets in a function, as ``"a.b"`` (self.x.y as such)."""
+    out = []
+    for node in ast.walk(fn):
+        targets = node.targets if isinstance(node, ast.Assign) else (
+            [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else [])
+        for t in targets:
+            for el in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                if isinstance(el, ast.Attribute):
+                    out.append(ast.unparse(el))
+    return out
+
+
+def _function(path: Path, qualname: str) -> ast.AST:
+    tree = ast.parse(path.read_text())
+    *outer, name = qualname.split(".")
+    scope: ast.AST = tree
+    for part in outer:
+        scope = next(n for n in ast.iter_child_nodes(scope) if isinstance(n, ast.ClassDef) and n.name == part)
+    return next(n for n in ast.iter_child_nodes(scope) if isinstance(n, ast.FunctionDef) and n.name == name)
+
+
+def test_no_part_is_patched_after_it_was_built():
+    """The assembly gives each part its inputs when it is made; the simulation keeps the parts
+    as its own attributes and sets nothing on them (issue 35)."""
+    kernel = ROOT / "swarm" / "kernel"
+    assert _assigned_attributes(_function(kernel / "assembly.py", "assemble")) == []
+    patched = [a for a in _assigned_attributes(_function(kernel / "simulation.py", "Simulation.__init__"))
+               if not (a.startswith("self.") and a.count(".") == 1)]
+    assert patched == []
+    build = (kernel / "build.py").read_text()
+    assert not [a for node in ast.walk(ast.parse(build)) if isinstance(node, ast.FunctionDef)
+                for a in _assigned_attributes(node)]
+
+
+def test_a_scenario_is_judged_once_whatever_is_overridden(monkeypatch, tmp_path):
+    """``Simulation(name, duration_s=..., seed=...)`` and ``swarm run NAME --duration --seed``
+    validate the scenario once; a validated scenario given with only a seed (or its own
+    duration) is not validated again; the scenario is the one judging it twice gave."""
+    from swarm import Simulation, load_scenario
+    from swarm.cli import main
+    from swarm.scenario import Scenario, apply_overrides
+
+    calls: list[int] = []
+    validate = Scenario.model_validate
+
+    def counting(data, **kw):
+        calls.append(1)
+        return validate(data, **kw)
+
+    monkeypatch.setattr(Scenario, "model_validate", counting)
+
+    def judged(make) -> tuple[int, Simulation]:
+        calls.clear()
+        sim = make()
+        return len(calls), sim
+
+    n, sim = judged(lambda: Simulation("paper-case1", duration_s=30.0))
+    assert n == 1
+    loaded = load_scenario("paper-case1")
+    assert sim.scenario == apply_overrides(loaded, {"duration_s": 30.0}, truncated=True)
+    n, sim = judged(lambda: Simulation("paper-case1", seed=4, duration_s=30.0, dt_s=0.5, planner="greedy"))
+    assert n == 1
+    assert sim.scenario == apply_overrides(loaded, {"planner.name": "greedy", "duration_s": 30.0, "seed": 4,
+                                                    "dt_s": 0.5}, truncated=True)
+    assert judged(lambda: Simulation(loaded, seed=2))[0] == 0
+    assert judged(lambda: Simulation(loaded, seed=2, duration_s=loaded.duration_s))[0] == 0
+    assert judged(lambda: Simulation(loaded, duration_s=30.0))[0] == 1  # (a different scenario: judged with it)
+    calls.clear()
+    assert main(["run", "paper-case1", "--duration", "3", "--seed", "5", "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    assert len(calls) == 1
+    assert '"sim_seconds": 3.0' in (tmp_path / "r" / "metrics.json").read_text()
+
+
 def test_no_import_circle_among_the_packages_modules():
     g = _import_graph()
     # A package's __init__ importing its own submodules is how a package gathers its names, not

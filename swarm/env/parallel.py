@@ -44,9 +44,8 @@ from agents.planners.base import Plan, PlanView
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event, Found, Pose, Restart, Violation
-from swarm.kernel.mission import LANDED
 from swarm.kernel.simulation import Simulation
-from swarm.kernel.world import ALIVE, CRASHED, PENDING
+from swarm.kernel.world import ALIVE, CRASHED, LANDED, PENDING
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 
 __all__ = ["ENV_NAME", "ExternalPlanner", "RewardWeights", "SwarmSearchEnv", "parallel_env"]
@@ -133,7 +132,7 @@ class _Step:
     violations: int = 0
 
 
-class SwarmSearchEnv(ParallelEnv):
+class SwarmSearchEnv(ParallelEnv):  # type: ignore[misc]  # (pettingzoo has no type information)
     """The PettingZoo parallel environment ``swarm_search_v1`` (see the module docstring and
     docs/env.md). Build it with :func:`parallel_env`."""
 
@@ -204,7 +203,7 @@ class SwarmSearchEnv(ParallelEnv):
         self._track_hi = np.tile(_TRACK_HI, (n_tracks, 1))
         self.flatten = bool(flatten)
         self._dict_spaces = {a: self._observation_space() for a in self.possible_agents}
-        self._observation_spaces: dict[str, spaces.Space] = (
+        self._observation_spaces: dict[str, spaces.Space[Any]] = (
             {a: spaces.flatten_space(d) for a, d in self._dict_spaces.items()} if self.flatten else dict(self._dict_spaces))
         self._action_spaces = {a: spaces.Box(-1.0, 1.0, (2,), np.float32) for a in self.possible_agents}
 
@@ -258,13 +257,14 @@ class SwarmSearchEnv(ParallelEnv):
 
     # --- the PettingZoo API ----------------------------------------------------------------
 
-    def observation_space(self, agent: str) -> spaces.Space:
+    def observation_space(self, agent: str) -> spaces.Space[Any]:
         return self._observation_spaces[agent]
 
     def action_space(self, agent: str) -> spaces.Box:
         return self._action_spaces[agent]
 
-    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict[str, dict]]:
+    def reset(self, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
         """A new episode: ``Simulation(scenario, seed=seed)`` (``seed=None``: the scenario's
         seed), so the same seed gives the same episode. ``options`` is accepted and unused."""
         self.close()
@@ -285,7 +285,8 @@ class SwarmSearchEnv(ParallelEnv):
             self._skip_to_next_agent()
         return {a: self._observe(a) for a in self.agents}, {a: self._info(a) for a in self.agents}
 
-    def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+    def step(self, actions: Mapping[str, Any],
+             ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any], dict[str, Any], dict[str, Any]]:
         sim = self.sim
         if sim is None:
             raise APIMisuseError(f"{ENV_NAME}: call reset() before step()")

@@ -55,7 +55,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import CodeType, FrameType
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -188,7 +188,7 @@ def rate_by_tenth(result: RunResult, duration_s: float, cpu_at: list[tuple[float
     return [round(float(n / c), 1) if c > 0 else 0.0 for n, c in zip(counts, cpu)]
 
 
-def run_case(case: Case) -> dict:
+def run_case(case: Case) -> dict[str, Any]:
     sim = Simulation(case_scenario(case), planner=case.planner, duration_s=case.duration_s)
     sampler = _Sampler()
     cpu_at: list[tuple[float, float]] = [(0.0, 0.0)]
@@ -232,7 +232,7 @@ def run_case(case: Case) -> dict:
     }
 
 
-def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict:
+def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict[str, Any]:
     """What anti-entropy costs and holds, per UAV: ``sync_horizon_m`` (the knowledge horizon, None
     = none), ``digest_bytes_mean`` (a digest's bitmaps, 8 bytes per origin listed included),
     ``anti_entropy_bytes_per_uav_s`` (digests plus the frames answering them, per UAV-second),
@@ -260,7 +260,7 @@ def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict:
     return out
 
 
-def main(quick: bool = False, only: list[str] | None = None, out=sys.stdout, duration_s: float | None = None,
+def main(quick: bool = False, only: list[str] | None = None, out: TextIO = sys.stdout, duration_s: float | None = None,
          as_array: bool = False) -> int:
     """Run the cases (``quick``: the CI subset; ``only``: these names) and print one JSON line
     each as it finishes, or (``as_array``) one JSON array at the end. ``duration_s`` overrides

@@ -8,7 +8,7 @@ import os
 from collections.abc import Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -16,6 +16,11 @@ from matplotlib.figure import Figure
 
 from swarm.errors import UsageError
 from swarm.outputs import atomic_write
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from swarm.scenario import Scenario
 
 
 class executor_for:
@@ -32,12 +37,12 @@ class executor_for:
         self.own = ProcessPoolExecutor(max_workers=self.workers or os.cpu_count() or 1)
         return self.own
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         if self.own is not None:
             self.own.shutdown(wait=True, cancel_futures=True)
 
 
-def expected_duration(scenario, duration_s: float | None) -> float:
+def expected_duration(scenario: Scenario, duration_s: float | None) -> float:
     return float(duration_s if duration_s is not None else scenario.duration_s)
 
 
@@ -49,7 +54,7 @@ def seeds_from(seeds: int | Sequence[int]) -> list[int]:
     return [int(s) for s in seeds]
 
 
-def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **kwargs) -> tuple[Figure, Any]:
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **kwargs: Any) -> tuple[Figure, Any]:
     """Like ``pyplot.subplots`` but a figure of its own (an Agg canvas, nothing registered with
     pyplot), so the host program's backend and figures are left alone."""
     fig = Figure(figsize=figsize)
@@ -64,11 +69,11 @@ def save_figure(fig: Figure, path: Path) -> Path:
     return path
 
 
-def no_data(ax, text="no finished runs") -> None:
+def no_data(ax: Axes, text: str = "no finished runs") -> None:
     ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="grey")
 
 
-def write_json(path: Path, data: dict) -> None:
+def write_json(path: Path, data: dict[str, Any]) -> None:
     write_text(path, json.dumps(data, indent=2, default=_json_default))
 
 
@@ -78,7 +83,7 @@ def write_text(path: Path, text: str) -> Path:
     return atomic_write(path, text.encode("utf-8"))
 
 
-def _json_default(o):
+def _json_default(o: object) -> object:
     if isinstance(o, (np.integer,)):
         return int(o)
     if isinstance(o, (np.floating,)):

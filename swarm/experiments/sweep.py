@@ -92,7 +92,7 @@ class RunSpec:
     """One simulation of a sweep. ``scenario`` is the scenario as a plain dict (picklable, so it
     travels to any worker), overrides already applied."""
 
-    scenario: dict
+    scenario: dict[str, Any]
     planner: str
     seed: int
     settings: tuple[tuple[str, Any], ...]
@@ -116,8 +116,8 @@ class SweepResult:
     total: int
     skipped: int  # finished before this invocation
     ran: int
-    failed: list[dict] = field(default_factory=list)
-    summary: dict = field(default_factory=dict)
+    failed: list[dict[str, Any]] = field(default_factory=list)
+    summary: dict[str, Any] = field(default_factory=dict)
 
 
 def slug(settings: Sequence[tuple[str, Any]]) -> str:
@@ -202,7 +202,7 @@ def plan_runs(scenario: Scenario, *, seeds: Iterable[int], planners: Sequence[st
     return runs
 
 
-def execute(spec: RunSpec) -> dict:
+def execute(spec: RunSpec) -> dict[str, Any]:
     """Run one simulation (in a worker). Returns ``{"files": {name: bytes}}`` or, if it raised,
     ``{"error": text, "traceback": text}``: an error is data, so one bad run cannot take the
     sweep down."""
@@ -554,7 +554,7 @@ def _t975(dof: int) -> float:
     return float(stats.t.ppf(0.975, dof))
 
 
-def describe(values: Sequence[float], bounds: tuple[float, float] | None = None) -> dict:
+def describe(values: Sequence[float], bounds: tuple[float, float] | None = None) -> dict[str, Any]:
     """Mean, sample standard deviation and the Student-t 95% interval of the mean.
 
     ``bounds``: the range the values can take (:func:`metric_bounds`); the interval is clipped
@@ -592,7 +592,7 @@ def check_baseline(planners: Iterable[str], baseline: str | None) -> str | None:
     return baseline
 
 
-def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict:
+def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict[str, Any]:
     """Per planner and setting: mean, sd and 95% interval of every metric over finished seeds
     (every number of ``metrics.json``, flattened by :func:`flatten_metrics`, but
     :data:`_NOT_SUMMARISED`); and, for each setting, each other planner compared with the
@@ -602,9 +602,9 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None
     ``"interval"`` says so in the summary. ``"breakdowns"``: the tables kept per UAV or per
     target (:func:`breakdowns`), whose metrics the sweep's report leaves to the tables."""
     out = Path(out_dir)
-    groups: dict[tuple, dict] = {}
-    per_seed: dict[tuple, dict[int, dict[str, float]]] = {}
-    targets: dict[tuple, float] = {}  # the most targets in a run of the group: targets_found's bound
+    groups: dict[tuple[Any, ...], dict[str, Any]] = {}
+    per_seed: dict[tuple[Any, ...], dict[int, dict[str, float]]] = {}
+    targets: dict[tuple[Any, ...], float] = {}  # the most targets in a run of the group: targets_found's bound
     per_entity: dict[str, None] = {}
     errors = []
     for spec in runs:
@@ -664,7 +664,7 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None
     }
 
 
-def _csv(summary: dict) -> str:
+def _csv(summary: dict[str, Any]) -> str:
     keys = sorted({k for g in summary["groups"] for k in g["settings"]})
     buf = io.StringIO(newline="")
     w = csv.writer(buf)
@@ -743,7 +743,7 @@ def _parse_cell(text: str) -> Any:
         return text
 
 
-def write_summary(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict:
+def write_summary(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict[str, Any]:
     summary = summarize(out_dir, runs, baseline)
     write_files(out_dir, {"summary.csv": _csv(summary).encode(),
                           "runs.csv": _runs_csv(run_rows(out_dir, runs)).encode(),
@@ -751,7 +751,7 @@ def write_summary(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | 
     return summary
 
 
-def sweep(scenario: str | os.PathLike | Scenario, out_dir: str | Path, *, seeds: int | Iterable[int] = 30,
+def sweep(scenario: str | os.PathLike[str] | Scenario, out_dir: str | Path, *, seeds: int | Iterable[int] = 30,
           planners: Sequence[str] = ("dacmp", "greedy"), grid: Mapping[str, Sequence[Any]] | None = None,
           executor: Executor | None = None, workers: int | None = None, duration_s: float | None = None,
           figures: bool = False, progress: ProgressFn | None = None,

@@ -24,7 +24,9 @@ the part that owns it):
    (:mod:`~swarm.kernel.world`);
 8. **end**: the time series sampled when due, the log flushed, the next tick scheduled.
 
-The other parts: :mod:`~swarm.kernel.build` (the pieces made from a scenario),
+The other parts: :mod:`~swarm.kernel.assembly` (the scenario a run is given, judged once, and
+every part built from it in dependency order), :mod:`~swarm.kernel.build` (the pieces made from a
+scenario),
 :mod:`~swarm.kernel.rng` (one random stream per stable key), :mod:`~swarm.kernel.memory` (a run
 too big for the machine refused before anything is allocated), :mod:`~swarm.kernel.driving` (which
 event loop drives a run), :mod:`~swarm.kernel.snapshot` (a run at one instant) and

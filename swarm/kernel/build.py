@@ -2,18 +2,17 @@
 
 Each function turns one part of a :class:`~swarm.scenario.Scenario` into the objects the kernel
 runs (UAV types, target motion, threats, the radio, the actors' settings). They hold no state
-and decide nothing at run time; :class:`swarm.kernel.simulation.Simulation` composes them.
+and decide nothing at run time; :func:`swarm.kernel.assembly.assemble` composes them.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,16 +21,13 @@ from agents.apf import ApfSettings
 from agents.knowledge import KnownThreat
 from agents.types import UavType
 from comms.radio import LinkFilter, Radio
-from swarm.errors import UsageError
 from swarm.kernel.rng import RngTree, first_randoms, generator_from_state, stream_states
 from swarm.kernel.world import TargetMotion, Targets
-from swarm.scenario import Scenario, UavTypeSpec, load_scenario
-from swarm.scenario.trust import allowed
+from swarm.scenario import Scenario, UavTypeSpec
 
 if TYPE_CHECKING:
     from agents.maps.grid import Grid
     from swarm.geo.geography import Geography
-    from swarm.kernel.mission import Mission
 
 __all__ = ["actor_settings", "add_random_targets", "auth_key", "geography", "radio", "random_targets", "target_motion", "threats",
            "uav_type_from_spec", "uav_types"]
@@ -119,20 +115,15 @@ def auth_key(sc: Scenario) -> bytes | None:
     return hashlib.sha256(f"uav-swarm-sim swarm key {sc.seed}".encode()).digest()
 
 
-def geography(sc: Scenario, grid: Grid, world: Any = None, metrics: Any = None) -> Geography | None:
+def geography(sc: Scenario, grid: Grid) -> Geography | None:
     """The run's areas and zones as polygons (issue 26), or None without ``[geo]`` and
-    ``[[no_fly]]`` (then pyproj and shapely are never imported); placed in the ``world`` (its
-    no-fly polygons) and the ``metrics`` (the cells inside the area) if given."""
+    ``[[no_fly]]`` (then pyproj and shapely are never imported)."""
     if sc.geo is None and not sc.no_fly:
         return None
     from swarm.geo.geography import geography as build_geography
 
     geo = build_geography(sc, grid)
     assert geo is not None  # (it has [geo] or [[no_fly]])
-    if world is not None:
-        world.zones = geo.zones
-    if metrics is not None:
-        metrics.inside = geo.inside
     return geo
 
 
@@ -144,23 +135,6 @@ def random_start(g: np.random.Generator, sc: Scenario, geo: Geography | None) ->
     while geo is not None and geo.area is not None and geo.area.clearance(x, y)[0] < 0.0:
         x, y = float(g.uniform(0, sc.area.width_m)), float(g.uniform(0, sc.area.height_m))
     return x, y, float(g.uniform(-math.pi, math.pi)), float(g.uniform(0, sc.targets.speed_max))
-
-
-def mission(sim: Any) -> Mission | None:
-    """(issues 26, 33) The run's wind and endurance (:mod:`swarm.kernel.mission`), its batteries handed
-    to the run's fault host (the battery fault's access), or None for a scenario without
-    ``[wind]`` and ``[endurance]``."""
-    sc, geo = sim.scenario, sim._geography
-    if sc.wind is None and sc.endurance is None:
-        return None
-    from swarm.kernel.mission import mission as build_mission
-
-    m = build_mission(sc, sim._world, sim._fleet, sim._log, sim.dt, (sim._grid.width_m, sim._grid.height_m),
-                      sim._rng.generator("wind"), list(geo.zones) if geo is not None else [],
-                      geo.area.vertices if geo is not None and geo.area is not None else None)
-    if m is not None:
-        sim._faults.batteries = m.battery_of
-    return m
 
 
 def actor_settings(sc: Scenario, geo: Geography | None = None) -> ActorSettings:
@@ -190,38 +164,3 @@ def _actor_settings(sc: Scenario) -> ActorSettings:
                         lookahead_s=ap.lookahead_s),
         auth_key=auth_key(sc),
     )
-
-
-def configured(scenario: Scenario | str | Path, seed: int | None, planner: str | type | None,
-                planner_options: Mapping[str, Any] | None, duration_s: float | None,
-                allow_planner_imports: bool | Iterable[str], dt_s: float | None = None) -> Scenario:
-    """The scenario with :class:`swarm.kernel.simulation.Simulation`'s arguments applied."""
-    # A class is named by where it lives (module:Class), as a scenario would name it.
-    name = planner if planner is None or isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario, planner=name, allow_planner_imports=allow_planner_imports)
-    overrides: dict[str, object] = {}
-    if name is not None:
-        overrides["planner.name"] = name
-    if planner_options is not None:
-        if not isinstance(planner_options, Mapping) or not all(isinstance(k, str) and k.isidentifier()
-                                                              for k in planner_options):
-            raise UsageError(f"planner_options {planner_options!r}: expected a dict of option names "
-                             f"(Python identifiers) to values")
-        overrides.update({f"planner.options.{key}": value for key, value in planner_options.items()})
-    if duration_s is not None:
-        overrides["duration_s"] = duration_s
-    if not overrides and seed is not None and not isinstance(seed, bool) and isinstance(seed, int) and seed >= 0:
-        # Only the seed: nothing validated depends on it, so the scenario is not judged again
-        # (a scenario validated as a run cut short, with joiners after its end, stays valid).
-        return scenario.model_copy(update={"seed": seed})
-    if seed is not None:
-        overrides["seed"] = seed
-    if dt_s is not None:
-        overrides["dt_s"] = dt_s
-    if not overrides:
-        return scenario
-    from swarm.scenario import apply_overrides
-
-    return apply_overrides(scenario, overrides, truncated=duration_s is not None,
-                           allow_planner_imports=allowed(allow_planner_imports, name))

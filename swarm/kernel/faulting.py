@@ -53,7 +53,12 @@ class RunFaults:
     """The faults of one simulation: the injector, the tick faults, and the host they act on."""
 
     def __init__(self, clock: Clock, world: World, fleet: Fleet, log: EventLog, rng: RngTree,
-                 names: dict[str, int], area: tuple[float, float], dt: float, latency_s: float):
+                 names: dict[str, int], area: tuple[float, float], dt: float, latency_s: float,
+                 injector: FaultInjector, radio: Radio, batteries: Callable[[int], BatteryLike | None]):
+        """``injector``: the run's fault schedule and frame-copy filter (the radio sends every
+        copy through it); ``batteries``: each UAV's battery (issue 33,
+        :meth:`swarm.kernel.mission.Mission.battery_of`), which the battery fault acts on: None
+        without [endurance]."""
         self.clock = clock
         self.world = world
         self.fleet = fleet
@@ -61,13 +66,10 @@ class RunFaults:
         self.names = names  # shared with the simulation: names added later resolve
         self._area = area
         self._latency_s = latency_s
-        self.injector = FaultInjector(FaultSchedule([]), names,
-                                      fault_rng=lambda kind, k: rng.generator("fault", kind, k))
+        self.injector = injector
         self.tick = TickFaults(rng.generator, names, area, dt, _FaultEvents(log))
-        self.radio: Radio | None = None  # (set once the radio is built: it filters through the injector)
-        # (issue 33) The UAVs' batteries (swarm.kernel.mission.Mission.battery_of), which the battery
-        # fault acts on; none without [endurance].
-        self.batteries: Callable[[int], BatteryLike | None] = lambda uid: None
+        self.radio = radio
+        self.batteries = batteries
 
     @property
     def schedule(self) -> FaultSchedule:
@@ -141,7 +143,6 @@ class RunFaults:
 
     @property
     def counters(self) -> RadioCounters:
-        assert self.radio is not None
         return self.radio.counters
 
     def members(self) -> list[int]:

@@ -39,7 +39,10 @@ class Fleet:
 
     def __init__(self, sc: Scenario, world: World, grid: Grid, tau: float, rng: RngTree, log: EventLog,
                  settings: ActorSettings, decoder: DecodeCache, map_group: MapGroup | None,
-                 batch_planning: bool, lost: LostCopy):
+                 batch_planning: bool, types: dict[str, UavType], actors: dict[int, UavActor], lost: LostCopy):
+        """``actors``: the run's actors by UAV id, filled here as UAVs are added (shared with the
+        transmission, which fills their mailboxes); ``lost``: how a frame copy the fleet drops
+        is counted (a down or landed UAV's unread frames)."""
         self.scenario = sc
         self.world = world
         self.grid = grid
@@ -50,8 +53,8 @@ class Fleet:
         self.decoder = decoder
         self.map_group = map_group
         self.lost = lost  # (a down UAV's unread frames: counted lost by the radio's owner)
-        self.types: dict[str, UavType] = {}
-        self.actors: dict[int, UavActor] = {}
+        self.types = types
+        self.actors = actors
         self.tasks: dict[int, asyncio.Task[None]] = {}
         self.plans: dict[int, Plan] = {}  # each flying UAV's last plan
         self.outputs: dict[int, ActorOutput] = {}  # this tick's (and, until replaced, the last)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,10 @@ class Metrics:
     gaps: dict[int, tuple[int, float]] = field(default_factory=dict)
     tick_s: float = 0.0  # (the run's dt, noted by observe)
     first_hold: dict[tuple[int, str], float] = field(default_factory=dict)  # (target, UAV type) -> first hold
-    rows: list[dict] = field(default_factory=list)
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
+    # count those only. None: every cell (a rectangle).
+    inside: np.ndarray | None = None
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
 
     def __post_init__(self) -> None:
@@ -89,9 +93,6 @@ class Metrics:
         # Needs the union to be written through scan() only.
         self._touched: np.ndarray | None = None
         self._q: np.ndarray | None = None
-        # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
-        # count those only. None: every cell (a rectangle).
-        self.inside: np.ndarray | None = None
         if self.grid.nx * self.grid.ny > DENSE_MAX_CELLS:
             self._touched = np.zeros((-(-self.grid.ny // _BLOCK), -(-self.grid.nx // _BLOCK)), dtype=bool)
 
@@ -241,7 +242,7 @@ class Metrics:
         )
 
     def assignment(self, targets: int, uav_types: dict[int, str], speed_max_by_type: dict[str, float],
-                   t_end: float) -> dict:
+                   t_end: float) -> dict[str, Any]:
         """The detection-to-watch measures of a run (module docstring; names in docs/outputs.md).
 
         ``targets``: how many the run has (ids ``0 .. targets - 1``); ``uav_types``: uid -> type

@@ -140,6 +140,12 @@ class Mission:
         return self.wind.mean if self.wind is not None else (0.0, 0.0)
 
     # --- set-up --------------------------------------------------------------------------------
+    def equip(self) -> None:
+        """Each UAV of the scenario its battery and pad, once all of them are placed (the pads
+        are spaced by their count); a UAV added later gets its own when first asked."""
+        for uid in self.world.uavs:
+            self.battery_of(uid)
+
     def battery_of(self, uid: int) -> Battery | None:
         """The UAV's battery, or None when its type has no budget (what the battery fault acts on)."""
         u = self.uavs.get(uid)
@@ -346,7 +352,4 @@ def mission(sc: Scenario, world: World, fleet: Fleet, log: EventLog, dt: float, 
         wind = WindField(w.mean, w.gust_sigma_mps, w.gust_tau_s, wind_rng)
     e = sc.endurance
     way = homeway(sc, zones, area_ring, area) if e is not None else None
-    m = Mission(world, fleet, log, dt, area, wind, e, way)
-    for uid in world.uavs:
-        m.battery_of(uid)
-    return m
+    return Mission(world, fleet, log, dt, area, wind, e, way)

@@ -11,6 +11,7 @@ copies read and lost (one ``radio`` event a tick instead of one event per copy).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -161,7 +162,7 @@ class Observer:
             self._rx = [0, 0, 0]
             self._lost = {}
 
-    def sample(self, t: float, radio: dict, modes: Callable[[], dict[str, str]]) -> None:
+    def sample(self, t: float, radio: dict[str, Any], modes: Callable[[], dict[str, str]]) -> None:
         """One row of the time series (``timeseries.csv``) at ``t``."""
         m = self.metrics
         row = {

@@ -7,7 +7,7 @@ Kept apart from the kernel: nothing here changes the run, it only reads it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -31,8 +31,8 @@ __all__ = ["RunResult", "radio_totals", "run_metrics", "run_result"]
 class RunResult:
     """Everything a finished (or stopped) run produced; :mod:`swarm.outputs` writes it."""
 
-    metrics: dict
-    timeseries: list[dict]
+    metrics: dict[str, Any]
+    timeseries: list[dict[str, Any]]
     events: bytes
     paths: dict[str, np.ndarray]  # UAV name -> (n, 3) rows of (t, x, y)
     target_paths: dict[int, np.ndarray]
@@ -41,7 +41,7 @@ class RunResult:
     area: tuple[float, float]
     uav_types: dict[str, str] = field(default_factory=dict)
     # The scenario that ran (seed and overrides applied), as ``scenario.json`` holds it.
-    scenario: dict = field(default_factory=dict)
+    scenario: dict[str, Any] = field(default_factory=dict)
 
 
 class Run(Protocol):
@@ -74,7 +74,7 @@ class Run(Protocol):
     def injector(self) -> FaultInjector: ...
 
 
-def radio_totals(sim: Run) -> dict:
+def radio_totals(sim: Run) -> dict[str, Any]:
     c = sim._radio.counters
     delivered = sum(a.counters.delivered for a in sim.actors.values())
     rejected = sum(a.counters.rejected for a in sim.actors.values())
@@ -93,7 +93,7 @@ def radio_totals(sim: Run) -> dict:
     }
 
 
-def run_metrics(sim: Run) -> dict:
+def run_metrics(sim: Run) -> dict[str, Any]:
     """``metrics.json``: the ground-truth measures, radio and fault counters, per-UAV counters."""
     sc = sim.scenario
     t = sim.now
@@ -160,10 +160,10 @@ def run_metrics(sim: Run) -> dict:
     }
 
 
-def _mission_metrics(sim: Run) -> dict:
+def _mission_metrics(sim: Run) -> dict[str, Any]:
     """(issue 26) What a geographic, windy or endurance scenario adds to ``metrics.json``;
     nothing for a scenario without them (their metrics are what they always were)."""
-    out: dict = {}
+    out: dict[str, Any] = {}
     geo = getattr(sim, "_geography", None)
     if geo is not None and geo.frame is not None:
         out["geo"] = {**geo.frame.describe(), "cells_inside": int(geo.inside.sum()) if geo.inside is not None else None}

@@ -24,7 +24,7 @@ class RngTree:
         self.seed = seed
 
     @staticmethod
-    def _spawn_key(key: tuple) -> tuple[int, ...]:
+    def _spawn_key(key: tuple[Any, ...]) -> tuple[int, ...]:
         digest = hashlib.sha256("\x1f".join(map(str, key)).encode()).digest()
         return tuple(int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4))
 
@@ -91,7 +91,8 @@ def _seed_states(seed: int, spawn_keys: np.ndarray) -> np.ndarray:
 
     def mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         r: np.ndarray = u32(_MIX_L) * x - u32(_MIX_R) * y
-        return r ^ (r >> u32(16))
+        mixed: np.ndarray = r ^ (r >> u32(16))
+        return mixed
 
     with np.errstate(over="ignore"):
         mixer = [np.broadcast_to(hashmix(words[i] if i < len(words) else 0), (n,)) for i in range(_POOL)]
@@ -118,7 +119,8 @@ def _mulhi64(a: np.ndarray, b: np.ndarray | np.uint64) -> np.ndarray:
     al, ah, bl, bh = a & m, a >> s, b & m, b >> s
     lh, hl = al * bh, ah * bl
     mid = ((al * bl) >> s) + (lh & m) + (hl & m)
-    return ah * bh + (lh >> s) + (hl >> s) + (mid >> s)
+    high: np.ndarray = ah * bh + (lh >> s) + (hl >> s) + (mid >> s)
+    return high
 
 
 class _Pcg128:

@@ -18,8 +18,9 @@ Library code never prints, exits or calls ``asyncio.run``.
 Between two ticks the simulation stands at a tick boundary, where a host acts
 (:mod:`swarm.kernel.host`: its changes, ``call_at``, ``wait_until``; logged by :mod:`swarm.kernel.hostlog`).
 One tick runs the phases listed in :mod:`swarm.kernel` (boundary, start, mission, sense, wake,
-observe, transmit, integrate, end), each a call into the part that owns it. This class builds
-those parts, runs the phases, drives the clock, and is the embedding API; it knows no fault kind.
+observe, transmit, integrate, end), each a call into the part that owns it. This class has those
+parts built (:mod:`swarm.kernel.assembly`), places the scenario's targets, UAVs and faults on them,
+runs the phases, drives the clock, and is the embedding API; it knows no fault kind.
 """
 
 from __future__ import annotations
@@ -33,30 +34,22 @@ from typing import Any
 import numpy as np
 
 from agents.actor import ActorOutput, SensorReading, UavActor
-from agents.maps.grid import PREFETCH_MIN, Grid
-from agents.maps.mapgroup import MapGroup, maps_share
-from comms.framecache import DecodeCache
+from agents.maps.grid import PREFETCH_MIN
 from faults.injector import FaultInjector
 from faults.registry import fault_from_dict
 from swarm import events as ev
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event
 from swarm.kernel import build
-from swarm.kernel.clock import TICK, Clock
+from swarm.kernel.assembly import assemble, configured
+from swarm.kernel.clock import TICK
 from swarm.kernel.driving import LoopBinding
-from swarm.kernel.faulting import RunFaults
-from swarm.kernel.fleet import Fleet
 from swarm.kernel.host import Host, HostApi
 from swarm.kernel.memory import check_memory
-from swarm.kernel.metrics import Metrics
 from swarm.kernel.mission_phase import NO_MISSION
-from swarm.kernel.observer import Observer
-from swarm.kernel.recorder import EventLog
 from swarm.kernel.results import RunResult, radio_totals, run_metrics, run_result
-from swarm.kernel.rng import RngTree
 from swarm.kernel.snapshot import Snapshot, TargetSnapshot, UavSnapshot, take_snapshot
-from swarm.kernel.transmission import Transmission
-from swarm.kernel.world import PENDING, Targets, UavBody, World
+from swarm.kernel.world import PENDING, UavBody
 from swarm.scenario import Scenario, UavSpec
 
 __all__ = ["Simulation", "Snapshot", "TargetSnapshot", "UavSnapshot"]
@@ -88,57 +81,30 @@ class Simulation(HostApi):
         ``memory_limit_gb``: refuse (:class:`~swarm.kernel.memory.MemoryLimitError`) a scenario whose
         estimated memory is above it (default: ``SWARM_MEMORY_LIMIT_GB``, else half of this
         machine's memory). ``dt_s``: the tick (default: the scenario's), e.g. a host's own step."""
-        scenario = build.configured(scenario, seed, planner, planner_options, duration_s, allow_planner_imports, dt_s)
+        scenario = configured(scenario, seed, planner, planner_options, duration_s, allow_planner_imports, dt_s)
         # Before anything is allocated: refuse a run that cannot fit (swarm.kernel.memory).
         self.memory_estimate = check_memory(scenario, memory_limit_gb)
         self.scenario = sc = scenario
         self.seed = sc.seed
         self.dt = sc.dt_s
         self.duration_s = sc.duration_s
-        self._rng = RngTree(self.seed)
-        self._clock = Clock()
-        self._log = EventLog()
-        self._names: dict[str, int] = {}  # shared with the faults: names added later resolve
         self._tick_index = 0
         self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
         self._binding = LoopBinding()  # the event loop that drives it (swarm.kernel.driving)
         self._advancing = False  # inside run_until (a second driver is refused)
-        self._host = Host(self)  # the host's side: changes, alarms, bodies driven from outside (swarm.kernel.host)
-        # Ground truth (area grid, targets, threats), the metrics that observe it, UAV types.
-        self._grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
-        self._tau = sc.effective_tau
-        self._types = build.uav_types(sc)
+        # The parts, built in dependency order (swarm.kernel.assembly).
+        p = assemble(sc, batch_planning)
+        self._rng, self._clock, self._log, self._names = p.rng, p.clock, p.log, p.names
+        self._grid, self._types, self._targets, self._geography = p.grid, p.types, p.targets, p.geography
+        self._world, self._metrics, self._observer = p.world, p.metrics, p.observer
+        self._map_group, self._decoder, self._radio, self._transmission = p.map_group, p.decoder, p.radio, p.transmission
+        self._fleet, self._mission, self._faults = p.fleet, p.mission, p.faults
+        self._mission_phase = self._mission or NO_MISSION  # (without wind and endurance, a phase that does nothing)
         self._speed_max_by_type = {n: t.speed_max for n, t in self._types.items()}
-        self._targets = Targets(build.target_motion(sc))
-        self._world = World(self._grid, self._targets, build.threats(sc))
-        self._metrics = Metrics(self._grid, self._tau)
-        self._geography = build.geography(sc, self._grid, self._world, self._metrics)  # (issue 26: polygons; None without)
-        self._observer = Observer(self._world, self._metrics, self._log, self.dt, sc.recording.level == "summary",
-                                 sc.safety.min_separation_m)
-        # The UAVs' maps share storage where they agree (same cells as maps of their own;
-        # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon
-        # keeps scans from ever reaching every map (maps_share).
-        self._map_group = (MapGroup(self._grid, self._tau, self.dt)
-                          if maps_share(self._grid.nx * self._grid.ny, self._grid.width_m, self._grid.height_m,
-                                        sc.radio.horizon_m) else None)
-        # Each broadcast frame decoded once (with the swarm key, if [radio] auth).
-        self._decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc))
-        self._fleet = Fleet(sc, self._world, self._grid, self._tau, self._rng, self._log,
-                            build.actor_settings(sc, self._geography), self._decoder, self._map_group, batch_planning,
-                            lost=lambda src, dst, n, cause: self._transmission.lose(self._clock.now, src, dst, n, cause))
-        self._fleet.types = self._types
-        self._faults = RunFaults(self._clock, self._world, self._fleet, self._log, self._rng, self._names,
-                                (self._grid.width_m, self._grid.height_m), self.dt, sc.radio.latency_s)
-        uavs = self._world.uavs
-        self._radio = build.radio(
-            sc, link_rng=lambda s, d: self._rng.generator("link", uavs[s].name, uavs[d].name),
-            link_filter=self._faults.injector,
-            link_rngs=lambda links: self._rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]))
-        self._faults.radio = self._radio
-        self._transmission = Transmission(self._radio, self._clock, self._world, self._fleet.actors, self._observer.lost)
+        self._host = Host(self)  # the host's side: changes, alarms, bodies driven from outside (swarm.kernel.host)
         self._populate(sc)
-        self._mission = build.mission(self)  # (issues 26, 33: wind and endurance; None without)
-        self._mission_phase = self._mission or NO_MISSION  # (without them, a phase that does nothing)
+        if self._mission is not None:
+            self._mission.equip()  # (once the scenario's UAVs are all placed: their batteries and pads)
         self._clock.schedule(0.0, self._tick, TICK)
         self._log.emit(ev.start(t=0.0, header={
             "scenario": sc.name, "seed": self.seed, "planner": sc.planner.name, "dt": self.dt,
@@ -164,10 +130,11 @@ class Simulation(HostApi):
                 self._faults.add(fault)
 
     @classmethod
-    def from_file(cls, ref: str | Path, **kw) -> Simulation:
+    def from_file(cls, ref: str | Path, **kw: Any) -> Simulation:
         return cls(ref, **kw)
 
-    def _add_target_rng(self, x, y, theta, v, value, rng) -> int:
+    def _add_target_rng(self, x: float, y: float, theta: float, v: float, value: float,
+                        rng: np.random.Generator) -> int:
         tid = self._targets.add(x, y, theta, v, value, rng)
         self._metrics.appeared_t[tid] = self._clock.now  # (time to first detection counts from here)
         return tid
@@ -374,12 +341,12 @@ class Simulation(HostApi):
     def __enter__(self) -> Simulation:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # --- results ---------------------------------------------------------------------------
 
-    def metrics_dict(self) -> dict:
+    def metrics_dict(self) -> dict[str, Any]:
         """The run's metrics so far (what ``metrics.json`` holds; see :mod:`swarm.kernel.results`)."""
         return run_metrics(self)
 

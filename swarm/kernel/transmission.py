@@ -35,10 +35,10 @@ class Transmission:
         self._lost = lost
         self.in_flight = 0  # copies scheduled on the clock, not yet delivered
 
-    def lose(self, t: float, src: int, dst: int, nbytes: int, cause: str) -> None:
-        """A copy lost after the radio let it through (its receiver went down, or is full)."""
+    def lose(self, src: int, dst: int, nbytes: int, cause: str) -> None:
+        """A copy lost now, after the radio let it through (its receiver went down, or is full)."""
         self.radio.counters.drop(cause)
-        self._lost(t, src, dst, nbytes, cause)
+        self._lost(self.clock.now, src, dst, nbytes, cause)
 
     def transmit(self, t: float, dt: float, alive: list[int], xy: np.ndarray, outputs: Mapping[int, ActorOutput],
                  first: list[Delivery]) -> None:
@@ -73,10 +73,9 @@ class Transmission:
     def _deliver(self, batch: list[Delivery]) -> None:
         uavs = self.world.uavs
         actors = self.actors
-        now = self.clock.now
         self.in_flight -= len(batch)
         for arrival_t, sender, receiver, data in batch:
             if uavs[receiver].state != ALIVE:
-                self.lose(now, sender, receiver, len(data), "receiver_down")
+                self.lose(sender, receiver, len(data), "receiver_down")
             elif not actors[receiver].mailbox.put(arrival_t, sender, data):
-                self.lose(now, sender, receiver, len(data), "mailbox_full")
+                self.lose(sender, receiver, len(data), "mailbox_full")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -353,14 +354,14 @@ def _all_far_apart(xy: np.ndarray, r: float) -> bool:
 
 
 class World:
-    def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat]):
+    def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat], zones: list[Any] | None = None):
         self.grid = grid
         self.uavs: dict[int, UavBody] = {}
         self.targets = targets
         self.threats = threats
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
         # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
-        self.zones: list = []
+        self.zones: list[Any] = zones if zones is not None else []
         # The wind of this tick (issue 26, swarm.kernel.mission; None: still air): every UAV drifts with it.
         self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)

@@ -57,7 +57,7 @@ class _Bad(Exception):
         self.problems = problems
 
 
-def _read_collection(path: Path, key: tuple[str | int, ...]) -> tuple[list | None, list[dict]]:
+def _read_collection(path: Path, key: tuple[str | int, ...]) -> tuple[list[Any] | None, list[dict[str, Any]]]:
     """The area ring and the no-fly zones of a GeoJSON FeatureCollection."""
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
@@ -68,7 +68,7 @@ def _read_collection(path: Path, key: tuple[str | int, ...]) -> tuple[list | Non
         raise _Bad([Problem(key, str(path), "a GeoJSON FeatureCollection (\"type\": \"FeatureCollection\")",
                             found=f"{str(path)!r}, which is not a FeatureCollection")])
     area = None
-    zones: list[dict] = []
+    zones: list[dict[str, Any]] = []
     for i, feat in enumerate(doc.get("features") or []):
         props = (feat or {}).get("properties") or {}
         geom = (feat or {}).get("geometry") or {}
@@ -96,8 +96,8 @@ def _has_lonlat(item: Any) -> bool:
     return isinstance(item, dict) and ("lon" in item or "lat" in item)
 
 
-def _lonlat_items(data: dict) -> list[tuple[tuple[str | int, ...], dict]]:
-    out: list[tuple[tuple[str | int, ...], dict]] = []
+def _lonlat_items(data: dict[str, Any]) -> list[tuple[tuple[str | int, ...], dict[str, Any]]]:
+    out: list[tuple[tuple[str | int, ...], dict[str, Any]]] = []
     for table in ("uavs", "threats"):
         items = data.get(table)
         if isinstance(items, list):
@@ -111,7 +111,7 @@ def _lonlat_items(data: dict) -> list[tuple[tuple[str | int, ...], dict]]:
     return out
 
 
-def resolve_geography(data: Any, context: dict | None) -> Any:
+def resolve_geography(data: Any, context: dict[str, Any] | None) -> Any:
     """The document with its geography resolved (a before-validator of the Scenario): the GeoJSON
     file read and inlined, the area's size from its polygon, lon/lat positions in metres.
     Raises :class:`swarm.scenario.fields.Invalid` with the key path of what is wrong."""
@@ -135,7 +135,7 @@ def resolve_geography(data: Any, context: dict | None) -> Any:
     return data
 
 
-def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
+def _resolve(data: dict[str, Any], geo: dict[str, Any], items: list[Any], context: dict[str, Any]) -> dict[str, Any]:
     from swarm.geo.frame import GeoProblem, frame_for
 
     data = dict(data)
@@ -151,7 +151,7 @@ def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
     if geo.get("area") is None:
         raise _Bad([Problem(("geo", "area"), None, "the search area: " + _PAIRS + ", or a file with an \"area\" feature",
                             found="nothing (the key is missing)")])
-    area_doc: dict = data["area"] if isinstance(data.get("area"), dict) else {}
+    area_doc: dict[str, Any] = data["area"] if isinstance(data.get("area"), dict) else {}
     cell = area_doc.get("cell_m", 100.0)
     if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not cell > 0 or not math.isfinite(cell):
         return data  # (the table's own error)
@@ -174,7 +174,7 @@ def _resolve(data: dict, geo: dict, items: list, context: dict) -> dict:
     data["area"] = {**area_doc, "width_m": frame.width_m, "height_m": frame.height_m}
     # lon/lat positions -> metres (in copies of the tables that hold them)
     if items:
-        copies: dict[tuple[str | int, ...], dict] = {}
+        copies: dict[tuple[str | int, ...], dict[str, Any]] = {}
         for table in ("uavs", "threats"):
             if isinstance(data.get(table), list):
                 data[table] = [dict(x) if isinstance(x, dict) else x for x in data[table]]
@@ -213,7 +213,7 @@ def _same_size(given: Any, derived: float) -> bool:
     return math.isclose(float(given), derived, rel_tol=1e-9, abs_tol=1e-6)
 
 
-def _swapped(geo: dict, crs: str, point: tuple[float, float]) -> str:
+def _swapped(geo: dict[str, Any], crs: str, point: tuple[float, float]) -> str:
     """What was expected, when a geographic point lies outside the area's lon/lat bounding box
     (or off the globe) and the same point with its two numbers swapped lies inside it; else ""."""
     from swarm.geo.frame import is_geographic

@@ -322,7 +322,8 @@ class Scenario(Table):
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-safe dict (infinities become None, which also means 'unlimited' on input)."""
-        return _finite_or_none(self.model_dump(mode="json"))
+        doc: dict[str, Any] = _finite_or_none(self.model_dump(mode="json"))
+        return doc
 
     def with_overrides(self, **changes: Any) -> Scenario:
         """A new validated scenario with top-level fields (or dotted keys) replaced (:func:`apply_overrides`)."""

@@ -38,7 +38,7 @@ class Site:
     circles: list[tuple[str, float, float, float]] = field(default_factory=list)  # (label, x, y, radius)
     zones: list[tuple[str, np.ndarray]] = field(default_factory=list)  # (label, ring)
     lonlat: Any = None  # the GeoFrame, to say where a point is in lon/lat
-    _cache: Any = field(default=None, repr=False)
+    _cache: tuple[Any, list[tuple[str, Any]]] | None = field(default=None, repr=False)  # (shapely geometries)
 
     @classmethod
     def of(cls, sc: Any) -> Site:
@@ -112,7 +112,8 @@ class Site:
 
     def free(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Inside the area and outside every no-fly zone."""
-        return self.in_area(x, y) & np.array([z is None for z in self.zone_at(x, y)], dtype=bool)
+        free: np.ndarray = self.in_area(x, y) & np.array([z is None for z in self.zone_at(x, y)], dtype=bool)
+        return free
 
     def where(self, x: float, y: float) -> str:
         """A point for a person: ``(x, y) m``, and its lon/lat in a geographic scenario."""

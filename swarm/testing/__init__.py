@@ -17,7 +17,7 @@ from swarm.testing.invariants import InvariantViolation, Monitor, Violation
 try:
     import hypothesis  # noqa: F401
 except ImportError:  # the checkers above work without it; the rest says what it needs when used
-    def __getattr__(name: str):
+    def __getattr__(name: str) -> object:
         if name in __all__:
             import swarm.testing._hypothesis  # noqa: F401  (raises the ImportError naming the extra)
         raise AttributeError(name)

@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -59,6 +59,9 @@ from faults.base import FaultKind
 from faults.sensing import max_skew_at_end, skewed_stamps
 from swarm.testing.invariants import InvariantViolation, Violation, owed_map
 
+if TYPE_CHECKING:
+    from swarm.scenario import Scenario
+
 __all__ = ["LivenessReport", "RecoveryWatch", "quiesce", "quiet_period_s", "radio_loses_nothing",
            "reassign_bound_s"]
 
@@ -66,16 +69,16 @@ _EPS = 1e-6
 PEER_TIMEOUT_S = ActorSettings().peer_timeout_s  # (not a scenario setting)
 
 
-def radio_loses_nothing(scenario: Any) -> bool:
+def radio_loses_nothing(scenario: Scenario) -> bool:
     """Whether the scenario's radio, without faults, delivers every frame in range."""
     return bool(scenario.radio.loses_nothing)
 
 
-def _lat(scenario: Any) -> float:
+def _lat(scenario: Scenario) -> float:
     return float(scenario.radio.latency_s + scenario.radio.jitter_s)
 
 
-def quiet_period_s(scenario: Any, n_live: int, faults: Iterable[FaultKind] = ()) -> float:
+def quiet_period_s(scenario: Scenario, n_live: int, faults: Iterable[FaultKind] = ()) -> float:
     """``Q`` of the module docstring."""
     r = scenario.radio
     dt = scenario.dt_s
@@ -84,7 +87,7 @@ def quiet_period_s(scenario: Any, n_live: int, faults: Iterable[FaultKind] = ())
     return r.sync_settle_s + rounds * (every + 2 * dt + _lat(scenario)) + max_skew_at_end(faults)
 
 
-def reassign_bound_s(scenario: Any) -> float:
+def reassign_bound_s(scenario: Scenario) -> float:
     """``B`` of the module docstring."""
     return (scenario.radio.tracks_every_s + PEER_TIMEOUT_S + 2 * scenario.planner.replan_s
             + 2 * scenario.dt_s + _lat(scenario))

@@ -145,7 +145,7 @@ class SwarmMachine(RuleBasedStateMachine):
         self.scenario: Scenario | None = None
         self.cuts: list[tuple[tuple[tuple[str, ...], ...], bool]] = []  # (groups, one_way) in force
         self.loss = 0.0
-        self.joiners: list[dict] = []
+        self.joiners: list[dict[str, Any]] = []
         self.late_targets: list[str] = []
         self.history: list[str] = []
         self.faults_end_s = 0.0  # when the last fault a rule added ends

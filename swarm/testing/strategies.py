@@ -84,7 +84,7 @@ GENERATED_SOURCE = "<generated>"
 
 
 @st.composite
-def areas(draw: st.DrawFn, min_km: int = 5, max_km: int = 15, cell_m: Sequence[float] = (100.0, 200.0, 250.0)) -> dict:
+def areas(draw: st.DrawFn, min_km: int = 5, max_km: int = 15, cell_m: Sequence[float] = (100.0, 200.0, 250.0)) -> dict[str, Any]:
     """An ``[area]`` table: whole kilometres on each side (so any listed cell size tiles it)."""
     if not 1 <= min_km <= max_km:
         raise ValueError(f"need 1 <= min_km <= max_km, got {min_km}, {max_km}")
@@ -94,7 +94,8 @@ def areas(draw: st.DrawFn, min_km: int = 5, max_km: int = 15, cell_m: Sequence[f
 
 
 @st.composite
-def uav_type_specs(draw: st.DrawFn, *, rule_abiding: bool = True, others: Mapping[str, dict] | None = None) -> dict:
+def uav_type_specs(draw: st.DrawFn, *, rule_abiding: bool = True,
+                   others: Mapping[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """A ``[uav_types.NAME]`` table for a type that is not in Table 1 (types are data).
 
     With ``rule_abiding`` (the default) its weights meet the preconditions of the assignment
@@ -135,7 +136,7 @@ def _uav_type(name: str, spec: Mapping[str, Any]) -> UavType:
     return UavTypeSpec(**spec).uav_type(name)
 
 
-def _lattice(area: dict, spacing_m: float, margin_m: float) -> list[tuple[float, float]]:
+def _lattice(area: dict[str, Any], spacing_m: float, margin_m: float) -> list[tuple[float, float]]:
     w, h = area["width_m"], area["height_m"]
     xs = [margin_m + i * spacing_m for i in range(int((w - 2 * margin_m) // spacing_m) + 1)] or [w / 2]
     ys = [margin_m + j * spacing_m for j in range(int((h - 2 * margin_m) // spacing_m) + 1)] or [h / 2]
@@ -143,9 +144,10 @@ def _lattice(area: dict, spacing_m: float, margin_m: float) -> list[tuple[float,
 
 
 @st.composite
-def fleets(draw: st.DrawFn, area: dict, types: Sequence[str] = ("B", "A"), *, min_uavs: int = 1, max_uavs: int = 4,
+def fleets(draw: st.DrawFn, area: dict[str, Any], types: Sequence[str] = ("B", "A"), *, min_uavs: int = 1, max_uavs: int = 4,
            duration_s: float | None = None, late_joiners: bool = True, spacing_m: float = 2000.0,
-           type_specs: dict[str, dict] | None = None, where: Callable[[float, float], bool] | None = None) -> list[dict]:
+           type_specs: dict[str, dict[str, Any]] | None = None,
+           where: Callable[[float, float], bool] | None = None) -> list[dict[str, Any]]:
     """``[[uavs]]`` entries of mixed ``types``, named TYPE + number (``B1``, ``A1``, ...), starting
     on distinct points of a lattice ``spacing_m`` apart (never inside each other's separation
     distance), heading anywhere, at their type's top speed or a speed in range. With
@@ -180,8 +182,8 @@ def fleets(draw: st.DrawFn, area: dict, types: Sequence[str] = ("B", "A"), *, mi
 
 
 @st.composite
-def target_layouts(draw: st.DrawFn, area: dict, *, max_targets: int = 3, speed_max: float = 20.0,
-                   where: Callable[[float, float], bool] | None = None) -> dict:
+def target_layouts(draw: st.DrawFn, area: dict[str, Any], *, max_targets: int = 3, speed_max: float = 20.0,
+                   where: Callable[[float, float], bool] | None = None) -> dict[str, Any]:
     """A ``[targets]`` table: some placed targets and/or a random ``count``. ``where``: placed
     targets only where it accepts (inside an area polygon)."""
     w, h = area["width_m"], area["height_m"]
@@ -201,8 +203,8 @@ def target_layouts(draw: st.DrawFn, area: dict, *, max_targets: int = 3, speed_m
 
 
 @st.composite
-def threat_layouts(draw: st.DrawFn, area: dict, keep_clear: Sequence[tuple[float, float]] = (), *, max_threats: int = 2,
-                   clearance_m: float = 3000.0) -> list[dict]:
+def threat_layouts(draw: st.DrawFn, area: dict[str, Any], keep_clear: Sequence[tuple[float, float]] = (), *, max_threats: int = 2,
+                   clearance_m: float = 3000.0) -> list[dict[str, Any]]:
     """``[[threats]]`` circles of 300-1500 m whose edge lies at least ``clearance_m`` from every
     point of ``keep_clear`` (the UAVs' start points: a UAV that starts beside a threat, pointing
     at it, may be unable to turn away in time, and that would be the scenario's fault, not the
@@ -234,7 +236,7 @@ def _star(draw: st.DrawFn, cx: float, cy: float, radius: float, vertices: tuple[
 
 
 @st.composite
-def geo_areas(draw: st.DrawFn, min_km: int = 8, max_km: int = 20, cell_m: Sequence[float] = (200.0, 250.0)) -> dict:
+def geo_areas(draw: st.DrawFn, min_km: int = 8, max_km: int = 20, cell_m: Sequence[float] = (200.0, 250.0)) -> dict[str, Any]:
     """(issue 33) A geographic area: ``{"geo": {"area": RING}, "area": {"cell_m": ...}}``, the
     ring a star-shaped polygon of 5-9 corners in longitude/latitude (EPSG:4326, 4 decimals)
     somewhere between 60 S and 60 N, ``min_km``-``max_km`` across. :func:`geo_frame` gives its
@@ -257,14 +259,14 @@ def geo_frame(doc: Mapping[str, Any]) -> Any:
 
 
 @st.composite
-def no_fly_polygons(draw: st.DrawFn, area: dict, keep_clear: Sequence[tuple[float, float]] = (), *,
-                    max_zones: int = 2, clearance_m: float = 3000.0, frame: Any = None) -> list[dict]:
+def no_fly_polygons(draw: st.DrawFn, area: dict[str, Any], keep_clear: Sequence[tuple[float, float]] = (), *,
+                    max_zones: int = 2, clearance_m: float = 3000.0, frame: Any = None) -> list[dict[str, Any]]:
     """(issue 33) ``[[no_fly]]`` polygons: star-shaped, 0.5-1.5 km across their widest, whose
     every point lies at least ``clearance_m`` from each point of ``keep_clear`` (as
     :func:`threat_layouts`). With ``frame`` (a geographic scenario's) the rings are written in
     lon/lat, else in local metres. Fewer zones than asked when the area is too crowded."""
     w, h = area["width_m"], area["height_m"]
-    out: list[dict] = []
+    out: list[dict[str, Any]] = []
     for _ in range(draw(st.integers(0, max_zones))):
         radius = float(draw(st.integers(5, 15)) * 100)
         cx = float(draw(st.integers(0, int(w) // 100)) * 100)
@@ -286,7 +288,7 @@ def no_fly_polygons(draw: st.DrawFn, area: dict, keep_clear: Sequence[tuple[floa
 
 
 @st.composite
-def wind_tables(draw: st.DrawFn, max_speed_mps: int = 8) -> dict:
+def wind_tables(draw: st.DrawFn, max_speed_mps: int = 8) -> dict[str, Any]:
     """(issue 33) A ``[wind]`` table: a mean of 0-``max_speed_mps`` m/s from anywhere, gusts
     or none. Shrinks to calm."""
     table: dict[str, Any] = {"speed_mps": float(draw(st.integers(0, max_speed_mps))),
@@ -298,7 +300,7 @@ def wind_tables(draw: st.DrawFn, max_speed_mps: int = 8) -> dict:
 
 
 @st.composite
-def endurance_tables(draw: st.DrawFn, doc: Mapping[str, Any], base: tuple[float, float]) -> dict:
+def endurance_tables(draw: st.DrawFn, doc: Mapping[str, Any], base: tuple[float, float]) -> dict[str, Any]:
     """(issue 33) An ``[endurance]`` table for a document's UAVs: the base at ``base`` (local
     metres), and for each type flown a battery for 0.4-3 times the run's length at full speed
     (so UAVs go home, land, turn around in 10-60 s and relaunch within a run), never less than
@@ -334,7 +336,8 @@ ENDURANCE_IN_RULE_TESTS = False
 
 
 @st.composite
-def radio_tables(draw: st.DrawFn, *, max_range_m: float = 20_000.0, lossy: bool = True, bandwidth: bool = False) -> dict:
+def radio_tables(draw: st.DrawFn, *, max_range_m: float = 20_000.0, lossy: bool = True,
+                 bandwidth: bool = False) -> dict[str, Any]:
     """A ``[radio]`` table from :func:`swarm.testing.fault_strategies.link_models` (plus a mailbox size)."""
     m = draw(link_models(max_range_m=max_range_m, lossy=lossy, bandwidth=bandwidth))
     table: dict[str, Any] = {"loss_base": m.loss_base, "loss_at_range": m.loss_at_range,
@@ -375,7 +378,7 @@ def scenario_documents(
     max_no_fly: int = 0,
     wind: bool = False,
     endurance: bool | None = False,
-) -> dict:
+) -> dict[str, Any]:
     """A scenario document (a dict, as parsed from TOML) that :func:`parse_scenario` accepts.
     :func:`scenarios` validates it; the fuzz tests mutate it into wrong documents.
 
@@ -409,7 +412,7 @@ def scenario_documents(
         area = draw(areas(*area_km))
     inside = _inside(frame)
     config = draw(configurations(float(duration))) if swarm else {}
-    type_specs: dict[str, dict] = {}
+    type_specs: dict[str, dict[str, Any]] = {}
     types = ["B", "A"]
     if extra_types and draw(st.booleans()):
         type_specs["C"] = draw(uav_type_specs(rule_abiding=rule_abiding_types))
@@ -632,7 +635,7 @@ def _is_table_array(v: Any) -> bool:
     return isinstance(v, (list, tuple)) and bool(v) and all(isinstance(x, dict) for x in v)
 
 
-def _emit(lines: list[str], table: dict, path: list[str]) -> None:
+def _emit(lines: list[str], table: dict[str, Any], path: list[str]) -> None:
     for k, v in table.items():
         if v is None or isinstance(v, dict) or _is_table_array(v):
             continue
@@ -650,7 +653,7 @@ def _emit(lines: list[str], table: dict, path: list[str]) -> None:
                 _emit(lines, item, sub)
 
 
-def scenario_toml(scenario: Scenario | dict, comment: str = "") -> str:
+def scenario_toml(scenario: Scenario | dict[str, Any], comment: str = "") -> str:
     """The scenario as a TOML document that loads back to an equal :class:`Scenario`."""
     # to_document: what validates to the scenario again (a [geo] area's size left to its polygon)
     doc = scenario.to_document() if isinstance(scenario, Scenario) else scenario

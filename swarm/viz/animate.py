@@ -116,7 +116,7 @@ class _BlitGifWriter(PillowWriter):
         super().__init__(fps=fps)  # type: ignore[arg-type]  # the stubs say int; any positive fps works
         self.scene = scene
 
-    def grab_frame(self, **savefig_kwargs):
+    def grab_frame(self, **savefig_kwargs: Any) -> None:
         w, h = self.scene.fig.canvas.get_width_height()
         im = Image.frombuffer("RGBA", (w, h), self.scene.frame_rgba(), "raw", "RGBA", 0, 1)  # type: ignore[arg-type]
         frame = im.convert("RGB").quantize(colors=255, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
@@ -126,11 +126,11 @@ class _BlitGifWriter(PillowWriter):
 class _BlitMp4Writer(FFMpegWriter):
     """FFMpegWriter fed raw RGBA frames from the scene's blitted canvas."""
 
-    def __init__(self, scene: _Scene, fps: float, **kwargs):
+    def __init__(self, scene: _Scene, fps: float, **kwargs: Any):
         super().__init__(fps=fps, **kwargs)  # type: ignore[arg-type]  # as above
         self.scene = scene
 
-    def grab_frame(self, **savefig_kwargs):
+    def grab_frame(self, **savefig_kwargs: Any) -> None:
         self._proc.stdin.write(bytes(self.scene.frame_rgba()))  # type: ignore[attr-defined]  # MovieWriter's pipe
 
 
@@ -267,15 +267,15 @@ class _Scene:
                         ncol=1 if len(handles) <= 24 else 2, frameon=False)
 
     # --- per frame --------------------------------------------------------------------------
-    def artists(self) -> list:
+    def artists(self) -> list[Any]:
         return [self.image, self.links_ok, self.links_lossy, self.links_cut, self.trails, self.circles,
                 *self.uav_scatters.values(), self.wrecks, self.targets, self.rings, self.clock, self.banner,
                 self.border, self.active]
 
-    def init(self) -> list:
+    def init(self) -> list[Any]:
         return self.artists()
 
-    def _drawn(self) -> list:
+    def _drawn(self) -> list[Any]:
         """Every artist drawn per frame, bottom to top: the animated ones, plus the threats and
         the axes frame, which lie over or under the heat map and so cannot be background."""
         arts = self.artists() + self.threat_patches + list(self.ax.spines.values())
@@ -291,17 +291,17 @@ class _Scene:
             shown = [a.get_visible() for a in drawn]
             for a in drawn:
                 a.set_visible(False)
-            canvas.draw()
-            self._background = canvas.copy_from_bbox(self.fig.bbox)
+            canvas.draw()  # type: ignore[no-untyped-call]  # (matplotlib's Agg canvas: unannotated)
+            self._background = canvas.copy_from_bbox(self.fig.bbox)  # type: ignore[no-untyped-call]  # (as above)
             self._background_size = size
             for a, v in zip(drawn, shown):
                 a.set_visible(v)
-        canvas.restore_region(self._background)
+        canvas.restore_region(self._background)  # type: ignore[no-untyped-call]  # (as above)
         for a in self._drawn():
             self.fig.draw_artist(a)
-        return canvas.buffer_rgba()
+        return canvas.buffer_rgba()  # type: ignore[no-untyped-call, no-any-return]  # (as above)
 
-    def update(self, k: int) -> list:
+    def update(self, k: int) -> list[Any]:
         rp = self.rp
         t = float(self.times[k])
         i = rp.tick_at(t)
@@ -382,7 +382,7 @@ class _Scene:
             key = np.minimum(a, b) * n + np.maximum(a, b)
             lossy = np.zeros(len(a), dtype=bool)
             if len(key):
-                def counts(cols):
+                def counts(cols: dict[str, np.ndarray]) -> np.ndarray:
                     s0 = np.searchsorted(cols["t"], lo, side="right")
                     s1 = np.searchsorted(cols["t"], hi, side="right")
                     src, dst = cols["src"][s0:s1].astype(np.int64), cols["dst"][s0:s1].astype(np.int64)
@@ -491,7 +491,7 @@ class AnimationJob:
             writer = _BlitGifWriter(scene, self.fps)
         total = self.n_frames
 
-        def on_frame(done: int, _total) -> None:
+        def on_frame(done: int, _total: int) -> None:
             if progress is not None:
                 progress(done + 1, total)
 

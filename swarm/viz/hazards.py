@@ -51,7 +51,7 @@ class Hazards:
         return len(self.circles) + len(self.polygons)
 
 
-def hazards_of(scenario: dict, threats: Sequence[Any] = ()) -> Hazards:
+def hazards_of(scenario: dict[str, Any], threats: Sequence[Any] = ()) -> Hazards:
     """The hazards of a scenario dict (``scenario.json``); ``threats`` are the run's circular
     threats (objects with ``x``, ``y``, ``radius``, ``d_max``: the world's or the replay's)."""
     area = scenario.get("area") or {}

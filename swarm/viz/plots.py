@@ -9,7 +9,7 @@ UAVs the legend lists types instead of every UAV so it stays legible.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import IO
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 from matplotlib.artist import Artist
@@ -31,10 +31,13 @@ from swarm.viz.style import (
     uav_colours,
 )
 
+if TYPE_CHECKING:
+    from swarm.kernel.results import RunResult
+
 __all__ = ["crashed_uavs", "found_targets", "trajectories_figure", "trajectories_plot"]
 
 
-def found_targets(result) -> set[int] | None:
+def found_targets(result: RunResult) -> set[int] | None:
     """Ids of the targets found (seen at least once) in a run, or None if the metrics do not say.
 
     ``metrics.json``'s ``surveillance_ratio`` has one entry per found target (keyed by its id as
@@ -53,13 +56,13 @@ def found_targets(result) -> set[int] | None:
     return ids
 
 
-def crashed_uavs(result) -> set[str]:
+def crashed_uavs(result: RunResult) -> set[str]:
     """Names of the UAVs whose final state is ``crashed`` (``metrics.json`` ``per_uav``)."""
     per = (result.metrics or {}).get("per_uav") or {}
     return {name for name, p in per.items() if isinstance(p, dict) and p.get("state") == "crashed"}
 
 
-def trajectories_plot(result, title: str | None = None) -> Figure:
+def trajectories_plot(result: RunResult, title: str | None = None) -> Figure:
     """The figure of :func:`trajectories_figure`, not saved (to inspect or embed)."""
     w, h = result.area
     fig = Figure(figsize=(9.6, 7.0), dpi=110)
@@ -143,7 +146,7 @@ def trajectories_plot(result, title: str | None = None) -> Figure:
     return fig
 
 
-def trajectories_figure(result, path: str | Path | IO[bytes], title: str | None = None) -> None:
+def trajectories_figure(result: RunResult, path: str | Path | IO[bytes], title: str | None = None) -> None:
     """UAV paths (end marker by type; a cross where a UAV crashed), target paths with found and
     never-found targets apart, no-fly zones (circles and polygons), the area polygon, the base
     and the final coverage map (like the paper's Fig. 9),

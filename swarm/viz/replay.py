@@ -18,6 +18,7 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import msgpack
 import numpy as np
@@ -59,8 +60,8 @@ class Threat:
 class Replay:
     """A run rebuilt from its event log (see the module docstring)."""
 
-    header: dict
-    scenario: dict
+    header: dict[str, Any]
+    scenario: dict[str, Any]
     dt: float
     duration: float  # simulated seconds covered by the run
     names: list[str]  # index = UAV id
@@ -81,9 +82,9 @@ class Replay:
     rx: dict[str, np.ndarray]  # columns t, src, dst, accepted
     lost: dict[str, np.ndarray]  # columns t, src, dst, cause (index into lost_causes)
     lost_causes: list[str]
-    metrics: dict | None = None
-    timeseries: dict[str, list] | None = None  # column name -> values (numbers or mode strings)
-    faults: list[dict] = field(default_factory=list)  # the start header's schedule, then faults a host added
+    metrics: dict[str, Any] | None = None
+    timeseries: dict[str, list[Any]] | None = None  # column name -> values (numbers or mode strings)
+    faults: list[dict[str, Any]] = field(default_factory=list)  # the start header's schedule, then faults a host added
     # (issue 33, [endurance]) when each UAV landed at its base and launched again: (t, uid)
     landings: list[tuple[float, int]] = field(default_factory=list)
     launches: list[tuple[float, int]] = field(default_factory=list)
@@ -91,7 +92,7 @@ class Replay:
     # --- geometry from the scenario ---------------------------------------------------------
     @property
     def n_ticks(self) -> int:
-        return self.x.shape[0]
+        return int(self.x.shape[0])
 
     @property
     def n_uavs(self) -> int:
@@ -99,7 +100,7 @@ class Replay:
 
     @property
     def n_targets(self) -> int:
-        return self.target_x.shape[1]
+        return int(self.target_x.shape[1])
 
     @property
     def times(self) -> np.ndarray:
@@ -171,8 +172,8 @@ class Replay:
         return out
 
 
-def _read_timeseries(path: Path) -> dict[str, list]:
-    cols: dict[str, list] = {}
+def _read_timeseries(path: Path) -> dict[str, list[Any]]:
+    cols: dict[str, list[Any]] = {}
     with path.open(newline="") as fh:
         for row in csv.DictReader(fh):
             for k, v in row.items():
@@ -202,11 +203,11 @@ def load_run(run_dir: str | Path) -> Replay:
     return rp
 
 
-def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
+def replay_from_bytes(data: bytes, scenario: dict[str, Any]) -> Replay:
     """Build a :class:`Replay` from an event log's bytes and the scenario dict that ran."""
     cols = read_columns(data, _REPLAYED)
     starts = cols["start"]["header"]
-    header: dict = starts[0] if starts else {}
+    header: dict[str, Any] = starts[0] if starts else {}
     pose, tgt, rx, lost = cols["pose"], cols["target"], cols["rx"], cols["lost"]
     found: dict[int, tuple[float, int]] = {}
     for t, m, u in zip(cols["found"]["t"], cols["found"]["target"], cols["found"]["uav"]):
@@ -270,7 +271,7 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
     for k, (t, _u) in found.items():
         found_t[k] = t
 
-    def columns(source: dict[str, list], names_: tuple[str, ...], dtypes: tuple) -> dict[str, np.ndarray]:
+    def columns(source: dict[str, list[Any]], names_: tuple[str, ...], dtypes: tuple[Any, ...]) -> dict[str, np.ndarray]:
         out = {n: np.asarray(source[n], dtype=dt_) for n, dt_ in zip(names_, dtypes)}
         order = np.argsort(out["t"], kind="stable")
         return {n: a[order] for n, a in out.items()}
@@ -302,7 +303,7 @@ def replay_from_bytes(data: bytes, scenario: dict) -> Replay:
     )
 
 
-def fault_label(f: dict) -> str:
+def fault_label(f: dict[str, Any]) -> str:
     """A short human label for one fault of the schedule (a ``start`` header entry)."""
     kind = f.get("kind", "?")
     if kind == "partition":

@@ -18,9 +18,13 @@ import math
 import re
 import zlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from matplotlib import colormaps
 from matplotlib.ticker import FuncFormatter
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 LEGEND_MAX_UAVS = 12
 FIXED_TYPE_MARKERS = {"A": "^", "B": "o"}
@@ -36,12 +40,12 @@ CRASH_MARKER = "X"
 COVERAGE_GREY = "#d4d4d4"  # cells scanned at least once, in the run's trajectories figure
 
 
-def natural_key(name: str) -> list:
+def natural_key(name: str) -> list[Any]:
     """Sort key that puts B2 before B10."""
     return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", name)]
 
 
-def uav_colours(names: list[str]) -> dict[str, tuple]:
+def uav_colours(names: list[str]) -> dict[str, tuple[Any, ...]]:
     """One RGBA colour per UAV name."""
     order = sorted(names)
     n = len(order)
@@ -86,7 +90,7 @@ def line_width(n: int, base: float = 1.0) -> float:
 KM = FuncFormatter(lambda v, _pos: f"{v / 1000:g}")
 
 
-def km_axes(ax, width_m: float, height_m: float) -> None:
+def km_axes(ax: Axes, width_m: float, height_m: float) -> None:
     """Axes in metres labelled in km, equal aspect, clipped to the area."""
     ax.set_xlim(0, width_m)
     ax.set_ylim(0, height_m)
@@ -142,7 +146,7 @@ class Unit:
     scale: float = 1.0
     decimals: int | None = None
 
-    def number(self, value, signed: bool = False) -> str:
+    def number(self, value: Any, signed: bool = False) -> str:
         """``value`` in this unit, without the suffix (``4.12``; ``+0.012`` when ``signed``)."""
         try:
             x = float(value)
@@ -163,7 +167,7 @@ class Unit:
             text = text.lstrip("+-")  # zero has no sign: not "-0.000"
         return text
 
-    def format(self, value, signed: bool = False) -> str:
+    def format(self, value: Any, signed: bool = False) -> str:
         """``value`` with the suffix: ``4.12 MB``, ``0.742``, ``12.5 s``, ``4 121 000``."""
         text = self.number(value, signed)
         return f"{text} {self.suffix}" if self.suffix and text != "–" else text
@@ -186,7 +190,7 @@ def metric_unit(name: str, magnitude: float | None = None) -> Unit:
     return Unit(kind, "", 1.0, _decimals_for(mag) if magnitude is not None else None)
 
 
-def format_metric(name: str, value, signed: bool = False) -> str:
+def format_metric(name: str, value: Any, signed: bool = False) -> str:
     """One value of metric ``name`` with its unit: ``format_metric("radio.bytes_sent",
     4_121_000) == "4.12 MB"``; ``coverage`` 0.74 -> ``0.740``; counts ``4 121 000``."""
     try:

@@ -56,7 +56,7 @@ class ExperimentReport:
     figures: list[Path] = field(default_factory=list)
     sweeps: list[tuple[Path, SweepResult]] = field(default_factory=list)
     single: list[tuple[Path, bool]] = field(default_factory=list)  # (run folder, already finished)
-    failed: list[dict] = field(default_factory=list)
+    failed: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass
@@ -65,4 +65,4 @@ class PaperReport:
     experiments: list[ExperimentReport]
     table_md: Path
     table_csv: Path
-    rows: list[dict]
+    rows: list[dict[str, Any]]

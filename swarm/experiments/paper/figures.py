@@ -6,7 +6,7 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.artist import Artist
@@ -24,9 +24,13 @@ from swarm.experiments.paper.logs import RunLog, band, read_timeseries, stack
 from swarm.experiments.sweep import describe
 from swarm.viz.style import uav_colours
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
 # --- figures -----------------------------------------------------------------------------------
 
-def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None = None) -> None:
+def _draw_band(ax: Axes, t: np.ndarray, values: np.ndarray, colour: str, label: str,
+               bounds: tuple[float, float] | None = None) -> None:
     """Mean line, 95% band of the mean and min-max spread over runs; ``bounds``: the range the
     quantity can take (the band of a few runs is clipped to it)."""
     b = band(values)
@@ -40,7 +44,7 @@ def _draw_band(ax, t, values, colour, label, bounds: tuple[float, float] | None 
     ax.plot(t, b["mean"], "-", color=colour, lw=1.6, label=f"{label} mean ({n} run{'s' if n != 1 else ''})")
 
 
-def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
+def fig11_over_time(runs: dict[str, list[dict[str, Any]]], path: Path) -> Path:
     """Coverage and targets found over time per planner (paper Fig. 10a-b / 11a-b); reference
     planners (not in the paper) are labelled as such, drawn dashed with their 95% band only (no
     min-max spread), and have no quoted value."""
@@ -82,7 +86,7 @@ def fig11_over_time(runs: dict[str, list[dict]], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def fig11_final(runs: dict[str, list[dict]], path: Path) -> Path:
+def fig11_final(runs: dict[str, list[dict[str, Any]]], path: Path) -> Path:
     """Final coverage and targets found per planner, ours (mean, 95% interval) next to the
     paper's quoted means (the paper's pair only: reference planners are not in the paper)."""
     planners = list(runs) or list(FIG11_PLANNERS)
@@ -244,7 +248,7 @@ def task_loads(log: RunLog, path: Path, title: str) -> Path:
     return save_figure(fig, path)
 
 
-def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path:
+def case2_coverage(run_dir: Path, seed_runs: Sequence[dict[str, Any]], path: Path) -> Path:
     """Coverage over time of the Case 2 run (paper Fig. 15), and over seeds if there are any."""
     fig, ax = subplots(figsize=(8, 4.8))
     ts = read_timeseries(run_dir)
@@ -263,7 +267,7 @@ def case2_coverage(run_dir: Path, seed_runs: Sequence[dict], path: Path) -> Path
     return save_figure(fig, path)
 
 
-def case3_coverage(without: Sequence[dict], with_: Sequence[dict], join_s: float | None, path: Path,
+def case3_coverage(without: Sequence[dict[str, Any]], with_: Sequence[dict[str, Any]], join_s: float | None, path: Path,
                    joiner: str | None = None) -> Path:
     """Mean coverage over seeds with and without the joining UAV (paper Fig. 18), join time
     marked; below, the paired difference with its 95% interval."""

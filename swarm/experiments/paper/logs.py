@@ -10,7 +10,7 @@ import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -38,7 +38,7 @@ def read_timeseries(folder: Path) -> dict[str, np.ndarray]:
     return cols
 
 
-def finished_runs(sweep_dir: Path, planner: str, seeds: Sequence[int]) -> list[dict]:
+def finished_runs(sweep_dir: Path, planner: str, seeds: Sequence[int]) -> list[dict[str, Any]]:
     """Finished runs of one planner: ``{"seed", "folder", "metrics", "ts"}`` each, in seed order."""
     out = []
     for s in seeds:
@@ -63,14 +63,14 @@ def join_time(sweep_dir: Path, seeds: Sequence[int]) -> tuple[float | None, str 
     return joins[0] if joins else (None, None)
 
 
-def stack(runs: Sequence[dict], column: str) -> tuple[np.ndarray, np.ndarray]:
+def stack(runs: Sequence[dict[str, Any]], column: str) -> tuple[np.ndarray, np.ndarray]:
     """``(t, values[n_runs, n_t])`` on the time grid the runs share (their shortest)."""
     n = min(len(r["ts"]["t"]) for r in runs)
     t = runs[0]["ts"]["t"][:n]
     return t, np.vstack([r["ts"][column][:n] for r in runs])
 
 
-def mean_curve(runs: Sequence[dict], column: str) -> tuple[np.ndarray, np.ndarray]:
+def mean_curve(runs: Sequence[dict[str, Any]], column: str) -> tuple[np.ndarray, np.ndarray]:
     t, v = stack(runs, column)
     return t, v.mean(axis=0)
 
@@ -117,18 +117,18 @@ class RunLog:
 
     names: dict[int, str]
     types: dict[int, str]
-    type_specs: dict[str, dict]
+    type_specs: dict[str, dict[str, Any]]
     end_t: float
     dt: float
     poses: dict[int, np.ndarray]      # uid -> rows (t, x, y, mode, target)
     targets: dict[int, np.ndarray]    # target id -> rows (t, x, y)
     modes: list[Mode]                 # on every change of a UAV's mode or target
     handovers: list[Handover]
-    found: dict[int, tuple]           # target -> (t, uid)
+    found: dict[int, tuple[Any, ...]]           # target -> (t, uid)
     joins: dict[int, float]
     crashes: dict[int, float]
-    metrics: dict
-    threats: list[dict]
+    metrics: dict[str, Any]
+    threats: list[dict[str, Any]]
 
     @classmethod
     def load(cls, folder: Path) -> RunLog:
@@ -149,7 +149,7 @@ class RunLog:
         crashes: dict[int, float] = {}
         for t, uid in zip(cols["crash"]["t"], cols["crash"]["uav"]):
             crashes.setdefault(uid, t)
-        found: dict[int, tuple] = {}
+        found: dict[int, tuple[Any, ...]] = {}
         for t, m, uid in zip(cols["found"]["t"], cols["found"]["target"], cols["found"]["uav"]):
             found.setdefault(m, (t, uid))
         p = cols["pose"]

@@ -13,7 +13,7 @@ from swarm.experiments.paper.logs import RunLog
 
 # --- measurements for the table ----------------------------------------------------------------
 
-def case1_measures(log: RunLog) -> dict:
+def case1_measures(log: RunLog) -> dict[str, Any]:
     """Target 1 (id 0): who found it, handovers to a slow UAV, who watches targets 1 and 2 at
     the end, and how long fast UAV B1 (paper: UAV 1) spent on target 2 (watched by B2)."""
     watchers = log.watchers_at_end()
@@ -49,7 +49,7 @@ def case1_measures(log: RunLog) -> dict:
     }
 
 
-def case2_measures(log: RunLog, folder: Path | None = None) -> dict:
+def case2_measures(log: RunLog, folder: Path | None = None) -> dict[str, Any]:
     """What the table and the criterion need from one Case 2 run; with the run's ``folder``,
     the handover rules are checked over its event log (:func:`case2_conditions`)."""
     from swarm.testing.invariants import HandoverChecker, check_events, load_run_log
@@ -57,7 +57,7 @@ def case2_measures(log: RunLog, folder: Path | None = None) -> dict:
     watchers = log.watchers_at_end()
     m = log.metrics
     name = log.names
-    violations: list = []
+    violations: list[Any] = []
     opportunities = 0
     if folder is not None:
         scenario, events = load_run_log(folder)

@@ -45,7 +45,7 @@ from swarm.experiments.paper.measures import (
     case2_measures,
 )
 from swarm.experiments.paper.table import write_table
-from swarm.experiments.sweep import SweepResult, describe, plan_runs, run_sweep
+from swarm.experiments.sweep import RunSpec, SweepResult, describe, plan_runs, run_sweep
 from swarm.scenario import apply_overrides, load_scenario
 
 # --- running -----------------------------------------------------------------------------------
@@ -72,7 +72,7 @@ def _sweep(scenario_name: str, sweep_dir: Path, seeds: Sequence[int], planners: 
             _check_sim_seconds(mp, expected)
     desc = f"{key}: {scenario_name} x {len(seeds)} seeds"
 
-    def cb(done: int, total: int, spec, status: str) -> None:
+    def cb(done: int, total: int, spec: RunSpec, status: str) -> None:
         if progress is not None:
             progress(key, desc, done, total, f"{status}: {spec.label}")
 
@@ -254,7 +254,7 @@ def run_case3(out_dir: str | Path, *, seeds: int | Sequence[int] = 10, duration_
                "window_from_s": CASE3_WINDOW_FROM_S,
                "duration_s": expected_duration(load_scenario("paper-case3"), duration_s)}
     if common:
-        def window(r):
+        def window(r: dict[str, Any]) -> float:
             t, c = r["ts"]["t"], r["ts"]["coverage"]
             sel = t >= CASE3_WINDOW_FROM_S
             return float(c[sel].mean()) if sel.any() else math.nan

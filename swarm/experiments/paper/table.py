@@ -9,6 +9,7 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from swarm.experiments.common import (
     md_cell,
@@ -23,18 +24,19 @@ NOT_RUN = "not run"
 MD_HEADER = ("experiment", "quantity", "paper (quoted)", "ours (measured, N seeds, mean [95% CI])")
 
 
-def _load(out: Path, name: str) -> dict | None:
+def _load(out: Path, name: str) -> dict[str, Any] | None:
     p = out / name / "results.json"
     return json.loads(p.read_text()) if p.is_file() else None
 
 
-def _row(experiment: str, quantity: str, paper: str, ours: str = NOT_RUN, d: dict | None = None, note: str = "") -> dict:
+def _row(experiment: str, quantity: str, paper: str, ours: str = NOT_RUN, d: dict[str, Any] | None = None,
+         note: str = "") -> dict[str, Any]:
     return {"experiment": experiment, "quantity": quantity, "paper_quoted": paper, "ours_measured": ours,
             "n": d["n"] if d else "", "mean": d["mean"] if d else "",
             "ci95_low": d["ci95"][0] if d else "", "ci95_high": d["ci95"][1] if d else "", "note": note}
 
 
-def _fmt(d: dict | None, digits: int, what: str = "seeds", signed: bool = False) -> str:
+def _fmt(d: dict[str, Any] | None, digits: int, what: str = "seeds", signed: bool = False) -> str:
     if not d or not d.get("n"):
         return "no finished runs"
     sign = "+" if signed else ""
@@ -44,7 +46,7 @@ def _fmt(d: dict | None, digits: int, what: str = "seeds", signed: bool = False)
     return f"{mean} [{d['ci95'][0]:{sign}.{digits}f}, {d['ci95'][1]:{sign}.{digits}f}], {d['n']} {what}"
 
 
-def _duration_note(res: dict | None, paper_s: float | None) -> str:
+def _duration_note(res: dict[str, Any] | None, paper_s: float | None) -> str:
     if not res or res.get("duration_s") is None or paper_s is None:
         return ""
     if math.isclose(float(res["duration_s"]), paper_s):
@@ -52,7 +54,7 @@ def _duration_note(res: dict | None, paper_s: float | None) -> str:
     return f"ours at {float(res['duration_s']):g} s, paper at {paper_s:g} s"
 
 
-def _rows_fig11(res: dict | None) -> list[dict]:
+def _rows_fig11(res: dict[str, Any] | None) -> list[dict[str, Any]]:
     e = "Fig. 11 (paper-fig11)"
     q = PAPER["fig11"]
     note = _duration_note(res, q["duration_s"])
@@ -75,14 +77,14 @@ def _rows_fig11(res: dict | None) -> list[dict]:
     return rows
 
 
-def _watchers_text(watchers: list[dict], slow: Sequence[str]) -> str:
+def _watchers_text(watchers: list[dict[str, Any]], slow: Sequence[str]) -> str:
     if not watchers:
         return "nobody"
     return ", ".join(f"{w['uav']} ({'slow' if w['uav'] in slow else 'fast'}, "
                      f"{'in' if w['in_range'] else 'out of'} detection range at the last tick)" for w in watchers)
 
 
-def _handover_text(h: dict) -> str:
+def _handover_text(h: dict[str, Any]) -> str:
     text = f"yes: {h['from']} → {h['to']} at {h['t']:g} s"
     extra = []
     if h.get("to_distance_km") is not None:
@@ -93,7 +95,7 @@ def _handover_text(h: dict) -> str:
     return text + (f" ({'; '.join(extra)})" if extra else "")
 
 
-def _rows_case1(res: dict | None) -> list[dict]:
+def _rows_case1(res: dict[str, Any] | None) -> list[dict[str, Any]]:
     e = "Case 1 (paper-case1)"
     note = ""
     if res:
@@ -122,14 +124,14 @@ def _rows_case1(res: dict | None) -> list[dict]:
     return rows
 
 
-def _rows_case2(res: dict | None) -> list[dict]:
+def _rows_case2(res: dict[str, Any] | None) -> list[dict[str, Any]]:
     e = "Case 2 (paper-case2)"
     q = PAPER["case2"]
     run = (res or {}).get("run")
     note = f"one run, seed {run['seed']}, {run['duration_s']:g} s" if run else ""
     rows = []
 
-    def single(quantity, paper, ours):
+    def single(quantity: str, paper: str, ours: str) -> None:
         rows.append(_row(e, quantity, paper, ours if run else NOT_RUN, note=note))
 
     single("targets found (of 6)", f"{q['targets_found']} (every target found)",
@@ -178,7 +180,7 @@ def _rows_case2(res: dict | None) -> list[dict]:
     return rows
 
 
-def _rows_case3(res: dict | None) -> list[dict]:
+def _rows_case3(res: dict[str, Any] | None) -> list[dict[str, Any]]:
     e = "Case 3 (paper-case3 vs paper-case2)"
     w = CASE3_WINDOW_FROM_S
     rows = []
@@ -218,7 +220,7 @@ def _rows_case3(res: dict | None) -> list[dict]:
 ROW_BUILDERS = {"fig11": _rows_fig11, "case1": _rows_case1, "case2": _rows_case2, "case3": _rows_case3}
 
 
-def table_rows(out_dir: str | Path) -> list[dict]:
+def table_rows(out_dir: str | Path) -> list[dict[str, Any]]:
     """The table's rows; an experiment without ``results.json`` is "not run", one whose file
     cannot be read (written by another version) says so."""
     out = Path(out_dir)
@@ -234,7 +236,7 @@ def table_rows(out_dir: str | Path) -> list[dict]:
     return rows
 
 
-def write_table(out_dir: str | Path) -> tuple[Path, Path, list[dict]]:
+def write_table(out_dir: str | Path) -> tuple[Path, Path, list[dict[str, Any]]]:
     """Rewrite ``table.md`` and ``table.csv`` from the ``results.json`` files in ``out_dir``."""
     out = Path(out_dir)
     rows = table_rows(out)

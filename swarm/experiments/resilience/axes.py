@@ -67,11 +67,11 @@ class Axis:
     name: str
     title: str  # the value's axis in figures and the tables' first column
     setting: str  # the sweep setting a value is recorded under (runs.csv, folder names)
-    values: tuple  # default values, in order
+    values: tuple[Any, ...]  # default values, in order
     expects: str  # what a value must be, for error messages
     valid: Callable[[Any], bool]
     # value -> (the sweep's settings of the point, the scenario overrides that make it)
-    point: Callable[[Scenario, Any, PointContext], tuple[Settings, dict]]
+    point: Callable[[Scenario, Any, PointContext], tuple[Settings, dict[str, Any]]]
     summary: str  # one line of `swarm resilience --help`
     baseline: Any = NO_BASELINE  # the undegraded value (kept fractions are against it)
     counts_uavs: bool = False  # values are numbers of UAVs, taken from crash_candidates in order
@@ -79,9 +79,9 @@ class Axis:
     timed: bool = False  # happens at --crash-at
     label: Callable[[Any], str] = field(default=lambda v: f"{v:g}")
     unlimited_words: tuple[str, ...] = ()  # --values words that mean None (unlimited)
-    note: Callable[[dict], str] = field(default=lambda results: "")  # the figure's run note
+    note: Callable[[dict[str, Any]], str] = field(default=lambda results: "")  # the figure's run note
     # What its results.json holds beside the points: (results, values, context) -> entries.
-    extras: Callable[[dict, list, PointContext], dict] = field(default=lambda results, values, ctx: {})
+    extras: Callable[[dict[str, Any], list[Any], PointContext], dict[str, Any]] = field(default=lambda results, values, ctx: {})
     draws_kept: bool = False  # also a figure of the baseline's coverage kept (<axis>_kept.png)
     loss_reference: bool = False  # its figure shows the loss axis's no-loss and same-mean-loss lines
 
@@ -104,7 +104,7 @@ class Axis:
             kind = "whole numbers" if self.counts_uavs else "numbers"
             raise UsageError(f"{text!r} is not a number; the {self.name} axis takes {kind}") from None
 
-    def check(self, values: list) -> list:
+    def check(self, values: list[Any]) -> list[Any]:
         """The values, checked (one :class:`UsageError` naming the first wrong one)."""
         if not values:
             raise UsageError(f"the {self.name} axis needs at least one value")
@@ -131,7 +131,7 @@ def crash_candidates(scenario: Scenario) -> list[str]:
     return [name for name, u in zip(scenario.uav_names, scenario.uavs) if not u.join_s and name not in joined | crashed]
 
 
-def battery_point(scenario: Scenario, frac: float, duration_s: float | None = None) -> dict:
+def battery_point(scenario: Scenario, frac: float, duration_s: float | None = None) -> dict[str, Any]:
     """(issue 26) The overrides giving each UAV type a battery of ``frac`` times the energy it
     would need to fly the whole run at full speed (default power curve, ``[endurance]``), with a
     base at the mean of the launch points; the scenario's own ``[endurance]`` scaled instead if
@@ -157,7 +157,7 @@ def battery_point(scenario: Scenario, frac: float, duration_s: float | None = No
     return {"endurance": {"x_m": sum(xs) / len(xs), "y_m": sum(ys) / len(ys), "types": types, "turnaround_s": 300.0}}
 
 
-def burst_fault(mean_frames: float, mean_loss: float) -> dict:
+def burst_fault(mean_frames: float, mean_loss: float) -> dict[str, Any]:
     """A whole-run Gilbert-Elliott fault on every link with stationary loss ``mean_loss`` and mean
     bad-state sojourn ``mean_frames`` copies (every copy in the bad state is lost)."""
     p_exit = 1.0 / mean_frames
@@ -169,11 +169,11 @@ def burst_fault(mean_frames: float, mean_loss: float) -> dict:
             "loss_good": 0.0, "loss_bad": 1.0}
 
 
-def _faults(scenario: Scenario) -> list[dict]:
+def _faults(scenario: Scenario) -> list[dict[str, Any]]:
     return list(scenario.to_dict()["faults"])
 
 
-def _with_faults(scenario: Scenario, new: list[dict]) -> dict:
+def _with_faults(scenario: Scenario, new: list[dict[str, Any]]) -> dict[str, Any]:
     """Overrides adding ``new`` faults to the scenario's own (none: no override)."""
     return {"faults": _faults(scenario) + new} if new else {}
 
@@ -186,48 +186,49 @@ def _is_count(v: Any) -> bool:
     return v is not None and float(v).is_integer() and v >= 0
 
 
-def _burst_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict]:
+def _burst_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
     return (("burst.mean_frames", v), ("burst.mean_loss", ctx.burst_loss)), _with_faults(sc, [burst_fault(v, ctx.burst_loss)])
 
 
-def _crash_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict]:
+def _crash_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
     new = [{"kind": "crash", "uav": n, "at_s": ctx.crash_at_s} for n in _first(sc, v)]
     return (("crashed_uavs", v), ("crash_at_s", ctx.crash_at_s)), _with_faults(sc, new)
 
 
-def _pause_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict]:
+def _pause_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
     new = ([{"kind": "pause", "uav": n, "start_s": ctx.crash_at_s, "end_s": ctx.crash_at_s + v}
             for n in _first(sc, FAULTED_UAVS)] if v else [])
     return (("pause.length_s", v), ("at_s", ctx.crash_at_s)), _with_faults(sc, new)
 
 
-def _restart_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict]:
+def _restart_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
     new = [{"kind": "restart", "uav": n, "at_s": ctx.crash_at_s, "downtime_s": RESTART_DOWNTIME_S} for n in _first(sc, v)]
     return (("restarted_uavs", v), ("at_s", ctx.crash_at_s)), _with_faults(sc, new)
 
 
-def _one(setting: str, overrides: Callable[[Scenario, Any, PointContext], dict]
-         ) -> Callable[[Scenario, Any, PointContext], tuple[Settings, dict]]:
+def _one(setting: str, overrides: Callable[[Scenario, Any, PointContext], dict[str, Any]]
+         ) -> Callable[[Scenario, Any, PointContext], tuple[Settings, dict[str, Any]]]:
     """A point recorded by its value alone under ``setting``."""
     return lambda sc, v, ctx: (((setting, v),), overrides(sc, v, ctx))
 
 
-def _jammer(sc: Scenario, v: Any, ctx: PointContext) -> dict:
+def _jammer(sc: Scenario, v: Any, ctx: PointContext) -> dict[str, Any]:
     a = sc.area
     return _with_faults(sc, [{"kind": "jammer", "x_m": a.width_m / 2, "y_m": a.height_m / 2, "radius_m": v * 1000.0}]
                         if v else [])
 
 
-def _order(results: dict) -> list[str]:
-    return results.get("crash_order", [])
+def _order(results: dict[str, Any]) -> list[str]:
+    order: list[str] = results.get("crash_order", [])
+    return order
 
 
-def _burst_extras(results: dict, values: list, ctx: PointContext) -> dict:
+def _burst_extras(results: dict[str, Any], values: list[Any], ctx: PointContext) -> dict[str, Any]:
     return {"burst_mean_loss": ctx.burst_loss,
             "burst_chain": {AXES["burst"].label(v): burst_fault(v, ctx.burst_loss) for v in values}}
 
 
-def loss_target(results: dict) -> dict:
+def loss_target(results: dict[str, Any]) -> dict[str, Any]:
     """The loss axis's check (issue 4): DACMP keeps >= 90% of its loss-free coverage at 30% i.i.d. loss."""
     point = next((p for p in results["points"] if p["value"] == TARGET_LOSS), None)
     out: dict[str, Any] = {"loss": TARGET_LOSS, "kept_at_least": TARGET_KEPT, "available": False}

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -13,10 +14,13 @@ from swarm.experiments.common import no_data, save_figure, subplots
 from swarm.experiments.paper import PLANNER_COLOUR, PLANNER_LABEL
 from swarm.experiments.resilience.axes import AXES, TARGET_KEPT, TARGET_LOSS
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
 __all__ = ["axis_figure", "kept_figure"]
 
 
-def _panels(results: dict) -> list[tuple[str, str, tuple[float, float] | None]]:
+def _panels(results: dict[str, Any]) -> list[tuple[str, str, tuple[float, float] | None]]:
     tt = results.get("targets_total") or None
     panels = [("coverage", "coverage at end", (0.0, 1.0)),
               ("targets_found", f"targets found at end (of {tt})" if tt else "targets found at end",
@@ -27,7 +31,7 @@ def _panels(results: dict) -> list[tuple[str, str, tuple[float, float] | None]]:
     return panels
 
 
-def _errorbars(ax, results: dict, quantity: str, x: np.ndarray, bounds: tuple[float, float] | None = None,
+def _errorbars(ax: Axes, results: dict[str, Any], quantity: str, x: np.ndarray, bounds: tuple[float, float] | None = None,
                offset: float = 0.06) -> bool:
     """Mean and 95% interval per value, one colour per planner, slightly apart; ``bounds``: the
     range the quantity can take (the interval of a few seeds is clipped to it)."""
@@ -52,7 +56,7 @@ def _errorbars(ax, results: dict, quantity: str, x: np.ndarray, bounds: tuple[fl
     return any_data
 
 
-def run_note(results: dict) -> str:
+def run_note(results: dict[str, Any]) -> str:
     """What the runs were (scenario, duration, what the axis did to whom), under a figure's title."""
     extra = AXES[results["axis"]].note(results)
     fails = f"; {results['runs_failed']} runs failed" if results["runs_failed"] else ""
@@ -60,7 +64,7 @@ def run_note(results: dict) -> str:
     return f"{results['scenario']}, {results['duration_s']:g} s runs{extra}{search_only}{fails}"
 
 
-def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Path:
+def axis_figure(results: dict[str, Any], path: Path, reference: dict[str, Any] | None = None) -> Path:
     """Coverage, targets found (surveillance ratio when the scenario has surveillance) and the
     frame copies delivered against the axis value, DACMP and greedy side by side."""
     panels = _panels(results)
@@ -89,7 +93,7 @@ def axis_figure(results: dict, path: Path, reference: dict | None = None) -> Pat
     return save_figure(fig, path)
 
 
-def kept_figure(results: dict, path: Path) -> Path:
+def kept_figure(results: dict[str, Any], path: Path) -> Path:
     """Fraction of the loss-free coverage each planner keeps (paired by seed) against the loss
     rate, and at 30% loss as bars, with the 90% target."""
     fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [3, 2]})

@@ -47,10 +47,10 @@ class AxisReport:
     out_dir: Path
     sweep: SweepResult
     figures: list[Path] = field(default_factory=list)
-    results: dict = field(default_factory=dict)
+    results: dict[str, Any] = field(default_factory=dict)
 
     @property
-    def failed(self) -> list[dict]:
+    def failed(self) -> list[dict[str, Any]]:
         return self.sweep.failed
 
 
@@ -64,7 +64,7 @@ class ResilienceReport:
 
 # --- planning ------------------------------------------------------------------------------------
 
-def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, seeds: Sequence[int],
+def plan_axis(axis: str, scenario: Scenario, *, values: Sequence[Any] | None = None, seeds: Sequence[int],
               planners: Sequence[str] = PLANNERS, duration_s: float | None = None,
               crash_at_s: float = DEFAULT_CRASH_AT_S, burst_loss: float = DEFAULT_BURST_LOSS) -> list[RunSpec]:
     """The sweep of one axis: every planner x value x seed, in value order. Folders are
@@ -97,7 +97,7 @@ def plan_axis(axis: str, scenario: Scenario, *, values: Sequence | None = None, 
     return runs
 
 
-def parse_values(axis: str, text: str) -> list:
+def parse_values(axis: str, text: str) -> list[Any]:
     """``--values`` for one axis: comma-separated (each axis says what its values must be)."""
     ax = axis_named(axis)
     parts = [p.strip() for p in text.split(",") if p.strip()]
@@ -129,8 +129,8 @@ def _check_finished(axis_dir: Path, runs: Sequence[RunSpec], scenario: str, run_
                              f"{run_s:g} s: use another --out or delete the old results")
 
 
-def _plan(axis: str, out_dir: str | Path, *, scenario: str | os.PathLike = DEFAULT_SCENARIO,
-          seeds: int | Sequence[int] = DEFAULT_SEEDS, values: Sequence | None = None, duration_s: float | None = None,
+def _plan(axis: str, out_dir: str | Path, *, scenario: str | os.PathLike[str] = DEFAULT_SCENARIO,
+          seeds: int | Sequence[int] = DEFAULT_SEEDS, values: Sequence[Any] | None = None, duration_s: float | None = None,
           crash_at_s: float = DEFAULT_CRASH_AT_S, burst_loss: float = DEFAULT_BURST_LOSS, **_: Any
           ) -> tuple[Scenario, list[int], float, list[RunSpec]]:
     """Check everything about one axis before anything runs: (scenario, seeds, run seconds, runs)."""
@@ -145,8 +145,8 @@ def _plan(axis: str, out_dir: str | Path, *, scenario: str | os.PathLike = DEFAU
     return sc, seed_list, run_s, runs
 
 
-def run_axis(axis: str, out_dir: str | Path = "results/resilience", *, scenario: str | os.PathLike = DEFAULT_SCENARIO,
-             seeds: int | Sequence[int] = DEFAULT_SEEDS, values: Sequence | None = None,
+def run_axis(axis: str, out_dir: str | Path = "results/resilience", *, scenario: str | os.PathLike[str] = DEFAULT_SCENARIO,
+             seeds: int | Sequence[int] = DEFAULT_SEEDS, values: Sequence[Any] | None = None,
              duration_s: float | None = None, crash_at_s: float = DEFAULT_CRASH_AT_S,
              burst_loss: float = DEFAULT_BURST_LOSS, executor: Executor | None = None, workers: int | None = None,
              progress: ProgressFn | None = None) -> AxisReport:
@@ -178,7 +178,7 @@ def run_axis(axis: str, out_dir: str | Path = "results/resilience", *, scenario:
     return rep
 
 
-def run_resilience(axis: str, out_dir: str | Path = "results/resilience", *, values: Sequence | None = None,
+def run_resilience(axis: str, out_dir: str | Path = "results/resilience", *, values: Sequence[Any] | None = None,
                    executor: Executor | None = None, workers: int | None = None, **kw: Any) -> ResilienceReport:
     """One axis or ``"all"`` (every axis, in the order of :data:`AXES`), then the top-level table.
     ``values`` only with one axis. Other keywords go to :func:`run_axis`."""
@@ -200,7 +200,7 @@ def run_resilience(axis: str, out_dir: str | Path = "results/resilience", *, val
 
 # --- measuring -----------------------------------------------------------------------------------
 
-def _run_quantities(metrics: dict) -> dict[str, float]:
+def _run_quantities(metrics: dict[str, Any]) -> dict[str, float]:
     r = metrics.get("radio", {})
     sent = float(r.get("sent", 0))
     return {
@@ -214,13 +214,13 @@ def _run_quantities(metrics: dict) -> dict[str, float]:
     }
 
 
-def _describe(vals: Sequence[float]) -> dict | None:
+def _describe(vals: Sequence[float]) -> dict[str, Any] | None:
     vals = [v for v in vals if math.isfinite(v)]
     return describe(vals) if vals else None
 
 
-def measure(axis: str, axis_dir: Path, runs: Sequence[RunSpec], summary: dict, *, scenario: Scenario,
-            seeds: Sequence[int], run_s: float, crash_at_s: float, burst_loss: float) -> dict:
+def measure(axis: str, axis_dir: Path, runs: Sequence[RunSpec], summary: dict[str, Any], *, scenario: Scenario,
+            seeds: Sequence[int], run_s: float, crash_at_s: float, burst_loss: float) -> dict[str, Any]:
     """Per value and planner: mean and 95% interval of every quantity over finished seeds; the
     fraction of the baseline value's coverage and targets kept (per seed, paired); DACMP − greedy
     (paired by seed, from the sweep's summary)."""
@@ -277,7 +277,7 @@ def measure(axis: str, axis_dir: Path, runs: Sequence[RunSpec], summary: dict, *
     return results
 
 
-def loss_reference(out_dir: Path, results: dict) -> dict | None:
+def loss_reference(out_dir: Path, results: dict[str, Any]) -> dict[str, Any] | None:
     """For the burst figure: the loss axis's loss-free and same-mean-loss i.i.d. means, when that
     axis ran on the same scenario and duration in the same folder."""
     p = out_dir / "loss" / "results.json"

@@ -9,6 +9,7 @@ import io
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from swarm.experiments.common import md_cell, write_text
 from swarm.experiments.paper import PLANNER_LABEL
@@ -18,7 +19,7 @@ from swarm.experiments.resilience.figures import run_note
 __all__ = ["CSV_COLUMNS", "write_axis_table", "write_table"]
 
 
-def _ci(d: dict | None, digits: int, signed: bool = False) -> str:
+def _ci(d: dict[str, Any] | None, digits: int, signed: bool = False) -> str:
     if not d or not d.get("n"):
         return "-"
     s = "+" if signed else ""
@@ -27,29 +28,29 @@ def _ci(d: dict | None, digits: int, signed: bool = False) -> str:
     return f"{d['mean']:{s}.{digits}f} [{d['ci95'][0]:{s}.{digits}f}, {d['ci95'][1]:{s}.{digits}f}]"
 
 
-def _delivered(d: dict) -> str:
+def _delivered(d: dict[str, Any]) -> str:
     n, f = d.get("delivered"), d.get("delivered_fraction")
     if not n or not f:
         return "-"
     return f"{n['mean'] / 1000:.1f}k ({f['mean']:.3f})"
 
 
-def _columns(results: dict) -> list[tuple[str, Callable[[dict], str]]]:
+def _columns(results: dict[str, Any]) -> list[tuple[str, Callable[[dict[str, Any]], str]]]:
     # A column's cell of one point (pt) is a function of the point; these make them, each bound
     # to its own planner and quantity.
-    def planner_ci(p: str, q: str, digits: int) -> Callable[[dict], str]:
+    def planner_ci(p: str, q: str, digits: int) -> Callable[[dict[str, Any]], str]:
         return lambda pt: _ci(pt["planners"][p][q], digits)
 
-    def difference_ci(q: str, digits: int) -> Callable[[dict], str]:
+    def difference_ci(q: str, digits: int) -> Callable[[dict[str, Any]], str]:
         return lambda pt: _ci((pt["difference"] or {}).get(q), digits, signed=True)
 
-    def kept_ci(p: str) -> Callable[[dict], str]:
+    def kept_ci(p: str) -> Callable[[dict[str, Any]], str]:
         return lambda pt: _ci(pt["planners"][p].get("kept_coverage"), 3)
 
-    def delivered(p: str) -> Callable[[dict], str]:
+    def delivered(p: str) -> Callable[[dict[str, Any]], str]:
         return lambda pt: _delivered(pt["planners"][p])
 
-    cols: list[tuple[str, Callable[[dict], str]]] = []
+    cols: list[tuple[str, Callable[[dict[str, Any]], str]]] = []
     qs = [("coverage", "coverage", 3), ("targets_found", "targets found", 2)]
     if results["surveillance"]:
         qs.append(("surveillance_ratio_mean", "surveillance ratio", 3))
@@ -70,7 +71,7 @@ def _columns(results: dict) -> list[tuple[str, Callable[[dict], str]]]:
     return cols
 
 
-def _axis_md(results: dict, heading: str = "##") -> list[str]:
+def _axis_md(results: dict[str, Any], heading: str = "##") -> list[str]:
     cols = _columns(results)
     seeds = results["seeds"]
     lines = [f"{heading} {results['axis']}: {AXES[results['axis']].title}", "",
@@ -88,7 +89,7 @@ def _axis_md(results: dict, heading: str = "##") -> list[str]:
     return lines
 
 
-def _csv_rows(results: dict) -> list[dict]:
+def _csv_rows(results: dict[str, Any]) -> list[dict[str, Any]]:
     rows = []
     for pt in results["points"]:
         for p in results["planners"]:
@@ -109,7 +110,7 @@ def _csv_rows(results: dict) -> list[dict]:
 CSV_COLUMNS = ["axis", "setting", "value", "planner", "quantity", "n", "mean", "sd", "ci95_low", "ci95_high"]
 
 
-def _csv_text(rows: list[dict]) -> str:
+def _csv_text(rows: list[dict[str, Any]]) -> str:
     buf = io.StringIO(newline="")
     w = csv.DictWriter(buf, fieldnames=CSV_COLUMNS)
     w.writeheader()
@@ -117,7 +118,7 @@ def _csv_text(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def write_axis_table(results: dict, axis_dir: Path) -> tuple[Path, Path]:
+def write_axis_table(results: dict[str, Any], axis_dir: Path) -> tuple[Path, Path]:
     md = write_text(axis_dir / "table.md", "\n".join(_axis_md(results, "#")) + "\n")
     return md, write_text(axis_dir / "table.csv", _csv_text(_csv_rows(results)))
 

@@ -4,6 +4,7 @@ rules"): one watcher per target, handovers as the rules say, no target dropped."
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from faults.base import PHANTOM_TARGET_ID
 from swarm import events as event_schema
@@ -18,7 +19,7 @@ class _WatchChecker(Checker):
     _seen: dict[int, tuple[float, float, float]]  # target -> last (t, x, y) inside some UAV's sensor (_sightings)
     _home: set[int]  # (issue 33) UAVs on their way home: from their rtb to their landing (_homeward)
 
-    def _homeward(self, events: list) -> None:
+    def _homeward(self, events: list[Any]) -> None:
         """Note who turns home (``rtb``) and who is no longer on the way (landed, launched, crashed)."""
         if not hasattr(self, "_home"):
             self._home = set()
@@ -28,13 +29,13 @@ class _WatchChecker(Checker):
             elif isinstance(e, (event_schema.Landed, event_schema.Launched, event_schema.Crash)):
                 self._home.discard(e.uav)
 
-    def free(self, uid: int, p: tuple) -> bool:
+    def free(self, uid: int, p: tuple[Any, ...]) -> bool:
         """A UAV is free while it searches with no target (not on its way to take one over) and
         is not on its way home (rule 2's wording)."""
         return p[4] != SURVEIL and p[5] < 0 and uid not in self._home
 
     @staticmethod
-    def watchers(poses: dict[int, tuple]) -> dict[int, set[int]]:
+    def watchers(poses: dict[int, tuple[Any, ...]]) -> dict[int, set[int]]:
         out: dict[int, set[int]] = {}
         for uid, p in poses.items():
             # (A phantom target, a false alarm's or a liar's, is not a target: nothing to judge.)
@@ -51,7 +52,7 @@ class _WatchChecker(Checker):
         life = sc.planner.dacmp.track_max_age_s
         return float(life) if life is not None else 1.0 / sc.effective_tau
 
-    def _sightings(self, t: float, poses: dict[int, tuple]) -> None:
+    def _sightings(self, t: float, poses: dict[int, tuple[Any, ...]]) -> None:
         """Note every target some UAV has inside its detection radius at ``t`` (``_seen``)."""
         ctx = self.context
         for m, (x, y) in self._targets.items():
@@ -61,7 +62,7 @@ class _WatchChecker(Checker):
                     self._seen[m] = (t, x, y)
                     break
 
-    def _holds(self, uid: int, m: int, poses: dict[int, tuple]) -> bool:
+    def _holds(self, uid: int, m: int, poses: dict[int, tuple[Any, ...]]) -> bool:
         """Whether ``uid`` has target ``m`` (at its last logged position) inside its detection radius."""
         k, pos = self.context.kind(uid), self._targets.get(m)
         return (k is not None and pos is not None and uid in poses
@@ -80,7 +81,7 @@ class SingleWatcherChecker(_WatchChecker):
         self._since: dict[tuple[int, int, int], float] = {}
         self._reported: set[tuple[int, int, int]] = set()
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         poses = poses_of(events)
         if not poses:
             return
@@ -127,7 +128,7 @@ class HandoverChecker(_WatchChecker):
         self._joined: dict[tuple[int, int], tuple[float, int, int]] = {}
         self._offer: dict[tuple[int, int], float] = {}  # (target, fast watcher) -> since
         self._overlap: dict[tuple[int, int, int], float] = {}  # (target, fast, slow) -> since
-        self._reported: set[tuple] = set()
+        self._reported: set[tuple[Any, ...]] = set()
         self._prev_watchers: dict[int, set[int]] = {}
         self._targets: dict[int, tuple[float, float]] = {}
         self._seen: dict[int, tuple[float, float, float]] = {}
@@ -141,7 +142,7 @@ class HandoverChecker(_WatchChecker):
         #: a handover would be from), a slower one on its way to it (watching, not yet holding).
         self.opportunities: set[tuple[int, int]] = set()
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         for e in events:
             if isinstance(e, event_schema.Target):
                 self._targets[e.target] = (e.x, e.y)
@@ -248,7 +249,7 @@ class HandoverChecker(_WatchChecker):
         self._prev_watchers = {m: set(ws) for m, ws in watchers.items()}
         self._held = held
 
-    def _early_release(self, t: float, poses: dict[int, tuple], watchers: dict[int, set[int]],
+    def _early_release(self, t: float, poses: dict[int, tuple[Any, ...]], watchers: dict[int, set[int]],
                        held: dict[int, set[int]]) -> None:
         """Rule 3's "and not before": a faster watcher that has held a target stops watching it
         while a slower UAV it can talk to watches it and none of the slower watchers has held
@@ -278,7 +279,7 @@ class HandoverChecker(_WatchChecker):
         return seen is None or t - seen[0] > self._track_life() - EPS
 
 
-    def _holders_besides(self, f: int, m: int, t: float, poses: dict[int, tuple],
+    def _holders_besides(self, f: int, m: int, t: float, poses: dict[int, tuple[Any, ...]],
                          watchers: dict[int, set[int]]) -> list[int]:
         """The UAVs other than ``f`` that hold ``m`` and that ``f`` can talk to, but for one of a
         faster type ``f`` takes targets over from (that is rule 2, not a breach of rule 4)."""
@@ -311,7 +312,7 @@ class NoDropChecker(_WatchChecker):
         self._asks: dict[tuple[int, int], tuple[float, float, list[int]]] = {}  # (w, m) -> (t, by, who could reach)
         self._unrelieved: set[tuple[int, int]] = set()
         self._departures: list[tuple[float, int, int]] = []  # unrelieved drops to judge: (t, watcher, target)
-        self._last_poses: dict[int, tuple] = {}
+        self._last_poses: dict[int, tuple[Any, ...]] = {}
         self._went_home: dict[int, list[float]] = {}  # uav -> its rtb times
         self._prev: dict[int, set[int]] = {}
         self._pending: dict[int, tuple[float, int, float]] = {}  # target -> (dropped at, by, last seen then)
@@ -333,7 +334,7 @@ class NoDropChecker(_WatchChecker):
                 or any(z.clearance(x, y)[0] < reach for z in self.context.zones))  # circles and polygons alike
         return t - t_seen > self._track_life() - EPS and not near
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         for e in events:
             if isinstance(e, event_schema.Target):
                 self._targets[e.target] = (e.x, e.y)
@@ -402,7 +403,7 @@ class NoDropChecker(_WatchChecker):
                              f"could have reached it in the {ask[1] - ask[0]:g} s between its relief request at "
                              f"{ask[0]:g} s and its departure", [w, *could], target=m, since=ask[0], rule=6)
 
-    def _could_reach(self, t: float, m: int, by: float, poses: dict[int, tuple]) -> list[int]:
+    def _could_reach(self, t: float, m: int, by: float, poses: dict[int, tuple[Any, ...]]) -> list[int]:
         """The free flying UAVs (not impaired) that could reach target ``m`` by ``by``: within
         ``(by - t)`` times their ``speed_max`` plus the mean wind's speed (rule 6)."""
         pos = self._targets.get(m)
@@ -419,6 +420,6 @@ class NoDropChecker(_WatchChecker):
                 out.append(uid)
         return out
 
-    def finish(self, t_end):
+    def finish(self, t_end: float) -> None:
         self._pending.clear()  # not enough time left to judge
         self._judge_departures(t_end, final=True)

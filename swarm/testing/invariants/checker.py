@@ -18,7 +18,7 @@ from swarm.testing.invariants.context import InvariantViolation, RunContext, Vio
 SURVEIL = MODE_NAMES[MODE_SURVEIL]
 
 
-def poses_of(events: Sequence[event_schema.Event]) -> dict[int, tuple]:
+def poses_of(events: Sequence[event_schema.Event]) -> dict[int, tuple[Any, ...]]:
     """uid -> (x, y, v, theta, mode name, target) of the pose events in a group."""
     return {e.uav: (e.x, e.y, e.v, e.theta, e.mode, e.target) for e in events if isinstance(e, event_schema.Pose)}
 

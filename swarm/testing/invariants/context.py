@@ -36,7 +36,7 @@ class Violation:
     message: str
     uavs: tuple[str, ...] = ()
     target: int | None = None
-    data: dict = field(default_factory=dict, compare=False)
+    data: dict[str, Any] = field(default_factory=dict, compare=False)
     #: The faults that may explain it (:meth:`RunContext.explaining`): active on these UAVs, on
     #: their links or on everyone around its time. Empty: nothing but the planner to blame.
     faults: tuple[str, ...] = field(default=(), compare=False)
@@ -177,7 +177,8 @@ class RunContext:
         if self._override is not None:
             return self._override
         if self.sim is not None:
-            return self.sim.injector.schedule.faults
+            faults: list[FaultKind] = self.sim.injector.schedule.faults
+            return faults
         return self._start_faults
 
     def drawn(self, f: FaultKind) -> Any:

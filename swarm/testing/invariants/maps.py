@@ -6,9 +6,11 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
+from swarm import events as event_schema
 from swarm.errors import UsageError
 from swarm.testing.invariants.checker import Checker, poses_of
 from swarm.testing.invariants.context import EPS, owed_map
@@ -38,7 +40,7 @@ class _LiveChecker(Checker):
         cx, cy = self._centres
         return (cx - pose[0]) ** 2 + (cy - pose[1]) ** 2 <= reach * reach
 
-    def _sim(self):
+    def _sim(self) -> Any:  # a live Simulation (RunContext.sim)
         if self.ctx is None or self.ctx.sim is None:
             raise UsageError(f"the {self.name!r} checker reads the UAVs' maps: attach it to a live Simulation "
                              "(Monitor(...).attach(sim)), it cannot check an event log alone")
@@ -74,7 +76,7 @@ class MapMonotonicityChecker(_LiveChecker):
         self._last: dict[int, np.ndarray] = {}
         self._actor: dict[int, object] = {}
 
-    def attach(self, sim):
+    def attach(self, sim: Any) -> None:
         self._snapshot(None)
 
     def _snapshot(self, t: float | None) -> None:
@@ -96,7 +98,7 @@ class MapMonotonicityChecker(_LiveChecker):
                                  [uid], cells=int(dec.sum()), cell=(ix, iy))
             self._last[uid] = cur
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         if any(e.kind == "pose" for e in events):
             self._snapshot(t)
 
@@ -115,7 +117,7 @@ class MapAgreementChecker(_LiveChecker):
         super().__init__()
         self.quiet_s, self.lag_s, self.tolerance, self.every_s = quiet_s, lag_s, tolerance, every_s
         self.allow_radio_loss = allow_radio_loss
-        self.poses_of: dict[int, tuple] = {}  # this tick's (for the horizon's centres)
+        self.poses_of: dict[int, tuple[Any, ...]] = {}  # this tick's (for the horizon's centres)
         self._quiet_since: float | None = None
         self._members: frozenset[int] = frozenset()
         self._history: deque[tuple[float, dict[int, np.ndarray]]] = deque()
@@ -124,7 +126,7 @@ class MapAgreementChecker(_LiveChecker):
         self._hops = 0  # the radio graph's largest diameter (hops) since the quiet began
         self.checks = 0  # how many times agreement was judged (a test can assert it was)
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         poses = poses_of(events)
         if not poses:
             return
@@ -230,12 +232,12 @@ class JoinerCatchUpChecker(_LiveChecker):
         self._pending: dict[int, tuple[float, np.ndarray, tuple[int, ...]]] = {}
         self.checks = 0
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         sim = self._sim()
         ctx = self.context
         poses = poses_of(events)
         for e in events:
-            if (e.kind == "join" and e.t > 0) or e.kind == "restart":  # a restarted UAV rejoins empty
+            if (isinstance(e, event_schema.Join) and e.t > 0) or isinstance(e, event_schema.Restart):  # (restarted: empty)
                 uid = e.uav
                 j = sim._world.uavs[uid]
                 nbrs = tuple(u for u, b in sorted(sim._world.uavs.items())

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from typing import Any
 
 from comms.radio import SPOOF_SENDER
+from swarm import events as event_schema
 from swarm.testing.invariants.checker import Checker, poses_of
 from swarm.testing.invariants.context import EPS
 
@@ -20,14 +22,14 @@ class RadioChecker(Checker):
     def __init__(self, max_delay_s: float | None = None):
         super().__init__()
         self.max_delay_s = max_delay_s
-        self._history: deque[tuple[float, dict[int, tuple]]] = deque()
+        self._history: deque[tuple[float, dict[int, tuple[Any, ...]]]] = deque()
         # A paused UAV (the pause fault) reads its mailbox when it resumes: frames sent since
         # its pause began. uid -> (pause start, pauses open: they may overlap, each logs its own
         # pause and resume); after the last resume, uid -> (pause start, resume).
         self._paused: dict[int, tuple[float, int]] = {}
         self._resumed: dict[int, tuple[float, float]] = {}
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         if self.context.recording != "frames":
             self.unchecked = (f'the log has no per-frame events (recording level "{self.context.recording}"); '
                               'the radio invariant needs [recording] level = "frames"')
@@ -35,16 +37,16 @@ class RadioChecker(Checker):
         ctx = self.context
         dt = ctx.dt
         for e in events:
-            if e.kind == "pause":
+            if isinstance(e, event_schema.Pause):
                 start, open_ = self._paused.get(e.uav, (float(e.t), 0))
                 self._paused[e.uav] = (start, open_ + 1)
-            elif e.kind == "resume" and e.uav in self._paused:
+            elif isinstance(e, event_schema.Resume) and e.uav in self._paused:
                 start, open_ = self._paused.pop(e.uav)
                 if open_ > 1:
                     self._paused[e.uav] = (start, open_ - 1)  # another pause still holds it
                 else:
                     self._resumed[e.uav] = (start, float(e.t))
-            elif e.kind == "crash":
+            elif isinstance(e, event_schema.Crash):
                 self._paused.pop(e.uav, None)
         for uid in [u for u, (_, tr) in self._resumed.items() if t > tr + dt + EPS]:
             del self._resumed[uid]  # it has read what it held (its first tick after the resume)
@@ -55,7 +57,7 @@ class RadioChecker(Checker):
             floor = min([t, *(s for s, _ in self._paused.values()), *(s for s, _ in self._resumed.values())])
             while self._history and self._history[0][0] < floor - dt - max_delay - dt - EPS:
                 self._history.popleft()
-        rx = [e for e in events if e.kind == "rx"]
+        rx = [e for e in events if isinstance(e, event_schema.Rx)]
         if not rx:
             return
         for e in rx:
@@ -86,7 +88,7 @@ class RadioChecker(Checker):
                 self.violate(t, f"frame {ctx.name(src)} -> {ctx.name(dst)} delivered illegally: {detail}",
                              [src, dst], reasons=reasons)
 
-    def _check_spoof(self, t: float, dst: int, poses: dict[int, tuple], dt: float, max_delay: float) -> None:
+    def _check_spoof(self, t: float, dst: int, poses: dict[int, tuple[Any, ...]], dt: float, max_delay: float) -> None:
         """A spoofer's frame (sender -1) is legal only at a receiver that is flying when it reads
         it and was within an active spoofer's ``range_m`` at a possible send tick (for one just
         resumed from a pause, back to the pause's start, as for members' frames)."""
@@ -107,7 +109,7 @@ class RadioChecker(Checker):
         self.violate(t, f"{ctx.name(dst)} read a frame from a non-member (sender {SPOOF_SENDER}) with no active "
                         "spoofer in range", [dst], cause="spoof")
 
-    def _illegal(self, src: int, dst: int, s: float, poses: dict[int, tuple]) -> str | None:
+    def _illegal(self, src: int, dst: int, s: float, poses: dict[int, tuple[Any, ...]]) -> str | None:
         ps, pd = poses.get(src), poses.get(dst)
         if ps is None:
             return "the sender was not flying"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +27,7 @@ class SeparationChecker(Checker):
         self._active: set[tuple[int, int]] = set()
         self._excused: set[tuple[int, int]] = set()
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         poses = poses_of(events)
         if not poses:
             return
@@ -75,7 +76,7 @@ class ThreatClearanceChecker(Checker):
         self._active: set[tuple[int, int]] = set()
         self._excused: set[tuple[int, int]] = set()
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         poses = poses_of(events)
         if not poses:
             return
@@ -123,12 +124,12 @@ class DynamicsChecker(Checker):
     def __init__(self, tol_m: float = 1e-6):
         super().__init__()
         self.tol_m = tol_m
-        self._prev: dict[int, tuple] = {}
+        self._prev: dict[int, tuple[Any, ...]] = {}
         self._wind: tuple[float, float] | None = None  # (issue 26) the last group's wind event
         self._driven: set[str] = set()  # UAV names whose bodies the host drives now
         self.skipped: dict[str, int] = {}  # UAV name -> poses not judged (driven from outside)
 
-    def on_group(self, t, events):
+    def on_group(self, t: float, events: list[event_schema.Event]) -> None:
         released = self._host_control(events)
         poses = poses_of(events)
         if not poses:
@@ -138,7 +139,7 @@ class DynamicsChecker(Checker):
         # (issue 26) With [wind] the log has the wind of each tick: the position follows from
         # the speed and heading plus the wind of the tick before (the limits are air-relative).
         wind_before = self._wind
-        self._wind = next(((e.wx, e.wy) for e in events if e.kind == "wind"), None)
+        self._wind = next(((e.wx, e.wy) for e in events if isinstance(e, event_schema.Wind)), None)
         for uid, p in poses.items():
             kind = ctx.kind(uid)
             prev = self._prev.get(uid)
@@ -171,12 +172,12 @@ class DynamicsChecker(Checker):
             if err > self.tol_m + 1e-9 * (abs(x1) + abs(y1)):
                 self.violate(t, f"moved {err:.3g} m away from where its speed and heading take it", [uid], error_m=err)
 
-    def _host_control(self, events) -> set[str]:
+    def _host_control(self, events: list[event_schema.Event]) -> set[str]:
         """Follow take_control / release_control; returns the UAVs released at this instant
         (their pose now is still where the host put them)."""
         released: set[str] = set()
         for e in events:
-            if e.kind == "host" and e.change in ("take_control", "release_control"):
+            if isinstance(e, event_schema.Host) and e.change in ("take_control", "release_control"):
                 name = e.args["uav"]
                 if e.change == "take_control":
                     self._driven.add(name)

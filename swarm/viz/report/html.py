@@ -39,7 +39,7 @@ def _png_uri(fig: Figure) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def fmt(value) -> str:
+def fmt(value: Any) -> str:
     """A table cell's text: numbers short (``0.7423``, ``12``), None and NaN ``–``."""
     if isinstance(value, bool):
         return "yes" if value else "no"
@@ -56,7 +56,7 @@ def fmt(value) -> str:
     return str(value)
 
 
-def cell(text, cls: str | None = None, title: str | None = None) -> dict:
+def cell(text: Any, cls: str | None = None, title: str | None = None) -> dict[str, Any]:
     """A table cell with a CSS class (``num``: right-aligned) and a tooltip."""
     return {"text": text, "cls": cls, "title": title}
 
@@ -81,10 +81,10 @@ def render(template: str, **context: Any) -> str:
     return _environment().get_template(template).render(**context)
 
 
-def figure_item(fig: Figure, caption: str, alt: str, width: int | None = None) -> dict:
+def figure_item(fig: Figure, caption: str, alt: str, width: int | None = None) -> dict[str, Any]:
     return {"uri": _png_uri(fig), "caption": caption, "alt": alt, "width": width}
 
-def as_number(v) -> float:
+def as_number(v: Any) -> float:
     try:
         return float(v)
     except (TypeError, ValueError):

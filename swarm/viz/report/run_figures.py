@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib import colormaps
@@ -33,6 +34,9 @@ from swarm.viz.style import (
     type_markers,
     uav_colours,
 )
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 # --- run figures ------------------------------------------------------------------------------
 
@@ -119,7 +123,7 @@ def fig_trajectories(rp: Replay) -> Figure:
     return fig
 
 
-def _fault_spans(ax, rp: Replay, label: bool = True) -> None:
+def _fault_spans(ax: Axes, rp: Replay, label: bool = True) -> None:
     """Partition windows shaded, crashes (red) and joins (green) as vertical lines."""
     first = True
     for f in rp.faults:
@@ -164,7 +168,8 @@ def watched_count(rp: Replay) -> np.ndarray:
         return np.zeros(rp.n_ticks, dtype=int)
     s = np.sort(m, axis=1)
     new = np.concatenate([s[:, :1] >= 0, (s[:, 1:] != s[:, :-1]) & (s[:, 1:] >= 0)], axis=1)
-    return new.sum(axis=1)
+    counts: np.ndarray = new.sum(axis=1)
+    return counts
 
 
 def fig_targets(rp: Replay) -> Figure:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 from comms.radio import LogDistance
 from swarm.outputs import atomic_write
@@ -36,7 +37,7 @@ def find_animation(run_dir: str | Path) -> Path | None:
     return max(found, key=lambda p: p.stat().st_mtime) if found else None
 
 
-def _animation(path: Path | None) -> dict | None:
+def _animation(path: Path | None) -> dict[str, Any] | None:
     """What the template embeds of the animation: its kind, ``data:`` URI, name and size."""
     if path is None:
         return None
@@ -48,7 +49,7 @@ def _animation(path: Path | None) -> dict | None:
     return {"kind": kind, "uri": f"data:{mime};base64,{data}", "name": path.name, "mb": path.stat().st_size / 1e6}
 
 
-def _scenario_rows(rp: Replay) -> list[tuple]:
+def _scenario_rows(rp: Replay) -> list[tuple[Any, ...]]:
     sc = rp.scenario
     w, h, c = rp.area
     types = sc.get("uav_types", {})
@@ -89,7 +90,7 @@ def _zone_words(rp: Replay) -> str:
     return f"{circles + polygons}" + (f" ({', '.join(parts)})" if parts else "")
 
 
-def _radio_words(radio: dict, rng: float | None) -> str:
+def _radio_words(radio: dict[str, Any], rng: float | None) -> str:
     """The scenario row of the radio: model, range, loss, latency (and auth when on)."""
     base = radio.get("loss_base", 0)
     if radio.get("model", "disk") == "log_distance":
@@ -104,11 +105,11 @@ def _radio_words(radio: dict, rng: float | None) -> str:
     return words + f", latency {radio.get('latency_s', 0):g} s" + (", authenticated frames" if radio.get("auth") else "")
 
 
-def _count(m: dict, key: str) -> str:
+def _count(m: dict[str, Any], key: str) -> str:
     return format_metric(key, m.get(key)) if m.get(key) is not None else "–"
 
 
-def _metrics_rows(m: dict) -> list[tuple]:
+def _metrics_rows(m: dict[str, Any]) -> list[tuple[Any, ...]]:
     r = m.get("radio", {}) or {}
     v = m.get("violations", {}) or {}
     rows = [
@@ -132,15 +133,15 @@ def _metrics_rows(m: dict) -> list[tuple]:
     return rows
 
 
-def _seconds_or_dash(v) -> str:
+def _seconds_or_dash(v: float | None) -> str:
     return "–" if v is None else f"{fmt(v)} s"
 
 
-def _share_or_dash(v) -> str:
+def _share_or_dash(v: float | None) -> str:
     return "–" if v is None else f"{v:.3f}"
 
 
-def _detection_watch_rows(m: dict, rp: Replay) -> tuple[list[tuple], list[tuple]]:
+def _detection_watch_rows(m: dict[str, Any], rp: Replay) -> tuple[list[tuple[Any, ...]], list[tuple[Any, ...]]]:
     """The "Detection and watch" section (metrics.json, docs/outputs.md): one row per target
     (time to first detection, to a slow watcher, watched share, surveillance ratio, watch gaps), one per UAV
     and the swarm (share of flying time watching and searching). Empty for an older metrics.json."""
@@ -180,7 +181,7 @@ VIOLATION_MEANINGS = {
 MAX_VIOLATION_ROWS = 200
 
 
-def violation_episodes(rp: Replay) -> list[dict]:
+def violation_episodes(rp: Replay) -> list[dict[str, Any]]:
     """The run's violations as episodes, in order of start: one per invariant and party (a pair
     of UAVs, a UAV and a threat, a UAV's dynamics) and stretch of consecutive ticks, as
     ``{"invariant", "who", "start_s", "end_s", "ticks"}``. Separation and threat come from the
@@ -190,8 +191,8 @@ def violation_episodes(rp: Replay) -> list[dict]:
     def name(uid: int) -> str:
         return rp.names[uid] if 0 <= uid < len(rp.names) else f"UAV {uid}"
 
-    open_: dict[tuple, dict] = {}
-    done: list[dict] = []
+    open_: dict[tuple[Any, ...], dict[str, Any]] = {}
+    done: list[dict[str, Any]] = []
     for t, kind, a, b in sorted(rp.violations, key=lambda v: (v[0], v[1], v[2], v[3])):
         key = (kind, a, b)
         ep = open_.get(key)
@@ -211,7 +212,7 @@ def violation_episodes(rp: Replay) -> list[dict]:
     return sorted(done, key=lambda e: (e["start_s"], e["invariant"], e["who"]))
 
 
-def _violation_section(rp: Replay) -> dict:
+def _violation_section(rp: Replay) -> dict[str, Any]:
     """What the template shows of the violations: rows, totals, and a note on what is missing."""
     counts = (rp.metrics or {}).get("violations") or {}
     episodes = violation_episodes(rp)
@@ -234,7 +235,7 @@ def _violation_section(rp: Replay) -> dict:
     }
 
 
-def handover_rows(handovers: list[dict]) -> list[tuple]:
+def handover_rows(handovers: list[dict[str, Any]]) -> list[tuple[Any, ...]]:
     """The handover table's rows: time logged, target, from, to, when the owner stopped
     watching, when the newcomer arrived, and the two non-negative parts of ``latency_s``
     (release minus arrival): *overlap* (both held the target: the newcomer arrived before the

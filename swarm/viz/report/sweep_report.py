@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib import colormaps
@@ -20,6 +21,9 @@ from swarm.viz.style import (
     metric_unit,
 )
 
+if TYPE_CHECKING:
+    from swarm.viz.style import Unit
+
 # --- sweep report -----------------------------------------------------------------------------
 
 # Metrics where a higher value is plainly better (+1) or worse (-1); paired differences of the
@@ -29,16 +33,16 @@ BETTER_DIRECTION = {"coverage": 1, "certainty": 1, "targets_found": 1, "surveill
 
 
 
-def _settings_text(settings: dict | None) -> str:
+def _settings_text(settings: dict[str, Any] | None) -> str:
     return ", ".join(f"{k}={fmt(v)}" for k, v in (settings or {}).items())
 
 
-def _group_label(g: dict) -> str:
+def _group_label(g: dict[str, Any]) -> str:
     s = _settings_text(g.get("settings"))
     return f"{g.get('planner', '?')}" + (f" · {s}" if s else "")
 
 
-def _metric_names(groups: list[dict]) -> list[str]:
+def _metric_names(groups: list[dict[str, Any]]) -> list[str]:
     names: list[str] = []
     for g in groups:
         for k in (g.get("metrics") or {}):
@@ -64,12 +68,12 @@ def _split_breakdowns(names: list[str], prefixes: object) -> tuple[list[str], di
     return shown, {p: n for p, n in counts.items() if n}
 
 
-def _stat(g: dict, metric: str) -> dict:
+def _stat(g: dict[str, Any], metric: str) -> dict[str, Any]:
     s = (g.get("metrics") or {}).get(metric)
     return s if isinstance(s, dict) else {}
 
 
-def _ci(s: dict) -> tuple[float, float] | None:
+def _ci(s: dict[str, Any]) -> tuple[float, float] | None:
     ci = s.get("ci95")
     if isinstance(ci, (list, tuple)) and len(ci) == 2:
         lo, hi = as_number(ci[0]), as_number(ci[1])
@@ -78,7 +82,7 @@ def _ci(s: dict) -> tuple[float, float] | None:
     return None
 
 
-def constant_metrics(groups: list[dict], metrics: list[str] | None = None) -> dict[str, float]:
+def constant_metrics(groups: list[dict[str, Any]], metrics: list[str] | None = None) -> dict[str, float]:
     """``{metric: value}`` of the metrics that are the same in every group: every group has a
     finite mean, all means are equal and no group has a spread (sd 0 or none). They carry no
     comparison, so the report lists them in one line instead of a column and a panel each.
@@ -101,13 +105,13 @@ def constant_metrics(groups: list[dict], metrics: list[str] | None = None) -> di
     return out
 
 
-def _column_unit(groups: list[dict], metric: str):
+def _column_unit(groups: list[dict[str, Any]], metric: str) -> Unit:
     mags = [abs(as_number(_stat(g, metric).get("mean"))) for g in groups]
     mags = [x for x in mags if math.isfinite(x)]
     return metric_unit(metric, max(mags) if mags else 0.0)
 
 
-def _stat_text(unit, s: dict) -> str:
+def _stat_text(unit: Unit, s: dict[str, Any]) -> str:
     """``0.740 ± 0.020 [0.710, 0.770]`` in ``unit`` (spread and interval when there are)."""
     text = unit.number(s.get("mean"))
     sd = as_number(s.get("sd"))
@@ -119,7 +123,7 @@ def _stat_text(unit, s: dict) -> str:
     return text
 
 
-def _clipped_note(unit, s: dict) -> str | None:
+def _clipped_note(unit: Unit, s: dict[str, Any]) -> str | None:
     """A cell's tooltip when its interval ends at a bound of the metric's range (summary.json
     ``bounds``): the Student-t interval went further and was clipped."""
     ci, bounds = _ci(s), s.get("bounds")
@@ -130,7 +134,7 @@ def _clipped_note(unit, s: dict) -> str | None:
     return f"interval clipped at {' and '.join(ends)}, the end of the metric's range" if ends else None
 
 
-def _with_unit(metric: str, unit) -> str:
+def _with_unit(metric: str, unit: Unit) -> str:
     return f"{metric} ({unit.suffix})" if unit.suffix else metric
 
 
@@ -138,7 +142,7 @@ def _tick_formatter() -> FuncFormatter:
     return FuncFormatter(lambda v, _pos: f"{v:,.6g}".replace(",", THIN_SEP))
 
 
-def fig_sweep(groups: list[dict], metrics: list[str]) -> Figure:
+def fig_sweep(groups: list[dict[str, Any]], metrics: list[str]) -> Figure:
     """One panel per metric: a bar per group at its mean, whiskers its 95% interval, a dot at
     the mean; colour by planner; values in the metric's unit (:func:`metric_unit`)."""
     n_g = len(groups)
@@ -188,7 +192,7 @@ def fig_sweep(groups: list[dict], metrics: list[str]) -> Figure:
     return fig
 
 
-def paired_differences(comparison: dict, first_minus_second: bool = True) -> dict:
+def paired_differences(comparison: dict[str, Any], first_minus_second: bool = True) -> dict[str, Any]:
     """One entry of ``summary["comparisons"]`` (``planner − baseline``, per metric, as
     :func:`swarm.experiments.sweep.summarize` writes it) turned around to "first − second":
     ``{"first", "second", "settings", "paired_seeds", "difference": {metric: {"mean", "sd",
@@ -210,7 +214,7 @@ def paired_differences(comparison: dict, first_minus_second: bool = True) -> dic
             "paired_seeds": comparison.get("paired_seeds"), "difference": diffs}
 
 
-def _difference_cell(metric: str, unit, d: dict | None) -> dict:
+def _difference_cell(metric: str, unit: Unit, d: dict[str, Any] | None) -> dict[str, Any]:
     if not d:
         return cell("–", "num")
     mean = as_number(d.get("mean"))
@@ -226,9 +230,9 @@ def _difference_cell(metric: str, unit, d: dict | None) -> dict:
     return cell(text, cls, f"sd {unit.format(sd)}; {d.get('n', '?')} paired seeds" if math.isfinite(sd) else None)
 
 
-def _difference_tables(comparisons: list, metrics: list[str], first_minus_second: bool) -> list[dict]:
+def _difference_tables(comparisons: list[Any], metrics: list[str], first_minus_second: bool) -> list[dict[str, Any]]:
     """One table per planner pair: a row per metric, a column per setting."""
-    pairs: dict[tuple[str, str], list[dict]] = {}
+    pairs: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for c in comparisons:
         if isinstance(c, dict):
             d = paired_differences(c, first_minus_second)
@@ -251,7 +255,7 @@ def _difference_tables(comparisons: list, metrics: list[str], first_minus_second
     return tables
 
 
-def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bool = True) -> str:
+def build_sweep_report(sweep_dir: Path, summary: dict[str, Any], *, first_minus_second: bool = True) -> str:
     """The HTML text of a sweep's report (``sweep_report.html.j2``); see :func:`write_sweep_report`."""
     groups = summary.get("groups")
     if not isinstance(groups, list):
@@ -267,7 +271,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
     units = {m: _column_unit(groups, m) for m in metrics}
     summary_rows = []
     for g in groups:
-        row: list = [g.get("planner", "?"), _settings_text(g.get("settings")) or "–", g.get("runs", "–")]
+        row: list[Any] = [g.get("planner", "?"), _settings_text(g.get("settings")) or "–", g.get("runs", "–")]
         for metric in metrics:
             s = _stat(g, metric)
             row.append(cell(_stat_text(units[metric], s) if s else "–", "num", _clipped_note(units[metric], s)))
@@ -302,7 +306,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict, *, first_minus_second: bo
     )
 
 
-def write_sweep_report(sweep_dir: str | Path, summary: dict, out_path: str | Path | None = None, *,
+def write_sweep_report(sweep_dir: str | Path, summary: dict[str, Any], out_path: str | Path | None = None, *,
                        first_minus_second: bool = True) -> Path:
     """Write the HTML report of a sweep (default ``SWEEP_DIR/report.html``).
 
