@@ -7,19 +7,17 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from comms.codec import encode
 from comms.messages import Hello, Message, ScanRecords, TrackItem, Tracks
 from comms.radio import SPOOF_SENDER, Delivery
-from faults.base import END, PHANTOM_TARGET_ID, START, UAV, FaultRng, RadioHost, TickFault, Transmitter, Windowed
+from faults.base import END, PHANTOM_TARGET_ID, START, UAV, FaultRng, RadioHost, Transmitter, Windowed
 from faults.registry import register
 from faults.sensing import PHANTOM_ID_SPAN
-
-if TYPE_CHECKING:
-    from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 
 # Liars' track ids count up from here (false alarms use the span below it).
 LIAR_TRACK_IDS = PHANTOM_TARGET_ID + PHANTOM_ID_SPAN

@@ -7,9 +7,10 @@ A kind's class is its one definition (see :mod:`faults.registry` for the list of
   ``gt``, ``le``, ``lt``, a ``note`` on the unit, the ``expected`` words of an error message);
   ``swarm.scenario`` builds each ``[[faults]]`` table from them;
 * **behaviour**: what it does to a run, through the hook of its family (none is required):
-  :meth:`FaultKind.install` (on the clock, through a :class:`FaultHost`), a link behaviour
-  (:mod:`faults.injector`: frame copies), a tick behaviour (:mod:`faults.tick`: a UAV's
-  reading or actor, tick by tick) or a transmitter (frames of its own);
+  :meth:`FaultKind.install` (on the clock, through a :class:`FaultHost`), a
+  :class:`LinkBehaviour` (frame copies, applied by :mod:`faults.injector`), a tick behaviour
+  (:class:`faults.tick.TickFault`: a UAV's reading or actor, tick by tick) or a
+  :class:`Transmitter` (frames of its own);
 * **counters**: ``fired[kind]``, counted by its behaviour each time it changed something;
 * **excuses**: what the invariant checkers (``swarm.testing``) grant it, as the class variables
   and methods below: who it concerns and when (:meth:`FaultKind.span`,
@@ -31,8 +32,6 @@ import numpy as np
 if TYPE_CHECKING:
     from agents.types import UavType
     from comms.radio import Delivery, RadioCounters
-    from faults.injector import LinkBehaviour
-    from faults.tick import TickFaults
 
 # Field metadata shared by the kinds' windows (see the module docstring).
 START = {"ge": 0}
@@ -139,6 +138,51 @@ class Transmitter:
                  out: list[Delivery]) -> int:
         """Append this tick's frame copies to ``out``; returns how many frames it sent (fired)."""
         return 0
+
+
+# The stages of a frame copy's way through the active link behaviours (lower first). Cuts
+# (stage < COPY_STAGES) block a link outright, without a draw.
+COPY_STAGES = 10
+
+
+class Copy:
+    """A frame copy on its way through the link behaviours: what they make of it."""
+
+    __slots__ = ("data", "extra_s", "copies", "lost")
+
+    def __init__(self, data: bytes):
+        self.data = data
+        self.extra_s = 0.0  # added latency
+        self.copies = 1  # duplicates share the data and the latency
+        self.lost = False
+
+
+class LinkBehaviour:
+    """What one fault does to frame copies (subclassed by the link kinds' families)."""
+
+    stage: ClassVar[int]
+
+    def __init__(self, fault: Windowed):
+        self.fault = fault
+
+    def begin_tick(self, t: float) -> None:
+        """The tick at ``t`` begins (the fault is active)."""
+
+    def set_positions(self, ids: Sequence[int], xy: np.ndarray) -> None:
+        """The live UAVs' positions of this tick (for behaviours that care where UAVs are)."""
+
+    def cut(self, src: int, dst: int) -> bool:
+        """A cut (stage < COPY_STAGES): whether it blocks ``src -> dst`` this tick."""
+        return False
+
+    def on_copy(self, c: Copy, src: int, dst: int, rng: np.random.Generator) -> bool:
+        """Act on one copy (stage >= COPY_STAGES); True if it changed something (fired). Set
+        ``c.lost`` to lose the copy."""
+        return False
+
+    def drawn(self) -> Any:
+        """What the fault drew for itself (:meth:`faults.base.FaultKind.draw`), or None."""
+        return None
 
 
 class RunView(Protocol):
@@ -259,9 +303,6 @@ class FaultKind:
         """Its own transmitter, if it sends frames (a spoofer); ``rank`` as for links."""
         return None
 
-    def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
-        """What it does to UAV ``uid``'s tick while its window is open (:mod:`faults.tick`)."""
-
     def pool(self, ids: Mapping[str, int]) -> list[int]:
         """The ids of the UAVs it may act on, in id order: its ``uav``, its ``uavs`` (empty:
         every UAV in ``ids``), or every UAV; names not in ``ids`` are left out."""
@@ -269,22 +310,6 @@ class FaultKind:
         if not named:
             return sorted(ids.values())
         return sorted({ids[n] for n in named if n in ids})
-
-    def tick_uavs(self, alive: Sequence[int], ids: Mapping[str, int]) -> list[int]:
-        """The live UAVs its tick behaviour acts on (its ``uav``, its ``uavs`` or all)."""
-        uav: str | None = getattr(self, "uav", None)
-        if uav is not None:
-            uid = ids[uav]
-            return [uid] if uid in alive else []
-        uavs = getattr(self, "uavs", ())
-        if not uavs:
-            return list(alive)
-        scope = {ids[n] for n in uavs}
-        return [u for u in alive if u in scope]
-
-    # The order tick faults act in within a tick (what is sensed, then where the UAV believes
-    # it is, then its clock, then what its actor does).
-    tick_order: ClassVar[int] = 100
 
 
 class Windowed(FaultKind):
@@ -296,23 +321,3 @@ class Windowed(FaultKind):
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
-
-
-class TickFault(Windowed):
-    """A windowed fault that acts on its UAVs' ticks (:mod:`faults.tick`): its window opens
-    and closes on the clock, and :meth:`FaultKind.on_tick` runs for each of its live UAVs in
-    between."""
-
-    # Whether it stops acting on a UAV that goes down (with no event: the process is gone).
-    ends_with_process: ClassVar[bool] = False
-
-    def install(self, host: FaultHost, index: int) -> None:
-        if self.end_s <= host.now:
-            return  # a window wholly in the past does nothing
-        host.at(max(self.start_s, host.now), lambda: host.open_window(index, self))
-        if math.isfinite(self.end_s):
-            host.at(self.end_s, lambda: host.close_window(index, self))
-
-    def off_event(self, t: float, uid: int) -> tuple[Any, ...]:
-        """The event that says it stopped acting on ``uid`` (its window closed)."""
-        return ("fault_off", t, self.kind, uid)

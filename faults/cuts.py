@@ -11,8 +11,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from faults.base import END, PROBABILITY, START, UAV, UAVS, FaultRng, RunView, Windowed
-from faults.injector import COPY_STAGES, Copy, LinkBehaviour
+from faults.base import COPY_STAGES, END, PROBABILITY, START, UAV, UAVS, Copy, FaultRng, LinkBehaviour, RunView, Windowed
 from faults.registry import register
 
 _GROUPS = {"expected": "an array of at least 2 non-empty arrays of UAV names"}

@@ -12,8 +12,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from faults.base import END, PROBABILITY, START, UAVS, FaultRng, Windowed
-from faults.injector import COPY_STAGES, Copy, LinkBehaviour
+from faults.base import COPY_STAGES, END, PROBABILITY, START, UAVS, Copy, FaultRng, LinkBehaviour, Windowed
 from faults.registry import register
 
 

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
-from faults.base import START, UAV, FaultHost, FaultKind, TickFault
+from faults.base import START, UAV, FaultHost, FaultKind
 from faults.registry import register
-
-if TYPE_CHECKING:
-    from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 
 
 @register

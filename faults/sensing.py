@@ -5,14 +5,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
 from agents.actor import SensedTarget
-from faults.base import END, PHANTOM_TARGET_ID, PROBABILITY, START, UAV, UAVS, TickFault
+from faults.base import END, PHANTOM_TARGET_ID, PROBABILITY, START, UAV, UAVS
 from faults.registry import register
-
-if TYPE_CHECKING:
-    from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 
 # False alarms' ids count up from PHANTOM_TARGET_ID, over this span (below 2**31, the largest
 # id a receiver accepts; liars' tracks use the next span).

@@ -101,8 +101,7 @@ from typing import ClassVar  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from faults.base import END, START, UAV, FaultRng, Windowed  # noqa: E402
-from faults.injector import COPY_STAGES, Copy, LinkBehaviour  # noqa: E402
+from faults.base import COPY_STAGES, END, START, UAV, Copy, FaultRng, LinkBehaviour, Windowed  # noqa: E402
 from faults.registry import register, unregister  # noqa: E402
 
 
