@@ -15,10 +15,16 @@ A kind's class is its one definition (see :mod:`faults.registry` for the list of
 * **excuses**: what the invariant checkers (``swarm.testing``) grant it, as the class variables
   and methods below: who it concerns and when (:meth:`FaultKind.span`,
   :meth:`FaultKind.concerns`), whether it impairs a UAV's control or sensing, disturbs the links
-  or the maps, cuts links, silences a place or reaches it with forged frames.
+  or the maps, cuts links, silences a place or reaches it with forged frames;
+* **how tests draw it**: :meth:`FaultKind.generate`, one instance drawn through a :class:`Draws`
+  (the testing toolkit, ``swarm.testing.fault_strategies``, hands it one built on Hypothesis, so
+  this package never imports Hypothesis), with what a draw needs (:attr:`FaultKind.min_uavs`,
+  :attr:`FaultKind.min_ticks`) and where the kind comes in the shrink order
+  (:attr:`FaultKind.shrink_rank`).
 
 Adding a kind is one new class decorated with :func:`faults.registry.register` (plus its
-tests): the simulation, the actor and the checkers ask these hooks, never a kind by name.
+tests): the scenario's ``[[faults]]`` tables, the simulation, the actor, the checkers and the
+testing toolkit's strategies ask these hooks, never a kind by name.
 """
 
 from __future__ import annotations
@@ -185,6 +191,71 @@ class LinkBehaviour:
         return None
 
 
+class Draws(Protocol):
+    """What a kind's :meth:`FaultKind.generate` draws with: the UAV names it may use, the run's
+    length and area, and strategies that shrink towards simple cases (Hypothesis's, built by
+    ``swarm.testing.fault_strategies``: windows shrink to the whole run, scopes to all links,
+    probabilities to 1.0, then 0.5 and 0.1, times to the earliest tick, points to the origin)."""
+
+    @property
+    def uavs(self) -> Sequence[str]:
+        """The UAV names it may name (for a kind that :attr:`FaultKind.joins_late`: those that may)."""
+        ...
+
+    @property
+    def duration_s(self) -> float: ...
+
+    @property
+    def step_s(self) -> float:
+        """The tick: every time drawn is a multiple of it."""
+        ...
+
+    @property
+    def steps(self) -> int:
+        """Ticks in the run."""
+        ...
+
+    @property
+    def area(self) -> tuple[float, float]:
+        """``(width_m, height_m)``: where a fault placed in space lies."""
+        ...
+
+    @property
+    def st(self) -> Any:
+        """``hypothesis.strategies``, for values of the kind's own."""
+        ...
+
+    def draw(self, strategy: Any) -> Any:
+        """A value of ``strategy``."""
+        ...
+
+    def windows(self, open_ended: bool = True) -> Any:
+        """``(start_s, end_s)``, ``end_s`` inf (the run's end) only if ``open_ended``."""
+        ...
+
+    def scopes(self) -> Any:
+        """``(uavs, links)`` of a link fault: all links, frames from/to some UAVs, or some links."""
+        ...
+
+    def probabilities(self, min_value: float = 0.0, max_value: float = 1.0) -> Any: ...
+
+    def times(self, min_s: float = 0.0) -> Any:
+        """A tick in ``[min_s, duration_s)``."""
+        ...
+
+    def names(self) -> Any:
+        """One of :attr:`uavs`."""
+        ...
+
+    def points(self) -> Any:
+        """A point of the area on a 100 m grid."""
+        ...
+
+    def among(self, uavs: Sequence[str]) -> Draws:
+        """The same, naming only ``uavs`` (a bridge draws its sides as a partition of the others)."""
+        ...
+
+
 class RunView(Protocol):
     """What a checker knows of a run, as a fault kind's excuses need it."""
 
@@ -273,6 +344,28 @@ class FaultKind:
     def max_extra_delay_s(self) -> float:
         """The most it delays a frame copy, in s."""
         return 0.0
+
+    # --- how tests draw it (swarm.testing.fault_strategies) --------------------------------
+    # Its place in the shrink order, simplest first (loss on links, whole links cut, whole UAVs,
+    # UAVs that are wrong, UAVs and transmitters that lie); kinds of one rank in registration order.
+    shrink_rank: ClassVar[int] = 1000
+    # What a draw needs: UAV names, and ticks in the run (a restart must come back before the end).
+    min_uavs: ClassVar[int] = 0
+    min_ticks: ClassVar[int] = 1
+    # Its UAV enters the run late: drawn among the UAVs that may (a UAV is told once when it enters).
+    joins_late: ClassVar[bool] = False
+
+    @classmethod
+    def generate(cls, d: Draws) -> FaultKind:
+        """One fault of this kind drawn through ``d``, never an inert one (its values change
+        something); called only with at least :attr:`min_uavs` names and :attr:`min_ticks` ticks.
+        A kind that does not override it has no strategy (the coverage gate says so)."""
+        raise NotImplementedError(f"fault kind {cls.kind!r} has no generate(): tests cannot draw it")
+
+    @classmethod
+    def has_strategy(cls) -> bool:
+        """Whether the kind says how tests draw it (overrides :meth:`generate`)."""
+        return cls.generate.__func__ is not FaultKind.generate.__func__  # type: ignore[attr-defined]
 
     # --- behaviour -------------------------------------------------------------------------
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-from swarm.testing.fault_strategies import ALL_KINDS
+from swarm.testing.fault_strategies import fault_kinds
 from swarm.testing.settings import simulation_settings
 from swarm.testing.strategies import set_swarm_testing
 
@@ -164,7 +164,7 @@ class FaultStats:
                 self.runs_fired[kind] += 1
 
     def never_fired(self) -> list[str]:
-        return [k for k in ALL_KINDS if self.fired[k] == 0]
+        return [k for k in fault_kinds() if self.fired[k] == 0]
 
     def to_dict(self) -> dict:
         """What a worker sends the controller (plain data: it crosses a process boundary)."""
@@ -224,7 +224,7 @@ def _fault_kind_summary(tr) -> None:
     tr.section("fault-kind coverage (generated schedules)")
     tr.write_line(f"schedules generated: {s.schedules}; simulations run with one: {s.runs}")
     tr.write_line(f"{'kind':10s} {'scheduled':>10s} {'fired':>10s} {'runs fired':>11s}")
-    for kind in ALL_KINDS:
+    for kind in fault_kinds():
         tr.write_line(f"{kind:10s} {s.scheduled[kind]:10d} {s.fired[kind]:10d} {s.runs_fired[kind]:11d}")
     if s.never_fired():
         tr.write_line(f"(never fired in these {s.runs} runs: {', '.join(s.never_fired())}; a report, not a gate: "
