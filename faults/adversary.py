@@ -7,20 +7,18 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
+from agents.actor import UavActor
 from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, encode, pack_scans, pack_tracks
 from comms.messages import Hello, Message, ScanRecords, TrackItem, Tracks
 from comms.radio import SPOOF_SENDER, Delivery
-from faults.base import END, PHANTOM_TARGET_ID, START, UAV, FaultRng, RadioHost, TickFault, Transmitter, Windowed
+from faults.base import END, PHANTOM_TARGET_ID, START, UAV, Draws, FaultRng, RadioHost, Transmitter, Windowed
 from faults.registry import register
 from faults.sensing import PHANTOM_ID_SPAN
-
-if TYPE_CHECKING:
-    from agents.actor import UavActor
-    from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 
 # Liars' track ids count up from here (false alarms use the span below it).
 LIAR_TRACK_IDS = PHANTOM_TARGET_ID + PHANTOM_ID_SPAN
@@ -49,6 +47,19 @@ class Liar(TickFault):
     tracks_per_s: float = field(default=0.0, metadata={"ge": 0, "le": 1000, "note": "fake tracks per s"})
     kind: ClassVar[Literal["liar"]] = "liar"
     tick_order: ClassVar[int] = 4
+    shrink_rank: ClassVar[int] = 170
+    min_uavs: ClassVar[int] = 1
+
+    @classmethod
+    def generate(cls, d: Draws) -> Liar:
+        """Fake scans and/or fake tracks (never neither)."""
+        start, end = d.draw(d.windows())
+        scans = d.draw(d.st.one_of(d.st.just(1.0), d.st.sampled_from([0.0, 5.0]), d.st.integers(1, 20).map(lambda k: k / 2)))
+        tracks = d.draw(d.st.one_of(d.st.just(0.0), d.st.sampled_from([1.0, 0.2]),
+                                    d.st.integers(1, 10).map(lambda k: k / 5)))
+        if scans == 0.0 and tracks == 0.0:
+            tracks = 1.0
+        return cls(uav=d.draw(d.names()), start_s=start, end_s=end, scans_per_s=scans, tracks_per_s=tracks)
 
     def concerns(self, names: object) -> bool:
         return True  # its tracks reach every UAV
@@ -152,6 +163,19 @@ class Spoofer(Windowed):
     rate_per_s: float = field(default=1.0, metadata={"gt": 0, "le": 1000, "note": "frames per s"})
     as_uav: str = field(default="", metadata={"expected": "a UAV name defined in [[uavs]], or \"\" (a random member per frame)"})
     kind: ClassVar[Literal["spoofer"]] = "spoofer"
+    shrink_rank: ClassVar[int] = 180
+
+    @classmethod
+    def generate(cls, d: Draws) -> Spoofer:
+        """Inside the area, reaching 500 m up to the area's diagonal (whole 100 m), 0.5-10 frames
+        a second, as a named member or as a random one (``as_uav = ""``)."""
+        x, y = d.draw(d.points())
+        k_max = max(5, int(math.hypot(*d.area)) // 100)
+        reach = d.draw(d.st.one_of(d.st.just(float(k_max * 100)), d.st.integers(5, k_max).map(lambda k: k * 100.0)))
+        start, end = d.draw(d.windows())
+        rate = d.draw(d.st.one_of(d.st.just(1.0), d.st.integers(1, 20).map(lambda k: k / 2)))
+        as_uav = d.draw(d.st.one_of(d.st.just(""), d.names())) if d.uavs else ""
+        return cls(x_m=x, y_m=y, range_m=reach, start_s=start, end_s=end, rate_per_s=rate, as_uav=as_uav)
     # Its frames (with auth off) put scans in some maps and not others.
     disturbs_links: ClassVar[bool] = True
 

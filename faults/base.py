@@ -7,17 +7,24 @@ A kind's class is its one definition (see :mod:`faults.registry` for the list of
   ``gt``, ``le``, ``lt``, a ``note`` on the unit, the ``expected`` words of an error message);
   ``swarm.scenario`` builds each ``[[faults]]`` table from them;
 * **behaviour**: what it does to a run, through the hook of its family (none is required):
-  :meth:`FaultKind.install` (on the clock, through a :class:`FaultHost`), a link behaviour
-  (:mod:`faults.injector`: frame copies), a tick behaviour (:mod:`faults.tick`: a UAV's
-  reading or actor, tick by tick) or a transmitter (frames of its own);
+  :meth:`FaultKind.install` (on the clock, through a :class:`FaultHost`), a
+  :class:`LinkBehaviour` (frame copies, applied by :mod:`faults.injector`), a tick behaviour
+  (:class:`faults.tick.TickFault`: a UAV's reading or actor, tick by tick) or a
+  :class:`Transmitter` (frames of its own);
 * **counters**: ``fired[kind]``, counted by its behaviour each time it changed something;
 * **excuses**: what the invariant checkers (``swarm.testing``) grant it, as the class variables
   and methods below: who it concerns and when (:meth:`FaultKind.span`,
   :meth:`FaultKind.concerns`), whether it impairs a UAV's control or sensing, disturbs the links
-  or the maps, cuts links, silences a place or reaches it with forged frames.
+  or the maps, cuts links, silences a place or reaches it with forged frames;
+* **how tests draw it**: :meth:`FaultKind.generate`, one instance drawn through a :class:`Draws`
+  (the testing toolkit, ``swarm.testing.fault_strategies``, hands it one built on Hypothesis, so
+  this package never imports Hypothesis), with what a draw needs (:attr:`FaultKind.min_uavs`,
+  :attr:`FaultKind.min_ticks`) and where the kind comes in the shrink order
+  (:attr:`FaultKind.shrink_rank`).
 
 Adding a kind is one new class decorated with :func:`faults.registry.register` (plus its
-tests): the simulation, the actor and the checkers ask these hooks, never a kind by name.
+tests): the scenario's ``[[faults]]`` tables, the simulation, the actor, the checkers and the
+testing toolkit's strategies ask these hooks, never a kind by name.
 """
 
 from __future__ import annotations
@@ -31,8 +38,6 @@ import numpy as np
 if TYPE_CHECKING:
     from agents.types import UavType
     from comms.radio import Delivery, RadioCounters
-    from faults.injector import LinkBehaviour
-    from faults.tick import TickFaults
 
 # Field metadata shared by the kinds' windows (see the module docstring).
 START = {"ge": 0}
@@ -162,6 +167,116 @@ class Transmitter:
         return 0
 
 
+# The stages of a frame copy's way through the active link behaviours (lower first). Cuts
+# (stage < COPY_STAGES) block a link outright, without a draw.
+COPY_STAGES = 10
+
+
+class Copy:
+    """A frame copy on its way through the link behaviours: what they make of it."""
+
+    __slots__ = ("data", "extra_s", "copies", "lost")
+
+    def __init__(self, data: bytes):
+        self.data = data
+        self.extra_s = 0.0  # added latency
+        self.copies = 1  # duplicates share the data and the latency
+        self.lost = False
+
+
+class LinkBehaviour:
+    """What one fault does to frame copies (subclassed by the link kinds' families)."""
+
+    stage: ClassVar[int]
+
+    def __init__(self, fault: Windowed):
+        self.fault = fault
+
+    def begin_tick(self, t: float) -> None:
+        """The tick at ``t`` begins (the fault is active)."""
+
+    def set_positions(self, ids: Sequence[int], xy: np.ndarray) -> None:
+        """The live UAVs' positions of this tick (for behaviours that care where UAVs are)."""
+
+    def cut(self, src: int, dst: int) -> bool:
+        """A cut (stage < COPY_STAGES): whether it blocks ``src -> dst`` this tick."""
+        return False
+
+    def on_copy(self, c: Copy, src: int, dst: int, rng: np.random.Generator) -> bool:
+        """Act on one copy (stage >= COPY_STAGES); True if it changed something (fired). Set
+        ``c.lost`` to lose the copy."""
+        return False
+
+    def drawn(self) -> Any:
+        """What the fault drew for itself (:meth:`faults.base.FaultKind.draw`), or None."""
+        return None
+
+
+class Draws(Protocol):
+    """What a kind's :meth:`FaultKind.generate` draws with: the UAV names it may use, the run's
+    length and area, and strategies that shrink towards simple cases (Hypothesis's, built by
+    ``swarm.testing.fault_strategies``: windows shrink to the whole run, scopes to all links,
+    probabilities to 1.0, then 0.5 and 0.1, times to the earliest tick, points to the origin)."""
+
+    @property
+    def uavs(self) -> Sequence[str]:
+        """The UAV names it may name (for a kind that :attr:`FaultKind.joins_late`: those that may)."""
+        ...
+
+    @property
+    def duration_s(self) -> float: ...
+
+    @property
+    def step_s(self) -> float:
+        """The tick: every time drawn is a multiple of it."""
+        ...
+
+    @property
+    def steps(self) -> int:
+        """Ticks in the run."""
+        ...
+
+    @property
+    def area(self) -> tuple[float, float]:
+        """``(width_m, height_m)``: where a fault placed in space lies."""
+        ...
+
+    @property
+    def st(self) -> Any:
+        """``hypothesis.strategies``, for values of the kind's own."""
+        ...
+
+    def draw(self, strategy: Any) -> Any:
+        """A value of ``strategy``."""
+        ...
+
+    def windows(self, open_ended: bool = True) -> Any:
+        """``(start_s, end_s)``, ``end_s`` inf (the run's end) only if ``open_ended``."""
+        ...
+
+    def scopes(self) -> Any:
+        """``(uavs, links)`` of a link fault: all links, frames from/to some UAVs, or some links."""
+        ...
+
+    def probabilities(self, min_value: float = 0.0, max_value: float = 1.0) -> Any: ...
+
+    def times(self, min_s: float = 0.0) -> Any:
+        """A tick in ``[min_s, duration_s)``."""
+        ...
+
+    def names(self) -> Any:
+        """One of :attr:`uavs`."""
+        ...
+
+    def points(self) -> Any:
+        """A point of the area on a 100 m grid."""
+        ...
+
+    def among(self, uavs: Sequence[str]) -> Draws:
+        """The same, naming only ``uavs`` (a bridge draws its sides as a partition of the others)."""
+        ...
+
+
 class RunView(Protocol):
     """What a checker knows of a run, as a fault kind's excuses need it."""
 
@@ -251,6 +366,28 @@ class FaultKind:
         """The most it delays a frame copy, in s."""
         return 0.0
 
+    # --- how tests draw it (swarm.testing.fault_strategies) --------------------------------
+    # Its place in the shrink order, simplest first (loss on links, whole links cut, whole UAVs,
+    # UAVs that are wrong, UAVs and transmitters that lie); kinds of one rank in registration order.
+    shrink_rank: ClassVar[int] = 1000
+    # What a draw needs: UAV names, and ticks in the run (a restart must come back before the end).
+    min_uavs: ClassVar[int] = 0
+    min_ticks: ClassVar[int] = 1
+    # Its UAV enters the run late: drawn among the UAVs that may (a UAV is told once when it enters).
+    joins_late: ClassVar[bool] = False
+
+    @classmethod
+    def generate(cls, d: Draws) -> FaultKind:
+        """One fault of this kind drawn through ``d``, never an inert one (its values change
+        something); called only with at least :attr:`min_uavs` names and :attr:`min_ticks` ticks.
+        A kind that does not override it has no strategy (the coverage gate says so)."""
+        raise NotImplementedError(f"fault kind {cls.kind!r} has no generate(): tests cannot draw it")
+
+    @classmethod
+    def has_strategy(cls) -> bool:
+        """Whether the kind says how tests draw it (overrides :meth:`generate`)."""
+        return cls.generate.__func__ is not FaultKind.generate.__func__  # type: ignore[attr-defined]
+
     # --- behaviour -------------------------------------------------------------------------
 
     # Whether a scenario's loader applies it to the scenario itself (a join: the UAV's join_s),
@@ -280,9 +417,6 @@ class FaultKind:
         """Its own transmitter, if it sends frames (a spoofer); ``rank`` as for links."""
         return None
 
-    def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
-        """What it does to UAV ``uid``'s tick while its window is open (:mod:`faults.tick`)."""
-
     def pool(self, ids: Mapping[str, int]) -> list[int]:
         """The ids of the UAVs it may act on, in id order: its ``uav``, its ``uavs`` (empty:
         every UAV in ``ids``), or every UAV; names not in ``ids`` are left out."""
@@ -290,22 +424,6 @@ class FaultKind:
         if not named:
             return sorted(ids.values())
         return sorted({ids[n] for n in named if n in ids})
-
-    def tick_uavs(self, alive: Sequence[int], ids: Mapping[str, int]) -> list[int]:
-        """The live UAVs its tick behaviour acts on (its ``uav``, its ``uavs`` or all)."""
-        uav: str | None = getattr(self, "uav", None)
-        if uav is not None:
-            uid = ids[uav]
-            return [uid] if uid in alive else []
-        uavs = getattr(self, "uavs", ())
-        if not uavs:
-            return list(alive)
-        scope = {ids[n] for n in uavs}
-        return [u for u in alive if u in scope]
-
-    # The order tick faults act in within a tick (what is sensed, then where the UAV believes
-    # it is, then its clock, then what its actor does).
-    tick_order: ClassVar[int] = 100
 
 
 class Windowed(FaultKind):
@@ -317,23 +435,3 @@ class Windowed(FaultKind):
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.end_s
-
-
-class TickFault(Windowed):
-    """A windowed fault that acts on its UAVs' ticks (:mod:`faults.tick`): its window opens
-    and closes on the clock, and :meth:`FaultKind.on_tick` runs for each of its live UAVs in
-    between."""
-
-    # Whether it stops acting on a UAV that goes down (with no event: the process is gone).
-    ends_with_process: ClassVar[bool] = False
-
-    def install(self, host: FaultHost, index: int) -> None:
-        if self.end_s <= host.now:
-            return  # a window wholly in the past does nothing
-        host.at(max(self.start_s, host.now), lambda: host.open_window(index, self))
-        if math.isfinite(self.end_s):
-            host.at(self.end_s, lambda: host.close_window(index, self))
-
-    def ended(self, events: FaultEvents, t: float, uid: int) -> None:
-        """Write that it stopped acting on ``uid`` (its window closed at ``t``)."""
-        events.fault_off(t=t, fault=self.kind, uav=uid)

@@ -11,8 +11,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from faults.base import END, PROBABILITY, START, UAV, UAVS, FaultRng, RunView, Windowed
-from faults.injector import COPY_STAGES, Copy, LinkBehaviour
+from faults.base import COPY_STAGES, END, PROBABILITY, START, UAV, UAVS, Copy, Draws, FaultRng, LinkBehaviour, RunView, Windowed
 from faults.registry import register
 
 _GROUPS = {"expected": "an array of at least 2 non-empty arrays of UAV names"}
@@ -56,6 +55,20 @@ class Partition(_Cuts):
     end_s: float = field(default=math.inf, metadata=END)
     one_way: bool = False
     kind: ClassVar[Literal["partition"]] = "partition"
+    shrink_rank: ClassVar[int] = 70
+    min_uavs: ClassVar[int] = 2
+
+    @classmethod
+    def generate(cls, d: Draws) -> Partition:
+        """Two or more disjoint, non-empty groups (not every UAV need be in one), both ways or one way."""
+        names = list(d.uavs)
+        n_groups = d.draw(d.st.integers(2, min(3, len(names))))
+        chosen = d.draw(d.st.lists(d.st.sampled_from(names), min_size=n_groups, max_size=len(names), unique=True))
+        # Group labels: the first n_groups members seed one group each, the rest join any group.
+        labels = list(range(n_groups)) + [d.draw(d.st.integers(0, n_groups - 1)) for _ in chosen[n_groups:]]
+        groups = tuple(tuple(n for n, g in zip(chosen, labels) if g == k) for k in range(n_groups))
+        start, end = d.draw(d.windows())
+        return cls(groups=groups, start_s=start, end_s=end, one_way=d.draw(d.st.booleans()))
 
     def separates(self, group_of_src: int | None, group_of_dst: int | None) -> bool:
         """Whether this partition, while active, blocks a frame from a UAV of group
@@ -92,6 +105,15 @@ class Bridge(_Cuts):
     start_s: float = field(default=0.0, metadata=START)
     end_s: float = field(default=math.inf, metadata=END)
     kind: ClassVar[Literal["bridge"]] = "bridge"
+    shrink_rank: ClassVar[int] = 80
+    min_uavs: ClassVar[int] = 3
+
+    @classmethod
+    def generate(cls, d: Draws) -> Bridge:
+        """A partition of the other UAVs into 2 or 3 groups, the ``bridge`` UAV in none of them."""
+        bridge = d.draw(d.names())
+        side = Partition.generate(d.among([n for n in d.uavs if n != bridge]))
+        return cls(groups=side.groups, bridge=bridge, start_s=side.start_s, end_s=side.end_s)
 
     def as_partition(self) -> Partition:
         """The partition this bridge is: its groups without the bridge UAV (which is then in no
@@ -117,6 +139,21 @@ class Swizzle(Windowed):
     end_s: float = field(metadata={"gt": 0, "note": "> start_s: when the last link is restored"})
     kind: ClassVar[Literal["swizzle"]] = "swizzle"
     disturbs_links: ClassVar[bool] = True
+    shrink_rank: ClassVar[int] = 90
+    min_uavs: ClassVar[int] = 1
+    min_ticks: ClassVar[int] = 2
+
+    @classmethod
+    def generate(cls, d: Draws) -> Swizzle:
+        """A finite window (at least 2 ticks: a cutting half and a restoring half), a pool
+        (empty: all) and ``1 <= count <=`` the pool's size."""
+        names = list(d.uavs)
+        pool = d.draw(d.st.one_of(d.st.just(()), d.st.lists(d.st.sampled_from(names), min_size=1, max_size=len(names),
+                                                              unique=True).map(tuple)))
+        count = d.draw(d.st.integers(1, len(pool) if pool else len(names)))
+        start = d.draw(d.st.integers(0, d.steps - 2))
+        length = d.draw(d.st.integers(2, d.steps - start))
+        return cls(uavs=pool, count=count, start_s=start * d.step_s, end_s=(start + length) * d.step_s)
 
     def check(self, now: float) -> str | None:
         if not self.start_s < self.end_s < math.inf:
@@ -199,6 +236,17 @@ class Jammer(Windowed):
     end_s: float = field(default=math.inf, metadata=END)
     kind: ClassVar[Literal["jammer"]] = "jammer"
     disturbs_links: ClassVar[bool] = True
+    shrink_rank: ClassVar[int] = 60
+
+    @classmethod
+    def generate(cls, d: Draws) -> Jammer:
+        """A circle centred inside the area, 100 m up to half the area's larger side (whole 100 m),
+        losing at least 5% of the copies to or from a UAV inside."""
+        x, y = d.draw(d.points())
+        k_max = max(1, int(max(d.area) / 2) // 100)
+        radius = d.draw(d.st.one_of(d.st.just(float(k_max * 100)), d.st.integers(1, k_max).map(lambda k: k * 100.0)))
+        start, end = d.draw(d.windows())
+        return cls(x_m=x, y_m=y, radius_m=radius, rate=d.draw(d.probabilities(0.05)), start_s=start, end_s=end)
 
     def silences(self, pos: Sequence[float], t: float) -> bool:
         return (self.rate >= 1.0 and self.active(t)

@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
-from faults.base import START, UAV, FaultHost, FaultKind
+from faults.base import START, UAV, Draws, FaultHost, FaultKind
 from faults.registry import register
 
 
@@ -27,6 +27,17 @@ class Battery(FaultKind):
     loss_frac: float = field(default=0.0, metadata={"ge": 0, "le": 1, "note": "of the energy left, lost at start_s"})
     drain_factor: float = field(default=1.0, metadata={"ge": 1, "le": 100, "note": "times the normal drain in the window"})
     kind: ClassVar[Literal["battery"]] = "battery"
+    shrink_rank: ClassVar[int] = 190
+    min_uavs: ClassVar[int] = 1
+
+    @classmethod
+    def generate(cls, d: Draws) -> Battery:
+        """A loss of part of the energy left and/or a faster drain (nothing happens to a UAV
+        without an [endurance] budget)."""
+        start, end = d.draw(d.windows())
+        loss = d.draw(d.st.sampled_from([0.0, 0.25, 0.5, 0.9]))
+        factor = d.draw(d.st.sampled_from([1.0, 2.0, 5.0])) if loss else d.draw(d.st.sampled_from([2.0, 5.0]))
+        return cls(uav=d.draw(d.names()), start_s=start, end_s=end, loss_frac=loss, drain_factor=factor)
 
     def span(self) -> tuple[float, float]:
         return (self.start_s, self.end_s)

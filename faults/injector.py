@@ -1,7 +1,7 @@
 """Applies a run's fault schedule to frame copies and counts what actually fired.
 
 The injector is the radio's :class:`comms.radio.LinkFilter`. Each fault kind that acts on links
-gives it a :class:`LinkBehaviour` (:meth:`faults.base.FaultKind.link_behaviour`); each frame
+gives it a :class:`faults.base.LinkBehaviour` (:meth:`faults.base.FaultKind.link_behaviour`); each frame
 copy on a directed link passes through the active ones in a fixed order of stages (the cuts:
 partition and bridge, then swizzle; then jammer, drop, burst, corrupt, duplicate, delay), in
 schedule order within a stage, drawing only from that link's random stream. The first that
@@ -19,56 +19,12 @@ the fault's index among the faults of its kind): no other stream shifts because 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
-from faults.base import FaultKind, FaultRng, Transmitter, Windowed
+from faults.base import COPY_STAGES, Copy, FaultKind, FaultRng, LinkBehaviour, Transmitter
 from faults.registry import FaultSchedule
-
-# The stages of a frame copy's way through the active link behaviours (lower first). Cuts
-# (stage < COPY_STAGES) block a link outright, without a draw.
-COPY_STAGES = 10
-
-
-class Copy:
-    """A frame copy on its way through the link behaviours: what they make of it."""
-
-    __slots__ = ("data", "extra_s", "copies", "lost")
-
-    def __init__(self, data: bytes):
-        self.data = data
-        self.extra_s = 0.0  # added latency
-        self.copies = 1  # duplicates share the data and the latency
-        self.lost = False
-
-
-class LinkBehaviour:
-    """What one fault does to frame copies (subclassed by the link kinds' families)."""
-
-    stage: ClassVar[int]
-
-    def __init__(self, fault: Windowed):
-        self.fault = fault
-
-    def begin_tick(self, t: float) -> None:
-        """The tick at ``t`` begins (the fault is active)."""
-
-    def set_positions(self, ids: Sequence[int], xy: np.ndarray) -> None:
-        """The live UAVs' positions of this tick (for behaviours that care where UAVs are)."""
-
-    def cut(self, src: int, dst: int) -> bool:
-        """A cut (stage < COPY_STAGES): whether it blocks ``src -> dst`` this tick."""
-        return False
-
-    def on_copy(self, c: Copy, src: int, dst: int, rng: np.random.Generator) -> bool:
-        """Act on one copy (stage >= COPY_STAGES); True if it changed something (fired). Set
-        ``c.lost`` to lose the copy."""
-        return False
-
-    def drawn(self) -> Any:
-        """What the fault drew for itself (:meth:`faults.base.FaultKind.draw`), or None."""
-        return None
 
 
 def _default_fault_rng(kind: str, k: int) -> np.random.Generator:

@@ -12,8 +12,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from faults.base import END, PROBABILITY, START, UAVS, FaultRng, Windowed
-from faults.injector import COPY_STAGES, Copy, LinkBehaviour
+from faults.base import COPY_STAGES, END, PROBABILITY, START, UAVS, Copy, Draws, FaultRng, LinkBehaviour, Windowed
 from faults.registry import register
 
 
@@ -70,6 +69,14 @@ class Drop(LinkFault):
     rate: float = field(metadata=PROBABILITY)
     kind: ClassVar[Literal["drop"]] = "drop"
     stage: ClassVar[int] = COPY_STAGES + 1
+    shrink_rank: ClassVar[int] = 10
+
+    @classmethod
+    def generate(cls, d: Draws) -> Drop:
+        """i.i.d. loss; the rate is at least 0.05 so the fault does something."""
+        start, end = d.draw(d.windows())
+        scope, links = d.draw(d.scopes())
+        return cls(start_s=start, end_s=end, uavs=scope, links=links, rate=d.draw(d.probabilities(0.05)))
 
     def copy(self, c: Copy, rng: np.random.Generator, state: dict[tuple[int, int], bool],
              src: int, dst: int) -> bool:
@@ -90,6 +97,17 @@ class Burst(LinkFault):
     loss_bad: float = field(default=1.0, metadata=PROBABILITY)
     kind: ClassVar[Literal["burst"]] = "burst"
     stage: ClassVar[int] = COPY_STAGES + 2
+    shrink_rank: ClassVar[int] = 50
+
+    @classmethod
+    def generate(cls, d: Draws) -> Burst:
+        """A bad state that loses at least half the copies."""
+        start, end = d.draw(d.windows())
+        scope, links = d.draw(d.scopes())
+        return cls(start_s=start, end_s=end, uavs=scope, links=links,
+                   p_enter_bad=d.draw(d.probabilities(0.05)), p_exit_bad=d.draw(d.probabilities(0.05)),
+                   loss_good=d.draw(d.st.one_of(d.st.just(0.0), d.probabilities(0.0, 0.2))),
+                   loss_bad=d.draw(d.probabilities(0.5)))
 
     def copy(self, c: Copy, rng: np.random.Generator, state: dict[tuple[int, int], bool],
              src: int, dst: int) -> bool:
@@ -111,6 +129,16 @@ class Delay(LinkFault):
     jitter_s: float = field(default=0.0, metadata={"ge": 0})
     kind: ClassVar[Literal["delay"]] = "delay"
     stage: ClassVar[int] = COPY_STAGES + 5
+    shrink_rank: ClassVar[int] = 20
+
+    @classmethod
+    def generate(cls, d: Draws) -> Delay:
+        """Extra latency (whole ticks, at least one, up to 5 s) plus optional jitter."""
+        start, end = d.draw(d.windows())
+        scope, links = d.draw(d.scopes())
+        extra = d.draw(d.st.integers(1, max(1, int(5.0 / d.step_s)))) * d.step_s
+        jitter = d.draw(d.st.one_of(d.st.just(0.0), d.st.floats(0.0, 2.0 * d.step_s).map(lambda j: round(j, 3))))
+        return cls(start_s=start, end_s=end, uavs=scope, links=links, extra_s=extra, jitter_s=jitter)
 
     def max_extra_delay_s(self) -> float:
         return self.extra_s + self.jitter_s
@@ -129,6 +157,13 @@ class Duplicate(LinkFault):
     rate: float = field(metadata=PROBABILITY)
     kind: ClassVar[Literal["duplicate"]] = "duplicate"
     stage: ClassVar[int] = COPY_STAGES + 4
+    shrink_rank: ClassVar[int] = 30
+
+    @classmethod
+    def generate(cls, d: Draws) -> Duplicate:
+        start, end = d.draw(d.windows())
+        scope, links = d.draw(d.scopes())
+        return cls(start_s=start, end_s=end, uavs=scope, links=links, rate=d.draw(d.probabilities(0.05)))
 
     def copy(self, c: Copy, rng: np.random.Generator, state: dict[tuple[int, int], bool],
              src: int, dst: int) -> bool:
@@ -147,6 +182,14 @@ class Corrupt(LinkFault):
     bytes: int = field(default=1, metadata={"ge": 1, "note": "bytes flipped per corrupted frame"})
     kind: ClassVar[Literal["corrupt"]] = "corrupt"
     stage: ClassVar[int] = COPY_STAGES + 3
+    shrink_rank: ClassVar[int] = 40
+
+    @classmethod
+    def generate(cls, d: Draws) -> Corrupt:
+        start, end = d.draw(d.windows())
+        scope, links = d.draw(d.scopes())
+        return cls(start_s=start, end_s=end, uavs=scope, links=links, rate=d.draw(d.probabilities(0.05)),
+                   bytes=d.draw(d.st.integers(1, 8)))
 
     def copy(self, c: Copy, rng: np.random.Generator, state: dict[tuple[int, int], bool],
              src: int, dst: int) -> bool:

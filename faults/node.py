@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
-from faults.base import START, UAV, FaultEvents, FaultHost, FaultKind, TickFault
+from faults.base import START, UAV, Draws, FaultEvents, FaultHost, FaultKind
 from faults.registry import register
-
-if TYPE_CHECKING:
-    from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 
 
 @register
@@ -22,6 +20,12 @@ class Crash(FaultKind):
     uav: str = field(metadata=UAV)
     at_s: float = field(metadata={"ge": 0})
     kind: ClassVar[Literal["crash"]] = "crash"
+    shrink_rank: ClassVar[int] = 100
+    min_uavs: ClassVar[int] = 1
+
+    @classmethod
+    def generate(cls, d: Draws) -> Crash:
+        return cls(uav=d.draw(d.names()), at_s=d.draw(d.times()))
 
     def install(self, host: FaultHost, index: int) -> None:
         uid = host.uid(self.uav)
@@ -46,6 +50,15 @@ class Join(FaultKind):
     at_s: float = field(metadata={"ge": 0})
     kind: ClassVar[Literal["join"]] = "join"
     applied_by_loader: ClassVar[bool] = True  # (the UAV's join_s)
+    shrink_rank: ClassVar[int] = 110
+    min_uavs: ClassVar[int] = 1
+    min_ticks: ClassVar[int] = 2
+    joins_late: ClassVar[bool] = True
+
+    @classmethod
+    def generate(cls, d: Draws) -> Join:
+        """At one tick or later (a join at 0 is no fault)."""
+        return cls(uav=d.draw(d.names()), at_s=d.draw(d.times(min_s=d.step_s)))
 
     def install(self, host: FaultHost, index: int) -> None:
         host.set_join(host.uid(self.uav), self.at_s)
@@ -63,6 +76,16 @@ class Restart(FaultKind):
     at_s: float = field(metadata={"ge": 0})
     downtime_s: float = field(metadata={"gt": 0, "note": "s between the crash and the rejoin"})
     kind: ClassVar[Literal["restart"]] = "restart"
+    shrink_rank: ClassVar[int] = 130
+    min_uavs: ClassVar[int] = 1
+    min_ticks: ClassVar[int] = 3
+
+    @classmethod
+    def generate(cls, d: Draws) -> Restart:
+        """Back at least one tick later and before the end: ``at_s + downtime_s < duration_s``."""
+        at = d.draw(d.st.integers(0, d.steps - 3))
+        down = d.draw(d.st.integers(1, d.steps - 2 - at))
+        return cls(uav=d.draw(d.names()), at_s=at * d.step_s, downtime_s=down * d.step_s)
 
     def span(self) -> tuple[float, float]:
         return (self.at_s, self.at_s + self.downtime_s)
@@ -108,6 +131,14 @@ class Pause(TickFault):
     impairs_control: ClassVar[bool] = True
     ends_with_process: ClassVar[bool] = True
     tick_order: ClassVar[int] = 3
+    shrink_rank: ClassVar[int] = 120
+    min_uavs: ClassVar[int] = 1
+
+    @classmethod
+    def generate(cls, d: Draws) -> Pause:
+        """For a finite window (at least one tick) inside the run."""
+        start, end = d.draw(d.windows(open_ended=False))
+        return cls(uav=d.draw(d.names()), start_s=start, end_s=end)
 
     def disturbs_maps(self, t: float) -> bool:
         return self.active(t)  # a paused UAV merges nothing

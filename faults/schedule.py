@@ -15,13 +15,14 @@ gathers their names for ``from faults.schedule import ...``.
 from __future__ import annotations
 
 from faults.adversary import Liar, Spoofer
-from faults.base import PHANTOM_TARGET_ID, FaultKind, TickFault, Windowed
+from faults.base import PHANTOM_TARGET_ID, FaultKind, Windowed
 from faults.cuts import Bridge, Jammer, Partition, Swizzle
 from faults.energy import Battery
 from faults.link import Burst, Corrupt, Delay, Drop, Duplicate, LinkFault
 from faults.node import Crash, Join, Pause, Restart
 from faults.registry import FAULT_KINDS, FaultSchedule, fault_from_dict, fault_to_dict, register, uav_names
 from faults.sensing import ClockSkew, NavError, Sensor
+from faults.tick import TickFault
 
 # Any fault: an instance of a registered kind.
 Fault = FaultKind

@@ -5,14 +5,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
 from agents.actor import SensedTarget
-from faults.base import END, PHANTOM_TARGET_ID, PROBABILITY, START, UAV, UAVS, TickFault
+from faults.base import END, PHANTOM_TARGET_ID, PROBABILITY, START, UAV, UAVS, Draws
 from faults.registry import register
-
-if TYPE_CHECKING:
-    from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 
 # False alarms' ids count up from PHANTOM_TARGET_ID, over this span (below 2**31, the largest
 # id a receiver accepts; liars' tracks use the next span).
@@ -34,6 +32,19 @@ class ClockSkew(TickFault):
     kind: ClassVar[Literal["clock_skew"]] = "clock_skew"
     impairs_control: ClassVar[bool] = True
     tick_order: ClassVar[int] = 2
+    shrink_rank: ClassVar[int] = 160
+    min_uavs: ClassVar[int] = 1
+
+    @classmethod
+    def generate(cls, d: Draws) -> ClockSkew:
+        """Off (whole seconds, either way) and/or drifting (within the bounds); never both zero."""
+        start, end = d.draw(d.windows())
+        offset = d.draw(d.st.one_of(d.st.sampled_from([5.0, -5.0, 30.0, -30.0]), d.st.integers(-120, 120).map(float)))
+        drift = d.draw(d.st.one_of(d.st.just(0.0), d.st.sampled_from([0.1, -0.1, 0.5, -0.5]),
+                                   d.st.floats(-0.5, 0.5).map(lambda x: round(x, 3))))
+        if offset == 0.0 and drift == 0.0:
+            offset = 1.0
+        return cls(uav=d.draw(d.names()), start_s=start, end_s=end, offset_s=offset, drift=drift)
 
     def error(self, t: float) -> float:
         """The clock's error at true time ``t`` (while active)."""
@@ -70,6 +81,19 @@ class NavError(TickFault):
     kind: ClassVar[Literal["nav_error"]] = "nav_error"
     impairs_control: ClassVar[bool] = True
     tick_order: ClassVar[int] = 1
+    shrink_rank: ClassVar[int] = 150
+    min_uavs: ClassVar[int] = 1
+
+    @classmethod
+    def generate(cls, d: Draws) -> NavError:
+        """A bias (whole 10 m, up to 1 km) and/or noise (whole metres, up to 200 m); never all zero."""
+        start, end = d.draw(d.windows())
+        bx = d.draw(d.st.one_of(d.st.sampled_from([100.0, -100.0, 500.0]), d.st.integers(-100, 100).map(lambda b: b * 10.0)))
+        by = d.draw(d.st.one_of(d.st.just(0.0), d.st.integers(-100, 100).map(lambda b: b * 10.0)))
+        noise = d.draw(d.st.one_of(d.st.just(0.0), d.st.integers(1, 200).map(float)))
+        if bx == 0.0 and by == 0.0 and noise == 0.0:
+            bx = 100.0
+        return cls(uav=d.draw(d.names()), start_s=start, end_s=end, bias_x_m=bx, bias_y_m=by, noise_m=noise)
 
     def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
         if faults.first(index, uid):
@@ -102,6 +126,19 @@ class Sensor(TickFault):
     kind: ClassVar[Literal["sensor"]] = "sensor"
     impairs_sensing: ClassVar[bool] = True
     tick_order: ClassVar[int] = 0
+    shrink_rank: ClassVar[int] = 140
+
+    @classmethod
+    def generate(cls, d: Draws) -> Sensor:
+        """Missed detections (``p_detect < 1``, shrinking to 0: blind) and/or false alarms (up to
+        one phantom per UAV-second); never a perfect sensor."""
+        start, end = d.draw(d.windows())
+        scope = d.draw(d.st.one_of(d.st.just(()), d.st.lists(d.names(), min_size=1, max_size=len(d.uavs), unique=True)
+                                   .map(tuple))) if d.uavs else ()
+        p = d.draw(d.st.one_of(d.st.just(0.0), d.probabilities(0.0, 0.95)))
+        far = d.draw(d.st.one_of(d.st.just(0.0), d.st.sampled_from([0.1, 1.0]),
+                                 d.st.floats(0.0, 1.0).map(lambda r: round(r, 3))))
+        return cls(uavs=scope, start_s=start, end_s=end, p_detect=p, false_alarm_rate=far)
 
     def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
         """Misses and false alarms of one UAV this tick (fired: how many)."""

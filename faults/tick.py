@@ -1,6 +1,6 @@
 """Faults that act on UAVs' ticks while their window is open: the engine.
 
-:class:`TickFaults` holds the tick faults (:class:`faults.base.TickFault`: pause, clock_skew,
+:class:`TickFaults` holds the tick faults (:class:`TickFault`: pause, clock_skew,
 nav_error, sensor, liar, and any kind defined like them) between their ``start_s`` and
 ``end_s`` clock events and, tick by tick, lets each act on the readings and actors of the live
 UAVs it concerns, in the kinds' ``tick_order`` (what is sensed, then where the UAV believes it
@@ -14,15 +14,53 @@ fault is active: the tick's fast path is one test of an empty list.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from agents.actor import SensorReading, UavActor
-from faults.base import FaultEvents, TickFault
+from faults.base import FaultEvents, FaultHost, Windowed
 
 Stream = Callable[..., np.random.Generator]
+
+
+class TickFault(Windowed):
+    """A windowed fault that acts on its UAVs' ticks: its window opens and closes on the clock,
+    and :meth:`on_tick` runs for each of its live UAVs in between (:class:`TickFaults`)."""
+
+    # Whether it stops acting on a UAV that goes down (with no event: the process is gone).
+    ends_with_process: ClassVar[bool] = False
+    # The order tick faults act in within a tick (what is sensed, then where the UAV believes
+    # it is, then its clock, then what its actor does).
+    tick_order: ClassVar[int] = 100
+
+    def install(self, host: FaultHost, index: int) -> None:
+        if self.end_s <= host.now:
+            return  # a window wholly in the past does nothing
+        host.at(max(self.start_s, host.now), lambda: host.open_window(index, self))
+        if math.isfinite(self.end_s):
+            host.at(self.end_s, lambda: host.close_window(index, self))
+
+    def on_tick(self, faults: TickFaults, index: int, uid: int) -> None:
+        """What it does to UAV ``uid``'s tick while its window is open."""
+
+    def tick_uavs(self, alive: Sequence[int], ids: Mapping[str, int]) -> list[int]:
+        """The live UAVs its tick behaviour acts on (its ``uav``, its ``uavs`` or all)."""
+        uav: str | None = getattr(self, "uav", None)
+        if uav is not None:
+            uid = ids[uav]
+            return [uid] if uid in alive else []
+        uavs = getattr(self, "uavs", ())
+        if not uavs:
+            return list(alive)
+        scope = {ids[n] for n in uavs}
+        return [u for u in alive if u in scope]
+
+    def ended(self, events: FaultEvents, t: float, uid: int) -> None:
+        """Write that it stopped acting on ``uid`` (its window closed at ``t``)."""
+        events.fault_off(t=t, fault=self.kind, uav=uid)
 
 
 class TickFaults:

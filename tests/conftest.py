@@ -1,15 +1,18 @@
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import os
 import re
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import settings
 
-from swarm.testing.fault_strategies import ALL_KINDS
+from swarm.testing.fault_strategies import fault_kinds
 from swarm.testing.settings import simulation_settings
 from swarm.testing.strategies import set_swarm_testing
 
@@ -109,6 +112,67 @@ def pytest_configure(config: pytest.Config) -> None:
                or ("quick" if QUICK_LOOP else "ci"))
     settings.load_profile(PROFILE)
     set_swarm_testing(PROFILE == "swarm")
+    if config.getoption("examples_digest", None):
+        from hypothesis.internal.observability import add_observability_callback
+
+        add_observability_callback(_DIGESTS.observe, all_threads=True)
+
+
+# --- the same examples in any order ---------------------------------------------------------------
+# Under `ci` and `quick` every test's examples are derandomized (seeded from the test's own source,
+# no example database), so they cannot depend on which tests ran before it. Two options check it:
+# `--order reverse` runs the modules, and the tests inside each, in the reverse of the collected
+# order (a module of one_worker_module keeps its own order: its tests read what earlier ones
+# left), and `--examples-digest PATH` writes, per test, a digest of every choice sequence
+# Hypothesis drew (its examples) to PATH as JSON. Run twice, once each way, and compare:
+#   HYPOTHESIS_EXPERIMENTAL_OBSERVABILITY_CHOICES=1 HYPOTHESIS_EXPERIMENTAL_OBSERVABILITY_NOCOVER=1 \
+#     python -m pytest -n 0 FILES --examples-digest a.json   (and again with --order reverse)
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("swarm", "uav-swarm-sim test options")
+    group.addoption("--order", choices=("collected", "reverse"), default="collected",
+                    help="run the tests in the collected order or its reverse (modules that share state keep theirs)")
+    group.addoption("--examples-digest", metavar="PATH", default=None,
+                    help="write per test a digest of the examples Hypothesis drew (needs "
+                         "HYPOTHESIS_EXPERIMENTAL_OBSERVABILITY_CHOICES=1)")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if config.getoption("order") != "reverse":
+        return
+    modules: dict[Path, list[pytest.Item]] = {}
+    for item in items:
+        modules.setdefault(item.path, []).append(item)
+    items[:] = [item for path in reversed(list(modules))
+                for item in (modules[path] if one_worker_module(path) else reversed(modules[path]))]
+
+
+class _ExampleDigests:
+    """What ``--examples-digest`` records: each test's examples, as Hypothesis's choice sequences."""
+
+    def __init__(self) -> None:
+        self.current = ""
+        self.digests: dict[str, Any] = {}
+
+    def observe(self, observation: Any, thread_id: int = 0) -> None:
+        nodes = getattr(getattr(observation, "metadata", None), "choice_nodes", None)
+        if getattr(observation, "type", "") != "test_case" or nodes is None:
+            return
+        h = self.digests.setdefault(self.current, hashlib.sha256())
+        h.update(repr([n.value for n in nodes]).encode())
+
+    def write(self, path: str) -> None:
+        Path(path).write_text(json.dumps({k: h.hexdigest() for k, h in sorted(self.digests.items())}, indent=1))
+
+
+_DIGESTS = _ExampleDigests()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item):
+    _DIGESTS.current = item.nodeid
+    return (yield)
 
 
 @pytest.fixture
@@ -164,7 +228,7 @@ class FaultStats:
                 self.runs_fired[kind] += 1
 
     def never_fired(self) -> list[str]:
-        return [k for k in ALL_KINDS if self.fired[k] == 0]
+        return [k for k in fault_kinds() if self.fired[k] == 0]
 
     def to_dict(self) -> dict:
         """What a worker sends the controller (plain data: it crosses a process boundary)."""
@@ -224,7 +288,7 @@ def _fault_kind_summary(tr) -> None:
     tr.section("fault-kind coverage (generated schedules)")
     tr.write_line(f"schedules generated: {s.schedules}; simulations run with one: {s.runs}")
     tr.write_line(f"{'kind':10s} {'scheduled':>10s} {'fired':>10s} {'runs fired':>11s}")
-    for kind in ALL_KINDS:
+    for kind in fault_kinds():
         tr.write_line(f"{kind:10s} {s.scheduled[kind]:10d} {s.fired[kind]:10d} {s.runs_fired[kind]:11d}")
     if s.never_fired():
         tr.write_line(f"(never fired in these {s.runs} runs: {', '.join(s.never_fired())}; a report, not a gate: "
@@ -240,6 +304,9 @@ def pytest_testnodedown(node, error) -> None:
 
 
 def pytest_sessionfinish(session, exitstatus):
+    digest_path = session.config.getoption("examples_digest", None)
+    if digest_path and not _is_worker(session.config):
+        _DIGESTS.write(digest_path)
     s = _STATS
     if _is_worker(session.config):  # hand the tally to the controller, which reports the whole session
         session.config.workeroutput["fault_stats"] = s.to_dict()

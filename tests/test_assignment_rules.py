@@ -27,7 +27,6 @@ from comms.messages import MODE_NAMES, MODE_SURVEIL
 from swarm import Simulation
 from swarm.scenario import DEFAULT_UAV_TYPES, parse_scenario
 from swarm.scenario.warnings import scenario_warnings
-from swarm.testing.fault_strategies import ALL_KINDS
 from swarm.testing.invariants import check_events, handover_checkers
 from swarm.testing.strategies import scenario_documents
 
@@ -58,7 +57,7 @@ def test_no_fault_run_breaks_no_assignment_rule(doc):
 
 @pytest.mark.slow  # 150 runs of 60-180 s with up to 5 faults each
 @settings(max_examples=examples(150), deadline=None, suppress_health_check=_HEALTH)
-@given(scenario_documents(planners=SURVEILLING, surveillance=True, fault_kinds=ALL_KINDS, min_uavs=2, max_uavs=4,
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, min_uavs=2, max_uavs=4,
                           min_duration_s=60, max_duration_s=180))
 def test_under_faults_every_violation_names_a_fault_that_may_explain_it(doc):
     _assert_none([v for v in _violations(doc) if not v.faults])
@@ -92,7 +91,7 @@ def test_no_fault_mission_breaks_no_assignment_rule(doc):
 
 @pytest.mark.slow  # 40 runs of 60-180 s with up to 5 faults each
 @settings(max_examples=examples(40), deadline=None, suppress_health_check=_HEALTH)
-@given(scenario_documents(planners=SURVEILLING, surveillance=True, fault_kinds=ALL_KINDS, min_uavs=2, max_uavs=4,
+@given(scenario_documents(planners=SURVEILLING, surveillance=True, min_uavs=2, max_uavs=4,
                           min_duration_s=60, max_duration_s=180, **MISSIONS))
 def test_under_faults_every_mission_violation_names_a_fault_that_may_explain_it(doc):
     _assert_none([v for v in _violations(doc) if not v.faults])

@@ -175,8 +175,7 @@ from typing import ClassVar  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from faults.base import END, START, UAV, FaultRng, Windowed  # noqa: E402
-from faults.injector import COPY_STAGES, Copy, LinkBehaviour  # noqa: E402
+from faults.base import COPY_STAGES, END, START, UAV, Copy, Draws, FaultRng, LinkBehaviour, Windowed  # noqa: E402
 from faults.registry import register, unregister  # noqa: E402
 
 
@@ -189,9 +188,15 @@ class Blackout(Windowed):
     end_s: float = field(default=math.inf, metadata=END)
     kind: ClassVar[str] = "blackout"
     disturbs_links: ClassVar[bool] = True  # its excuse: the maps need not agree meanwhile
+    min_uavs: ClassVar[int] = 1  # (how tests draw it: one UAV's radio, over a window)
 
     def link_behaviour(self, ids, fault_rng: FaultRng, rank: int) -> LinkBehaviour:
         return _Dead(self, ids[self.uav])
+
+    @classmethod
+    def generate(cls, d: Draws) -> Blackout:
+        start, end = d.draw(d.windows())
+        return cls(uav=d.draw(d.names()), start_s=start, end_s=end)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -294,3 +299,37 @@ def test_without_its_excuse_the_same_kind_breaks_map_agreement(tmp_path, blackou
     sim, lost, violations, _ctx = _run_checked(tmp_path, "unexcused_blackout")
     assert len(lost) > 0
     assert violations and {v.invariant for v in violations} == {"map_agreement"}
+
+
+def test_a_kind_registered_in_a_test_is_in_the_tables_the_strategies_and_the_coverage_gate(blackouts):
+    """What a built-in kind costs is its class (and its tests): the scenario's [[faults]] table,
+    the toolkit's strategies and the fault-kind coverage gate all follow the registry, so a kind
+    registered here, with nothing else edited, is in each of them."""
+    from hypothesis import Phase, find, settings
+    from test_fault_coverage import fires_in_seeded_examples
+
+    from swarm.scenario import fault_table, parse_scenario
+    from swarm.scenario.generated import FAULT_TABLES
+    from swarm.testing.fault_strategies import fault_kinds, fault_schedules, faults
+    from swarm.testing.strategies import fault_schedule_of
+
+    # The generated tables: one for the kind, by kind and by name, its fields and bounds from the class.
+    doc = {"name": "t", "duration_s": 60.0, "area": {"width_m": 3000.0, "height_m": 3000.0, "cell_m": 100.0},
+           "uavs": [{"name": "B1", "type": "B", "x_m": 500.0, "y_m": 500.0}],
+           "faults": [{"kind": "blackout", "uav": "B1", "start_s": 5.0}]}
+    sc = parse_scenario(doc)
+    assert "blackout" in FAULT_TABLES and isinstance(sc.faults[0], fault_table("blackout"))
+    from swarm import scenario as scenario_module
+    assert scenario_module.BlackoutFault is fault_table("blackout")
+    assert fault_schedule_of(sc).faults == [Blackout(uav="B1", start_s=5.0)]
+    # The strategies: drawn alone and among the others (in registration order after the built-ins).
+    assert fault_kinds()[-2:] == ("blackout", "unexcused_blackout")
+    only = settings(phases=[Phase.generate], database=None, derandomize=True)
+    f = find(faults(["B1", "B2"], 60.0, kinds=["blackout"]), lambda f: True, settings=only)
+    assert isinstance(f, Blackout) and f.uav in ("B1", "B2")
+    s = find(fault_schedules(["B1", "B2"], 60.0, min_faults=1), lambda s: any(f.kind == "blackout" for f in s.faults),
+             settings=settings(only, max_examples=500))
+    assert any(f.kind == "blackout" for f in s.faults)
+    # The coverage gate's judgement: it fires in its seeded examples.
+    runs, fired = fires_in_seeded_examples("blackout")
+    assert fired > 0 and runs >= 1

@@ -253,8 +253,9 @@ def test_files_are_replaced_atomically_in_one_place():
 
 
 def test_the_type_checkers_view_of_the_generated_fault_tables_matches_what_runs():
-    # swarm/scenario/generated.py declares the generated tables for mypy under TYPE_CHECKING; a
-    # kind added or rebased at run time must be declared there too.
+    # swarm/scenario/generated.py declares for mypy, under TYPE_CHECKING, only the fault table the
+    # scenario model reads field by field (JoinFault: a UAV's join_s); any other [[faults]] item is
+    # a FaultTable (its kind tag; no kind is named there). What it declares must be what runs.
     import ast
 
     tree = ast.parse(Path(generated.__file__).read_text())
@@ -262,11 +263,11 @@ def test_the_type_checkers_view_of_the_generated_fault_tables_matches_what_runs(
     for node in ast.walk(tree):
         if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
             for item in node.body:
-                if isinstance(item, ast.ClassDef) and item.name.endswith("Fault"):
+                if isinstance(item, ast.ClassDef) and item.name.endswith("Fault") and len(item.bases) == 2:
                     bases = [b.id if isinstance(b, ast.Name) else ast.unparse(b) for b in item.bases]
                     static[item.name] = (bases[0], bases[1])
     runtime = {cls.__name__: cls for cls in generated.FAULT_TABLES.values()}
-    assert set(static) == set(runtime)
+    assert set(static) == {"JoinFault"} and set(static) <= set(runtime)
     for name, (validator_base, dataclass_ref) in static.items():
         cls = runtime[name]
         assert cls.__bases__[0].__name__ == validator_base, name

@@ -222,7 +222,8 @@ def test_each_fault_axis_plans_its_faults(axis, value, kind, count):
 
 
 @pytest.mark.parametrize("axis, text, expected", [
-    ("detect", "1.5", "expected a probability of detection from 0 to 1"),
+    ("detect", "1.5", r"expected a probability of detection in \[0, 1\]"),  # (the bounds of faults.Sensor.p_detect)
+    ("skew", "2e6", r"expected a clock offset in s in \[-1000000, 1000000\]"),  # (faults.ClockSkew.offset_s)
     ("liar", "1.5", "is not a number; the liar axis takes whole numbers"),
     ("jammer", "-1", "expected a jammer radius in km >= 0"),
     ("pause", "inf", "expected a pause length in s >= 0"),

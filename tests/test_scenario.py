@@ -262,8 +262,8 @@ def test_unknown_fault_kind(tmp_path):
     err = error_for(tmp_path, MINIMAL + '[[faults]]\nkind = "explode"\n')
     assert err.key == "faults[0].kind"
     assert err.expected == "one of: " + ", ".join(FAULT_KINDS)
-    assert err.expected == ("one of: drop, burst, delay, duplicate, corrupt, partition, bridge, swizzle, jammer, "
-                            "crash, join, restart, pause, clock_skew, nav_error, sensor, liar, spoofer, battery")
+    # In registration order: family by family (faults/__init__.py), the link kinds first.
+    assert err.expected.startswith("one of: drop, burst, delay, duplicate, corrupt, partition")
 
 
 def test_fault_window_and_partition_rules(tmp_path):

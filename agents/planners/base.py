@@ -9,7 +9,7 @@ the ground truth or other UAVs' internals reaches a planner.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from agents.types import UavType
 from comms.errors import SwarmError
 from comms.messages import MODE_SEARCH, NO_TARGET
 
-__all__ = ["Plan", "PlanView", "Planner", "PlannerError"]
+__all__ = ["Plan", "PlanView", "Planner", "PlannerContext", "PlannerError"]
 
 
 class PlannerError(SwarmError, RuntimeError):
@@ -58,3 +58,26 @@ class Planner(Protocol):
     def name(self) -> str: ...
 
     def plan(self, view: PlanView) -> Plan: ...
+
+
+@dataclass(frozen=True)
+class PlannerContext:
+    """What a planner may know before the run starts, given to ``from_context``.
+
+    The area and map geometry, the UAV it plans for (id, name, type, and its rank among the
+    UAVs of its type when it was added: an a-priori assignment such as a lawnmower strip can
+    come from these alone), and the swarm's UAV types. Nothing about other UAVs' states: during
+    the run a planner sees only its :class:`~agents.planners.base.PlanView`.
+    """
+
+    uav: int
+    name: str
+    type: str
+    type_index: int  # 0 for the first UAV of its type, 1 for the second, ...
+    type_count: int  # UAVs of its type in the scenario (at least type_index + 1)
+    area_m: tuple[float, float]  # width, height
+    cell_m: float
+    levels: int  # map pyramid levels (map.levels)
+    speed_max_by_type: dict[str, float]
+    detect_radius_by_type: dict[str, float]
+    settings: Any = None  # the scenario's [planner] table (built-ins read their own sub-table)

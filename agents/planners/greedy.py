@@ -22,7 +22,7 @@ import numpy as np
 from agents.planners.base import Plan, PlanView
 
 if TYPE_CHECKING:
-    from agents.planners.registry import PlannerContext
+    from agents.planners.base import PlannerContext
 
 # Tie-breaking weights, far below any real difference in q.
 _STRAIGHT_BONUS = 1e-4

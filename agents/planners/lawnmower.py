@@ -2,7 +2,7 @@
 
 The textbook coverage pattern (Choset's boustrophedon decomposition, in its simplest form: an
 empty rectangle split into strips). The assignment is a priori, from what the planner knows
-before the run (:class:`~agents.planners.registry.PlannerContext`): the area
+before the run (:class:`~agents.planners.base.PlannerContext`): the area
 (``context.area_m``) and the UAV's rank among the UAVs of its type (``context.type_index`` of
 ``context.type_count``). Nothing is negotiated and nothing heard is used; a UAV whose
 neighbour crashed does not take over its strip.
@@ -53,7 +53,7 @@ from agents.planners.reference import (
 )
 
 if TYPE_CHECKING:
-    from agents.planners.registry import PlannerContext
+    from agents.planners.base import PlannerContext
 
 __all__ = ["LawnmowerPlanner", "Strip", "strip_passes", "turn_cost"]
 

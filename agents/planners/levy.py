@@ -44,7 +44,7 @@ from agents.planners.reference import (
 )
 
 if TYPE_CHECKING:
-    from agents.planners.registry import PlannerContext
+    from agents.planners.base import PlannerContext
 
 __all__ = ["LevyPlanner", "pareto_step"]
 

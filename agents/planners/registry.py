@@ -39,11 +39,10 @@ import difflib
 import importlib
 import inspect
 from collections.abc import Callable
-from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any, cast
 
-from agents.planners.base import Planner, PlannerError
+from agents.planners.base import Planner, PlannerContext, PlannerError
 
 __all__ = [
     "BUILTIN",
@@ -70,29 +69,6 @@ BUILTIN: dict[str, str] = {
     "formation": "agents.planners.formation:FormationPlanner",
     "levy": "agents.planners.levy:LevyPlanner",
 }
-
-
-@dataclass(frozen=True)
-class PlannerContext:
-    """What a planner may know before the run starts, given to ``from_context``.
-
-    The area and map geometry, the UAV it plans for (id, name, type, and its rank among the
-    UAVs of its type when it was added: an a-priori assignment such as a lawnmower strip can
-    come from these alone), and the swarm's UAV types. Nothing about other UAVs' states: during
-    the run a planner sees only its :class:`~agents.planners.base.PlanView`.
-    """
-
-    uav: int
-    name: str
-    type: str
-    type_index: int  # 0 for the first UAV of its type, 1 for the second, ...
-    type_count: int  # UAVs of its type in the scenario (at least type_index + 1)
-    area_m: tuple[float, float]  # width, height
-    cell_m: float
-    levels: int  # map pyramid levels (map.levels)
-    speed_max_by_type: dict[str, float]
-    detect_radius_by_type: dict[str, float]
-    settings: Any = None  # the scenario's [planner] table (built-ins read their own sub-table)
 
 
 def is_module_ref(name: str) -> bool:

@@ -42,7 +42,7 @@ from agents.planners.dacmp.planner import Batch, DacmpPlanner, Layers, UavSearch
 from comms.messages import MODE_SURVEIL
 
 if TYPE_CHECKING:
-    from agents.planners.registry import PlannerContext
+    from agents.planners.base import PlannerContext
 
 __all__ = ["SharedSurveillance"]
 

@@ -17,10 +17,10 @@ import numpy as np
 from agents.actor import SensorReading
 from agents.types import UavType
 from comms.radio import Delivery, Radio, RadioCounters
-from faults.base import BatteryLike, FaultKind, TickFault
+from faults.base import BatteryLike, FaultKind
 from faults.injector import FaultInjector
 from faults.registry import FaultSchedule, uav_names
-from faults.tick import TickFaults
+from faults.tick import TickFault, TickFaults
 from swarm import events as ev
 from swarm.errors import UsageError
 from swarm.kernel.clock import FAULT, Clock

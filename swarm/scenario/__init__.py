@@ -13,21 +13,7 @@
   run but look unintended; ``builtin/``: the built-in scenario files.
 """
 
-from swarm.scenario.generated import (
-    FAULT_KINDS,
-    ApfSettings,
-    BurstFault,
-    CorruptFault,
-    CrashFault,
-    DacmpSettings,
-    DelayFault,
-    DropFault,
-    DuplicateFault,
-    Fault,
-    JoinFault,
-    PartitionFault,
-    RadioSettings,
-)
+from swarm.scenario.generated import FAULT_KINDS, ApfSettings, DacmpSettings, Fault, JoinFault, RadioSettings, fault_table
 from swarm.scenario.loading import builtin_scenarios, load_scenario, scenario_from_toml
 from swarm.scenario.model import Scenario, apply_overrides, parse_scenario
 from swarm.scenario.overrides import parse_assignment
@@ -52,15 +38,10 @@ from swarm.scenario.warnings import scenario_warnings
 __all__ = [
     "ApfSettings",
     "Area",
-    "BurstFault",
-    "CorruptFault",
-    "CrashFault",
     "DEFAULT_UAV_TYPES",
     "DacmpSettings",
-    "DelayFault",
-    "DropFault",
-    "DuplicateFault",
     "FAULT_KINDS",
+    "fault_table",
     "Fault",
     "FleetSpec",
     "GreedySettings",
@@ -68,7 +49,6 @@ __all__ = [
     "MapSettings",
     "MetricsSettings",
     "RecordingSettings",
-    "PartitionFault",
     "PlacedTarget",
     "PlannerSettings",
     "RadioSettings",
@@ -86,3 +66,10 @@ __all__ = [
     "scenario_from_toml",
     "scenario_warnings",
 ]
+
+
+def __getattr__(name: str) -> type:
+    """A fault kind's ``[[faults]]`` table by name (``DropFault``...: :func:`fault_table` by kind)."""
+    from swarm.scenario import generated
+
+    return generated.__getattr__(name)

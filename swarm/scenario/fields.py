@@ -18,6 +18,7 @@ import functools
 import math
 import types
 import typing
+from collections.abc import Callable
 from typing import Annotated, Any, Literal, NamedTuple, Union, get_args, get_origin
 
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, create_model
@@ -55,6 +56,21 @@ def _range_words(noun: str, gt: float | None, ge: float | None, lt: float | None
     if low or high:
         return f"{noun} {(low or high)[1]}"  # type: ignore[index]
     return noun
+
+
+def field_bounds(source: type, name: str, noun: str) -> tuple[str, Callable[[Any], bool]]:
+    """The bounds of the dataclass field ``name`` of ``source`` (its metadata ``gt``, ``ge``,
+    ``lt``, ``le``, as a scenario table checks them): the words of an error (``noun`` in [lo,
+    hi]) and the test of a number against them."""
+    meta = next(f.metadata for f in dataclasses.fields(source) if f.name == name)
+    gt, ge, lt, le = (meta.get(k) for k in ("gt", "ge", "lt", "le"))
+
+    def within(v: Any) -> bool:
+        return (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                and (gt is None or v > gt) and (ge is None or v >= ge) and (lt is None or v < lt)
+                and (le is None or v <= le))
+
+    return _range_words(noun, gt, ge, lt, le), within
 
 
 def num_field(default: Any = ..., *, gt: float | None = None, ge: float | None = None, lt: float | None = None,

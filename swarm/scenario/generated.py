@@ -3,8 +3,10 @@ of its settings (fields, defaults, bounds and the words of an error, in field me
 
 * ``[radio]`` and ``[radio.log_distance]``: :class:`comms.settings.RadioSettings`,
   :class:`comms.settings.LogDistance`;
-* ``[[faults]]``: one table per fault kind of :mod:`faults.schedule` (:data:`FAULT_TABLES`, in
-  its order; :data:`FAULT_KINDS`; the discriminated union :data:`Fault`);
+* ``[[faults]]``: one table per registered fault kind (:data:`faults.registry.FAULT_KINDS`),
+  made from its class when it registers: :data:`FAULT_TABLES` (in registration order),
+  :func:`fault_table`, the discriminated union :func:`fault_union`; a kind is named nowhere here
+  (``JoinFault`` aside: the scenario model reads a join's UAV and time, its ``join_s``);
 * ``[planner.dacmp]`` and ``[planner.apf]``: :class:`agents.planners.dacmp.settings.DacmpSettings`,
   :class:`agents.apf.ApfSettings`.
 
@@ -29,31 +31,16 @@ from swarm.scenario.fields import Problem, Table, fmt, raise_if, table_field, ta
 
 __all__ = [
     "ApfSettings",
-    "BridgeFault",
-    "BurstFault",
-    "ClockSkewFault",
-    "CorruptFault",
-    "CrashFault",
     "DacmpSettings",
-    "DelayFault",
-    "DropFault",
-    "DuplicateFault",
     "FAULT_KINDS",
     "FAULT_TABLES",
     "Fault",
-    "JammerFault",
     "JoinFault",
-    "LiarFault",
     "LogDistanceSettings",
-    "NavErrorFault",
-    "PartitionFault",
-    "PauseFault",
     "RadioSettings",
-    "RestartFault",
-    "SensorFault",
-    "SpooferFault",
-    "BatteryFault",
-    "SwizzleFault",
+    "fault_table",
+    "fault_union",
+    "sync_fault_tables",
 ]
 
 
@@ -120,7 +107,7 @@ class _LossAtRange(Protocol):
     def loss_at_range(self) -> float | None: ...
 
 
-if TYPE_CHECKING:  # the static view of generated tables: see DropFault
+if TYPE_CHECKING:  # the static view of generated tables: see FaultTable
     class LogDistanceSettings(Table, _radio.LogDistance, frozen=True): ...  # type: ignore[misc]
     class RadioSettings(_RadioChecks, _radio.RadioSettings, frozen=True): ...  # type: ignore[misc]
 else:
@@ -225,62 +212,47 @@ def fault_union() -> Any:
     """The ``[[faults]]`` item type: the union of :data:`FAULT_TABLES`, told apart by ``kind``."""
     return Annotated[Union[tuple(FAULT_TABLES.values())], Field(discriminator="kind")]  # noqa: UP007
 
+def fault_table(kind: str) -> type[Table]:
+    """The ``[[faults]]`` table of the registered fault kind ``kind`` (``KeyError`` if none)."""
+    sync_fault_tables()
+    return FAULT_TABLES[kind]
+
+
+def __getattr__(name: str) -> type[Table]:
+    """A kind's table by its class name and ``Fault`` (``DropFault``, ``BurstFault``...: the
+    names this module has always had, for any registered kind, without listing them)."""
+    sync_fault_tables()
+    for table in FAULT_TABLES.values():
+        if table.__name__ == name:
+            return table
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 if TYPE_CHECKING:
     # What mypy sees of the generated tables (here and for [planner.dacmp], [planner.apf]). It
-    # cannot see the fields of a class made by create_model, so each table is declared, for type
+    # cannot see the fields of a class made by create_model, so a table is declared, for type
     # checking only, as what it is: a model with the checks it is built on (its first base, as
     # _fault_table picks it: the pydantic API, model_dump, model_copy, ...) and the fields of the
     # dataclass it is generated from (its second base). Still one definition: the fields are the
     # dataclass's, not repeated here. Where the two differ the static view is the dataclass's:
     # arrays are lists at run time (typed as the dataclass's tuples); a field whose default is
     # math.inf (end_s) is None when left out; the dataclass's methods (active, separates) and
-    # ApfSettings' excluded fields are not on the table. ``kind`` is the dataclass's class
-    # variable, a literal that tags the union. The ignores: mypy reads the dataclasses as frozen
-    # and the models as not (pydantic's frozen is in model_config, where mypy does not look).
-    class DropFault(_LinkFault, _faults.Drop, frozen=True): ...  # type: ignore[misc]
-    class BurstFault(_LinkFault, _faults.Burst, frozen=True): ...  # type: ignore[misc]
-    class PartitionFault(_PartitionChecks, _faults.Partition, frozen=True): ...  # type: ignore[misc]
-    class DelayFault(_LinkFault, _faults.Delay, frozen=True): ...  # type: ignore[misc]
-    class DuplicateFault(_LinkFault, _faults.Duplicate, frozen=True): ...  # type: ignore[misc]
-    class CorruptFault(_LinkFault, _faults.Corrupt, frozen=True): ...  # type: ignore[misc]
-    class CrashFault(Table, _faults.Crash, frozen=True): ...  # type: ignore[misc]
+    # ApfSettings' excluded fields are not on the table. The ignores: mypy reads the dataclasses
+    # as frozen and the models as not (pydantic's frozen is in model_config, where mypy does not
+    # look). A [[faults]] item is any kind's table (FaultTable: its kind tag, and its other fields
+    # by kind, so typed loosely); JoinFault is declared because the scenario model reads a join's
+    # fields (the UAV's join_s).
+    class FaultTable(Table):
+        kind: str
+
+        def __getattr__(self, name: str) -> Any: ...
+
     class JoinFault(Table, _faults.Join, frozen=True): ...  # type: ignore[misc]
-    class PauseFault(_WindowedFault, _faults.Pause, frozen=True): ...  # type: ignore[misc]
-    class RestartFault(Table, _faults.Restart, frozen=True): ...  # type: ignore[misc]
-    class ClockSkewFault(_WindowedFault, _faults.ClockSkew, frozen=True): ...  # type: ignore[misc]
-    class NavErrorFault(_WindowedFault, _faults.NavError, frozen=True): ...  # type: ignore[misc]
-    class SensorFault(_WindowedFault, _faults.Sensor, frozen=True): ...  # type: ignore[misc]
-    class JammerFault(_WindowedFault, _faults.Jammer, frozen=True): ...  # type: ignore[misc]
-    class BridgeFault(_PartitionChecks, _faults.Bridge, frozen=True): ...  # type: ignore[misc]
-    class SwizzleFault(_WindowedFault, _faults.Swizzle, frozen=True): ...  # type: ignore[misc]
-    class LiarFault(_WindowedFault, _faults.Liar, frozen=True): ...  # type: ignore[misc]
-    class SpooferFault(_WindowedFault, _faults.Spoofer, frozen=True): ...  # type: ignore[misc]
-    class BatteryFault(_WindowedFault, _faults.Battery, frozen=True): ...  # type: ignore[misc]
 
-    Fault = (DropFault | BurstFault | PartitionFault | DelayFault | DuplicateFault | CorruptFault | CrashFault
-             | JoinFault | PauseFault | RestartFault | ClockSkewFault | NavErrorFault | SensorFault | JammerFault
-             | BridgeFault | SwizzleFault | LiarFault | SpooferFault | BatteryFault)
+    Fault = FaultTable
 else:
-    DropFault = FAULT_TABLES["drop"]
-    BurstFault = FAULT_TABLES["burst"]
-    PartitionFault = FAULT_TABLES["partition"]
-    DelayFault = FAULT_TABLES["delay"]
-    DuplicateFault = FAULT_TABLES["duplicate"]
-    CorruptFault = FAULT_TABLES["corrupt"]
-    CrashFault = FAULT_TABLES["crash"]
+    FaultTable = Table
     JoinFault = FAULT_TABLES["join"]
-    PauseFault = FAULT_TABLES["pause"]
-    RestartFault = FAULT_TABLES["restart"]
-    ClockSkewFault = FAULT_TABLES["clock_skew"]
-    NavErrorFault = FAULT_TABLES["nav_error"]
-    SensorFault = FAULT_TABLES["sensor"]
-    JammerFault = FAULT_TABLES["jammer"]
-    BridgeFault = FAULT_TABLES["bridge"]
-    SwizzleFault = FAULT_TABLES["swizzle"]
-    LiarFault = FAULT_TABLES["liar"]
-    SpooferFault = FAULT_TABLES["spoofer"]
-    BatteryFault = FAULT_TABLES["battery"]
-
     Fault = fault_union()
 
 
@@ -301,7 +273,7 @@ class _DacmpChecks(Table):
         return self
 
 
-if TYPE_CHECKING:  # the static view of generated tables: see DropFault
+if TYPE_CHECKING:  # the static view of generated tables: see FaultTable
     class DacmpSettings(_DacmpChecks, _dacmp.DacmpSettings, frozen=True): ...  # type: ignore[misc]
     class ApfSettings(Table, _apf.ApfSettings, frozen=True): ...  # type: ignore[misc]
 else:

@@ -30,7 +30,15 @@ from pydantic.fields import FieldInfo
 from faults import schedule as _faults
 from swarm.errors import ScenarioError, UsageError
 from swarm.scenario.fields import Int, Num, Problem, Str, Table, fmt, int_field, num_field, raise_if, table_field
-from swarm.scenario.generated import FAULT_KINDS, Fault, JoinFault, RadioSettings, fault_union, sync_fault_tables
+from swarm.scenario.generated import (
+    FAULT_KINDS,
+    FAULT_TABLES,
+    Fault,
+    JoinFault,
+    RadioSettings,
+    fault_union,
+    sync_fault_tables,
+)
 from swarm.scenario.geo import GeoSettings, NoFlySpec, geo_problems, resolve_geography
 from swarm.scenario.mission import EnduranceSettings, WindSettings, endurance_problems
 from swarm.scenario.overrides import PLANNER_NAME_KEY, set_keys
@@ -407,10 +415,17 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>", *, truncated
         raise first_error(exc, doc, source, Scenario) from None
 
 
+# The [[faults]] tables the Scenario model's `faults` field was last built with.
+_FAULTS_BUILT_FROM: list[tuple[type, ...]] = [tuple(FAULT_TABLES.values())]
+
+
 def _follow_fault_registry() -> None:
     """A fault kind registered since the last document (faults.registry.register) is a valid
     ``[[faults]]`` kind from now on: the scenario model is rebuilt with its table."""
-    if sync_fault_tables():
+    sync_fault_tables()
+    tables = tuple(FAULT_TABLES.values())
+    if tables != _FAULTS_BUILT_FROM[0]:
+        _FAULTS_BUILT_FROM[0] = tables
         field = Scenario.model_fields["faults"]
         new = FieldInfo.from_annotation(list[fault_union()])  # type: ignore[misc, arg-type]
         new.default_factory, new.description = field.default_factory, field.description

@@ -51,7 +51,8 @@ from agents.planners.registry import is_module_ref
 from agents.types import UavType
 from faults.schedule import Fault, FaultSchedule, Join, fault_from_dict, fault_to_dict
 from swarm.scenario import DEFAULT_UAV_TYPES, Scenario, UavTypeSpec, parse_scenario
-from swarm.testing.fault_strategies import ALL_KINDS, fault_schedules, link_models
+from swarm.testing.fault_strategies import fault_kinds as registered_fault_kinds
+from swarm.testing.fault_strategies import fault_schedules, link_models
 
 __all__ = [
     "areas",
@@ -370,7 +371,7 @@ def scenario_documents(
     max_targets: int = 3,
     max_threats: int = 2,
     faults: bool = True,
-    fault_kinds: Sequence[str] = ALL_KINDS,
+    fault_kinds: Sequence[str] | None = None,
     max_faults: int = 5,
     lossy_radio: bool = True,
     swarm: bool | None = None,
@@ -392,7 +393,9 @@ def scenario_documents(
     configuration (see :func:`configurations`: which UAV types fly, the radio model, the map's
     tau, the replanning period) and which of ``fault_kinds`` it may use at all, so examples
     differ in kind and not only in values. Off, those stay at their defaults (disk radio, the
-    scenario's default tau, replanning every 10 s, every kind of ``fault_kinds``).
+    scenario's default tau, replanning every 10 s, every kind of ``fault_kinds``). ``fault_kinds``
+    defaults to every registered kind with a strategy
+    (:func:`swarm.testing.fault_strategies.fault_kinds`, read when the example is drawn).
 
     Real missions (issue 33), each drawn or not per example when asked for: ``geo``, the area
     a lon/lat polygon (:func:`geo_areas`; UAVs, placed targets and the base inside it);
@@ -461,7 +464,7 @@ def scenario_documents(
     if faults and max_faults > 0:
         # The first UAV flies from the start (someone must); a UAV can only be told once when it joins.
         joinable = [u["name"] for u in uavs[1:] if "join_s" not in u]
-        kinds = list(fault_kinds)
+        kinds = list(registered_fault_kinds() if fault_kinds is None else fault_kinds)
         if swarm and kinds:  # swarm testing: this example may only use some kinds
             kinds = draw(_subsets(kinds), label="fault kinds used")
         schedule = draw(fault_schedules(names, float(duration), kinds=kinds, max_faults=max_faults,

@@ -51,7 +51,7 @@ from agents.planners.dacmp.settings import DacmpSettings
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 if TYPE_CHECKING:
-    from agents.planners.registry import PlannerContext
+    from agents.planners.base import PlannerContext
 
 # Peers whose intent is older than this are ignored for the competing repulsion.
 _INTENT_MAX_AGE_S = 15.0

@@ -33,8 +33,8 @@ import numpy as np
 from agents.planners.dacmp.planner import _INTENT_MAX_AGE_S, DacmpPlanner
 
 if TYPE_CHECKING:
+    from agents.planners.base import PlannerContext
     from agents.planners.dacmp.planner import UavSearch
-    from agents.planners.registry import PlannerContext
 
 __all__ = ["DacmpSpreadPlanner"]
 

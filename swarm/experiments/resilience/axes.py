@@ -3,6 +3,11 @@ value is recorded under, its undegraded baseline, its title, what a value must b
 is written, and how a value becomes scenario changes. Adding an axis is adding one record to
 :data:`AXIS_LIST`; the command line, the runs, the figures and the tables read it from here.
 Light on purpose (no plotting, no simulation): the command line reads it to build its help.
+
+An axis that degrades with a fault builds it from the fault kind's class (:mod:`faults.schedule`:
+its fields, their defaults) and, where a value is a field of the kind, checks it against the
+field's bounds (the class's metadata, as the ``[[faults]]`` table does): nothing of a kind is
+written here again.
 """
 
 from __future__ import annotations
@@ -12,8 +17,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from faults.base import FaultKind
+from faults.registry import fault_to_dict
+from faults.schedule import Burst, ClockSkew, Crash, Jammer, Join, Liar, Pause, Restart, Sensor
 from swarm.errors import UsageError
 from swarm.scenario import Scenario
+from swarm.scenario.fields import field_bounds
 
 __all__ = [
     "AXES",
@@ -126,8 +135,8 @@ class Axis:
 def crash_candidates(scenario: Scenario) -> list[str]:
     """UAVs the crash axis may crash, in the order it crashes them: those that fly from the start
     (no ``join_s``, no join fault) and that the scenario does not crash itself, in scenario order."""
-    joined = {f.uav for f in scenario.faults if f.kind == "join"}
-    crashed = {f.uav for f in scenario.faults if f.kind == "crash"}
+    joined = {f.uav for f in scenario.faults if f.kind == Join.kind}
+    crashed = {f.uav for f in scenario.faults if f.kind == Crash.kind}
     return [name for name, u in zip(scenario.uav_names, scenario.uavs) if not u.join_s and name not in joined | crashed]
 
 
@@ -165,17 +174,16 @@ def burst_fault(mean_frames: float, mean_loss: float) -> dict[str, Any]:
     if p_enter > 1.0:
         raise UsageError(f"burst value {mean_frames:g}: at {mean_loss:g} mean loss the mean burst length must be "
                          f">= {mean_loss / (1 - mean_loss):g} frames")
-    return {"kind": "burst", "start_s": 0.0, "end_s": None, "p_enter_bad": p_enter, "p_exit_bad": p_exit,
-            "loss_good": 0.0, "loss_bad": 1.0}
+    return fault_to_dict(Burst(p_enter_bad=p_enter, p_exit_bad=p_exit, loss_good=0.0, loss_bad=1.0))
 
 
 def _faults(scenario: Scenario) -> list[dict[str, Any]]:
     return list(scenario.to_dict()["faults"])
 
 
-def _with_faults(scenario: Scenario, new: list[dict[str, Any]]) -> dict[str, Any]:
+def _with_faults(scenario: Scenario, new: list[FaultKind]) -> dict[str, Any]:
     """Overrides adding ``new`` faults to the scenario's own (none: no override)."""
-    return {"faults": _faults(scenario) + new} if new else {}
+    return {"faults": _faults(scenario) + [fault_to_dict(f) for f in new]} if new else {}
 
 
 def _first(scenario: Scenario, n: int) -> list[str]:
@@ -187,22 +195,23 @@ def _is_count(v: Any) -> bool:
 
 
 def _burst_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
-    return (("burst.mean_frames", v), ("burst.mean_loss", ctx.burst_loss)), _with_faults(sc, [burst_fault(v, ctx.burst_loss)])
+    settings = (("burst.mean_frames", v), ("burst.mean_loss", ctx.burst_loss))
+    return settings, {"faults": _faults(sc) + [burst_fault(v, ctx.burst_loss)]}
 
 
 def _crash_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
-    new = [{"kind": "crash", "uav": n, "at_s": ctx.crash_at_s} for n in _first(sc, v)]
+    new: list[FaultKind] = [Crash(uav=n, at_s=ctx.crash_at_s) for n in _first(sc, v)]
     return (("crashed_uavs", v), ("crash_at_s", ctx.crash_at_s)), _with_faults(sc, new)
 
 
 def _pause_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
-    new = ([{"kind": "pause", "uav": n, "start_s": ctx.crash_at_s, "end_s": ctx.crash_at_s + v}
-            for n in _first(sc, FAULTED_UAVS)] if v else [])
+    new: list[FaultKind] = ([Pause(uav=n, start_s=ctx.crash_at_s, end_s=ctx.crash_at_s + v)
+                             for n in _first(sc, FAULTED_UAVS)] if v else [])
     return (("pause.length_s", v), ("at_s", ctx.crash_at_s)), _with_faults(sc, new)
 
 
 def _restart_point(sc: Scenario, v: Any, ctx: PointContext) -> tuple[Settings, dict[str, Any]]:
-    new = [{"kind": "restart", "uav": n, "at_s": ctx.crash_at_s, "downtime_s": RESTART_DOWNTIME_S} for n in _first(sc, v)]
+    new: list[FaultKind] = [Restart(uav=n, at_s=ctx.crash_at_s, downtime_s=RESTART_DOWNTIME_S) for n in _first(sc, v)]
     return (("restarted_uavs", v), ("at_s", ctx.crash_at_s)), _with_faults(sc, new)
 
 
@@ -214,8 +223,7 @@ def _one(setting: str, overrides: Callable[[Scenario, Any, PointContext], dict[s
 
 def _jammer(sc: Scenario, v: Any, ctx: PointContext) -> dict[str, Any]:
     a = sc.area
-    return _with_faults(sc, [{"kind": "jammer", "x_m": a.width_m / 2, "y_m": a.height_m / 2, "radius_m": v * 1000.0}]
-                        if v else [])
+    return _with_faults(sc, [Jammer(x_m=a.width_m / 2, y_m=a.height_m / 2, radius_m=v * 1000.0)] if v else [])
 
 
 def _order(results: dict[str, Any]) -> list[str]:
@@ -253,6 +261,11 @@ def _finite_at_least(low: float) -> Callable[[Any], bool]:
     return lambda v: v is not None and math.isfinite(v) and v >= low
 
 
+# Axes whose value is a field of a fault kind: what a value must be, from the field's bounds.
+_SKEW_WORDS, _SKEW_VALID = field_bounds(ClockSkew, "offset_s", "a clock offset in s")
+_DETECT_WORDS, _DETECT_VALID = field_bounds(Sensor, "p_detect", "a probability of detection")
+
+
 AXIS_LIST: tuple[Axis, ...] = (
     Axis("loss", "i.i.d. frame loss rate (radio.loss_base)", "radio.loss_base",
          tuple(round(0.1 * i, 1) for i in range(11)),  # 1.0: no frame gets through (no radio)
@@ -285,22 +298,22 @@ AXIS_LIST: tuple[Axis, ...] = (
          note=lambda r: (f"; restart at {r['crash_at_s']:g} s, {RESTART_DOWNTIME_S:g} s down, in order "
                          f"{', '.join(_order(r))}")),
     Axis("skew", f"clock ahead on {FAULTED_UAVS} UAVs", "clock_skew.offset_s", (0.0, 2.0, 10.0, 60.0, 600.0),  # s ahead
-         "a clock offset in s (>= -1e6 and <= 1e6)", lambda v: v is not None and -1e6 <= v <= 1e6,
+         _SKEW_WORDS, _SKEW_VALID,
          _one("clock_skew.offset_s", lambda sc, v, ctx: _with_faults(
-             sc, [{"kind": "clock_skew", "uav": n, "offset_s": v} for n in _first(sc, FAULTED_UAVS)] if v else [])),
+             sc, [ClockSkew(uav=n, offset_s=v) for n in _first(sc, FAULTED_UAVS)] if v else [])),
          "skew (3 clocks 0..600 s ahead)", baseline=0.0, degrades_first_uavs=True, label=lambda v: f"{v:g} s",
          note=lambda r: f"; clocks of {', '.join(_order(r)[:FAULTED_UAVS])} ahead"),
     # per tick: a target stays inside a detection circle for tens of ticks, so only small
     # probabilities miss it altogether (0.2 a tick finds as many as 1 does on paper-fig11)
     Axis("detect", "probability of detection per tick (all UAVs)", "sensor.p_detect", (1.0, 0.1, 0.03, 0.01, 0.003),
-         "a probability of detection from 0 to 1", lambda v: v is not None and 0.0 <= v <= 1.0,
-         _one("sensor.p_detect", lambda sc, v, ctx: _with_faults(sc, [{"kind": "sensor", "p_detect": v}] if v < 1.0 else [])),
+         _DETECT_WORDS, _DETECT_VALID,
+         _one("sensor.p_detect", lambda sc, v, ctx: _with_faults(sc, [Sensor(p_detect=v)] if v < 1.0 else [])),
          "detect (detection probability per tick 1..0.003)", baseline=1.0),
     Axis("jammer", "jammer radius at the centre of the area", "jammer.radius_km", (0.0, 5.0, 10.0, 15.0, 20.0, 25.0),
          "a jammer radius in km >= 0 (0: none)", _finite_at_least(0.0), _one("jammer.radius_km", _jammer),
          "jammer (radius 0..25 km at the centre)", baseline=0.0, label=lambda v: "none" if not v else f"{v:g} km"),
     Axis("liar", "lying UAVs (fake scan records)", "liars", (0, 1, 2, 3), "a number of UAVs >= 0", _is_count,
-         _one("liars", lambda sc, v, ctx: _with_faults(sc, [{"kind": "liar", "uav": n} for n in _first(sc, v)])),
+         _one("liars", lambda sc, v, ctx: _with_faults(sc, [Liar(uav=n) for n in _first(sc, v)])),
          "liar (0..3 lying UAVs)", baseline=0, counts_uavs=True, label=lambda v: str(int(v)),
          note=lambda r: f"; liars in order {', '.join(_order(r))}, one fake scan a second each"),
     # (issue 26) battery capacity as a fraction of the energy to fly the whole run at full speed;
