@@ -213,13 +213,9 @@ class UavActor:
         # a centre at most that far outside the area (absurd numbers would make the disk's bounds
         # overflow). Own scans obey the same rule, so every logged scan is one peers accept.
         self._max_scan_r = max(grid.width_m, grid.height_m)
-        # What it hears (agents.inbox). ``decoder``: shared by the simulation's actors so each
-        # broadcast frame is decoded and checked once (a pure memo: the same bytes give the same
-        # immutable Frame); it decodes with the swarm's key, as settings.auth_key. Heard scans older
-        # than beacon_every_s + 2 dt are anti-entropy resends (a beacon carries the scans of the
-        # last beacon period): sent to this UAV alone, their disks are not worth sharing.
-        self.inbox = Inbox(uid, grid, (self._max_scan_r, grid.width_m, grid.height_m, settings.dt), radio.horizon_m,
-                           radio.beacon_every_s + 2 * settings.dt, decoder, radio.frame_max_bytes, settings.auth_key)
+        # What it hears (agents.inbox). ``decoder``: the simulation's actors share it, so each broadcast
+        # frame is decoded and checked once; it decodes with the swarm's key, as settings.auth_key.
+        self.inbox = Inbox(uid, grid, self._max_scan_r, settings.dt, radio, decoder, settings.auth_key)
         # Sent through a shared decoder with the swarm's key, a frame is remembered there as
         # decoded (DecodeCache.encode): its receivers find it without running the codec.
         self._encode = (decoder.encode if decoder is not None and decoder.key == settings.auth_key
@@ -419,11 +415,8 @@ class UavActor:
                                    list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
-        replies: list[tuple[int, bytes]] = []
-        if self.inbox.digests:  # (heard this tick)
-            replies = self.anti_entropy.answer(self.inbox.digests, t, k.peers, s.peer_timeout_s, self._frame,
-                                               self.counters)
-            self.inbox.digests = []
+        replies = (self.anti_entropy.answer(self.inbox.take_digests(), t, k.peers, s.peer_timeout_s, self._frame,
+                                            self.counters) if self.inbox.digests else [])
         return ActorOutput(a, omega, frames, plan, received, replies, speed)
 
     def _others(self, r: SensorReading, peers: list[Peer]) -> list[tuple[float, float, float, float]]:

@@ -26,6 +26,7 @@ from agents.maps.umap import UncertaintyMap
 from comms.codec import AuthError, Frame, FrameError, decode
 from comms.framecache import DecodeCache
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
+from comms.settings import RadioSettings
 
 # What a receiver accepts of heard numbers: ids below 2**31, speeds and velocities within
 # 10 km/s, headings within 1000 rad, track values within 1e12, digest cuts no earlier than
@@ -142,23 +143,27 @@ class Inbox:
     Holds what does not change over a run (the UAV's id, grid, bounds, knowledge horizon, the
     age of a resend, how frames are decoded and checked); the state it merges into (map, scan
     log, knowledge, counters) is the actor's, passed in each tick. The digests heard are kept
-    in :attr:`digests` until the actor answers them.
+    in :attr:`digests` until the actor answers them (:meth:`take_digests`).
     """
 
     __slots__ = ("uid", "grid", "bounds", "horizon2", "fresh_s", "digests", "_heard")
 
-    def __init__(self, uid: int, grid: Grid, bounds: Bounds, horizon_m: float, fresh_s: float,
-                 decoder: DecodeCache | None, max_bytes: int, key: bytes | None):
-        """``bounds``: :func:`check_frame`'s. ``horizon_m``: the knowledge horizon (heard scans
-        centred farther than this from the UAV are neither applied nor logged; inf: none).
-        ``fresh_s``: heard scans older than this are anti-entropy resends (their disks are not
-        worth sharing). ``decoder``: the simulation's shared cache (it decodes with the swarm's
-        key); without one, frames are decoded with ``max_bytes`` and ``key``, each time."""
+    def __init__(self, uid: int, grid: Grid, max_scan_r: float, dt: float, radio: RadioSettings,
+                 decoder: DecodeCache | None, key: bytes | None):
+        """``max_scan_r``: how large a plausible scan's radius may be, and how far outside the
+        area a place may lie (:func:`check_frame`). ``radio``: the ``[radio]`` settings (the
+        knowledge horizon, ``horizon_m``: heard scans centred farther than this from the UAV
+        are neither applied nor logged; the beacon period; the frame size cap). ``decoder``: the
+        simulation's shared cache (it decodes with the swarm's key); without one, frames are
+        decoded with ``key``, each time."""
         self.uid = uid
         self.grid = grid
-        self.bounds = bounds
-        self.horizon2 = None if math.isinf(horizon_m) else horizon_m * horizon_m
-        self.fresh_s = fresh_s
+        self.bounds: Bounds = (max_scan_r, grid.width_m, grid.height_m, dt)
+        h = radio.horizon_m
+        self.horizon2 = None if math.isinf(h) else h * h
+        # Heard scans older than this are anti-entropy resends (a beacon carries the scans of the
+        # last beacon period): sent to this UAV alone, their disks are not worth sharing.
+        self.fresh_s = radio.beacon_every_s + 2 * dt
         self.digests: list[ScanDigest] = []  # heard, not yet answered
         # heard(data, key, check) -> the Heard of data's frame for key = (t, bounds), raising
         # FrameError: one call into the shared cache (the value kept beside the frame, or
@@ -167,8 +172,13 @@ class Inbox:
         if decoder is not None:
             self._heard = decoder.derive
         else:
-            decode_frame = partial(decode, max_bytes=max_bytes, key=key)
+            decode_frame = partial(decode, max_bytes=radio.frame_max_bytes, key=key)
             self._heard = lambda data, _key, check: check(decode_frame(data))
+
+    def take_digests(self) -> list[ScanDigest]:
+        """The digests heard since they were last taken (to answer: agents.antientropy)."""
+        digests, self.digests = self.digests, []
+        return digests
 
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
               umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:

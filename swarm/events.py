@@ -482,7 +482,13 @@ _RECORDS: tuple[type[Event], ...] = (
 # here only). tests/test_events.py checks each writer against its record: the written fields,
 # in order, of the same types.
 
-Wire = NewType("Wire", tuple[Any, ...])  # an event as the log holds it: (kind, t, field, ...)
+# An event as the log holds it: (kind, t, field, ...). For the type checker a type of its own,
+# which only the writers make and the recorder takes (a plain tuple is refused); at run time
+# the tuple itself (``Wire(x)`` returns ``x``: a NewType's call would cost a Python call an event).
+if typing.TYPE_CHECKING:
+    Wire = NewType("Wire", tuple[Any, ...])
+else:
+    Wire = tuple
 
 
 def start(*, t: float, header: dict[str, Any]) -> Wire:
