@@ -46,7 +46,7 @@ _ID_FORMS = ((0, 0x80, b"", "u1"), (0x80, 0x100, b"\xcc", "u1"), (0x100, 0x10000
 def pack_target_events(t: float, xy: np.ndarray) -> bytes:
     """``b"".join(msgpack.packb(("target", t, i, x, y)) for i, (x, y) in enumerate(xy))``, from
     the arrays (``t`` a float, ``xy`` float64 (n, 2), n < 2**32): what :meth:`Observer.observe`
-    logs of every target each tick (tests/test_observer_pack.py checks the bytes)."""
+    logs of every target each tick (tests/test_many_targets.py checks the bytes)."""
     n = len(xy)
     parts = []
     for lo, hi, tag, id_type in _ID_FORMS:

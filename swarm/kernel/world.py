@@ -57,7 +57,7 @@ _DRAW_BLOCK = 128
 
 # From this many targets on (measured crossover), step() moves them as numpy arrays, one operation for all (the same
 # IEEE operations in the same order as the per-target loop below it, and math's cos and sin, so
-# the same numbers: tests/test_targets_vector.py); below it, one by one in Python floats (cheaper
+# the same numbers: tests/test_many_targets.py); below it, one by one in Python floats (cheaper
 # for the paper's few targets). Issue 25: 10^5 targets cost 0.3 s a tick one by one.
 _VECTOR_MIN = 48
 
