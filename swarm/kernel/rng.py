@@ -24,7 +24,7 @@ class RngTree:
         self.seed = seed
 
     @staticmethod
-    def _spawn_key(key: tuple[Any, ...]) -> tuple[int, ...]:
+    def _spawn_key(key: tuple[str | int, ...]) -> tuple[int, ...]:
         digest = hashlib.sha256("\x1f".join(map(str, key)).encode()).digest()
         return tuple(int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4))
 
