@@ -8,20 +8,14 @@ Embedding::
     print(sim.snapshot().coverage)
 """
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _package_version
-
 from swarm.errors import APIMisuseError, ScenarioError, SimulationError, SwarmError, UsageError
 from swarm.kernel.results import RunResult
 from swarm.kernel.simulation import Simulation, Snapshot
+from swarm.provenance import SIMULATOR_VERSION
 from swarm.reproduce import RerunResult, rerun
 from swarm.scenario import Scenario, builtin_scenarios, load_scenario
 
-try:
-    # One version source: pyproject.toml's, as installed.
-    __version__ = _package_version("uav-swarm-sim")
-except PackageNotFoundError:  # imported from a source tree that was never installed
-    __version__ = "0+unknown"
+__version__ = SIMULATOR_VERSION  # (pyproject.toml's, as installed: swarm.provenance)
 
 __all__ = [
     "APIMisuseError",

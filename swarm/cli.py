@@ -325,7 +325,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             result = asyncio.run(_hosted(sim, args.mavlink, args.pace, on_progress))
     out_dir = Path(args.out) if args.out else None
     if out_dir is not None:
-        write_run(result, out_dir, sim.scenario.to_dict(), figures=not args.no_figures)
+        from swarm.viz.plots import trajectories_png
+
+        write_run(result, out_dir, sim.scenario.to_dict(), figure=None if args.no_figures else trajectories_png)
     if args.rerun is not None:  # (issue 26: a recording for the rerun viewer, extra `view`)
         from swarm.viz.rerun_view import record
 

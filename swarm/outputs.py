@@ -23,7 +23,7 @@ import csv
 import io
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,8 +72,12 @@ def atomic_write(path: str | os.PathLike[str], data: bytes) -> Path:
     return Path(path)
 
 
-def run_files(result: RunResult, scenario_dict: dict[str, Any] | None = None, figures: bool = True) -> dict[str, bytes]:
-    """A run's result files as ``{name: bytes}``, ``metrics.json`` last.
+def run_files(result: RunResult, scenario_dict: dict[str, Any] | None = None,
+              figure: Callable[[RunResult], bytes] | None = None) -> dict[str, bytes]:
+    """A run's result files as ``{name: bytes}``, ``metrics.json`` last; with ``figure`` (the
+    run drawn as PNG bytes, e.g. :func:`swarm.viz.plots.trajectories_png`), ``trajectories.png``
+    too. (The drawing is passed in: this module writes and reads files, the figures are drawn
+    above it.)
 
     Built in memory so a sweep worker on another machine can ship a finished run back to the
     machine that writes the folder (no shared file system needed)."""
@@ -95,12 +99,8 @@ def run_files(result: RunResult, scenario_dict: dict[str, Any] | None = None, fi
         from swarm.geo.geojson import geojson_files
 
         files.update(geojson_files(result, scenario_dict))
-    if figures:
-        from swarm.viz.plots import trajectories_figure
-
-        png = io.BytesIO()
-        trajectories_figure(result, png)
-        files["trajectories.png"] = png.getvalue()
+    if figure is not None:
+        files["trajectories.png"] = figure(result)
     # metrics.json last: its presence marks a complete run folder (sweeps rely on it).
     files["metrics.json"] = json.dumps(result.metrics, indent=2).encode()
     return files
@@ -115,8 +115,10 @@ def write_files(out_dir: str | Path, files: dict[str, bytes]) -> Path:
     return out
 
 
-def write_run(result: RunResult, out_dir: str | Path, scenario_dict: dict[str, Any] | None = None, figures: bool = True) -> Path:
-    return write_files(out_dir, run_files(result, scenario_dict, figures))
+def write_run(result: RunResult, out_dir: str | Path, scenario_dict: dict[str, Any] | None = None,
+              figure: Callable[[RunResult], bytes] | None = None) -> Path:
+    """Write a run's folder (:func:`run_files`: ``figure`` draws ``trajectories.png``)."""
+    return write_files(out_dir, run_files(result, scenario_dict, figure))
 
 
 # --- reading a run folder back -------------------------------------------------------------------

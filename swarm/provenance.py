@@ -13,22 +13,33 @@ from __future__ import annotations
 import functools
 import platform
 import subprocess
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _package_version
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["differences", "versions"]
+__all__ = ["SIMULATOR_VERSION", "differences", "versions"]
 
 _CHECKOUT = Path(__file__).resolve().parent.parent  # the folder holding swarm/, agents/, ...
+
+
+def _simulator_version() -> str:
+    try:
+        # One version source: pyproject.toml's, as installed.
+        return _package_version("uav-swarm-sim")
+    except PackageNotFoundError:  # imported from a source tree that was never installed
+        return "0+unknown"
+
+
+SIMULATOR_VERSION = _simulator_version()  # (``swarm.__version__``)
 
 
 @functools.lru_cache(maxsize=1)
 def versions() -> dict[str, str]:
     """``{"simulator", "python", "numpy"}`` and, when the code runs from a git checkout,
     ``"git_commit"`` (with ``+dirty`` when tracked files differ from that commit)."""
-    from swarm import __version__
-
-    found = {"simulator": __version__, "python": platform.python_version(), "numpy": np.__version__}
+    found = {"simulator": SIMULATOR_VERSION, "python": platform.python_version(), "numpy": np.__version__}
     commit = _git_commit(_CHECKOUT)
     if commit:
         found["git_commit"] = commit

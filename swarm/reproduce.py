@@ -99,7 +99,12 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
             result = sim.result()
     if "settings" in metrics:  # a sweep's run records the settings it was swept with
         result.metrics["settings"] = metrics["settings"]
-    write_run(result, target, sim.scenario.to_dict(), figures=figures)
+    if figures:
+        from swarm.viz.plots import trajectories_png
+
+        write_run(result, target, sim.scenario.to_dict(), figure=trajectories_png)
+    else:
+        write_run(result, target, sim.scenario.to_dict())
     new = result.metrics["event_log_sha256"]
     first = None if new == original else first_difference_s(events, result.events)
     return RerunResult(run.path, target, original, new, then, versions(), first)

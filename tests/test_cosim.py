@@ -256,7 +256,7 @@ def _embedded_run() -> Simulation:
 def test_an_embedded_run_replays_from_its_folder(tmp_path):
     with _embedded_run() as sim:
         result = sim.result()
-    out = write_run(result, tmp_path / "run", figures=False)
+    out = write_run(result, tmp_path / "run")
     scenario, events = load_run_log(out)
     hosts = [e for e in events if e.kind == "host"]
     assert [e.change for e in hosts][:5] == ["add_target", "add_uav", "add_fault", "add_fault", "set_waypoint"]
@@ -380,7 +380,7 @@ def test_swarm_rerun_reproduces_an_embedded_run(tmp_path):
     from swarm.reproduce import rerun
 
     with _embedded_run() as sim:
-        write_run(sim.result(), tmp_path / "run", sim.scenario.to_dict(), figures=False)
+        write_run(sim.result(), tmp_path / "run", sim.scenario.to_dict())
     res = rerun(tmp_path / "run", tmp_path / "again")
     assert res.equal and res.first_difference_s is None
 

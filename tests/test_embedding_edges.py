@@ -14,7 +14,7 @@ from swarm.outputs import write_run
 def test_write_run_from_the_api_is_a_folder_swarm_report_accepts(tmp_path, capsys):
     with Simulation("paper-case1", duration_s=30.0) as sim:
         result = sim.run()
-    out = write_run(result, tmp_path / "run", figures=False)
+    out = write_run(result, tmp_path / "run")
     assert (out / "scenario.json").is_file()
     assert main(["report", str(out), "--quiet"]) == 0
     assert (out / "report.html").stat().st_size > 10_000

@@ -43,7 +43,7 @@ def run_dir(tmp_path_factory) -> Path:
         sim.add_fault(Pause(uav="B1", start_s=20.0, end_s=40.0))
         sim.add_fault(Restart(uav="A1", at_s=60.0, downtime_s=5.0))
         sim.add_uav("A", 6000.0, 6000.0, name="A9", join_s=50.0)
-        write_run(sim.run(), out, sim.scenario.to_dict(), figures=False)
+        write_run(sim.run(), out, sim.scenario.to_dict())
     return out
 
 
@@ -149,7 +149,7 @@ def test_a_geographic_run_has_lon_and_lat_beside_x_and_y(tmp_path):
     run's own GeoJSON (written by swarm.geo.geojson, rounded to 1e-7 degrees)."""
     out = tmp_path / "geo"
     with Simulation(load_scenario("geo-coast"), duration_s=60.0) as sim:
-        write_run(sim.run(), out, sim.scenario.to_dict(), figures=False)
+        write_run(sim.run(), out, sim.scenario.to_dict())
     assert main(["export", str(out), "--format", "parquet", "--quiet"]) == 0
     tracks = {f["properties"]["name"]: f["geometry"]["coordinates"]
               for f in json.loads((out / "paths.geojson").read_text())["features"]}

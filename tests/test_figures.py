@@ -150,7 +150,7 @@ def geo_run(tmp_path_factory):
     with Simulation(parse_scenario(doc, "geo.toml")) as sim:
         result = sim.run()
     out = tmp_path_factory.mktemp("geo") / "run"
-    write_run(result, out, figures=False)
+    write_run(result, out)
     return result, out
 
 

@@ -181,7 +181,7 @@ def test_geojson_outputs_open_and_lie_inside(tmp_path):
     from swarm.outputs import write_run
 
     sim, result = _run("greedy", geo_doc(), duration=300.0)
-    write_run(result, tmp_path, figures=False)
+    write_run(result, tmp_path)
     paths = json.loads((tmp_path / "paths.geojson").read_text())
     zones = json.loads((tmp_path / "zones.geojson").read_text())
     targets = json.loads((tmp_path / "targets.geojson").read_text())

@@ -144,7 +144,7 @@ def test_an_embedded_run_stopped_early_reruns_to_where_it_stopped(tmp_path):
     with Simulation(load_scenario("paper-case1"), seed=5) as sim:
         sim.step(12)
         result = sim.result()
-        write_run(result, tmp_path / "embedded", sim.scenario.to_dict(), figures=False)
+        write_run(result, tmp_path / "embedded", sim.scenario.to_dict())
     res = rerun(tmp_path / "embedded", tmp_path / "again")
     assert res.equal, res
     assert json.loads((tmp_path / "again" / "metrics.json").read_text())["sim_seconds"] == result.metrics["sim_seconds"]

@@ -216,7 +216,11 @@ def execute(spec: RunSpec) -> dict[str, Any]:
             result = sim.run()
             # A run's metrics.json records the swept settings it ran with.
             result.metrics["settings"] = strict_json(dict(spec.settings))
-            return {"files": run_files(result, sim.scenario.to_dict(), figures=spec.figures)}
+            if spec.figures:
+                from swarm.viz.plots import trajectories_png
+
+                return {"files": run_files(result, sim.scenario.to_dict(), figure=trajectories_png)}
+            return {"files": run_files(result, sim.scenario.to_dict())}
     except Exception as exc:  # recorded in error.json, reported, retried next time
         return {"error": f"{type(exc).__name__}: {exc}", "traceback": portable_traceback()}
 

@@ -110,7 +110,7 @@ class EventLog:
         n = len(pending)
         # One pack() call for the whole tick: a msgpack array of the events is its header
         # followed by each event packed on its own, so dropping the header leaves exactly the
-        # bytes of packing them one by one (tests/test_recorder.py checks this).
+        # bytes of packing them one by one (tests/test_fastpaths.py checks this).
         chunk = memoryview(self._packer.pack(pending))[_array_header_size(n):]
         self.count += n
         pending.clear()

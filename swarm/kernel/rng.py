@@ -24,7 +24,7 @@ class RngTree:
         self.seed = seed
 
     @staticmethod
-    def _spawn_key(key: tuple[Any, ...]) -> tuple[int, ...]:
+    def _spawn_key(key: tuple[str | int, ...]) -> tuple[int, ...]:
         digest = hashlib.sha256("\x1f".join(map(str, key)).encode()).digest()
         return tuple(int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4))
 
@@ -51,7 +51,7 @@ class RngTree:
 # each. :func:`first_randoms` computes those first draws for many keys at once, with numpy, by
 # the very algorithms numpy runs (SeedSequence's entropy mixing, PCG64's seeding and its XSL-RR
 # output, ``Generator.random``'s 53-bit double): the same numbers bit for bit
-# (tests/test_rng_vector.py checks them against the Generators). The stream itself is made only
+# (tests/test_many_targets.py checks them against the Generators). The stream itself is made only
 # if something draws from it later (swarm.kernel.world.Targets: a moving target's motion noise).
 
 _M32 = 0xFFFFFFFF

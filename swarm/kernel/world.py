@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -22,6 +21,7 @@ from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_co
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from agents.types import UavType
+from agents.zones import Keepout
 
 # A UAV's state: not yet flying, flying, on the ground at its base between two sorties (issue
 # 33: [endurance]; it neither flies, senses nor sends), or down for good (or until a restart).
@@ -57,7 +57,7 @@ _DRAW_BLOCK = 128
 
 # From this many targets on (measured crossover), step() moves them as numpy arrays, one operation for all (the same
 # IEEE operations in the same order as the per-target loop below it, and math's cos and sin, so
-# the same numbers: tests/test_targets_vector.py); below it, one by one in Python floats (cheaper
+# the same numbers: tests/test_many_targets.py); below it, one by one in Python floats (cheaper
 # for the paper's few targets). Issue 25: 10^5 targets cost 0.3 s a tick one by one.
 _VECTOR_MIN = 48
 
@@ -354,14 +354,15 @@ def _all_far_apart(xy: np.ndarray, r: float) -> bool:
 
 
 class World:
-    def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat], zones: list[Any] | None = None):
+    def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat],
+                 zones: list[Keepout] | None = None):
         self.grid = grid
         self.uavs: dict[int, UavBody] = {}
         self.targets = targets
         self.threats = threats
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
         # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
-        self.zones: list[Any] = zones if zones is not None else []
+        self.zones: list[Keepout] = zones if zones is not None else []
         # The wind of this tick (issue 26, swarm.kernel.mission; None: still air): every UAV drifts with it.
         self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)

@@ -8,6 +8,7 @@ UAVs the legend lists types instead of every UAV so it stays legible.
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import IO, TYPE_CHECKING
 
@@ -34,7 +35,7 @@ from swarm.viz.style import (
 if TYPE_CHECKING:
     from swarm.kernel.results import RunResult
 
-__all__ = ["crashed_uavs", "found_targets", "trajectories_figure", "trajectories_plot"]
+__all__ = ["crashed_uavs", "found_targets", "trajectories_figure", "trajectories_plot", "trajectories_png"]
 
 
 def found_targets(result: RunResult) -> set[int] | None:
@@ -154,3 +155,11 @@ def trajectories_figure(result: RunResult, path: str | Path | IO[bytes], title: 
     fig = trajectories_plot(result, title)
     suffix = Path(path).suffix.lstrip(".").lower() if isinstance(path, (str, Path)) else ""
     fig.savefig(path, format=suffix or "png")
+
+
+def trajectories_png(result: RunResult) -> bytes:
+    """:func:`trajectories_figure` as PNG bytes: a run folder's ``trajectories.png``, the figure
+    :func:`swarm.outputs.run_files` adds when given it (``figure=trajectories_png``)."""
+    png = io.BytesIO()
+    trajectories_figure(result, png)
+    return png.getvalue()

@@ -40,12 +40,12 @@ CRASH_MARKER = "X"
 COVERAGE_GREY = "#d4d4d4"  # cells scanned at least once, in the run's trajectories figure
 
 
-def natural_key(name: str) -> list[Any]:
+def natural_key(name: str) -> list[int | str]:
     """Sort key that puts B2 before B10."""
     return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", name)]
 
 
-def uav_colours(names: list[str]) -> dict[str, tuple[Any, ...]]:
+def uav_colours(names: list[str]) -> dict[str, tuple[float, float, float, float]]:
     """One RGBA colour per UAV name."""
     order = sorted(names)
     n = len(order)

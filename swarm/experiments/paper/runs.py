@@ -87,6 +87,7 @@ def _single(scenario_name: str, run_dir: Path, duration_s: float | None, progres
     already there (kept)."""
     from swarm.kernel.simulation import Simulation
     from swarm.outputs import write_run
+    from swarm.viz.plots import trajectories_png
 
     sc = load_scenario(scenario_name)
     expected = expected_duration(sc, duration_s)
@@ -103,7 +104,7 @@ def _single(scenario_name: str, run_dir: Path, duration_s: float | None, progres
 
     with Simulation(sc, duration_s=duration_s) as sim:
         result = sim.run(progress=cb)
-        write_run(result, run_dir, sim.scenario.to_dict(), figures=True)
+        write_run(result, run_dir, sim.scenario.to_dict(), figure=trajectories_png)
     if progress is not None:
         progress(key, desc, expected, expected, "done")
     return False
