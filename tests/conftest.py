@@ -5,6 +5,7 @@ import hashlib
 import json
 import os
 import re
+import types
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -112,6 +113,7 @@ def pytest_configure(config: pytest.Config) -> None:
                or ("quick" if QUICK_LOOP else "ci"))
     settings.load_profile(PROFILE)
     set_swarm_testing(PROFILE == "swarm")
+    _fix_hypothesis_constants()
     if config.getoption("examples_digest", None):
         from hypothesis.internal.observability import add_observability_callback
 
@@ -127,6 +129,34 @@ def pytest_configure(config: pytest.Config) -> None:
 # Hypothesis drew (its examples) to PATH as JSON. Run twice, once each way, and compare:
 #   HYPOTHESIS_EXPERIMENTAL_OBSERVABILITY_CHOICES=1 HYPOTHESIS_EXPERIMENTAL_OBSERVABILITY_NOCOVER=1 \
 #     python -m pytest -n 0 FILES --examples-digest a.json   (and again with --order reverse)
+
+
+# Hypothesis (6.131 and later) also draws, now and then, constants found in the source of the
+# "local" modules imported so far in the process: which modules those are depends on the tests
+# that ran before (a module imported lazily, a planner module a test writes and imports), so the
+# same test drew other examples in another order (measured: 52 of 112 tests of the quick loop
+# that draw examples, run in reverse). The pool is fixed here, once, to the constants of every
+# module of the four packages, imported or not: a test's examples no longer depend on the order.
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _fix_hypothesis_constants() -> None:
+    try:
+        from hypothesis.internal.conjecture import providers
+        from hypothesis.internal.constants_ast import Constants, constants_from_module
+    except ImportError:  # a Hypothesis without the pool
+        return
+    if not hasattr(providers, "_get_local_constants"):
+        return
+    pool = Constants()
+    for package in ("agents", "comms", "faults", "swarm"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            module = types.ModuleType(path.stem)  # its file, not imported (Hypothesis reads the source)
+            module.__file__ = str(path)
+            pool |= constants_from_module(module)  # (cached by Hypothesis, by the source's hash)
+    providers._local_constants = pool
+    providers._get_local_constants = lambda: pool
+    providers.CONSTANTS_CACHE.cache.clear()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

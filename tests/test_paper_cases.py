@@ -8,12 +8,21 @@ Case 1 (one 600 s run of 3 UAVs, under a second) is in the quick loop; Case 2 an
 of 10-11 UAVs, over several seeds) are marked ``slow``. Case 2's criterion across seeds 0-19,
 judged on 4000 s runs (DACMP-SPEC "Reproduction targets": at least 18 of 20), is
 ``test_case2_criterion.py``.
+
+Each (scenario, seed) runs once per session and its digest is shared by every test that reads
+it, on any xdist worker (:func:`case_runs`: the first test that needs a run makes it, holding a
+lock on it; the others read it). No fixture is module-scoped, so the tests are spread over the
+workers one by one, and so are the runs.
 """
 
 from __future__ import annotations
 
-import functools
+import fcntl
 import math
+import os
+import pickle
+from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 
@@ -24,12 +33,39 @@ from swarm.events import Pose, Target, read_events
 SURVEIL = MODE_NAMES[MODE_SURVEIL]  # poses carry mode names
 
 
-@pytest.fixture(scope="module")
-def case1():
-    with Simulation("paper-case1") as sim:
-        result = sim.run()
-        names = {uid: b.name for uid, b in sim._world.uavs.items()}
-    return result, names, list(read_events(result.events))
+CaseRuns = Callable[[str, "int | None"], dict]
+
+
+@pytest.fixture(scope="session")
+def case_runs(tmp_path_factory) -> CaseRuns:
+    """``case_runs(scenario, seed)``: the digest of that run (:func:`_case_run`), made once in
+    the session. Under xdist the workers share a folder (the session's base temporary folder,
+    not a worker's), and a lock per run, so a run is made by one worker and read by the others."""
+    folder = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        folder = folder.parent  # (the session's; each worker's own is below it)
+    folder = folder / "paper-case-runs"
+    folder.mkdir(exist_ok=True)
+    memo: dict[Path, dict] = {}
+
+    def run(scenario: str, seed: int | None = None) -> dict:
+        path = folder / f"{scenario}-seed-{seed}.pickle"
+        if path not in memo:
+            with open(path.with_suffix(".lock"), "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+                if path.exists():
+                    memo[path] = pickle.loads(path.read_bytes())
+                else:
+                    memo[path] = _case_run(scenario, seed)
+                    path.write_bytes(pickle.dumps(memo[path]))
+        return memo[path]
+
+    return run
+
+
+@pytest.fixture
+def case1(case_runs):
+    return case_runs("paper-case1", None)
 
 
 def _watch_intervals(events, names):
@@ -44,8 +80,7 @@ def _watch_intervals(events, names):
 
 
 def test_case1_slow_uav_takes_target_1_over_and_the_fast_finder_returns_to_search(case1):
-    result, names, events = case1
-    m = result.metrics
+    m, events = case1["metrics"], case1["events"]
     found = {e.target: e.uav_name for e in events if e.kind == "found"}
     assert found[0] == "B1"  # target 1 (id 0) is found by fast UAV 1, as in Fig. 12a
     handovers = [h for h in m["handover_list"] if h["target"] == 0]
@@ -64,8 +99,7 @@ def test_case1_slow_uav_takes_target_1_over_and_the_fast_finder_returns_to_searc
 
 
 def test_case1_a_fast_uav_does_not_capture_a_target_already_watched(case1):
-    _, names, events = case1
-    watched = _watch_intervals(events, names)
+    watched = _watch_intervals(case1["events"], case1["names"])
     # Target 2 (id 1) is watched by B2; B1 never joins it, and no two fast UAVs share a target.
     assert watched.get(("B2", 1), 0.0) > 300
     assert watched.get(("B1", 1), 0.0) == 0.0
@@ -75,16 +109,15 @@ def test_case1_a_fast_uav_does_not_capture_a_target_already_watched(case1):
 
 
 # --- Case 2 and Case 3 (section 4.3, Fig. 13-18) --------------------------------------------------
-# One run per (scenario, seed), shared by the tests below. A paper-case2 run takes 5-10 s on the
-# 2-core machine, paper-case3 a little more.
+# One run per (scenario, seed), shared by the tests below (case_runs). A paper-case2 run takes
+# 5-10 s on the 2-core machine, paper-case3 a little more.
 
 CASE_SEEDS = (0, 1, 2, 3, 4)  # the statistical checks; 0 is the scenarios' default seed
 _FROM_S = 600.0  # Case 3: coverage at or above Case 2's from here on (mean over CASE_SEEDS)
 
 
-@functools.cache
 def _case_run(scenario: str, seed: int | None = None) -> dict:
-    """What the Case 2/3 tests read from one run (the event log itself is not kept)."""
+    """What the tests read from one run (the event log itself is kept for Case 1 only: 600 s of 3 UAVs)."""
     with Simulation(scenario, seed=seed) as sim:
         result = sim.run()
         names = {uid: b.name for uid, b in sim._world.uavs.items()}
@@ -104,7 +137,8 @@ def _case_run(scenario: str, seed: int | None = None) -> dict:
         elif isinstance(e, Target) and (e.t in handover_ticks or e.t == t_end):
             targets.setdefault(e.t, {})[e.target] = (e.x, e.y)
     return {"metrics": result.metrics, "timeseries": result.timeseries, "radius": radius, "speed": speed,
-            "poses": poses, "targets": targets, "modes": modes, "t_end": t_end}
+            "poses": poses, "targets": targets, "modes": modes, "t_end": t_end, "names": names,
+            "events": events if scenario == "paper-case1" else None}
 
 
 def _watchers_at_end(run: dict) -> dict[int, list[tuple[str, bool]]]:
@@ -131,9 +165,9 @@ def _lets_go(run: dict, h: dict, for_s: float = 60.0) -> bool:
     return bool(after) and (SURVEIL, h["target"]) not in after
 
 
-@pytest.fixture(scope="module")
-def case2():
-    return _case_run("paper-case2", load_scenario("paper-case2").seed)  # the scenario's own seed
+@pytest.fixture
+def case2(case_runs):
+    return case_runs("paper-case2", load_scenario("paper-case2").seed)  # the scenario's own seed
 
 
 # With the paper's layout (targets straight ahead of the UAVs that found them in the paper, not
@@ -186,12 +220,12 @@ def test_case2_no_threat_or_separation_violations(case2):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", CASE_SEEDS)
-def test_case2_assignment_and_safety_hold_on_every_seed(seed):
+def test_case2_assignment_and_safety_hold_on_every_seed(seed, case_runs):
     """What must hold on any seed, whatever the search finds: no violations, never two UAVs
     on one target at the end but during a handover (a faster one that has the target in sight
     and a slower relief on its way, which the faster one waits for: rule 3 of docs/modelling.md's
     "Assignment rules"), and a fast UAV that hands a target over lets it go."""
-    run = _case_run("paper-case2", seed)
+    run = case_runs("paper-case2", seed)
     assert run["metrics"]["violations"] == {"separation": 0, "threat": 0, "dynamics": 0}
     speed = run["speed"]
     for target, ws in _watchers_at_end(run).items():
@@ -203,10 +237,10 @@ def test_case2_assignment_and_safety_hold_on_every_seed(seed):
 
 
 @pytest.mark.slow
-def test_case2_over_seeds_finds_targets_and_hands_them_over():
+def test_case2_over_seeds_finds_targets_and_hands_them_over(case_runs):
     """Means over CASE_SEEDS (the default seed alone is one draw of the search): targets found
     and fast-to-slow handovers."""
-    runs = [_case_run("paper-case2", s) for s in CASE_SEEDS]
+    runs = [case_runs("paper-case2", s) for s in CASE_SEEDS]
     found = [r["metrics"]["targets_found"] for r in runs]
     handovers = [r["metrics"]["handovers_fast_to_slow"] for r in runs]
     assert sum(found) / len(found) >= 5.5, found
@@ -215,13 +249,13 @@ def test_case2_over_seeds_finds_targets_and_hands_them_over():
 
 
 @pytest.mark.slow
-def test_case3_coverage_with_the_joiner_is_at_least_case2s_from_600_s():
+def test_case3_coverage_with_the_joiner_is_at_least_case2s_from_600_s(case_runs):
     """Fig. 18: the eleventh UAV (joining at 300 s) raises coverage; mean over CASE_SEEDS, at
     every sample from 600 s on."""
     def mean_coverage(scenario):
         series = []
         for s in CASE_SEEDS:
-            rows = _case_run(scenario, s)["timeseries"]
+            rows = case_runs(scenario, s)["timeseries"]
             series.append({r["t"]: r["coverage"] for r in rows})
         times = sorted(set.intersection(*(set(c) for c in series)))
         return {t: sum(c[t] for c in series) / len(series) for t in times}
