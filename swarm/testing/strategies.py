@@ -330,7 +330,7 @@ def endurance_tables(draw: st.DrawFn, doc: Mapping[str, Any], base: tuple[float,
 #: (issue 33) Whether :func:`scenario_documents` may draw ``[endurance]`` where a caller asks for
 #: it with ``endurance=None``. Off while the relief rule (docs/modelling.md) is being settled
 #: (branch ``endurance``): the rule tests leave batteries out until then; that branch turns it on.
-ENDURANCE_IN_RULE_TESTS = False
+ENDURANCE_IN_RULE_TESTS = True
 
 
 @st.composite
