@@ -31,9 +31,12 @@ class EnergyReading:
     """What a UAV with an energy budget knows of it this tick (issues 26, 33, swarm.kernel.mission):
     its pad at the base; the next point of its way home (round the no-fly zones); ``must_go``:
     its energy left is down to what that way home takes against the mean wind, plus the
-    reserve; ``spare_s``: the seconds of flight at its present power it has beyond that (0
-    when it must go); ``handover_s``: the setting of that name; ``wind_mps``: the mean wind's
-    speed (what it budgets a relief's way against)."""
+    reserve; ``spare_s``: the seconds of flight it has beyond what the way home takes with the
+    worst turn onto it (a half turn at its present speed) plus the reserve, at the most power
+    its type can draw (0 when none); ``home_s_per_m``: what each metre it flies farther from
+    home takes of those seconds (the way's energy a metre against the mean wind, at that
+    power); ``handover_s``: the setting of that name; ``wind_mps``: the mean wind's speed (what
+    it budgets a relief's way against)."""
 
     home_x: float
     home_y: float
@@ -44,6 +47,7 @@ class EnergyReading:
     spare_s: float = math.inf
     handover_s: float = 60.0
     wind_mps: float = 0.0
+    home_s_per_m: float = 0.0
 
 
 # What a UAV flying home beacons as its intent's target (with search mode): not free (issue 33).
@@ -74,6 +78,7 @@ class Relief:
         self.handed_target = NO_TARGET
         self.relieved = False
         self.asked: tuple[int, float] | None = None
+        self.asked_at = -math.inf
         self.releasing = False
         self.relieving = NO_TARGET
 
@@ -83,6 +88,7 @@ class Relief:
         self.handed_target = NO_TARGET
         self.relieved = False
         self.asked = None
+        self.asked_at = -math.inf
         self.releasing = False
         self.relieving = NO_TARGET
 
@@ -102,15 +108,18 @@ class Relief:
         """The plan home (along the way the reading gives) while it flies home; None while it
         does not (its plan stays).
 
-        A watcher asks for relief (rule 6 of docs/modelling.md's assignment rules) once its spare
-        flight is down to ``handover_s`` plus :data:`RELIEF_MARGIN` times the time the nearest
-        free UAV it hears needs to reach its target (:meth:`eta`); from then its beacons say it searches, with its
-        target's id (a relief request), while it keeps circling and sending the target's track
-        (it does not replan meanwhile: it keeps its target).
+        A watcher asks for relief (rule 6 of docs/modelling.md's assignment rules) once its time
+        on station (:meth:`station_s`) is down to ``handover_s`` plus :data:`RELIEF_MARGIN`
+        times the time the nearest free UAV it hears needs to reach its target (:meth:`eta`),
+        announcing ``by``: now plus that time on station. From then its beacons say it searches,
+        with its target's id (a relief request), while it keeps circling and sending the
+        target's track (it does not replan meanwhile: it keeps its target).
         It lets go and turns home when a peer watches the target with it inside its own
         detection radius (a relief holds it), when its plan no longer watches the target
-        (another took it over: it asked because it must go soon, so it goes), or when its energy
-        says go. Any other UAV goes home when its energy says go."""
+        (another took it over: it asked because it must go soon, so it goes), when another
+        watcher asking for relief for the same target is nearer it (ties: the lower id; two
+        that asked at once would otherwise both keep it), or when its energy says go. Any
+        other UAV goes home when its energy says go."""
         e = r.energy
         assert e is not None
         if self.homebound:
@@ -123,10 +132,12 @@ class Relief:
         if watching:
             assert plan is not None
             m = plan.target
-            if asked is None and e.spare_s <= e.handover_s + RELIEF_MARGIN * self.eta(r, m, e.wind_mps):
-                self.asked = (m, r.t + e.spare_s)
-                self.releasing = True
-            held = self.asked is not None and self.holds(r, m)
+            if asked is None:
+                station = self.station_s(r, m)
+                if station <= e.handover_s + RELIEF_MARGIN * self.eta(r, m, e.wind_mps):
+                    self.asked, self.asked_at = (m, r.t + station), r.t
+                    self.releasing = True
+            held = self.asked is not None and (self.holds(r, m) or self.yields(r, m))
             if not (held or e.must_go):
                 return None
         elif not e.must_go and asked is None:  # (asked, and its target taken over: it goes)
@@ -140,6 +151,33 @@ class Relief:
         self.releasing = False
         self.relieving = NO_TARGET
         return Plan(e.way_x, e.way_y)
+
+    def station_s(self, r: SensorReading, m: int) -> float:
+        """The seconds a watcher of target ``m`` may stay on station for sure (rule 6): its spare
+        flight (:class:`EnergyReading`: at the most power its type draws, the way home with the
+        worst turn onto it) less what flying farther from home may take meanwhile: from where
+        it is to the target and a detection radius beyond (the loiter circle), and the target's
+        drift at its track's speed all the while."""
+        e = r.energy
+        assert e is not None
+        tr = self.knowledge.tracks.get(m)
+        if tr is None:
+            return e.spare_s
+        tx, ty = tr.predict(r.t)
+        k = e.home_s_per_m
+        away = math.hypot(r.x - tx, r.y - ty) + self.kind.detect_radius
+        return max(e.spare_s - k * away, 0.0) / (1.0 + k * math.hypot(tr.vx, tr.vy))
+
+    def yields(self, r: SensorReading, m: int) -> bool:
+        """Another watcher asking for relief for ``m`` is nearer it (ties: the lower id)."""
+        tr = self.knowledge.tracks.get(m)
+        if tr is None:
+            return False
+        tx, ty = tr.predict(r.t)
+        t, timeout = r.t, self.peer_timeout_s
+        mine = (math.hypot(r.x - tx, r.y - ty), self.uid)
+        return any(p.asks and p.target == m and t - p.t_intent <= timeout and (math.hypot(p.x - tx, p.y - ty), p.uav) < mine
+                   for p in self.knowledge.peers.values() if p.uav != self.uid)
 
     def free_peers(self, t: float) -> list[Peer]:
         """The peers heard within the peer timeout that search with no target (not watching,
@@ -172,14 +210,17 @@ class Relief:
         return min(etas, default=0.0)
 
     def holds(self, r: SensorReading, m: int) -> bool:
-        """A peer watches ``m`` (its beacons say so) from within its own detection radius of it
-        (as it last said where it is, against where this UAV predicts the target)."""
+        """A peer watches ``m`` (its beacons say so, in a beacon sent since this UAV asked for
+        relief: one sent before might come from a watcher that asks at the same moment) from
+        within its own detection radius of it (as it last said where it is, against where this
+        UAV predicts the target)."""
         tr = self.knowledge.tracks.get(m)
         if tr is None:
             return False
         tx, ty = tr.predict(r.t)
         t, timeout, types = r.t, self.peer_timeout_s, self.types
         return any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
+                   and p.t_intent >= self.asked_at
                    and math.hypot(p.x - tx, p.y - ty) <= (types[p.type].detect_radius if p.type in types
                                                           else self.kind.detect_radius)
                    for p in self.knowledge.peers.values() if p.uav != self.uid)
@@ -188,7 +229,8 @@ class Relief:
         """A free UAV that hears a relief request (a peer searching with a target's id) goes to
         take that target over when it is the one of the free UAVs it hears (and itself) that
         reaches the target first (ties: the lowest id), nobody else already watches or relieves
-        the target, and its own energy leaves it the way there plus ``handover_s`` twice.
+        the target, and its own spare flight (:class:`EnergyReading`), less what the way there
+        and a detection radius beyond take of it, covers the way there plus ``handover_s`` twice.
         Returns the plan there (None: it does not go)."""
         if self.homebound or (plan is not None and (plan.mode != MODE_SEARCH or plan.target != NO_TARGET)):
             return None
@@ -209,7 +251,8 @@ class Relief:
             if any((self.flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind), p.uav) < (mine, self.uid) for p in free):
                 continue
             e = r.energy
-            if e is not None and e.spare_s < mine + 2.0 * e.handover_s:
+            if e is not None and e.spare_s - e.home_s_per_m * (math.hypot(tx - r.x, ty - r.y) + self.kind.detect_radius) \
+                    < mine + 2.0 * e.handover_s:
                 continue
             self.relieving = m
             return Plan(tx, ty, MODE_SEARCH, m)

@@ -5,8 +5,8 @@ strategies draw, 2-4 UAVs with late joiners, up to three moving targets, threats
 a rule: 500 examples under the ``ci`` profile (what CI runs), 5000 under ``deep``
 (``HYPOTHESIS_PROFILE=deep``). With faults of every kind, each violation names a fault that may
 explain it (:attr:`Violation.faults`); one that names none is the planner's. The same over real
-missions (issue 33): geographic polygon areas, polygon no-fly zones, wind (and batteries, behind
-``swarm.testing.strategies.ENDURANCE_IN_RULE_TESTS``).
+missions (issue 33): geographic polygon areas, polygon no-fly zones, wind and batteries with a
+base (going home, relief on station, landing, relaunching: rule 6).
 
 Also here: the preconditions (agents.assignment) on Table 1 and on the rule-breaking weights
 the strategies used to draw, and the warning a scenario with such a type gets.
@@ -71,13 +71,10 @@ def test_no_fault_run_breaks_no_assignment_rule_short(doc):
     _assert_none(_violations(doc))
 
 
-# (issue 33) The same rules over real missions: lon/lat polygon areas, polygon no-fly zones and
-# wind, each drawn or not per example; and batteries with a base (return, landing, turnaround,
-# relaunch) once swarm.testing.strategies.ENDURANCE_IN_RULE_TESTS is on. It is off until the
-# relief rule of issue 33 (a watcher that must go home is relieved on station; a UAV going home
-# is not free to take a target over) is in docs/modelling.md and the planner: with batteries, a
-# watcher turning for home with nobody to relieve it is flagged by no_drop today (branch
-# ``endurance``). The checkers are not weakened for it.
+# (issue 33) The same rules over real missions: lon/lat polygon areas, polygon no-fly zones,
+# wind and batteries with a base (return, relief on station, landing, turnaround, relaunch:
+# endurance=None follows swarm.testing.strategies.ENDURANCE_IN_RULE_TESTS, on), each drawn or
+# not per example.
 MISSIONS = {"geo": True, "max_no_fly": 2, "wind": True, "endurance": None}
 
 

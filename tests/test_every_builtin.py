@@ -135,8 +135,8 @@ def test_builtin_env_flies_a_whole_episode(name):
 @given(sc=scenarios(geo=True, max_no_fly=2, wind=True, endurance=None, max_uavs=4, min_duration_s=30,
                     max_duration_s=40, max_faults=3))
 def test_generated_missions_through_every_path(sc, tmp_path_factory):
-    """Generated missions with a lon/lat area, polygon no-fly zones, wind, faults (and batteries
-    with a base where the rule tests have them: ``strategies.ENDURANCE_IN_RULE_TESTS``), written as
+    """Generated missions with a lon/lat area, polygon no-fly zones, wind, faults and batteries
+    with a base (as the rule tests have them: ``strategies.ENDURANCE_IN_RULE_TESTS``), written as
     the toolkit's reproduction file, through every path; then a whole episode of the env."""
     from swarm.env import parallel_env
     from swarm.testing.strategies import reproduction

@@ -437,15 +437,32 @@ def test_mission_strategies_draw_every_feature():
     assert all(v == {True, False} for v in seen.values()), seen
 
 
-def test_endurance_in_rule_tests_is_off_until_the_relief_rule_is_settled():
-    """``endurance=None`` follows the flag (branch ``endurance`` turns it on)."""
+def test_endurance_none_follows_the_rule_tests_switch():
+    """``endurance=None`` (what the rule tests ask for) draws batteries with a base in some
+    examples and not in others while ``ENDURANCE_IN_RULE_TESTS`` is on, as it is since rule 6
+    (relief on station) is settled; and never with it off."""
     from swarm.testing import strategies
 
-    assert strategies.ENDURANCE_IN_RULE_TESTS is False
+    assert strategies.ENDURANCE_IN_RULE_TESTS is True
+    seen: set[bool] = set()
 
-    @settings(max_examples=10, database=None, derandomize=True, phases=[Phase.generate])
+    @settings(max_examples=30, database=None, derandomize=True, phases=[Phase.generate],
+              suppress_health_check=list(HealthCheck))
     @given(strategies.scenario_documents(faults=False, endurance=None))
     def draw(doc):
-        assert "endurance" not in doc
+        seen.add("endurance" in doc)
 
     draw()
+    assert seen == {True, False}
+    try:
+        strategies.ENDURANCE_IN_RULE_TESTS = False
+
+        @settings(max_examples=10, database=None, derandomize=True, phases=[Phase.generate],
+                  suppress_health_check=list(HealthCheck))
+        @given(strategies.scenario_documents(faults=False, endurance=None))
+        def draw_off(doc):
+            assert "endurance" not in doc
+
+        draw_off()
+    finally:
+        strategies.ENDURANCE_IN_RULE_TESTS = True

@@ -22,9 +22,11 @@ Energy. A UAV of a type with an energy budget drains ``P(v) dt`` a tick at its a
 lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.relief.EnergyReading`)
 the way home to its pad (:mod:`swarm.kernel.homeway`: round the no-fly zones, inside the area), the
 energy that way takes at its minimum-power speed against the mean wind plus ``reserve_frac``
-of its capacity, and what it has beyond that as seconds of flight at its present power
-(``spare_s``): at 0 it must go (``must_go``). A watcher asks for relief early enough that a
-relief can arrive before then (docs/modelling.md, "Assignment rules", rule 6;
+of its capacity (when it has no more it must go: ``must_go``), and, for rule 6's reckoning,
+what it has beyond the way with the worst turn onto it as seconds of flight at the most power
+its type draws (``spare_s``) and what a metre farther from home takes of them
+(``home_s_per_m``). A watcher asks for relief early enough that a relief can arrive before
+its energy says go (docs/modelling.md, "Assignment rules", rule 6;
 :meth:`agents.relief.Relief.home`): the ``relief`` events say when it asked and, if it had
 to leave unrelieved, that it did.
 
@@ -179,11 +181,13 @@ class Mission:
             u.way = u.way[1:]
         return u.way
 
-    def needed_home_wh(self, uid: int, t: float) -> float:
-        """Energy to fly home from where the UAV is: the turn onto its way at its present speed
-        (an arc of its turn radius through the heading change, plus a turn diameter it may have
-        to come back), then its way (:mod:`swarm.kernel.homeway`) at the minimum-power speed against
-        the mean wind."""
+    def needed_home_wh(self, uid: int, t: float) -> tuple[float, float]:
+        """Energy (Wh) to fly home from where the UAV is: the turn onto its way at its present
+        speed (an arc of its turn radius through the heading change, plus a turn diameter it
+        may have to come back), then its way (:mod:`swarm.kernel.homeway`) at the minimum-power speed
+        against the mean wind. Also the most it can take from here: the same with the
+        heading the farthest from the way's (a half turn), what a watcher circling its target
+        may face at any moment."""
         b = self.world.uavs[uid]
         bat = self.uavs[uid].battery
         way = self.way_home(uid, t, b.x, b.y)
@@ -193,14 +197,16 @@ class Mission:
         for qx, qy in way:
             total += leg_energy_wh(px, py, qx, qy, bat.power_w(bat.v_mp), bat.v_mp, wind)
             px, py = qx, qy
+        v = max(b.v, 1.0)
+        r = b.kind.r_min(max(b.v, b.kind.speed_min))
+        per_m = bat.power_w(v) / max(v - math.hypot(*wind), 1.0) / 3600.0  # (Wh a metre of turn)
+        worst = total + per_m * (math.pi * r + 2.0 * r)
         qx, qy = way[0]
         off = abs(math.remainder(math.atan2(qy - b.y, qx - b.x) - b.theta, 2 * math.pi))
         if off > 1e-3:
-            v = max(b.v, 1.0)
-            r = b.kind.r_min(max(b.v, b.kind.speed_min))
             arc = off * r + 2.0 * r * min(off / (math.pi / 2), 1.0)
             total += bat.power_w(v) * arc / max(v - math.hypot(*wind), 1.0) / 3600.0
-        return total
+        return total, worst
 
     def sense(self, t: float, alive: list[int], readings: dict[int, SensorReading]) -> None:
         """Tell each flying UAV with a budget where it stands (before the actors wake)."""
@@ -216,14 +222,21 @@ class Mission:
                     continue
                 u = self.uavs[uid]
             b = self.world.uavs[uid]
-            need = self.needed_home_wh(uid, t) + s.reserve_frac * u.battery.capacity_wh
-            left = u.battery.left_wh
+            bat = u.battery
+            home, worst = self.needed_home_wh(uid, t)
+            reserve = s.reserve_frac * bat.capacity_wh
+            need = home + reserve
+            left = bat.left_wh
             u.rtb_needed = need
-            p = u.battery.power_w(b.v) * u.battery.drain_factor
-            spare_s = max(left - need, 0.0) * 3600.0 / p if p > 0 else math.inf
+            # The spare flight as rule 6 reckons it: at the most power its type can draw, and
+            # with the worst turn onto the way home; and what a metre farther from home costs
+            # of it (the way home's energy a metre against the mean wind).
+            p = max(bat.power_w(b.kind.speed_min), bat.power_w(b.kind.speed_max)) * bat.drain_factor
+            spare_s = max(left - worst - reserve, 0.0) * 3600.0 / p if p > 0 else math.inf
+            s_per_m = bat.power_w(bat.v_mp) / max(bat.v_mp - wind, 1.0) / p if p > 0 else 0.0
             wx, wy = u.way[0] if u.way else u.pad
-            readings[uid].energy = EnergyReading(u.pad[0], u.pad[1], wx, wy, left <= need, u.battery.v_mp,
-                                                 spare_s, s.handover_s, wind)
+            readings[uid].energy = EnergyReading(u.pad[0], u.pad[1], wx, wy, left <= need, bat.v_mp,
+                                                 spare_s, s.handover_s, wind, s_per_m)
 
     def begin_tick(self, t: float) -> None:
         """At the start of the tick at ``t`` (before anyone senses): the energy the last tick's

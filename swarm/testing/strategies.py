@@ -331,9 +331,10 @@ def endurance_tables(draw: st.DrawFn, doc: Mapping[str, Any], base: tuple[float,
 
 
 #: (issue 33) Whether :func:`scenario_documents` may draw ``[endurance]`` where a caller asks for
-#: it with ``endurance=None``. Off while the relief rule (docs/modelling.md) is being settled
-#: (branch ``endurance``): the rule tests leave batteries out until then; that branch turns it on.
-ENDURANCE_IN_RULE_TESTS = False
+#: it with ``endurance=None`` (what the rule tests of ``tests/test_assignment_rules.py`` do). On
+#: since the relief rule (rule 6 of docs/modelling.md's assignment rules) is settled; a switch to
+#: leave batteries out of those tests should a change need to.
+ENDURANCE_IN_RULE_TESTS = True
 
 
 @st.composite
