@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast
 
 import networkx as nx
 import numpy as np
-from scipy.spatial import cKDTree
 
 from comms.settings import LinkModel, LogDistance
 
@@ -184,6 +183,8 @@ class Radio:
                     self._all_pairs = (n, np.triu_indices(n, 1))
                 ii, jj = self._all_pairs[1]
             else:
+                from scipy.spatial import cKDTree  # (only runs with a finite range pay for scipy)
+
                 pairs = cKDTree(xy).query_pairs(rng_m, output_type="ndarray")
                 if len(pairs):
                     order = np.lexsort((pairs[:, 1], pairs[:, 0]))

@@ -23,7 +23,6 @@ from typing import Literal, TypeVar
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import expit
 
 from comms.codec import DEFAULT_MAX_BYTES
 
@@ -101,6 +100,8 @@ class LogDistance:
 
     def frame_losses(self, margin_db: Floats) -> Floats:
         """:meth:`frame_loss` of each margin (scipy's ``expit``, which never overflows: equal to rounding)."""
+        from scipy.special import expit  # (only the log-distance model pays for scipy)
+
         return expit(-margin_db / self.width_db)
 
     def _distance_at(self, margin_db: float) -> float:

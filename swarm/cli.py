@@ -623,7 +623,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:
         raise SwarmError(f"unknown bench case(s) {unknown}; known: {', '.join(k.name for k in CASES)}")
-    return bench_main(quick=args.quick, only=args.case or None, as_array=args.json)
+    return bench_main(quick=args.quick, only=args.case or None, as_array=args.json, components=args.components)
 
 
 def _cmd_animate(args: argparse.Namespace) -> int:
@@ -743,6 +743,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="only the quick cases")
     b.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
     b.add_argument("--json", action="store_true", help="print one JSON array at the end instead of a line per case")
+    b.add_argument("--components", action="store_true",
+                   help="also the CPU time per UAV-tick of each component of the tick (receive, outbox, anti-entropy, "
+                        "geometry, radio, observer, world, actors, planning): in each line, and as a table on stderr")
     b.set_defaults(func=_cmd_bench)
 
     sw = sub.add_parser("sweep", help="run planners x settings x seeds and summarise (process pool or Dask)")

@@ -10,7 +10,7 @@ import pytest
 
 from swarm import cli
 from swarm.events import read_events
-from swarm.experiments import bench
+from swarm.experiments import bench, components
 from swarm.kernel.simulation import Simulation
 from swarm.scenario import RadioSettings, load_scenario
 
@@ -155,3 +155,94 @@ def test_samples_are_filed_under_the_innermost_phase():
     assert bench.classify(chain(tick, Radio.broadcast)) == "radio"
     assert bench.classify(chain(tick, Grid.prefetch_disks)) == "map"
     assert bench.classify(sys._getframe()) == "world"
+
+
+def test_components_are_off_by_default():
+    sampler = bench._Sampler()
+    assert sampler.cpu_by_component is None and sampler._component_of is None  # nothing filed per component
+    out = io.StringIO()
+    bench.main(only=["paper-fig11-greedy"], out=out, duration_s=3.0, table_out=out)
+    (line,) = out.getvalue().splitlines()  # no table either
+    assert set(json.loads(line)) == FIELDS
+
+
+@pytest.mark.slow  # two runs of 200 s (about 2 s)
+def test_components_name_every_part_add_up_to_the_run_and_leave_the_log_as_it_was():
+    out, tab = io.StringIO(), io.StringIO()
+    assert bench.main(only=["paper-fig11-dacmp"], out=out, duration_s=200.0, components=True, table_out=tab) == 0
+    row = json.loads(out.getvalue())
+    us = row["components_us_per_uav_tick"]
+    assert set(us) == {*components.COMPONENTS, "total"}
+    assert len(components.COMPONENTS) == 9
+    assert all(v >= 0 for v in us.values())
+    # The UAV-ticks of the run (6 UAVs x 200 ticks), and its CPU time per UAV-tick.
+    assert us["total"] == pytest.approx(row["cpu_seconds"] * 1e6 / 1200, rel=0.01)
+    # Each sample is charged the CPU time since the last: the parts add up to the run's time,
+    # less what came after the last sample (the kernel's CPU timer ticks at 100-1000 Hz: under
+    # 10 ms, 8.3 us a UAV-tick here).
+    parts = sum(us[k] for k in components.COMPONENTS)
+    assert us["total"] - 8.4 <= parts <= us["total"] * 1.001
+    # About 100 samples or more (0.4 s or more at 250 Hz): the large parts got some.
+    for busy in ("receive", "observer", "planning"):
+        assert us[busy] > 0, busy
+    with Simulation("paper-fig11", planner="dacmp", duration_s=200.0) as sim:
+        assert sim.run().metrics["event_log_sha256"] == row["event_log_sha256"]
+    lines = tab.getvalue().splitlines()
+    assert lines[0] == "| component | paper-fig11-dacmp |"
+    assert [ln.split(" | ")[0][2:] for ln in lines[2:]] == [*components.COMPONENTS, "total"]
+
+
+def test_each_stack_is_filed_under_its_component():
+    from agents.actor import UavActor
+    from agents.knowledge import Knowledge
+    from agents.maps.grid import Grid
+    from agents.maps.scanlog import ScanLog
+    from agents.maps.umap import UncertaintyMap
+    from agents.planners.greedy import GreedyPlanner
+    from comms.mailbox import Mailbox
+    from comms.radio import Radio
+    from swarm.kernel.fleet import Fleet
+    from swarm.kernel.metrics import Metrics
+    from swarm.kernel.transmission import Transmission
+    from swarm.kernel.world import World
+
+    class Probe:  # a frame-like chain built from real code objects
+        def __init__(self, code, back=None):
+            self.f_code, self.f_back = code, back
+
+    def of(*funcs):
+        frame = None
+        for f in funcs:
+            frame = Probe(f.__code__, frame)
+        return components.component_of(frame)
+
+    tick, run = Simulation._tick, UavActor.run
+    assert of(tick, Fleet.wake, run, UavActor.observe, UavActor._drain_inbox, UncertaintyMap.stamp) == "receive"
+    assert of(tick, Fleet.wake, run, UavActor.observe, UavActor._drain_inbox, Knowledge.merge_tracks) == "receive"
+    assert of(tick, Fleet.wake, run, UavActor.observe, UncertaintyMap.stamp) == "geometry"
+    assert of(tick, Simulation._sense, Grid.prefetch_disks) == "geometry"
+    assert of(tick, Simulation._sense, World.sense_many) == "world"
+    assert of(tick, Fleet.wake, run, UavActor.act, UavActor._outbox) == "outbox"
+    assert of(tick, Fleet.wake, run, UavActor.act, UavActor._outbox, ScanLog.digest) == "anti_entropy"
+    assert of(tick, Fleet.wake, run, UavActor.act, UavActor._answer_digests, ScanLog.missing) == "anti_entropy"
+    assert of(tick, Fleet.wake, run, UavActor.act, UavActor._others) == "actors"
+    assert of(tick, Fleet.wake, run, UavActor.act, GreedyPlanner.plan, UncertaintyMap.q_at) == "planning"
+    assert of(tick, Transmission.transmit, Radio.broadcast) == "radio"
+    assert of(Simulation._advance, Transmission._deliver, Mailbox.put) == "receive"
+    assert of(tick, Metrics.scan, UncertaintyMap.cover) == "observer"
+    assert of(tick, World.check_safety) == "observer"
+    assert of(tick, Simulation._end_tick) == "observer"
+    assert of(tick, Simulation._integrate, World.apply) == "world"
+    assert of(tick) == "actors" and components.component_of(None) == "actors"  # the loop's own frames
+
+
+def test_every_function_the_component_rules_name_exists():
+    # A renamed function would fall to its module's default: catch it here instead.
+    import inspect
+
+    for module, default, by_name in components._RULES:
+        source = inspect.getsource(module)
+        assert default is None or default in components.COMPONENTS
+        for name, component in by_name.items():
+            assert f"def {name}(" in source, (module.__name__, name)
+            assert component in components.COMPONENTS

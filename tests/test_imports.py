@@ -200,3 +200,15 @@ def test_no_private_read_of_another_class():
                         and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))):
                     found.setdefault(path.relative_to(ROOT).as_posix(), set()).add(ast.unparse(node))
     assert found == SAME_CLASS
+
+
+@pytest.mark.slow  # a subprocess running a short simulation
+def test_a_plain_run_imports_neither_scipy_nor_plotting():
+    # issue 36, startup: a run pays for what it uses. paper-case1 (3 UAVs, unlimited radio
+    # range, disk model, no figures without --out): scipy is for k-d trees from 32 UAVs on, a
+    # finite radio range, the log-distance model and two UAVs within the separation minimum.
+    code = ("import sys\nfrom swarm.cli import main\nassert main(['run', 'paper-case1', '--duration', '20', '--quiet']) == 0\n"
+            "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('scipy', 'matplotlib', 'pyarrow', 'dask', "
+            "'pettingzoo', 'pandas', 'shapely', 'pyproj'))\nprint(heavy)\nassert not heavy, heavy\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr

@@ -34,12 +34,18 @@ and ``shares``, the fraction of the run spent in:
 * ``world``: everything else (sensing, physics, ground-truth metrics, event log, waking the
   actors' asyncio tasks).
 
-Shares are sampled, not timed: every millisecond of CPU time (``SIGPROF``) the main thread's
-Python stack is filed under the phase it is in (the outermost phase boundary on the stack
-decides: a map write inside planning is planning, the ground truth's map writes are world).
-Nothing is wrapped, so the wall time and realtime factor are those of an unobserved run (the
-sampling costs about 1%); with a thousand samples or more a share is good to about +-0.02.
-The simulation itself never reads a clock.
+With ``--components`` (``components=True``) a line also has ``components_us_per_uav_tick``: the
+CPU time of each of the nine components of :mod:`swarm.experiments.components` (receive,
+outbox, anti-entropy, geometry, radio, observer, world, actors, planning) in microseconds per
+UAV-tick, and ``total`` (``cpu_seconds`` per UAV-tick), which they add up to within a sampling
+interval; without it nothing of that is computed.
+
+Shares and components are sampled, not timed: every millisecond of CPU time (``SIGPROF``) the
+main thread's Python stack is filed under the phase it is in (the outermost phase boundary on the
+stack decides: a map write inside planning is planning, the ground truth's map writes are world)
+and charged with the CPU time since the previous sample. Nothing is wrapped, so the wall time and
+realtime factor are those of an unobserved run (the sampling costs about 1%); with a thousand
+samples or more a share is good to about +-0.02. The simulation itself never reads a clock.
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ import signal
 import sys
 import threading
 import time
-from collections import Counter
+from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -64,6 +70,7 @@ import agents.maps.grid
 import agents.maps.umap
 import agents.planners
 import comms.radio
+from swarm.experiments.components import COMPONENTS, Classifier, table
 from swarm.kernel.results import RunResult
 from swarm.kernel.simulation import Simulation
 from swarm.scenario import Scenario, load_scenario
@@ -128,26 +135,40 @@ def classify(frame: FrameType | None) -> str:
 
 
 class _Sampler:
-    """Counts the phase the main thread is in, on a CPU-time interval timer (``SIGPROF``).
+    """Files the CPU time of the main thread under the phase it is in, on a CPU-time interval
+    timer (``SIGPROF``); with ``components`` also under a component of
+    :mod:`swarm.experiments.components`.
 
     The handler runs in the main thread at the next bytecode boundary, with the frame that was
-    running (a long numpy call is charged to the Python frame that made it), so samples are
-    proportional to CPU time. Only possible in the main thread; elsewhere nothing is sampled.
+    running (a long numpy call is charged to the Python frame that made it), and charges that
+    frame with the CPU time since the last sample (``time.process_time``): Python delivers one
+    handler call for signals that arrived while a long C call ran, so counting calls would
+    under-weight long calls, weighting by CPU time does not, and the components add up to the
+    run's CPU time (less the part after the last sample, under one interval). Only possible in
+    the main thread; elsewhere nothing is sampled.
     """
 
-    def __init__(self, interval: float = 0.001):
+    def __init__(self, interval: float = 0.001, components: bool = False):
         self.interval = interval
-        self.counts: Counter[str] = Counter()
+        self.cpu: defaultdict[str, float] = defaultdict(float)
+        self.cpu_by_component: defaultdict[str, float] | None = defaultdict(float) if components else None
+        self._component_of = Classifier() if components else None
+        self._last = 0.0
         # The handler signal.signal replaced (None: one not installed from Python).
         self._saved: Callable[[int, FrameType | None], Any] | int | None = None
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
-        self.counts[classify(frame)] += 1
+        now = time.process_time()
+        spent, self._last = now - self._last, now
+        self.cpu[classify(frame)] += spent
+        if self._component_of is not None and self.cpu_by_component is not None:
+            self.cpu_by_component[self._component_of(frame)] += spent
 
     def start(self) -> None:
         if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
             return
         self._saved = signal.signal(signal.SIGPROF, self._on_signal)
+        self._last = time.process_time()
         signal.setitimer(signal.ITIMER_PROF, self.interval, self.interval)
 
     def stop(self) -> dict[str, float]:
@@ -155,8 +176,15 @@ class _Sampler:
             signal.setitimer(signal.ITIMER_PROF, 0.0, 0.0)
             signal.signal(signal.SIGPROF, self._saved)
             self._saved = None
-        n = sum(self.counts.values())
-        return {k: round(self.counts[k] / n, 3) if n else 0.0 for k in SHARES}
+        n = sum(self.cpu.values())
+        return {k: round(self.cpu[k] / n, 3) if n else 0.0 for k in SHARES}
+
+    def components_us(self, uav_ticks: int, cpu_s: float) -> dict[str, float]:
+        """Each component's CPU time in microseconds per UAV-tick, and ``total``: the run's
+        (``cpu_s``, measured around it) per UAV-tick."""
+        got = self.cpu_by_component or defaultdict(float)
+        per = 1e6 / uav_ticks if uav_ticks else 0.0
+        return {**{k: round(got[k] * per, 2) for k in COMPONENTS}, "total": round(cpu_s * per, 2)}
 
 
 def case_scenario(case: Case) -> Scenario:
@@ -188,9 +216,11 @@ def rate_by_tenth(result: RunResult, duration_s: float, cpu_at: list[tuple[float
     return [round(float(n / c), 1) if c > 0 else 0.0 for n, c in zip(counts, cpu)]
 
 
-def run_case(case: Case) -> dict[str, Any]:
+def run_case(case: Case, components: bool = False) -> dict[str, Any]:
+    """One case's line; ``components``: with ``components_us_per_uav_tick`` (see the module
+    docstring)."""
     sim = Simulation(case_scenario(case), planner=case.planner, duration_s=case.duration_s)
-    sampler = _Sampler()
+    sampler = _Sampler(components=components)
     cpu_at: list[tuple[float, float]] = [(0.0, 0.0)]
 
     def progress(t: float, _end: float) -> None:
@@ -209,7 +239,7 @@ def run_case(case: Case) -> dict[str, Any]:
     uav_s = ticks * sim.dt
     cpu_at.append((m["sim_seconds"], cpu))
     tenths = rate_by_tenth(result, m["sim_seconds"], cpu_at)
-    return {
+    row = {
         "case": case.name,
         "scenario": case.scenario,
         "planner": case.planner,
@@ -230,6 +260,9 @@ def run_case(case: Case) -> dict[str, Any]:
         "event_log_bytes_per_uav_s": round(len(result.events) / uav_s, 1) if uav_s else 0.0,
         **anti_entropy_figures(sim, uav_s),
     }
+    if components:
+        row["components_us_per_uav_tick"] = sampler.components_us(ticks, cpu)
+    return row
 
 
 def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict[str, Any]:
@@ -261,10 +294,12 @@ def anti_entropy_figures(sim: Simulation, uav_s: float) -> dict[str, Any]:
 
 
 def main(quick: bool = False, only: list[str] | None = None, out: TextIO = sys.stdout, duration_s: float | None = None,
-         as_array: bool = False) -> int:
+         as_array: bool = False, components: bool = False, table_out: TextIO = sys.stderr) -> int:
     """Run the cases (``quick``: the CI subset; ``only``: these names) and print one JSON line
     each as it finishes, or (``as_array``) one JSON array at the end. ``duration_s`` overrides
-    every case's simulated duration (tests; the line says it)."""
+    every case's simulated duration (tests; the line says it). ``components``: each line also
+    has ``components_us_per_uav_tick``, and at the end the cases' components are printed side
+    by side as a Markdown table on ``table_out``."""
     rows = []
     for case in CASES:
         if quick and not case.quick:
@@ -273,10 +308,12 @@ def main(quick: bool = False, only: list[str] | None = None, out: TextIO = sys.s
             continue
         if duration_s is not None:
             case = replace(case, duration_s=duration_s)
-        row = run_case(case)
+        row = run_case(case, components)
         rows.append(row)
         if not as_array:
             print(json.dumps(row), file=out, flush=True)
     if as_array:
         print(json.dumps(rows, indent=2), file=out, flush=True)
+    if components and rows:
+        print(table(rows), file=table_out, flush=True)
     return 0

@@ -14,7 +14,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from agents.actor import SensedTarget, SensedUav, SensorReading
 from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_command, wrap_angle
@@ -22,6 +21,7 @@ from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from agents.types import UavType
 from agents.zones import Keepout
+from swarm.pairs import pairs_within
 
 # A UAV's state: not yet flying, flying, on the ground at its base between two sorties (issue
 # 33: [endurance]; it neither flies, senses nor sends), or down for good (or until a restart).
@@ -430,8 +430,8 @@ class World:
             return out
         uavs = self.uavs
         pxy = xy if xy is not None and pop == ids else self.positions(pop)
-        # (The tree's reach a hair beyond the range; the test below is exact.)
-        pairs = cKDTree(pxy).query_pairs(rmax * (1.0 + 1e-9) + 1e-6, output_type="ndarray")
+        # (The candidates' reach a hair beyond the range; the test below is exact.)
+        pairs = pairs_within(pxy, rmax * (1.0 + 1e-9) + 1e-6)
         if not len(pairs):
             return out
         # Both directions of each pair: observer a senses b if b is within a's own range.
@@ -477,6 +477,8 @@ class World:
         """Count separation and threat-clearance violations now; returns them for the log."""
         found: list[tuple[str, int, int]] = []
         if len(ids) >= 2 and not _all_far_apart(xy, min_sep):
+            from scipy.spatial import cKDTree  # (imported the first time two UAVs come near)
+
             pairs = cKDTree(xy).query_pairs(min_sep, output_type="ndarray")
             for i, j in sorted(map(tuple, pairs.tolist())):
                 found.append(("separation", ids[i], ids[j]))

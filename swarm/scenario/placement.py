@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from swarm.pairs import pairs_within
 from swarm.scenario.fields import Problem, fmt
 
 __all__ = ["Site", "close_starts", "placement_problems"]
@@ -128,9 +129,7 @@ def close_pairs(xy: np.ndarray, r: float) -> list[tuple[int, int, float]]:
     """Pairs ``(i, j, d)``, ``i < j``, of points closer than ``r``, by ``j`` then ``i``."""
     if len(xy) < 2:
         return []
-    from scipy.spatial import cKDTree
-
-    pairs = cKDTree(xy).query_pairs(r * (1.0 - 1e-12), output_type="ndarray")
+    pairs = pairs_within(xy, r * (1.0 - 1e-12))
     out = [(int(min(a, b)), int(max(a, b)), float(np.hypot(*(xy[a] - xy[b])))) for a, b in pairs]
     return sorted(out, key=lambda p: (p[1], p[0]))
 

@@ -1,0 +1,26 @@
+"""Pairs of points within a distance, for the few places that look for them among a handful of
+points (detect-and-avoid, a scenario's placement check): plain numpy below :data:`TREE_MIN`
+points, where building a k-d tree costs more than testing every pair and scipy need not be
+imported at all; scipy's k-d tree from it on (imported then)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+TREE_MIN = 32  # from this many points, a k-d tree finds the pairs
+
+
+def pairs_within(xy: np.ndarray, r: float) -> np.ndarray:
+    """Index pairs ``(i, j)``, ``i < j``, of the points ``xy`` (shape (n, 2)) at most ``r`` apart,
+    in no particular order, as an (m, 2) integer array. The two ways may disagree on a pair whose
+    distance rounds to ``r`` itself: callers ask with a margin and test exactly, or do not care
+    at that precision."""
+    n = len(xy)
+    if n >= TREE_MIN:
+        from scipy.spatial import cKDTree
+
+        return cKDTree(xy).query_pairs(r, output_type="ndarray")
+    i, j = np.triu_indices(n, 1)
+    dx, dy = xy[i, 0] - xy[j, 0], xy[i, 1] - xy[j, 1]
+    near = dx * dx + dy * dy <= r * r
+    return np.stack((i[near], j[near]), axis=1)
