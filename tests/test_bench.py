@@ -197,8 +197,11 @@ def test_each_stack_is_filed_under_its_component():
     from agents.knowledge import Knowledge
     from agents.maps.grid import Grid
     from agents.maps.scanlog import ScanLog
+    from agents.antientropy import AntiEntropy
+    from agents.inbox import Inbox
     from agents.maps.umap import UncertaintyMap
     from agents.planners.greedy import GreedyPlanner
+    from faults.adversary import Liar, Lies
     from comms.mailbox import Mailbox
     from comms.radio import Radio
     from swarm.kernel.fleet import Fleet
@@ -217,14 +220,17 @@ def test_each_stack_is_filed_under_its_component():
         return components.component_of(frame)
 
     tick, run = Simulation._tick, UavActor.run
-    assert of(tick, Fleet.wake, run, UavActor.observe, UavActor._drain_inbox, UncertaintyMap.stamp) == "receive"
-    assert of(tick, Fleet.wake, run, UavActor.observe, UavActor._drain_inbox, Knowledge.merge_tracks) == "receive"
+    assert of(tick, Fleet.wake, run, UavActor.observe, Inbox.merge, UncertaintyMap.stamp) == "receive"
+    assert of(tick, Fleet.wake, run, UavActor.observe, Inbox.merge, Knowledge.merge_tracks) == "receive"
     assert of(tick, Fleet.wake, run, UavActor.observe, UncertaintyMap.stamp) == "geometry"
     assert of(tick, Simulation._sense, Grid.prefetch_disks) == "geometry"
     assert of(tick, Simulation._sense, World.sense_many) == "world"
     assert of(tick, Fleet.wake, run, UavActor.act, UavActor._outbox) == "outbox"
     assert of(tick, Fleet.wake, run, UavActor.act, UavActor._outbox, ScanLog.digest) == "anti_entropy"
-    assert of(tick, Fleet.wake, run, UavActor.act, UavActor._answer_digests, ScanLog.missing) == "anti_entropy"
+    assert of(tick, Fleet.wake, run, UavActor.act, AntiEntropy.answer, ScanLog.missing) == "anti_entropy"
+    assert of(tick, Fleet.wake, run, UavActor.act, UavActor._outbox, Lies.beacon) == "outbox"
+    assert of(tick, Fleet.wake, run, UavActor.observe, Lies.observed) == "outbox"
+    assert of(tick, Simulation._sense, Liar.on_tick) == "radio"
     assert of(tick, Fleet.wake, run, UavActor.act, UavActor._others) == "actors"
     assert of(tick, Fleet.wake, run, UavActor.act, GreedyPlanner.plan, UncertaintyMap.q_at) == "planning"
     assert of(tick, Transmission.transmit, Radio.broadcast) == "radio"

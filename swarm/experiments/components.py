@@ -4,12 +4,12 @@ Nine components, each the code that does one part of a UAV-tick's work (the list
 the tick-plane study attribute every change to):
 
 * ``receive``: frames into a UAV: the mailboxes filled (``Transmission._deliver``, ``Mailbox``),
-  the drain loop (``UavActor._drain_inbox``), decoding and checking frames, the scan log's adds,
+  the drain loop (``agents.inbox.Inbox.merge``), decoding and checking frames, the scan log's adds,
   heard scans stamped into the UAV's map, track merges;
 * ``outbox``: the frames a UAV sends, built and encoded (``UavActor._outbox``, ``_frame``, a
-  liar's fabrications);
+  liar's fabrications: ``faults.adversary.Lies``);
 * ``anti_entropy``: digests built (``ScanLog.digest``, ``forget_before``) and answered
-  (``UavActor._answer_digests``, ``ScanLog.missing``);
+  (``agents.antientropy``, ``ScanLog.missing``);
 * ``geometry``: a UAV's own scan and sightings (``UavActor.observe`` apart from its drain) and the
   tick's disks built together (``Grid.prefetch_disks``);
 * ``radio``: topology and per-link decisions (``comms.radio``), the transmit phase around them and
@@ -41,6 +41,7 @@ from types import CodeType, FrameType, ModuleType
 from typing import Any
 
 import agents.actor
+import agents.antientropy
 import agents.apf
 import agents.inbox
 import agents.knowledge
@@ -50,6 +51,7 @@ import agents.planners
 import comms.mailbox
 import comms.radio
 import faults
+import faults.adversary
 import swarm.events
 import swarm.kernel.faulting
 import swarm.kernel.fleet
@@ -69,11 +71,11 @@ COMPONENTS = ("receive", "outbox", "anti_entropy", "geometry", "radio", "observe
 # module -> (component of its functions not named, or None: not decided here, look further out;
 #            {function name: component})
 _RULES: list[tuple[ModuleType, str | None, Mapping[str, str]]] = [
-    (agents.actor, "actors", {"_drain_inbox": "receive", "_outbox": "outbox", "_frame": "outbox",
-                              "_pack_lies": "outbox", "_fabricate": "outbox", "_answer_digests": "anti_entropy",
-                              "observe": "geometry"}),
+    (agents.actor, "actors", {"_outbox": "outbox", "_frame": "outbox", "observe": "geometry"}),
+    (agents.antientropy, "anti_entropy", {}),
     (agents.apf, "actors", {}),
     (agents.inbox, "receive", {}),
+    (faults.adversary, "radio", {"observed": "outbox", "beacon": "outbox"}),
     (agents.knowledge, None, {"merge_tracks": "receive", "merge_track": "receive", "recent_peers": "actors"}),
     (agents.maps.scanlog, None, {"add": "receive", "add_tick": "receive", "merge": "receive",
                                  "forget_before": "anti_entropy", "window": "anti_entropy", "_cut": "anti_entropy",
@@ -106,11 +108,9 @@ def _rule(code: CodeType) -> str | None:
     path = code.co_filename
     if path.startswith(_PLANNER_DIR):
         return _PLANNING
-    if path.startswith(_FAULTS_DIR):
-        return "radio"
     rule = _FILES.get(path)
     if rule is None:
-        return None
+        return "radio" if path.startswith(_FAULTS_DIR) else None
     default, by_name = rule
     return by_name.get(code.co_name, default)
 
