@@ -148,7 +148,11 @@ def _fix_hypothesis_constants() -> None:
         return
     if not hasattr(providers, "_get_local_constants"):
         return
-    pool = Constants()
+    # Sorted sets, as Hypothesis's own pool: a plain set of strings would be ordered by the
+    # process's hash seed, and a constant is drawn by its index.
+    sorted_set = type(providers.GLOBAL_CONSTANTS.integers)
+    pool = Constants(integers=sorted_set(), floats=sorted_set(key=providers.float_to_int), bytes=sorted_set(),
+                     strings=sorted_set())
     for package in ("agents", "comms", "faults", "swarm"):
         for path in sorted((ROOT / package).rglob("*.py")):
             module = types.ModuleType(path.stem)  # its file, not imported (Hypothesis reads the source)
@@ -184,6 +188,7 @@ class _ExampleDigests:
     def __init__(self) -> None:
         self.current = ""
         self.digests: dict[str, Any] = {}
+        self.cases: Counter[str] = Counter()
 
     def observe(self, observation: Any, thread_id: int = 0) -> None:
         nodes = getattr(getattr(observation, "metadata", None), "choice_nodes", None)
@@ -191,9 +196,11 @@ class _ExampleDigests:
             return
         h = self.digests.setdefault(self.current, hashlib.sha256())
         h.update(repr([n.value for n in nodes]).encode())
+        self.cases[self.current] += 1
 
     def write(self, path: str) -> None:
-        Path(path).write_text(json.dumps({k: h.hexdigest() for k, h in sorted(self.digests.items())}, indent=1))
+        Path(path).write_text(json.dumps({k: f"{self.cases[k]} examples, {h.hexdigest()}"
+                                          for k, h in sorted(self.digests.items())}, indent=1))
 
 
 _DIGESTS = _ExampleDigests()
