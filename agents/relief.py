@@ -206,17 +206,19 @@ class Relief:
         return min(etas, default=0.0)
 
     def holds(self, r: SensorReading, m: int) -> bool:
-        """A peer watches ``m`` (its beacons say so, in a beacon sent since this UAV asked for
-        relief: one sent before might come from a watcher that asks at the same moment) from
-        within its own detection radius of it (as it last said where it is, against where this
-        UAV predicts the target)."""
+        """A peer watches ``m`` from within its own detection radius of it (as it last said where
+        it is, against where this UAV predicts the target), its beacons say so, and the last of
+        them was sent a replanning period or more after this UAV asked for relief: a UAV that
+        watched ``m`` beside it before it asked has replanned by then, and may have left the
+        target to it by the exclusion rule (the nearer keeps it); one asking at the same moment
+        says so by then."""
         tr = self.knowledge.tracks.get(m)
         if tr is None:
             return False
         tx, ty = tr.predict(r.t)
         t, timeout, types = r.t, self.peer_timeout_s, self.types
         return any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
-                   and p.t_intent >= self.asked_at
+                   and p.t_intent >= self.asked_at + self.replan_s
                    and math.hypot(p.x - tx, p.y - ty) <= (types[p.type].detect_radius if p.type in types
                                                           else self.kind.detect_radius)
                    for p in self.knowledge.peers.values() if p.uav != self.uid)
