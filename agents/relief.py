@@ -117,8 +117,8 @@ class Relief:
         It lets go and turns home when a peer watches the target with it inside its own
         detection radius (a relief holds it), when its plan no longer watches the target
         (another took it over: it asked because it must go soon, so it goes), when another
-        watcher asking for relief for the same target is nearer it (ties: the lower id; two
-        that asked at once would otherwise both keep it), or when its energy says go. Any
+        watcher with a lower id asks for relief for the same target (two that asked at once
+        would otherwise both keep it), or when its energy says go. Any
         other UAV goes home when its energy says go."""
         e = r.energy
         assert e is not None
@@ -169,15 +169,11 @@ class Relief:
         return max(e.spare_s - k * away, 0.0) / (1.0 + k * math.hypot(tr.vx, tr.vy))
 
     def yields(self, r: SensorReading, m: int) -> bool:
-        """Another watcher asking for relief for ``m`` is nearer it (ties: the lower id)."""
-        tr = self.knowledge.tracks.get(m)
-        if tr is None:
-            return False
-        tx, ty = tr.predict(r.t)
+        """Another watcher with a lower id asks for relief for ``m`` too (an order both know:
+        positions as heard may be stale, and each might think the other nearer)."""
         t, timeout = r.t, self.peer_timeout_s
-        mine = (math.hypot(r.x - tx, r.y - ty), self.uid)
-        return any(p.asks and p.target == m and t - p.t_intent <= timeout and (math.hypot(p.x - tx, p.y - ty), p.uav) < mine
-                   for p in self.knowledge.peers.values() if p.uav != self.uid)
+        return any(p.asks and p.target == m and t - p.t_intent <= timeout and p.uav < self.uid
+                   for p in self.knowledge.peers.values())
 
     def free_peers(self, t: float) -> list[Peer]:
         """The peers heard within the peer timeout that search with no target (not watching,
@@ -210,17 +206,19 @@ class Relief:
         return min(etas, default=0.0)
 
     def holds(self, r: SensorReading, m: int) -> bool:
-        """A peer watches ``m`` (its beacons say so, in a beacon sent since this UAV asked for
-        relief: one sent before might come from a watcher that asks at the same moment) from
-        within its own detection radius of it (as it last said where it is, against where this
-        UAV predicts the target)."""
+        """A peer watches ``m`` from within its own detection radius of it (as it last said where
+        it is, against where this UAV predicts the target), its beacons say so, and the last of
+        them was sent a replanning period or more after this UAV asked for relief: a UAV that
+        watched ``m`` beside it before it asked has replanned by then, and may have left the
+        target to it by the exclusion rule (the nearer keeps it); one asking at the same moment
+        says so by then."""
         tr = self.knowledge.tracks.get(m)
         if tr is None:
             return False
         tx, ty = tr.predict(r.t)
         t, timeout, types = r.t, self.peer_timeout_s, self.types
         return any(p.mode == MODE_SURVEIL and p.target == m and not p.asks and t - p.t_intent <= timeout
-                   and p.t_intent >= self.asked_at
+                   and p.t_intent >= self.asked_at + self.replan_s
                    and math.hypot(p.x - tx, p.y - ty) <= (types[p.type].detect_radius if p.type in types
                                                           else self.kind.detect_radius)
                    for p in self.knowledge.peers.values() if p.uav != self.uid)

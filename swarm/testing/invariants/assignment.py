@@ -254,13 +254,14 @@ class HandoverChecker(_WatchChecker):
         """Rule 3's "and not before": a faster watcher that has held a target stops watching it
         while a slower UAV it can talk to watches it and none of the slower watchers has held
         it since it began watching it (the relief does not have it in sight yet), nobody else
-        holds it, and the target is not lost (rule 5)."""
+        holds it, the target is not lost (rule 5) and the faster one did not turn home (its
+        ``rtb`` at that instant: rule 6 governs a departure for home)."""
         ctx = self.context
         for m, prev in sorted(self._prev_watchers.items()):
             now = watchers.get(m, set())
             for f in sorted(prev - now):
                 kf = ctx.kind(f)
-                if kf is None or f not in poses or self.excused(f, t) or f not in self._held.get(m, ()):
+                if kf is None or f not in poses or self.excused(f, t) or f not in self._held.get(m, ()) or f in self._home:
                     continue
                 slower = [s for s in sorted(now) if (k_s := ctx.kind(s)) is not None and k_s.speed_max < kf.speed_max
                           and ctx.handover_judged(s, f) and not self.excused(s, t) and ctx.can_talk(f, s, t, poses)]
