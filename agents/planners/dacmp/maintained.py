@@ -41,6 +41,18 @@ its maps stacked into one reduce. Both are element-wise, so each map's state is 
 what its own update gives; what is shared is the cost of the numpy calls, which dominates the
 small boxes of the upper levels.
 
+Maps of a group. The maps of a :class:`~agents.maps.mapgroup.MapGroup` are its shared base
+plus each member's few extra scans (its latest own scan, mostly), so their pyramids are nearly
+the same, and updating each from its own changes did the same work once per member. A member's
+pyramid instead follows one pyramid of the group's base (issue 36, T9): the base's is updated
+once for all the members planning at the same base time, and each member's starts from a copy
+of it and recomputes what its extra scans' boxes reach, as it would for a change of those cells
+(:meth:`MaintainedPyramid._from_base`). Outside those boxes the member's cells are the base's,
+so by the exactness above the result is bit for bit the state the member's own updates reach
+(``tests/test_maintained_pyramid.py`` checks it against a recomputation under scans every
+member has, scans one has, members leaving and plans across spans). A member that leaves the
+group continues from that state with its own changes.
+
 Guide point (eq. 20). A sub-area's mean ``q`` is ``1 - s * sum(E) / cells``. The sums of ``E``
 are kept per *chunk*: the sub-areas of a dense map, the pieces of the sub-areas cut at the tile
 edges of a tiled one (only chunks with seen cells are listed). A changed chunk's sum is
