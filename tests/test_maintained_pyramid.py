@@ -314,3 +314,59 @@ def test_changes_are_recorded_by_every_write(kind):
     assert umap.take_changes() == [(d.iy0, d.iy1, d.ix0, d.ix1)] * 2
     umap.merge(np.full(grid.shape, 4.0, np.float32))
     assert umap.take_changes() is None  # a whole-map write: reread everything
+
+
+group_ops = st.lists(st.tuples(st.sampled_from(["all", "all", "all", "one", "one", "leave", "plan", "plan", "jump"]),
+                               st.integers(0, 3), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0)),
+                     min_size=1, max_size=30)
+
+
+@settings(max_examples=examples(40), deadline=None)
+@given(n=st.integers(1, 4), nx=st.integers(1, 70), ny=st.integers(1, 70), levels=st.integers(0, 8),
+       tau=st.sampled_from([1e-3, 0.005, 0.05]), steps=group_ops)
+def test_group_members_pyramids_follow_the_base_exactly(n, nx, ny, levels, tau, steps):
+    """Issue 36, T9: the pyramids of MapGroup members are made from one pyramid of the group's
+    base plus what each member's extra scans reach; each is bit for bit a pyramid computed from
+    scratch from a copy of its map, whoever planned when, across base-time spans, with scans
+    every member has (they move into the base), scans one member has, and members leaving."""
+    followed: list[MaintainedPyramid] = []
+    original = MaintainedPyramid._from_base
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(MaintainedPyramid, "_from_base", lambda self, base, t: followed.append(self) or original(self, base, t))
+        _run_group(n, nx, ny, levels, tau, steps, followed)
+
+
+def _run_group(n, nx, ny, levels, tau, steps, followed):
+    grid = Grid(nx * 100.0, ny * 100.0, 100.0)
+    group = MapGroup(grid, tau, 1.0)
+    maps = [group.new_map() for _ in range(n)]
+    span = SPAN / tau
+    t = latest = 0.0
+    for op, i, a, b, c in steps:
+        i %= n
+        if op in ("all", "one", "leave"):
+            when = t - c * 0.5 * span
+            latest = max(latest, when)
+            disk = grid.disk_stamp(a * grid.width_m, b * grid.height_m, 50.0 + c * 2000.0)
+            if disk is None:
+                continue
+            if op == "all":
+                for m in maps:
+                    m.stamp(disk, when)
+            elif op == "one":
+                maps[i].stamp(disk, when)
+            else:
+                maps[i].scan_disk(disk, when)  # written other than by stamp: it leaves the group
+        else:
+            t = max(t + (1 + 3 * c if op == "jump" else c * 0.3) * span, latest)
+            planning = [m for k, m in enumerate(maps) if k == i or b < 0.5]  # one member, or all
+            pyramids = [MaintainedPyramid.of(m, levels) for m in planning]
+            assert MaintainedPyramid.update_many(pyramids, [t] * len(pyramids)) == [p.s for p in pyramids]
+            for m, p in zip(planning, pyramids):
+                check(p, m, t, levels)
+    for m in maps:  # the last word: every map planned now
+        t = max(t, latest)
+        MaintainedPyramid.of(m, levels).update(t)
+        check(MaintainedPyramid.of(m, levels), m, t, levels)
+    if group.members:
+        assert followed  # the members' pyramids did follow the base's

@@ -41,6 +41,18 @@ its maps stacked into one reduce. Both are element-wise, so each map's state is 
 what its own update gives; what is shared is the cost of the numpy calls, which dominates the
 small boxes of the upper levels.
 
+Maps of a group. The maps of a :class:`~agents.maps.mapgroup.MapGroup` are its shared base
+plus each member's few extra scans (its latest own scan, mostly), so their pyramids are nearly
+the same, and updating each from its own changes did the same work once per member. A member's
+pyramid instead follows one pyramid of the group's base (issue 36, T9): the base's is updated
+once for all the members planning at the same base time, and each member's starts from a copy
+of it and recomputes what its extra scans' boxes reach, as it would for a change of those cells
+(:meth:`MaintainedPyramid._from_base`). Outside those boxes the member's cells are the base's,
+so by the exactness above the result is bit for bit the state the member's own updates reach
+(``tests/test_maintained_pyramid.py`` checks it against a recomputation under scans every
+member has, scans one has, members leaving and plans across spans). A member that leaves the
+group continues from that state with its own changes.
+
 Guide point (eq. 20). A sub-area's mean ``q`` is ``1 - s * sum(E) / cells``. The sums of ``E``
 are kept per *chunk*: the sub-areas of a dense map, the pieces of the sub-areas cut at the tile
 edges of a tiled one (only chunks with seen cells are listed). A changed chunk's sum is
@@ -70,6 +82,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
+from agents.maps.mapgroup import GroupMap
 from agents.maps.umap import NEVER, UncertaintyMap
 from agents.planners.dacmp.pyramid import SCALE, level_shapes
 
@@ -520,7 +533,9 @@ class MaintainedPyramid:
         pyramid ends bit for bit as its own update leaves it. Returns each one's ``s``."""
         if len({id(p) for p in pyramids}) < len(pyramids):  # (a pyramid listed twice: its updates in turn)
             return [MaintainedPyramid.update_many([p], [t])[0] for p, t in zip(pyramids, ts)]
-        work = [w for w in (p._changed(t) for p, t in zip(pyramids, ts)) if w is not None]
+        follow = MaintainedPyramid._follow_bases(pyramids, ts)
+        work = [w for w in (follow[id(p)](t) if id(p) in follow else p._changed(t) for p, t in zip(pyramids, ts))
+                if w is not None]
         batch: list[_Work] = []
         cells = 0
         for w in work:
@@ -530,6 +545,48 @@ class MaintainedPyramid:
                 MaintainedPyramid._recompute(batch)
                 batch, cells = [], 0
         return [p.s for p in pyramids]
+
+    @staticmethod
+    def _follow_bases(pyramids: list[MaintainedPyramid], ts: list[float]) -> dict[int, functools.partial[_Work | None]]:
+        """Shared pyramids (issue 36, T9): the pyramids of maps in a
+        :class:`~agents.maps.mapgroup.MapGroup` (each map the group's base plus its few extra
+        scans) are brought up to date from one pyramid of the base. The base's pyramid is updated
+        once, here, for all its members planning at the same base time; each member's then starts
+        from a copy of it and recomputes only what its extra scans reach (:meth:`_from_base`).
+        Returns, by ``id`` of each such member's pyramid, the call that does its part (the
+        others update from their own map's changes: :meth:`_changed`)."""
+        groups: dict[int, tuple[MaintainedPyramid, float, list[MaintainedPyramid]]] = {}
+        for p, t in zip(pyramids, ts):
+            umap = p.umap
+            if isinstance(umap, GroupMap) and umap.extra_disks() is not None and p.planes[0].dense_array is not None:
+                base = MaintainedPyramid.of(umap.base, p.levels)
+                key = id(base)
+                if key not in groups:
+                    groups[key] = (base, t, [])
+                if base_time(t, umap.tau) == base_time(groups[key][1], umap.tau):
+                    groups[key][2].append(p)  # (else: from its own changes)
+        if not groups:
+            return {}
+        MaintainedPyramid.update_many([b for b, _, _ in groups.values()], [t for _, t, _ in groups.values()])
+        return {id(p): functools.partial(p._from_base, b) for b, _, members in groups.values() for p in members}
+
+    def _from_base(self, base: MaintainedPyramid, t: float) -> _Work | None:
+        """Set ``t0`` and ``s`` for a plan at ``t``, copy the state of ``base`` (the pyramid of
+        this member map's group base, brought to the same ``t0``), and plan the work on the boxes
+        of the map's extra scans: outside them the map's cells are the base's. Each value being
+        one formula of its inputs (the module docstring), the result is bit for bit the state
+        this map's own updates would reach (the boxes an update recomputes are those its
+        changed cells reach: :meth:`_plan`, as for any change)."""
+        umap = cast("GroupMap", self.umap)
+        umap.take_changes()  # (what it wrote since: in the base or its extra scans, both read now)
+        self.t0 = base.t0
+        self.s = math.exp(-umap.tau * (t - cast("float", base.t0)))
+        for mine, theirs in zip(self.planes, base.planes):
+            np.copyto(cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array))
+        self._chunk_sums = dict(base._chunk_sums)
+        np.copyto(self._block_sums, base._block_sums)
+        extra = umap.extra_disks() or []
+        return self._plan([(d.iy0, d.iy1, d.ix0, d.ix1) for d, _ in extra], whole=False)
 
     @staticmethod
     def _recompute(work: list[_Work]) -> None:
