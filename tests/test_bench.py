@@ -194,16 +194,16 @@ def test_components_name_every_part_add_up_to_the_run_and_leave_the_log_as_it_wa
 
 def test_each_stack_is_filed_under_its_component():
     from agents.actor import UavActor
+    from agents.antientropy import AntiEntropy
+    from agents.inbox import Inbox
     from agents.knowledge import Knowledge
     from agents.maps.grid import Grid
     from agents.maps.scanlog import ScanLog
-    from agents.antientropy import AntiEntropy
-    from agents.inbox import Inbox
     from agents.maps.umap import UncertaintyMap
     from agents.planners.greedy import GreedyPlanner
-    from faults.adversary import Liar, Lies
     from comms.mailbox import Mailbox
     from comms.radio import Radio
+    from faults.adversary import Liar, Lies
     from swarm.kernel.fleet import Fleet
     from swarm.kernel.metrics import Metrics
     from swarm.kernel.transmission import Transmission
