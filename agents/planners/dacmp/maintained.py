@@ -466,7 +466,7 @@ class MaintainedPyramid:
 
     __slots__ = ("umap", "levels", "shapes", "planes", "t0", "s", "regions", "row_edges", "col_edges",
                  "_chunk_rows", "_chunk_cols", "_chunk_sums", "_chunk_block_row", "_chunk_block_col", "_block_rows",
-                 "_block_cols", "_block_sums", "_block_cells", "version", "_written", "_synced")
+                 "_block_cols", "_block_sums", "_block_cells")
 
     def __init__(self, umap: UncertaintyMap, levels: int):
         self.umap = umap
@@ -501,13 +501,6 @@ class MaintainedPyramid:
         self._chunk_block_col = [bisect.bisect_right(self._block_cols, j) - 1 for j in range(len(self._chunk_cols) - 1)]
         self._block_sums = np.zeros((ny, nx))
         self._block_cells = np.outer(np.diff(self.row_edges), np.diff(self.col_edges)).astype(np.float64)
-        # What the last update wrote (the boxes of E, then of each level it computed in boxes;
-        # the levels above are computed whole), counted by version: a group member's copy of the
-        # base's pyramid copies only these again (_from_base). _synced: the base pyramid and the
-        # version of it this one was last made from (None: not since its own last update).
-        self.version = 0
-        self._written: list[list[Rect]] = []
-        self._synced: tuple[MaintainedPyramid, int] | None = None
 
     @classmethod
     def of(cls, umap: UncertaintyMap, levels: int) -> MaintainedPyramid:
@@ -586,29 +579,10 @@ class MaintainedPyramid:
         changed cells reach: :meth:`_plan`, as for any change)."""
         umap = cast("GroupMap", self.umap)
         umap.take_changes()  # (what it wrote since: in the base or its extra scans, both read now)
-        # Where this state differs from the base's now: what its own extra scans reached last
-        # time, and what the base's update wrote since, if it was updated once since this
-        # state was made from it (else, or after a rebuild, everything is copied). Each wrote E
-        # and the first levels in boxes, the levels above whole.
-        synced = self._synced
-        full = [[(0, h, 0, w)] for h, w in self.shapes]
-        if synced is not None and synced[0] is base and synced[1] >= base.version - 1 and self.t0 == base.t0:
-            since = [self._written] if self._written else []
-            if synced[1] < base.version:
-                since.append(base._written)
-            whole_from = min((len(written) for written in since), default=len(self.shapes))
-            regions = [[box for written in since for box in written[l]] if l < whole_from else full[l]
-                       for l in range(len(self.shapes))]
-        else:
-            regions = full
         self.t0 = base.t0
         self.s = math.exp(-umap.tau * (t - cast("float", base.t0)))
-        for mine, theirs, boxes in zip(self.planes, base.planes, regions):
-            a, b = cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array)
-            for r0, r1, c0, c1 in _merged(boxes) if len(boxes) > 1 else boxes:
-                a[r0:r1, c0:c1] = b[r0:r1, c0:c1]
-        self._synced = (base, base.version)
-        self._written = []
+        for mine, theirs in zip(self.planes, base.planes):
+            np.copyto(cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array))
         self._chunk_sums = dict(base._chunk_sums)
         np.copyto(self._block_sums, base._block_sums)
         extra = umap.extra_disks() or []
@@ -634,8 +608,6 @@ class MaintainedPyramid:
             planes = w.pyr.planes
             for k in range(len(w.plan) + 1, len(planes)):
                 reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
-            w.pyr._written = [w.boxes, *w.plan]
-            w.pyr.version += 1
 
     def _changed(self, t: float) -> _Work | None:
         """Set ``t0`` and ``s`` for a plan at ``t`` (clearing the state when ``t0`` moved or the
@@ -643,7 +615,6 @@ class MaintainedPyramid:
         tau = self.umap.tau
         t0 = base_time(t, tau)
         changes = self.umap.take_changes()
-        self._synced = None  # (its state, from its own changes, is no longer the base's plus a patch)
         self.s = math.exp(-tau * (t - t0))
         if t0 != self.t0 or changes is None:
             self.t0 = t0
