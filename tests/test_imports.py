@@ -178,7 +178,7 @@ def test_import_circles_are_found_at_any_depth_but_not_through_type_checking():
 
 # Reads of another object's private attribute in agents, comms and faults that are allowed: an
 # instance of the same class (a map merging or copying another map, a pyramid batching the work of
-# several, the shared surveillance logic preparing the plans of several of its instances).
+# several or copying its group base's, the shared surveillance logic preparing the plans of several of its instances).
 # Another class's internals are read through a public name (issue 24: the radio's
 # RadioGraph.edge_data, DecodeCache.derive, Disk.values_memo / stamps_memo, MapGroup.base_cells
 # and the extra scans a MapGroup keeps for its members, DacmpPlanner.keep / search_weights / scratch).
@@ -186,7 +186,10 @@ SAME_CLASS = {
     "agents/maps/umap.py": {"new._tiles", "new._changes", "new._nty", "new._ntx", "other._materialize", "other._tiles"},
     "agents/maps/mapgroup.py": {"super()._cells"},
     "agents/planners/dacmp/maintained.py": {"plane._tiles", "MaintainedPyramid._recompute", "w.pyr._sum_chunks",
-                                            "p._changed", "w.pyr._e_keys"},
+                                            "p._changed", "w.pyr._e_keys",
+                                            # a group member's pyramid made from the base's (issue 36, T9)
+                                            "MaintainedPyramid._follow_bases", "p._from_base", "base._chunk_sums",
+                                            "base._block_sums"},
     "agents/planners/surveillance.py": {"planner._prepared"},
 }
 
