@@ -148,18 +148,25 @@ def _fix_hypothesis_constants() -> None:
         return
     if not hasattr(providers, "_get_local_constants"):
         return
-    # Sorted sets, as Hypothesis's own pool: a plain set of strings would be ordered by the
-    # process's hash seed, and a constant is drawn by its index.
-    sorted_set = type(providers.GLOBAL_CONSTANTS.integers)
-    pool = Constants(integers=sorted_set(), floats=sorted_set(key=providers.float_to_int), bytes=sorted_set(),
-                     strings=sorted_set())
-    for package in ("agents", "comms", "faults", "swarm"):
-        for path in sorted((ROOT / package).rglob("*.py")):
-            module = types.ModuleType(path.stem)  # its file, not imported (Hypothesis reads the source)
-            module.__file__ = str(path)
-            pool |= constants_from_module(module)  # (cached by Hypothesis, by the source's hash)
-    providers._local_constants = pool
-    providers._get_local_constants = lambda: pool
+    pool: list[Any] = []
+
+    def fixed_pool() -> Any:
+        # Made at the first draw (Hypothesis asks plugins not to read its storage while pytest starts).
+        if not pool:
+            # Sorted sets, as Hypothesis's own pool: a plain set of strings would be ordered by
+            # the process's hash seed, and a constant is drawn by its index.
+            sorted_set = type(providers.GLOBAL_CONSTANTS.integers)
+            constants = Constants(integers=sorted_set(), floats=sorted_set(key=providers.float_to_int),
+                                  bytes=sorted_set(), strings=sorted_set())
+            for package in ("agents", "comms", "faults", "swarm"):
+                for path in sorted((ROOT / package).rglob("*.py")):
+                    module = types.ModuleType(path.stem)  # its file, not imported (Hypothesis reads the source)
+                    module.__file__ = str(path)
+                    constants |= constants_from_module(module)  # (cached by Hypothesis, by the source's hash)
+            pool.append(constants)
+        return pool[0]
+
+    providers._get_local_constants = fixed_pool
     providers.CONSTANTS_CACHE.cache.clear()
 
 
