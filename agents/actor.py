@@ -177,11 +177,6 @@ class ActorSettings:
     # guard, which turns a UAV closing on an edge within a turn radius plus threat_margin_m,
     # stays quiet on the patrol line, and a type-A UAV sees 0.6 km into the zone).
     patrol_margin_m: float = 150.0
-    # ... after first waiting at the point where the target comes out if it keeps its last known
-    # course, until it would have come out there at this many times the time its last speed
-    # gives (agents.station.exit_ahead; our choice: targets travel, their turn rate reverts to 0,
-    # but their speed wanders between 0 and 20 m/s).
-    exit_wait_factor: float = 1.5
     # The scenario's [radio] settings (comms.settings.RadioSettings, their one definition): the
     # frame size cap, the beacon and tracks periods, and anti-entropy (sync_*: agents.maps.scanlog),
     # with its knowledge horizon (horizon_m: heard scans centred farther than this from the UAV

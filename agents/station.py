@@ -41,10 +41,7 @@ def loiter(kind: UavType, s: ActorSettings, knowledge: Knowledge, r: SensorReadi
     it is in sight: the circle's centre moves out along the line from the zone's centre
     through the target to where the circle just clears that band, at the edge nearest to
     the target. Once nobody has seen it for a replanning period and it is predicted inside
-    the zone, the watcher first waits, circling the same way, at the point of the edge where the
-    target comes out if it keeps its last known course (:func:`exit_ahead`), until it would
-    have come out there at ``exit_wait_factor`` times that time; then (or at once, when its
-    course gives no such point) it patrols the zone's boundary (:func:`patrol`), so that it
+    the zone, the watcher patrols the zone's boundary instead (:func:`patrol`), so that it
     sees the target come out wherever it does (docs/modelling.md, "Assignment rules", rule 5).
     """
     t = r.t
@@ -64,12 +61,8 @@ def loiter(kind: UavType, s: ActorSettings, knowledge: Knowledge, r: SensorReadi
     if not fresh:
         lost_at = knowledge.near_no_fly(tx, ty)  # (predicted inside one)
         if lost_at is not None:
-            exit_at = exit_ahead(lost_at, track)
-            if exit_at is not None and t <= track.t + s.exit_wait_factor * (exit_at[2] - track.t):
-                tx, ty = exit_at[0], exit_at[1]  # circled from outside below, like a target in sight at the edge
-            else:
-                return (*patrol(kind, r, track, lost_at, kind.r_min(v_l) + threat_margin_m + s.patrol_margin_m, r_l,
-                                v_l), True)
+            return (*patrol(kind, r, track, lost_at, kind.r_min(v_l) + threat_margin_m + s.patrol_margin_m, r_l, v_l),
+                    True)
     zone = knowledge.inside_threat(tx, ty, standoff) if knowledge.threats else None
     if zone is not None:
         ux, uy = tx - zone.x, ty - zone.y
@@ -126,35 +119,3 @@ def patrol(kind: UavType, r: SensorReading, track: Track, zone: KnownThreat | Ke
     brake = max(r.v * r.v - v_patrol * v_patrol, 0.0) / (2.0 * kind.accel_max)
     speed = v_patrol if rho <= clearance + kind.detect_radius + brake else kind.speed_max
     return r.x + 1000.0 * dx, r.y + 1000.0 * dy, speed
-
-
-def exit_ahead(zone: KnownThreat | Keepout, track: Track, max_steps: int = 256) -> tuple[float, float, float] | None:
-    """``(x, y, t)``: where and when a target last seen at ``(track.x, track.y)`` with velocity
-    ``(track.vx, track.vy)`` comes out of ``zone`` (circle or polygon) if it keeps that course and
-    speed, or None when that course does not take it through the zone (no speed, heading away, or
-    passing by). Sphere tracing along the course on the zone's signed clearance
-    (:func:`agents.knowledge.zone_clearance`): a step of ``|rho|`` never crosses the edge, so it
-    finds the first entry and then the exit (at least 1 m a step: within 1 m of the edge)."""
-    speed = math.hypot(track.vx, track.vy)
-    if speed < 1e-6:
-        return None
-    ux, uy = track.vx / speed, track.vy / speed
-    x, y = track.x, track.y
-    went = 0.0
-    inside = False
-    last = math.inf
-    for _ in range(max_steps):
-        rho = zone_clearance(zone, x, y)[0]
-        if not inside:
-            if rho <= 0.0:
-                inside = True
-                continue
-            if rho >= last:  # no nearer than a step ago: it passes by or moves away
-                return None
-            last = step = rho
-        else:
-            if rho > 0.0:
-                return x, y, track.t + went / speed
-            step = max(-rho, 1.0)
-        x, y, went = x + step * ux, y + step * uy, went + step
-    return None
