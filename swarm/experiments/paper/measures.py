@@ -112,13 +112,14 @@ def last_seen(log: RunLog, m: int) -> tuple[float, float, float] | None:
 
 
 def held_at_zone_edge(log: RunLog, m: int, uav: str) -> bool:
-    """Whether ``uav`` holds target ``m`` the way rule 5 of docs/modelling.md ("Assignment
-    rules") says a target inside a no-fly zone is held: at the last tick the target is inside a
-    zone, and the UAV, outside it, is at that zone's edge: within twice its detection radius of
-    the point of the edge nearest to where the target was last seen (by anyone: the UAV cannot
-    know where inside the zone it went), where it circles while it has the target in sight, or,
-    on patrol round the zone's boundary once it lost sight of it (issue 33), within twice its
-    detection radius of the edge anywhere round it. (The first is a case of the second.)"""
+    """Whether ``uav`` holds target ``m`` the way DACMP-SPEC ("Reproduction targets") counts a
+    target inside a no-fly zone as held, read for rule 5 of docs/modelling.md ("Assignment
+    rules") as it stands since issue 33 (docs/paper.md, "Case 1 to 3 as tests", says why): at
+    the last tick the target is inside a zone deeper than the UAV can see from outside (deeper
+    than its detection radius less the UAV's own distance from the edge: from the point of its
+    line nearest to the target it would not see it), and the UAV, outside the zone, is at its
+    edge: within twice its detection radius of it, anywhere round it (it patrols the boundary;
+    the spec's "edge nearest to it" was written when the keeper circled there)."""
     uid = log.uid(uav)
     seen = last_seen(log, m)
     if uid is None or uid not in log.poses or seen is None:
@@ -128,8 +129,10 @@ def held_at_zone_edge(log: RunLog, m: int, uav: str) -> bool:
     r = float(log.type_specs.get(log.types.get(uid, "?"), {}).get("detect_radius_m", math.nan))
     for th in log.threats:
         cx, cy, rad = float(th["x_m"]), float(th["y_m"]), float(th["radius_m"])
-        if math.hypot(tx - cx, ty - cy) < rad and math.hypot(x - cx, y - cy) >= rad:
-            return math.hypot(x - cx, y - cy) - rad <= 2 * r
+        depth = rad - math.hypot(tx - cx, ty - cy)  # > 0: the target is inside
+        clear = math.hypot(x - cx, y - cy) - rad  # >= 0: the UAV is outside
+        if depth > 0 and clear >= 0:
+            return clear <= 2 * r and depth > r - clear
     return False
 
 
