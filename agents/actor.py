@@ -26,18 +26,18 @@ from typing import Protocol, cast
 import numpy as np
 
 from agents.antientropy import AntiEntropy
-from agents.apf import ApfSettings, apf_command
+from agents.apf import apf_command
 from agents.inbox import Inbox
-from agents.knowledge import Knowledge, KnownThreat, Peer
-from agents.maps.grid import Disk, Grid
+from agents.inputs import ActorSettings, SensedUav, SensorReading
+from agents.knowledge import Knowledge, Peer
+from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
-from agents.relief import HOME_TARGET, EnergyReading, Relief
+from agents.relief import HOME_TARGET, Relief
 from agents.station import loiter
 from agents.types import UavType
-from agents.zones import Keepout
 from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, encode, pack_hello, pack_intent, pack_scans, pack_tracks
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -48,7 +48,6 @@ from comms.messages import (
     ThreatItem,
     Threats,
 )
-from comms.settings import RadioSettings
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
 _TRACKS_PER_FRAME = 400
@@ -64,39 +63,6 @@ def _planner_error(planner: object, exc: Exception) -> PlannerError:
     return PlannerError(f"planner {_planner_name(planner)} raised {type(exc).__name__}: {exc}")
 
 
-@dataclass(frozen=True, slots=True)
-class SensedTarget:
-    target: int
-    x: float
-    y: float
-    vx: float
-    vy: float
-    value: float
-
-
-# Another UAV as the detect-and-avoid sensor gives it: (uav id, x, y, vx, vy).
-SensedUav = tuple[int, float, float, float, float]
-
-
-@dataclass(slots=True)
-class SensorReading:
-    """What the UAV's own sensors give it this tick (ground truth inside its detection radius).
-
-    ``uavs``: the other UAVs inside its detect-and-avoid range (``UavType.daa_range``), in id
-    order, placed relative to where the UAV believes it is (a sensor measures range and bearing);
-    ``None`` when it has no such sensor (range 0)."""
-
-    t: float
-    x: float
-    y: float
-    v: float
-    theta: float
-    targets: list[SensedTarget]
-    threats: list[KnownThreat]
-    uavs: list[SensedUav] | None = None
-    energy: EnergyReading | None = None  # (issue 26: only UAVs with an energy budget)
-
-
 @dataclass(slots=True)
 class ActorOutput:
     a: float
@@ -106,47 +72,6 @@ class ActorOutput:
     received: list[tuple[int, int, bool]]  # (sender, nbytes, accepted) for frames drained this tick
     replies: list[tuple[int, bytes]] = field(default_factory=list)  # (receiver, frame): unicast
     speed: float = math.nan  # the speed the local planner steers towards (m/s)
-
-
-@dataclass(frozen=True, slots=True)
-class ActorSettings:
-    dt: float = 1.0
-    replan_s: float = 10.0
-    surveillance: bool = True
-    peer_timeout_s: float = 5.0
-    # A watcher circles its target at max(loiter_radius_factor * R_s, loiter_turn_factor * its
-    # turn radius at minimum speed), steered by a vector field whose approach gain is loiter_gain.
-    loiter_radius_factor: float = 0.5
-    loiter_turn_factor: float = 1.25
-    loiter_gain: float = 1.0
-    # ... and feels the threats' repulsion (eq. 30) with apf.k_rep times this (see UavActor.act).
-    loiter_threat_weight: float = 0.15
-    # A watcher whose target went out of sight inside (or by) a no-fly zone patrols the zone's
-    # boundary this far beyond the threat guard's band (agents.station.patrol; our choice: the
-    # guard, which turns a UAV closing on an edge within a turn radius plus threat_margin_m,
-    # stays quiet on the patrol line, and a type-A UAV sees 0.6 km into the zone).
-    patrol_margin_m: float = 150.0
-    # The scenario's [radio] settings (comms.settings.RadioSettings, their one definition): the
-    # frame size cap, the beacon and tracks periods, and anti-entropy (sync_*: agents.maps.scanlog),
-    # with its knowledge horizon (horizon_m: heard scans centred farther than this from the UAV
-    # are neither applied nor logged, and digests are answered with scans within it of the
-    # digest's sender only).
-    radio: RadioSettings = field(default_factory=RadioSettings)
-    apf: ApfSettings = field(default_factory=ApfSettings)
-    # The swarm key ([radio] auth): frames are sent with their MAC and heard frames without the
-    # right one are rejected (comms.codec). None: no authentication.
-    auth_key: bytes | None = None
-    # Geographic scenarios (issue 26; empty / None otherwise, and then nothing below runs):
-    # polygon no-fly zones and the area's boundary, known before take-off (agents.zones), which
-    # the APF repels and guards like the circles; and the cells outside the area polygon as one
-    # disk-like mask, stamped into the map as seen at every tick before planning, so that q = 0
-    # there: nothing to search (the pyramids, guide points and every planner read q).
-    zones: tuple[Keepout, ...] = ()
-    outside: Disk | None = None
-    # (issue 33) [endurance]: free UAVs answer watchers' relief requests (rule 6 of
-    # docs/modelling.md's assignment rules; agents.relief). Off without endurance.
-    relief: bool = False
-    uav_types: tuple[UavType, ...] = ()  # (the run's types: a relief's turn radius, agents.relief)
 
 
 @dataclass(slots=True)
@@ -498,5 +423,4 @@ class UavActor:
         return frames
 
 
-__all__ = ["HOME_TARGET", "NO_TARGET", "ActorOutput", "ActorSettings", "EnergyReading", "OutboxHook", "SensedTarget",
-           "SensedUav", "SensorReading", "UavActor"]
+__all__ = ["HOME_TARGET", "NO_TARGET", "ActorOutput", "OutboxHook", "UavActor"]

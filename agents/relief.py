@@ -12,42 +12,14 @@ phase (:mod:`swarm.kernel.mission`) reads what it decided: :attr:`Relief.homebou
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
+from agents.inputs import SensorReading
 from agents.knowledge import Knowledge, Peer
 from agents.planners.base import Plan
 from agents.types import UavType
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
-if TYPE_CHECKING:
-    from agents.actor import SensorReading
-
-__all__ = ["HOME_TARGET", "RELIEF_MARGIN", "EnergyReading", "Relief"]
-
-
-@dataclass(frozen=True, slots=True)
-class EnergyReading:
-    """What a UAV with an energy budget knows of it this tick (issues 26, 33, swarm.kernel.mission):
-    its pad at the base; the next point of its way home (round the no-fly zones); ``must_go``:
-    its energy left is down to what that way home takes against the mean wind, plus the
-    reserve; ``spare_s``: the seconds of flight it has beyond what the way home takes with the
-    worst turn onto it (a half turn at its present speed) plus the reserve, at the most power
-    its type can draw (0 when none); ``home_s_per_m``: what each metre it flies farther from
-    home takes of those seconds (the way's energy a metre against the mean wind, at that
-    power); ``handover_s``: the setting of that name; ``wind_mps``: the mean wind's speed (what
-    it budgets a relief's way against)."""
-
-    home_x: float
-    home_y: float
-    way_x: float
-    way_y: float
-    must_go: bool
-    cruise_mps: float  # the airspeed it flies home at (its type's minimum-power speed)
-    spare_s: float = math.inf
-    handover_s: float = 60.0
-    wind_mps: float = 0.0
-    home_s_per_m: float = 0.0
+__all__ = ["HOME_TARGET", "RELIEF_MARGIN", "Relief"]
 
 
 # What a UAV flying home beacons as its intent's target (with search mode): not free (issue 33).

@@ -11,14 +11,11 @@ UAV's own reading, knowledge and settings and change nothing.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
+from agents.inputs import ActorSettings, SensorReading
 from agents.knowledge import Knowledge, KnownThreat, Track, zone_clearance
 from agents.types import GRAVITY, UavType
 from agents.zones import Keepout
-
-if TYPE_CHECKING:
-    from agents.actor import ActorSettings, SensorReading
 
 
 def loiter(kind: UavType, s: ActorSettings, knowledge: Knowledge, r: SensorReading, track: Track,

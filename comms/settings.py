@@ -4,7 +4,7 @@
   bounds and the words of an error (field metadata, as :mod:`faults.schedule`'s fault kinds).
   :mod:`swarm.scenario` generates the table from it; the actors take their radio settings
   (frame cap, beacon and tracks timers, anti-entropy) from one
-  (:attr:`agents.actor.ActorSettings.radio`); the radio runs its :meth:`~RadioSettings.link_model`.
+  (:attr:`agents.inputs.ActorSettings.radio`); the radio runs its :meth:`~RadioSettings.link_model`.
 * :class:`LogDistance`: the ``[radio.log_distance]`` table, and its link budget.
 * :class:`LinkModel`: the link model the radio runs (range, loss, latency, bandwidth), its
   defaults those of :class:`RadioSettings`. Its loss rules are written once each, for one

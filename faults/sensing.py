@@ -7,7 +7,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from typing import ClassVar, Literal
 
-from agents.actor import SensedTarget
+from agents.inputs import SensedTarget
 from faults.base import END, PHANTOM_TARGET_ID, PROBABILITY, START, UAV, UAVS, Draws
 from faults.registry import register
 from faults.tick import TickFault, TickFaults

@@ -20,7 +20,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from agents.actor import SensorReading, UavActor
+from agents.actor import UavActor
+from agents.inputs import SensorReading
 from faults.base import FaultEvents, FaultHost, Windowed
 
 Stream = Callable[..., np.random.Generator]

@@ -15,9 +15,10 @@ from types import SimpleNamespace
 import pytest
 
 import agents.apf as apf
-from agents.actor import SensorReading, UavActor
+from agents.actor import UavActor
 from agents.apf import ApfSettings, apf_command
 from agents.dynamics import integrate
+from agents.inputs import SensorReading
 from agents.knowledge import KnownThreat, Peer
 from agents.types import DAA_RANGE_M, UavType
 from faults.schedule import Liar, NavError

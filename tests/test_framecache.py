@@ -88,7 +88,8 @@ def test_derive_keeps_one_value_per_frame_for_what_it_was_derived_for():
 def test_receivers_sharing_a_cache_count_their_own_rejections():
     import numpy as np
 
-    from agents.actor import ActorSettings, UavActor
+    from agents.actor import UavActor
+    from agents.inputs import ActorSettings
     from agents.maps.grid import Grid
     from agents.planners.greedy import GreedyPlanner
     from agents.types import UavType
@@ -118,7 +119,8 @@ def test_a_checked_frame_is_reused_only_at_the_clock_it_was_checked_for():
     accepted later), and the kept value goes with its frame."""
     import numpy as np
 
-    from agents.actor import ActorSettings, UavActor
+    from agents.actor import UavActor
+    from agents.inputs import ActorSettings
     from agents.maps.grid import Grid
     from agents.planners.greedy import GreedyPlanner
     from agents.types import UavType

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.actor import ActorSettings
 from agents.apf import ApfSettings as AgentApf
+from agents.inputs import ActorSettings
 from agents.planners.dacmp import DacmpPlanner, DacmpSettings
 from comms.messages import MODE_NAMES, MODE_SEARCH, MODE_SURVEIL
 from comms.settings import LinkModel, LogDistance

@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from agents.actor import ActorSettings
 from agents.apf import ApfSettings
+from agents.inputs import ActorSettings
 from agents.knowledge import KnownThreat
 from agents.types import UavType
 from comms.radio import LinkFilter, Radio

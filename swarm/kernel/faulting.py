@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from agents.actor import SensorReading
+from agents.inputs import SensorReading
 from agents.types import UavType
 from comms.radio import Delivery, Radio, RadioCounters
 from faults.base import BatteryLike, FaultKind

@@ -13,7 +13,8 @@ import asyncio
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from agents.actor import ActorOutput, ActorSettings, SensorReading, UavActor
+from agents.actor import ActorOutput, UavActor
+from agents.inputs import ActorSettings, SensorReading
 from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
 from agents.planners import Planner, PlannerContext, PlannerError, build_planner

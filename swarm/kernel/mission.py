@@ -19,7 +19,7 @@ airframe limits stay air-relative (the dynamics invariant reads the tick's ``win
 
 Energy. A UAV of a type with an energy budget drains ``P(v) dt`` a tick at its airspeed ``v``
 (times a battery fault's drain factor), never below zero: a UAV that reaches zero in flight is
-lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.relief.EnergyReading`)
+lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.inputs.EnergyReading`)
 the way home to its pad (:mod:`swarm.kernel.homeway`: round the no-fly zones, inside the area), the
 energy that way takes at its minimum-power speed against the mean wind plus ``reserve_frac``
 of its capacity (when it has no more it must go: ``must_go``), and, for rule 6's reckoning,
@@ -46,8 +46,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.actor import SensorReading, UavActor
-from agents.relief import EnergyReading
+from agents.actor import UavActor
+from agents.inputs import EnergyReading, SensorReading
 from swarm import events as ev
 from swarm.kernel.fleet import Fleet
 from swarm.kernel.homeway import HomeWay, leg_energy_wh

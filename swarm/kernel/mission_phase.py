@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from agents.actor import SensorReading
+from agents.inputs import SensorReading
 
 __all__ = ["NO_MISSION", "MissionPhase"]
 

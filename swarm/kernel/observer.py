@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.actor import ActorOutput, SensorReading
+from agents.actor import ActorOutput
+from agents.inputs import SensorReading
 from agents.planners.base import Plan
 from faults.tick import TickFaults
 from swarm import events as ev

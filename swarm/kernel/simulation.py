@@ -33,7 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.actor import ActorOutput, SensorReading, UavActor
+from agents.actor import ActorOutput, UavActor
+from agents.inputs import SensorReading
 from agents.maps.grid import PREFETCH_MIN
 from faults.injector import FaultInjector
 from faults.registry import fault_from_dict

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.actor import SensedTarget, SensedUav, SensorReading
 from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_command, wrap_angle
+from agents.inputs import SensedTarget, SensedUav, SensorReading
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from agents.types import UavType

@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from agents.actor import ActorSettings
+from agents.inputs import ActorSettings
 from comms.messages import MODE_NAMES, MODE_SURVEIL
 from faults.base import FaultKind
 from faults.sensing import max_skew_at_end, skewed_stamps
