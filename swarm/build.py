@@ -131,6 +131,11 @@ def geography(sc: Scenario, grid: Grid, world: Any = None, metrics: Any = None) 
     assert geo is not None  # (it has [geo] or [[no_fly]])
     if world is not None:
         world.zones = geo.zones
+        if geo.area is not None:  # (issue 33: targets turn back at the area polygon's edge)
+            import shapely
+
+            world.targets.boundary = shapely.Polygon(geo.area.vertices)
+            shapely.prepare(world.targets.boundary)
     if metrics is not None:
         metrics.inside = geo.inside
     return geo
