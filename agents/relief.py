@@ -232,8 +232,9 @@ class Relief:
         lowest id) or, ``k`` of them reaching it before it, ``k`` replanning periods have passed
         since it first heard the request (a faster one that cannot afford it stays put: the next
         goes), and its own spare flight (:class:`EnergyReading`), less what the way there and a
-        detection radius beyond take of it, covers the way there plus ``handover_s`` twice.
-        Returns the plan there (None: it does not go)."""
+        detection radius beyond take of it, covers the way there plus ``handover_s`` twice. Of
+        several such requests it answers the one whose target it reaches first. Returns the
+        plan there (None: it does not go)."""
         if self.homebound or (plan is not None and (plan.mode != MODE_SEARCH or plan.target != NO_TARGET)):
             return None
         t, timeout = r.t, self.peer_timeout_s
@@ -244,6 +245,7 @@ class Relief:
             return None
         wind = r.energy.wind_mps if r.energy is not None else 0.0
         free = self.free_peers(t)
+        best: tuple[float, int, float, float] | None = None  # (its flight time, target, where)
         for m, asker in asks:
             tr = self.knowledge.tracks.get(m)
             if tr is None or any(p.mode == MODE_SURVEIL and p.target == m for p in peers if p.uav != asker):
@@ -258,9 +260,12 @@ class Relief:
             if e is not None and e.spare_s - e.home_s_per_m * (math.hypot(tx - r.x, ty - r.y) + self.kind.detect_radius) \
                     < mine + 2.0 * e.handover_s:
                 continue
-            self.relieving = m
-            return Plan(tx, ty, MODE_SEARCH, m)
-        return None
+            if best is None or (mine, m) < best[:2]:
+                best = (mine, m, tx, ty)
+        if best is None:
+            return None
+        self.relieving = best[1]
+        return Plan(best[2], best[3], MODE_SEARCH, best[1])
 
     def relieve(self, r: SensorReading) -> tuple[bool, Plan | None]:
         """On its way to take target ``relieving`` over: ``(True, plan)`` while it flies there
