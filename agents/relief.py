@@ -5,7 +5,7 @@ free, answering another's request and taking its target over.
 :class:`Relief` holds that state for one actor (:class:`agents.actor.UavActor` makes one and
 calls it from its tick); it reads the actor's :class:`~agents.knowledge.Knowledge` and returns
 the plans to fly, so the actor keeps its own work (planning, steering, the radio). The mission
-phase (:mod:`swarm.mission`) reads what it decided: :attr:`Relief.homebound`,
+phase (:mod:`swarm.kernel.mission`) reads what it decided: :attr:`Relief.homebound`,
 :attr:`Relief.asked`, :attr:`Relief.handed_target`, :attr:`Relief.relieved`.
 """
 
@@ -28,7 +28,7 @@ __all__ = ["HOME_TARGET", "RELIEF_MARGIN", "EnergyReading", "Relief"]
 
 @dataclass(frozen=True, slots=True)
 class EnergyReading:
-    """What a UAV with an energy budget knows of it this tick (issues 26, 33, swarm.mission):
+    """What a UAV with an energy budget knows of it this tick (issues 26, 33, swarm.kernel.mission):
     its pad at the base; the next point of its way home (round the no-fly zones); ``must_go``:
     its energy left is down to what that way home takes against the mean wind, plus the
     reserve; ``spare_s``: the seconds of flight it has beyond what the way home takes with the

@@ -129,7 +129,7 @@ class Targets:
         # While every target i has slot i and all are at the same place in their draws (targets
         # added together: the usual), that place; _pos is then stale. None: read _pos.
         self._lock: int | None = _DRAW_BLOCK
-        # (issue 33) A geographic area's polygon (shapely, local metres; swarm.build.geography):
+        # (issue 33) A geographic area's polygon (shapely, local metres; swarm.kernel.build.geography):
         # a target inside it that would step out stays put and turns round. None: a rectangle.
         self.boundary: Any = None
 
@@ -385,7 +385,7 @@ class World:
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
         # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
         self.zones: list = []
-        # The wind of this tick (issue 26, swarm.mission; None: still air): every UAV drifts with it.
+        # The wind of this tick (issue 26, swarm.kernel.mission; None: still air): every UAV drifts with it.
         self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
         self.dynamics_by_uav: dict[int, list[float]] = {}
