@@ -53,6 +53,7 @@ class Relief:
         self.asked_at = -math.inf
         self.releasing = False
         self.relieving = NO_TARGET
+        self.heard: dict[tuple[int, int], float] = {}  # (asker, target) -> when it first heard the request
 
     def reset(self) -> None:
         """Back in the air from the base (a relaunch): nothing owed, nothing asked."""
@@ -63,6 +64,7 @@ class Relief:
         self.asked_at = -math.inf
         self.releasing = False
         self.relieving = NO_TARGET
+        self.heard = {}
 
     def intent(self, plan: Plan) -> tuple[int, int]:
         """The mode and target its beacons announce: its plan's, but a watcher asking for relief
@@ -126,7 +128,7 @@ class Relief:
 
     def station_s(self, r: SensorReading, m: int) -> float:
         """The seconds a watcher of target ``m`` may stay on station for sure (rule 6): its spare
-        flight (:class:`EnergyReading`: at the most power its type draws, the way home with the
+        flight (:class:`~agents.inputs.EnergyReading`: at the most power its type draws, the way home with the
         worst turn onto it) less what flying farther from home may take meanwhile: from where
         it is to the target and a detection radius beyond (the loiter circle), and the target's
         drift at its track's speed all the while."""
@@ -197,20 +199,25 @@ class Relief:
 
     def answer(self, r: SensorReading, plan: Plan | None) -> Plan | None:
         """A free UAV that hears a relief request (a peer searching with a target's id) goes to
-        take that target over when it is the one of the free UAVs it hears (and itself) that
-        reaches the target first (ties: the lowest id), nobody else already watches or relieves
-        the target, and its own spare flight (:class:`EnergyReading`), less what the way there
-        and a detection radius beyond take of it, covers the way there plus ``handover_s`` twice.
-        Returns the plan there (None: it does not go)."""
+        take that target over when nobody else already watches or relieves the target, it is
+        the one of the free UAVs it hears (and itself) that reaches the target first (ties: the
+        lowest id) or, ``k`` of them reaching it before it, ``k`` replanning periods have passed
+        since it first heard the request (a faster one that cannot afford it stays put: the next
+        goes), and its own spare flight (:class:`~agents.inputs.EnergyReading`), less what the way there and a
+        detection radius beyond take of it, covers the way there plus ``handover_s`` twice. Of
+        several such requests it answers the one whose target it reaches first. Returns the
+        plan there (None: it does not go)."""
         if self.homebound or (plan is not None and (plan.mode != MODE_SEARCH or plan.target != NO_TARGET)):
             return None
         t, timeout = r.t, self.peer_timeout_s
         peers = [p for p in self.knowledge.peers.values() if p.uav != self.uid and t - p.t_intent <= timeout]
         asks = sorted((p.target, p.uav) for p in peers if p.asks)
+        self.heard = {(a, m): self.heard.get((a, m), t) for m, a in asks}
         if not asks:
             return None
         wind = r.energy.wind_mps if r.energy is not None else 0.0
         free = self.free_peers(t)
+        best: tuple[float, int, float, float] | None = None  # (its flight time, target, where)
         for m, asker in asks:
             tr = self.knowledge.tracks.get(m)
             if tr is None or any(p.mode == MODE_SURVEIL and p.target == m for p in peers if p.uav != asker):
@@ -218,15 +225,19 @@ class Relief:
                 continue
             tx, ty = tr.predict(t)
             mine = self.flight_s(r.x, r.y, r.v, r.theta, self.kind.name, tx, ty, wind)
-            if any((self.flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind), p.uav) < (mine, self.uid) for p in free):
+            ahead = sum((self.flight_s(p.x, p.y, p.v, p.theta, p.type, tx, ty, wind), p.uav) < (mine, self.uid) for p in free)
+            if ahead and t - self.heard[(asker, m)] < ahead * self.replan_s - 1e-9:
                 continue
             e = r.energy
             if e is not None and e.spare_s - e.home_s_per_m * (math.hypot(tx - r.x, ty - r.y) + self.kind.detect_radius) \
                     < mine + 2.0 * e.handover_s:
                 continue
-            self.relieving = m
-            return Plan(tx, ty, MODE_SEARCH, m)
-        return None
+            if best is None or (mine, m) < best[:2]:
+                best = (mine, m, tx, ty)
+        if best is None:
+            return None
+        self.relieving = best[1]
+        return Plan(best[2], best[3], MODE_SEARCH, best[1])
 
     def relieve(self, r: SensorReading) -> tuple[bool, Plan | None]:
         """On its way to take target ``relieving`` over: ``(True, plan)`` while it flies there

@@ -136,12 +136,15 @@ def test_a_watcher_hands_its_target_over_before_it_goes_home():
     """A1 watches a target and asks for relief when its energy says so (rule 6), keeping the
     target; A2 (same type, launched nearby in time to arrive) answers, flies to it and watches it;
     only then does A1 turn home. The assignment invariants hold throughout. (Issue 33: A2 used
-    to join at 420 s, 33 s before A1 must go: too late to count as a relief.)"""
+    to join at 420 s, 33 s before A1 must go: too late to count as a relief. And with
+    ``handover_s`` = 120 s, A2, whose battery lasts about 7.5 minutes, cannot promise the 2
+    ``handover_s`` of watching a relief must afford, reckoned at rule 6's worst power and turn:
+    it rightly declines.)"""
     d = {"duration_s": 600.0, "area": {"width_m": 20000.0, "height_m": 20000.0},
          "uavs": [{"type": "A", "x_m": 9000.0, "y_m": 9000.0, "heading_deg": 45.0},
                   {"type": "A", "x_m": 11500.0, "y_m": 11500.0, "heading_deg": 225.0, "join_s": 360.0}],
          "targets": {"placed": [{"x_m": 10000.0, "y_m": 10000.0}]},
-         "endurance": {"x_m": 5000.0, "y_m": 5000.0, "turnaround_s": 60.0, "handover_s": 120.0,
+         "endurance": {"x_m": 5000.0, "y_m": 5000.0, "turnaround_s": 60.0, "handover_s": 60.0,
                        "types": {"A": {"capacity_wh": 260.0}}}}
     sim, result = run(d)
     events = list(read_events(result.events))

@@ -4,7 +4,9 @@ The world moves UAVs only with commands that passed :func:`agents.dynamics.limit
 the airframe limits hold on every step; it double-checks each applied command and counts a
 ``dynamics`` violation if one ever does not (that would be a simulator bug). Targets follow the
 UAV kinematics driven by a Wiener process on acceleration and turn rate, with speed and
-acceleration limits, and reflect at the area border. Each target draws from its own stream.
+acceleration limits, and reflect at the area border; in a geographic area (a polygon, issue
+33) a target that would leave the polygon stays where it was and turns round instead (a vessel
+turning back at the coast). Each target draws from its own stream.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +115,9 @@ class Targets:
     generator share one (and its draws, in target order); a slot's generator may be made only
     when first drawn from (:meth:`add_many`)."""
 
-    def __init__(self, motion: TargetMotion):
+    def __init__(self, motion: TargetMotion, boundary: Any = None):
+        """``boundary``: a geographic area's polygon (shapely, local metres, prepared), inside which
+        targets stay (:meth:`_turn_back`); None: the area's rectangle."""
         self.motion = motion
         self._n = 0
         self._s = np.zeros((7, 0))
@@ -127,6 +132,8 @@ class Targets:
         # While every target i has slot i and all are at the same place in their draws (targets
         # added together: the usual), that place; _pos is then stale. None: read _pos.
         self._lock: int | None = _DRAW_BLOCK
+        # (issue 33) A target inside the area polygon that would step out stays put and turns round.
+        self.boundary: Any = boundary
 
     def __len__(self) -> int:
         return self._n
@@ -231,11 +238,29 @@ class Targets:
         n = self._n
         if not n:
             return
+        before = self._s[_X:_Y + 1, :n].copy() if self.boundary is not None else None
         if n < _VECTOR_MIN or self._shared:
             self._step_each(dt, grid)
         else:
             self._step_all(dt, grid)
+        if before is not None:
+            self._turn_back(before)
         self._xy = None
+
+    def _turn_back(self, before: np.ndarray) -> None:
+        """Targets that were inside the area polygon and stepped out: back where they were,
+        heading turned round (their speed, acceleration and turn rate kept)."""
+        import shapely
+
+        n = self._n
+        st = self._s
+        out = ~shapely.contains_xy(self.boundary, st[_X, :n], st[_Y, :n])
+        if not out.any():
+            return
+        out &= shapely.contains_xy(self.boundary, before[0], before[1])
+        st[_X, :n] = np.where(out, before[0], st[_X, :n])
+        st[_Y, :n] = np.where(out, before[1], st[_Y, :n])
+        st[_TH, :n] = np.where(out, _wrap_v(st[_TH, :n] + math.pi), st[_TH, :n])
 
     def _step_each(self, dt: float, grid: Grid) -> None:
         m = self.motion

@@ -303,7 +303,10 @@ class NoDropChecker(_WatchChecker):
     departure is excused when it left unrelieved (its ``relief`` event says ``unrelieved``) and,
     when it asked for relief (``relief`` ``asked``, by the time ``by`` it had to go), no free
     flying UAV could have reached the target by then: each was farther from it than its
-    ``speed_max`` plus the mean wind's speed times the time left."""
+    ``speed_max`` plus the mean wind's speed times the time left, or its own energy sent it
+    home by ``2 handover_s`` after the departure, or it was on its way to another target
+    (its pose: search mode with that target's id, as a relief flies to the watcher it answers)
+    at some time between the request and the departure (one UAV answers one request)."""
 
     name = "no_drop"
 
@@ -315,6 +318,7 @@ class NoDropChecker(_WatchChecker):
         self._departures: list[tuple[float, int, int]] = []  # unrelieved drops to judge: (t, watcher, target)
         self._last_poses: dict[int, tuple[Any, ...]] = {}
         self._went_home: dict[int, list[float]] = {}  # uav -> its rtb times
+        self._answering: dict[int, dict[int, list[float]]] = {}  # uav -> target it went to relieve -> [first, last] t
         self._prev: dict[int, set[int]] = {}
         self._pending: dict[int, tuple[float, int, float]] = {}  # target -> (dropped at, by, last seen then)
         self._targets: dict[int, tuple[float, float]] = {}
@@ -353,6 +357,10 @@ class NoDropChecker(_WatchChecker):
         if not poses_of(events):
             return
         self._last_poses = poses
+        for uid, p in poses.items():
+            if p[4] != SURVEIL and p[5] >= 0:  # (on its way to take a target over: rule 6)
+                span = self._answering.setdefault(uid, {}).setdefault(int(p[5]), [t, t])
+                span[1] = t
         self._sightings(t, poses)
         watchers = self.watchers(poses)
         held = {m: {w for w in self._held.get(m, ()) if w in ws} | {w for w in ws if self._holds(w, m, poses)}
@@ -396,7 +404,9 @@ class NoDropChecker(_WatchChecker):
             ask = self._asks.get((w, m))
             if ask is None:
                 continue  # (it never asked: it went at its first reading, nobody could have come)
-            could = [u for u in ask[2] if not any(ask[0] <= h <= t0 + wait + EPS for h in self._went_home.get(u, []))]
+            could = [u for u in ask[2] if not any(ask[0] <= h <= t0 + wait + EPS for h in self._went_home.get(u, []))
+                     and not any(other != m and first <= t0 + EPS and last >= ask[0] - EPS
+                                 for other, (first, last) in self._answering.get(u, {}).items())]
             if not could:
                 continue  # nobody could have relieved it in time
             names = ", ".join(self.context.name(u) for u in could)
