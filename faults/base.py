@@ -54,7 +54,7 @@ FaultRng = Callable[[str, int], np.random.Generator]
 
 class FaultHost(Protocol):
     """What a fault kind may do to a run from :meth:`FaultKind.install`: the simulation's
-    side of the contract (``swarm.simulation`` implements it). Times are seconds of world time."""
+    side of the contract (``swarm.kernel.simulation`` implements it). Times are seconds of world time."""
 
     @property
     def now(self) -> float: ...

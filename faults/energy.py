@@ -1,6 +1,6 @@
 """Faults on a UAV's energy (issue 26): ``battery``, a sudden loss of the energy left at
 ``start_s`` and/or a faster drain over a window. Acts on a UAV whose type has an
-``[endurance]`` budget (swarm.mission); on any other it does nothing and is not counted."""
+``[endurance]`` budget (swarm.kernel.mission); on any other it does nothing and is not counted."""
 
 from __future__ import annotations
 

@@ -12,10 +12,10 @@ from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _package_version
 
 from swarm.errors import APIMisuseError, ScenarioError, SimulationError, SwarmError, UsageError
+from swarm.kernel.results import RunResult
+from swarm.kernel.simulation import Simulation, Snapshot
 from swarm.reproduce import RerunResult, rerun
-from swarm.results import RunResult
 from swarm.scenario import Scenario, builtin_scenarios, load_scenario
-from swarm.simulation import Simulation, Snapshot
 
 try:
     # One version source: pyproject.toml's, as installed.

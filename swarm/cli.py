@@ -115,7 +115,7 @@ VALIDATE_MAX_PROBLEMS = 20
 
 def _cmd_validate(args) -> int:
     from swarm.errors import ScenarioError
-    from swarm.memory import MemoryLimitError, check_memory
+    from swarm.kernel.memory import MemoryLimitError, check_memory
     from swarm.scenario import load_scenario
 
     if args.memory_limit is not None and not args.memory_limit > 0:
@@ -127,7 +127,7 @@ def _cmd_validate(args) -> int:
         except ScenarioError as err:
             reports.append({"scenario": ref, "ok": False, "problems": [str(e) for e in err.all]})
             continue
-        try:  # the same guard as `swarm run` (swarm.memory)
+        try:  # the same guard as `swarm run` (swarm.kernel.memory)
             estimate = check_memory(sc, args.memory_limit)
         except MemoryLimitError as err:
             reports.append({"scenario": ref, "ok": False, "problems": [f"{ref}: {err}"]})
@@ -269,9 +269,9 @@ def _cmd_view(args) -> int:
 
 
 def _cmd_run(args) -> int:
+    from swarm.kernel.simulation import Simulation
     from swarm.outputs import write_run
     from swarm.scenario import load_scenario, parse_assignment
-    from swarm.simulation import Simulation
 
     if args.duration is not None and not args.duration > 0:
         raise UsageError(f"--duration {args.duration:g}: expected a positive number of seconds")

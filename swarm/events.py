@@ -1,6 +1,6 @@
 """The event log's schema: every event kind once, as a typed record, with its fields in log order.
 
-On disk (``events.msgpack``, :mod:`swarm.recorder`) an event is a flat msgpack array
+On disk (``events.msgpack``, :mod:`swarm.kernel.recorder`) an event is a flat msgpack array
 ``[kind, t, field, ...]``. This module is the one place that knows which field sits where:
 each kind is a record class below whose fields are, in order, the array's items after the
 kind (``t`` first), then the fields derived when reading:
@@ -14,7 +14,7 @@ kind (``t`` first), then the fields derived when reading:
 Units are in the annotations (:class:`Meta`: ``Seconds`` is simulated seconds since the run
 began, ``Metres`` are from the area's south-west corner, ``Radians`` a heading from east,
 counter-clockwise). ``KINDS`` is the schema as data: the recorder checks written events
-against it (:attr:`swarm.recorder.EventLog.check_schema`), the readers decode through it
+against it (:attr:`swarm.kernel.recorder.EventLog.check_schema`), the readers decode through it
 (:func:`read_events`, :func:`read_columns`, :class:`Decoder`) and the Parquet export builds its
 columns from it (:mod:`swarm.export`). docs/outputs.md's table of kinds is
 :func:`markdown_table`; the order of a tick's events is documented there too ("Order within a
@@ -355,7 +355,7 @@ class FaultOff(Event):
     uav_name: Annotated[str | None, _name_of("uav")]
 
 
-# --- real-world missions (issue 26, swarm.mission): only runs with [wind] or [endurance] log these ---
+# --- real-world missions (issue 26, swarm.kernel.mission): only runs with [wind] or [endurance] log these ---
 @dataclass(slots=True)
 class Wind(Event):
     """The wind every UAV drifts with from this tick to the next (mean plus gust), once per tick."""
@@ -422,14 +422,14 @@ class EnergyOut(Event):
     uav_name: Annotated[str | None, _name_of("uav")]
 
 
-# --- embedding (issue 34, swarm.host): only runs a host changed log these ---
+# --- embedding (issue 34, swarm.kernel.host): only runs a host changed log these ---
 @dataclass(slots=True)
 class Host(Event):
     """A host program changed the run (embedding API), at this tick boundary, before the tick.
 
     ``change`` is the call (``add_target``, ``add_uav``, ``add_fault``, ``take_control``,
     ``release_control``, ``set_state``, ``set_waypoint``), ``args`` its arguments as applied;
-    what :func:`swarm.hostlog.schedule_recorded_host_changes` replays."""
+    what :func:`swarm.kernel.hostlog.schedule_recorded_host_changes` replays."""
 
     kind: ClassVar[str] = "host"
     change: Annotated[str, Meta(label="change")]  # the call's name

@@ -30,7 +30,7 @@ import time
 from typing import Any
 
 from swarm.errors import UsageError
-from swarm.simulation import Simulation
+from swarm.kernel.simulation import Simulation
 
 __all__ = ["ALTITUDE_M", "ORIGIN", "MavlinkBridge", "lonlat_to_metres", "metres_to_lonlat", "pace"]
 

@@ -61,9 +61,9 @@ def rerun(folder: str | Path, out: str | Path | None = None, *, allow_planner_im
 
     Raises :class:`swarm.outputs.RunDirError` (a :class:`~swarm.errors.SwarmError`) when the folder
     cannot be re-run: a file missing or damaged, a log cut short."""
-    from swarm.hostlog import schedule_recorded_host_changes
+    from swarm.kernel.hostlog import schedule_recorded_host_changes
+    from swarm.kernel.simulation import Simulation
     from swarm.scenario.model import parse_scenario
-    from swarm.simulation import Simulation
 
     run = read_run_dir(folder)
     scenario_path = run.path / "scenario.json"

@@ -229,7 +229,7 @@ def small_scenario_path() -> Path:
 def seed1_fails(monkeypatch) -> str:
     """Every ``Simulation.run`` of seed 1 raises ``RuntimeError`` with the returned message (the
     sweeps must record such a run and go on; threads only: the patch is in this process)."""
-    from swarm import simulation
+    from swarm.kernel import simulation
 
     message = "planted failure"
     real_run = simulation.Simulation.run

@@ -16,8 +16,9 @@ import pytest
 from comms.codec import MAC_BYTES, AuthError, Frame, FrameError, decode, encode, mac
 from comms.framecache import DecodeCache
 from comms.messages import Hello, Intent, ThreatItem, Threats
-from swarm import Simulation, build
+from swarm import Simulation
 from swarm.errors import ScenarioError
+from swarm.kernel import build
 from swarm.scenario import apply_overrides, parse_scenario
 
 KEY = b"swarm key"

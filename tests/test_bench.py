@@ -11,8 +11,8 @@ import pytest
 from swarm import cli
 from swarm.events import read_events
 from swarm.experiments import bench
+from swarm.kernel.simulation import Simulation
 from swarm.scenario import RadioSettings, load_scenario
-from swarm.simulation import Simulation
 
 FIELDS = {"case", "scenario", "planner", "uavs", "sim_seconds", "wall_seconds", "realtime_factor", "cpu_seconds",
           "peak_rss_mb", "shares", "coverage", "event_log_sha256", "anti_entropy", "uav_steps_per_cpu_s",
@@ -143,8 +143,8 @@ def test_samples_are_filed_under_the_innermost_phase():
     from agents.actor import UavActor
     from agents.planners.greedy import GreedyPlanner
     from comms.radio import Radio
-    from swarm.metrics import Metrics
-    from swarm.simulation import Simulation
+    from swarm.kernel.metrics import Metrics
+    from swarm.kernel.simulation import Simulation
 
     tick = Simulation._tick
     assert bench.classify(chain(tick, UavActor.step, GreedyPlanner.plan, UncertaintyMap.q_at)) == "planning"

@@ -11,7 +11,7 @@ import re
 import pytest
 
 from swarm.cli import main
-from swarm.memory import MemoryLimitError, check_memory, format_bytes
+from swarm.kernel.memory import MemoryLimitError, check_memory, format_bytes
 from swarm.scenario import load_scenario, parse_scenario, scenario_warnings
 
 

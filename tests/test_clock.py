@@ -1,4 +1,4 @@
-"""swarm.clock.Clock: virtual time and a heap of callbacks ordered by (time, priority, sequence).
+"""swarm.kernel.clock.Clock: virtual time and a heap of callbacks ordered by (time, priority, sequence).
 
 The simulation's determinism rests on this order: at one instant faults and joins run before
 deliveries, deliveries before the tick, and entries of one priority in the order they were
@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from swarm.clock import DELIVERY, FAULT, TICK, Clock
 from swarm.errors import SimulationError, SwarmError
+from swarm.kernel.clock import DELIVERY, FAULT, TICK, Clock
 
 
 def _drain(clock: Clock) -> list:

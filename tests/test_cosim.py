@@ -1,5 +1,5 @@
 """Co-simulation (issue 34, docs/embedding.md#co-simulation): the lockstep contract of
-:mod:`swarm.host`, bodies driven from outside, host changes recorded and replayed.
+:mod:`swarm.kernel.host`, bodies driven from outside, host changes recorded and replayed.
 
 * Time: ``Simulation(dt_s=...)``; ``run_until(t)`` stops at the last tick boundary at or before
   ``t``; ``now`` is what the changes call the present (a fault at ``now`` is accepted and acts
@@ -10,7 +10,7 @@
 * A body taken over by the host goes where the host puts it; the simulator does not move it;
   its actor goes on planning; the dynamics checker leaves it out and says so.
 * Every host change is a ``host`` event, and a run written with ``write_run`` replays from its
-  folder to the same hash (:func:`swarm.hostlog.schedule_recorded_host_changes`).
+  folder to the same hash (:func:`swarm.kernel.hostlog.schedule_recorded_host_changes`).
 * Bad input: one :class:`~swarm.errors.UsageError` subclass each, the run unchanged.
 """
 
@@ -37,7 +37,7 @@ from swarm.errors import (
     UnknownUavError,
 )
 from swarm.events import read_events
-from swarm.hostlog import schedule_recorded_host_changes
+from swarm.kernel.hostlog import schedule_recorded_host_changes
 from swarm.outputs import write_run
 from swarm.testing.invariants import check_events, load_run_log
 from swarm.testing.invariants.safety import DynamicsChecker

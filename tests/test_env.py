@@ -71,7 +71,7 @@ def test_docs_example_runs():
 def test_import_swarm_needs_no_pettingzoo():
     code = (
         "import sys\n"
-        "import swarm, swarm.simulation\n"
+        "import swarm, swarm.kernel.simulation\n"
         "assert 'pettingzoo' not in sys.modules and 'gymnasium' not in sys.modules\n"
         "sys.modules['pettingzoo'] = None  # as if the rl extra were not installed\n"
         "try:\n"

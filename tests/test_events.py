@@ -17,7 +17,7 @@ from swarm import Simulation
 from swarm import events as ev
 from swarm.errors import UsageError
 from swarm.events import KINDS, Decoder, EventLogError, check_wire, read_columns, read_events, to_wire
-from swarm.recorder import EventLog
+from swarm.kernel.recorder import EventLog
 from swarm.scenario import parse_scenario
 from tests.conftest import DATA
 

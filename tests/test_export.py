@@ -24,9 +24,9 @@ from swarm.cli import main  # noqa: E402
 from swarm.events import KINDS, read_events  # noqa: E402
 from swarm.experiments.sweep import sweep  # noqa: E402
 from swarm.export import export_parquet  # noqa: E402
+from swarm.kernel.simulation import Simulation  # noqa: E402
 from swarm.outputs import write_run  # noqa: E402
 from swarm.scenario import load_scenario  # noqa: E402
-from swarm.simulation import Simulation  # noqa: E402
 from tests.conftest import DATA  # noqa: E402
 
 TABLES = [*KINDS, "timeseries", "paths"]

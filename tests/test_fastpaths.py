@@ -2,10 +2,10 @@
 
 * :func:`agents.dynamics.clamp` is ``min(max(v, lo), hi)`` for every float, NaN and signed
   zeros included;
-* :meth:`swarm.world.World.sense_many` gives each UAV the reading the one-UAV formula gives;
+* :meth:`swarm.kernel.world.World.sense_many` gives each UAV the reading the one-UAV formula gives;
 * ``comms.codec._nums`` converts and rejects exactly as ``_num`` value by value;
-* ``swarm.world._all_far_apart`` never hides a pair the k-d tree would report;
-* :meth:`swarm.recorder.EventLog.flush` (one pack call per tick) writes the bytes of packing
+* ``swarm.kernel.world._all_far_apart`` never hides a pair the k-d tree would report;
+* :meth:`swarm.kernel.recorder.EventLog.flush` (one pack call per tick) writes the bytes of packing
   each event on its own;
 * targets draw their noise ahead in blocks, in the order of one draw per step;
 * :meth:`agents.knowledge.Knowledge.merge_tracks` is ``merge_track`` of each item.
@@ -30,8 +30,8 @@ from agents.maps.grid import Grid
 from agents.types import UavType
 from comms.codec import FrameError, _num, _nums
 from comms.messages import TrackItem
-from swarm.recorder import EventLog
-from swarm.world import ALIVE, PENDING, TargetMotion, Targets, UavBody, World, _all_far_apart
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.world import ALIVE, PENDING, TargetMotion, Targets, UavBody, World, _all_far_apart
 
 any_float = st.floats(allow_nan=True, allow_infinity=True)
 edge_floats = st.sampled_from([0.0, -0.0, 1.0, -1.0, math.inf, -math.inf, math.nan])
@@ -203,7 +203,7 @@ def test_batched_flush_of_large_ticks(n):
 
 
 def test_target_noise_drawn_ahead_is_drawn_in_the_same_order():
-    from swarm.world import _DRAW_BLOCK, _Normals
+    from swarm.kernel.world import _DRAW_BLOCK, _Normals
 
     ahead, direct = _Normals(np.random.default_rng(3)), np.random.default_rng(3)
     n = 3 * _DRAW_BLOCK // 2 + 5  # over several blocks

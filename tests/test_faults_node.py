@@ -11,7 +11,7 @@ from collections import Counter
 import numpy as np
 import pytest
 
-import swarm.simulation as simulation_module
+import swarm.kernel.simulation as simulation_module
 from agents.maps.umap import NEVER
 from faults.schedule import (
     PHANTOM_TARGET_ID,

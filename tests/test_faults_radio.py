@@ -18,7 +18,7 @@ from faults.schedule import FAULT_KINDS, Bridge, FaultSchedule, Jammer, Partitio
 from swarm import Simulation
 from swarm.errors import ScenarioError, UsageError
 from swarm.events import read_events
-from swarm.rng import RngTree
+from swarm.kernel.rng import RngTree
 from swarm.scenario import load_scenario, parse_scenario
 from swarm.testing.invariants import RadioChecker, check_events
 

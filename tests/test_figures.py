@@ -12,7 +12,7 @@ import pytest
 from matplotlib.lines import Line2D
 from PIL import Image
 
-from swarm.simulation import Simulation
+from swarm.kernel.simulation import Simulation
 from swarm.viz.plots import crashed_uavs, found_targets, trajectories_figure, trajectories_plot
 from swarm.viz.style import (
     CRASH_MARKER,

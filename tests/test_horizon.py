@@ -20,8 +20,8 @@ from agents.maps.scanlog import ScanLog, within
 from agents.maps.umap import UncertaintyMap
 from swarm.events import Lost, Radio, Rx, read_events
 from swarm.experiments import bench
+from swarm.kernel.simulation import Simulation
 from swarm.scenario import apply_overrides, parse_scenario
-from swarm.simulation import Simulation
 from swarm.testing.invariants import JoinerCatchUpChecker, MapAgreementChecker, Monitor, RadioChecker, check_events
 
 # --- the scan log's join, with and without a horizon ------------------------------------------------

@@ -649,7 +649,7 @@ def test_no_drop_catches_a_planner_that_abandons_its_target():
 @pytest.fixture
 def no_airframe_limits(monkeypatch):
     """The planted bug: commands reach the airframe unclipped (world and local planner)."""
-    monkeypatch.setattr("swarm.world.limit_command", lambda kind, v, a, omega, dt: (a, omega))
+    monkeypatch.setattr("swarm.kernel.world.limit_command", lambda kind, v, a, omega, dt: (a, omega))
     monkeypatch.setattr("agents.apf.limit_command", lambda kind, v, a, omega, dt: (a, omega))
 
 

@@ -53,8 +53,8 @@ def _import_graph() -> nx.DiGraph:
 
 
 def test_simulation_is_at_most_400_lines():
-    n = len((ROOT / "swarm" / "simulation.py").read_text().splitlines())
-    assert n <= 400, f"swarm/simulation.py has {n} lines"
+    n = len((ROOT / "swarm" / "kernel" / "simulation.py").read_text().splitlines())
+    assert n <= 400, f"swarm/kernel/simulation.py has {n} lines"
 
 
 def test_no_import_circle_among_the_packages_modules():
@@ -87,7 +87,7 @@ def test_the_fault_kinds_are_listed_once():
 
 
 def test_the_kernel_names_no_fault_kind():
-    source = (ROOT / "swarm" / "simulation.py").read_text()
+    source = (ROOT / "swarm" / "kernel" / "simulation.py").read_text()
     for kind in FAULT_KINDS:
         assert f'"{kind}"' not in source and f"'{kind}'" not in source, kind
 
@@ -190,8 +190,8 @@ end_s = 120.0
 
 
 def _run_checked(tmp_path, kind):
+    from swarm.kernel.simulation import Simulation
     from swarm.scenario import load_scenario
-    from swarm.simulation import Simulation
     from swarm.testing.invariants import MapAgreementChecker, Monitor, RunContext
 
     path = tmp_path / f"{kind}.toml"

@@ -1,15 +1,15 @@
 """Many targets (issue 25, item 3): building is linear, and the per-target work of a tick is done
 per array, with the numbers of the per-target code it stands in for.
 
-* :func:`swarm.rng.stream_states`, :func:`~swarm.rng.first_randoms` and
-  :func:`~swarm.rng.generator_from_state` give the streams of :meth:`RngTree.generator` bit for
+* :func:`swarm.kernel.rng.stream_states`, :func:`~swarm.kernel.rng.first_randoms` and
+  :func:`~swarm.kernel.rng.generator_from_state` give the streams of :meth:`RngTree.generator` bit for
   bit (seed words, first draws, and the generator itself);
 * a simulation's random targets start where their own generators put them (four uniforms each)
   and move with those generators' later draws, made only when first used;
 * :meth:`Targets._step_all` (numpy, every target at once) moves targets exactly as
   :meth:`Targets._step_each` (one by one), reflections and limits included, over several draw
   blocks and with targets added on the way;
-* :func:`swarm.observer.pack_target_events` writes the bytes of packing each event on its own,
+* :func:`swarm.kernel.observer.pack_target_events` writes the bytes of packing each event on its own,
   :meth:`EventLog.extend_packed` logs them as ``extend`` would (subscribers get the tuples);
 * the observer's target paths are the per-target rows it kept before;
 * the memory guard refuses a million targets over paper-case1's 600 s with one error naming
@@ -26,12 +26,12 @@ import pytest
 
 from agents.maps.grid import Grid
 from swarm import Simulation
-from swarm.memory import MemoryLimitError, estimate_memory
-from swarm.observer import pack_target_events
-from swarm.recorder import EventLog
-from swarm.rng import RngTree, first_randoms, generator_from_state, stream_states
+from swarm.kernel.memory import MemoryLimitError, estimate_memory
+from swarm.kernel.observer import pack_target_events
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.rng import RngTree, first_randoms, generator_from_state, stream_states
+from swarm.kernel.world import _DRAW_BLOCK, TargetMotion, Targets
 from swarm.scenario import load_scenario
-from swarm.world import _DRAW_BLOCK, TargetMotion, Targets
 
 
 @pytest.mark.parametrize("seed", [0, 1, 7, 2**32 - 1, 2**32, 2**40 + 5, 12345678901234567890])

@@ -167,9 +167,9 @@ def test_maps_share_only_where_every_scan_can_reach_every_map():
 
 
 def test_the_simulation_and_the_memory_estimate_follow_maps_share():
-    from swarm.memory import estimate_memory
+    from swarm.kernel.memory import estimate_memory
+    from swarm.kernel.simulation import Simulation
     from swarm.scenario import load_scenario
-    from swarm.simulation import Simulation
 
     for name, shared in (("paper-fig11", True), ("bench-dense-300", False)):
         sim = Simulation(name, duration_s=1.0)

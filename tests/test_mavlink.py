@@ -15,7 +15,7 @@ import pytest
 
 from swarm import Simulation
 from swarm.cli import main
-from swarm.hostlog import schedule_recorded_host_changes
+from swarm.kernel.hostlog import schedule_recorded_host_changes
 from swarm.mavlink import lonlat_to_metres, metres_to_lonlat
 from swarm.outputs import read_json
 from swarm.testing.invariants import load_run_log

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from agents.maps.grid import Grid
-from swarm.metrics import Metrics
+from swarm.kernel.metrics import Metrics
 
 
 @pytest.mark.parametrize("grid", [Grid(50_000.0, 50_000.0, 100.0), Grid(130_000.0, 110_000.0, 100.0)])

@@ -243,7 +243,7 @@ def test_pads_closer_than_the_separation_minimum_are_refused():
 def test_the_way_home_goes_round_a_zone_and_costs_what_it_flies():
     import numpy as np
 
-    from swarm.homeway import HomeWay, leg_energy_wh
+    from swarm.kernel.homeway import HomeWay, leg_energy_wh
 
     square = np.array([[4000.0, 4000.0], [6000.0, 4000.0], [6000.0, 6000.0], [4000.0, 6000.0]])
     way = HomeWay([(square, 500.0)], None, (10000.0, 10000.0))

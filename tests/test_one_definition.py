@@ -182,7 +182,7 @@ def test_radio_table_is_the_radio_settings_dataclass():
 
 
 def test_the_actors_and_the_radio_take_their_radio_settings_from_the_scenario():
-    from swarm import build
+    from swarm.kernel import build
     from swarm.scenario import parse_scenario
 
     assert ActorSettings().radio == CommsRadio() and LinkModel() == CommsRadio().link_model()

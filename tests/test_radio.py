@@ -677,7 +677,7 @@ def test_streams_made_together_are_the_streams_made_one_by_one(faults):
     """A radio given ``link_rngs`` (issue 25: a dense swarm's first tick makes tens of thousands
     of link streams) makes them in bulk when a new link first needs one: the same copies and
     losses as making each when first needed, with links coming and going."""
-    from swarm.rng import RngTree
+    from swarm.kernel.rng import RngTree
 
     tree = RngTree(4)
 

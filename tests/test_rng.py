@@ -1,4 +1,4 @@
-"""swarm.rng.RngTree: one random stream per (seed, key), and nothing else shared.
+"""swarm.kernel.rng.RngTree: one random stream per (seed, key), and nothing else shared.
 
 A stream depends only on the run's seed and its key (hashed with SHA-256): not on which other
 streams exist or the order they were made in, not on PYTHONHASHSEED, and drawing from it leaves
@@ -16,8 +16,8 @@ import sys
 import numpy as np
 import pytest
 
-import swarm.rng
-from swarm.rng import RngTree
+import swarm.kernel.rng
+from swarm.kernel.rng import RngTree
 
 KEYS = [("link", "B1", "B2"), ("link", "B2", "B1"), ("planner", "A1"), ("target", 3), ("targets",)]
 
@@ -74,7 +74,7 @@ def test_a_stream_is_pinned():
     assert draws == [3029546130, 4142725294, 2912928584, 1655555430]
 
 
-# The child loads swarm/rng.py by path: importing the swarm package would cost a second a process.
+# The child loads swarm/kernel/rng.py by path: importing the swarm package would cost a second a process.
 _DRAW_IN_A_PROCESS = (
     "import importlib.util, json, sys\n"
     "spec = importlib.util.spec_from_file_location('rng', sys.argv[1])\n"
@@ -89,7 +89,7 @@ _DRAW_IN_A_PROCESS = (
 
 def _draws_in_a_process(hashseed: str) -> tuple[dict, int]:
     env = {**os.environ, "PYTHONHASHSEED": hashseed}
-    out = subprocess.run([sys.executable, "-c", _DRAW_IN_A_PROCESS, swarm.rng.__file__], env=env,
+    out = subprocess.run([sys.executable, "-c", _DRAW_IN_A_PROCESS, swarm.kernel.rng.__file__], env=env,
                          capture_output=True, text=True, timeout=120, check=True)
     draws, (_, str_hash) = (json.loads(line) for line in out.stdout.splitlines())
     return draws, str_hash

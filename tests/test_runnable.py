@@ -12,7 +12,7 @@ import pytest
 
 from swarm import Simulation
 from swarm.errors import ScenarioError
-from swarm.memory import MemoryLimitError, estimate_memory
+from swarm.kernel.memory import MemoryLimitError, estimate_memory
 from swarm.scenario import apply_overrides, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -44,10 +44,10 @@ from agents.planners.base import Plan, PlanView
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event, Found, Pose, Restart, Violation
-from swarm.mission import LANDED
+from swarm.kernel.mission import LANDED
+from swarm.kernel.simulation import Simulation
+from swarm.kernel.world import ALIVE, CRASHED, PENDING
 from swarm.scenario import Scenario, apply_overrides, load_scenario
-from swarm.simulation import Simulation
-from swarm.world import ALIVE, CRASHED, PENDING
 
 __all__ = ["ENV_NAME", "ExternalPlanner", "RewardWeights", "SwarmSearchEnv", "parallel_env"]
 

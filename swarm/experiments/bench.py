@@ -64,9 +64,9 @@ import agents.maps.grid
 import agents.maps.umap
 import agents.planners
 import comms.radio
-from swarm.results import RunResult
+from swarm.kernel.results import RunResult
+from swarm.kernel.simulation import Simulation
 from swarm.scenario import Scenario, load_scenario
-from swarm.simulation import Simulation
 
 
 @dataclass(frozen=True)

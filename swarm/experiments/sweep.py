@@ -206,7 +206,7 @@ def execute(spec: RunSpec) -> dict:
     """Run one simulation (in a worker). Returns ``{"files": {name: bytes}}`` or, if it raised,
     ``{"error": text, "traceback": text}``: an error is data, so one bad run cannot take the
     sweep down."""
-    from swarm.simulation import Simulation
+    from swarm.kernel.simulation import Simulation
 
     try:
         doc = spec.scenario if spec.duration_s is None else {**spec.scenario, "duration_s": spec.duration_s}
@@ -223,7 +223,7 @@ def execute(spec: RunSpec) -> dict:
 
 def portable_traceback() -> str:
     """The exception being handled, formatted as ``traceback.format_exc()`` does but with each
-    frame's file named from the import root it was found under (``swarm/simulation.py``,
+    frame's file named from the import root it was found under (``swarm/kernel/simulation.py``,
     ``numpy/...``), not by where this machine installed it: ``error.json`` holds no absolute
     path of the machine (docs/outputs.md, portable artifacts)."""
     roots = sorted({os.path.abspath(p) for p in sys.path if p}, key=len, reverse=True)

@@ -1,7 +1,7 @@
 """The mission tables of a scenario (issue 26): ``[wind]`` and ``[endurance]``.
 
 Absent (the default), nothing of them runs: no wind, no energy, no events of theirs, and the
-event log is what it always was. The simulation's side is :mod:`swarm.mission`.
+event log is what it always was. The simulation's side is :mod:`swarm.kernel.mission`.
 """
 
 from __future__ import annotations

@@ -100,7 +100,7 @@ class Scenario(Table):
     # polygon no-fly zones. Absent (the default), nothing geographic runs or is imported.
     geo: GeoSettings | None = Field(default=None, description="a table [geo]: the area as a polygon in a CRS")
     no_fly: list[NoFlySpec] = Field(default_factory=list, description="an array of tables [[no_fly]] (polygon no-fly zones)")
-    # Wind and endurance (issue 26, swarm.scenario.mission, swarm.mission): absent, nothing runs.
+    # Wind and endurance (issue 26, swarm.scenario.mission, swarm.kernel.mission): absent, nothing runs.
     wind: WindSettings | None = Field(default=None, description="a table [wind]")
     endurance: EnduranceSettings | None = Field(default=None, description="a table [endurance]")
 

@@ -350,7 +350,7 @@ RECORDING_LEVELS = ("frames", "summary")
 
 
 class RecordingSettings(Table):
-    """What the event log keeps (swarm.recorder; the README lists each level's events).
+    """What the event log keeps (swarm.kernel.recorder; the README lists each level's events).
 
     ``"frames"``: every frame copy read (``rx``) or lost (``lost``), one event each, so the log
     grows with radio density (a UAV hearing 250 neighbours logs 250 ``rx`` a second).

@@ -1,7 +1,7 @@
 """Liveness after faults: once every fault is over, a quiet period, then the swarm has recovered.
 
 :class:`SwarmMachine <swarm.testing.stateful.SwarmMachine>` ends each example with this check
-(its *liveness mode*); it works on any live :class:`~swarm.simulation.Simulation`::
+(its *liveness mode*); it works on any live :class:`~swarm.kernel.simulation.Simulation`::
 
     report = quiesce(sim, faults_end_s=sim.now)   # heal first: no fault may still be active
     report.raise_if()

@@ -1,7 +1,7 @@
 """A Hypothesis state machine that drives one simulation and checks invariants every step.
 
 :class:`SwarmMachine` draws a small scenario (:func:`swarm.testing.strategies.scenarios`), builds a
-:class:`~swarm.simulation.Simulation` and drives it synchronously. Its rules advance time, crash
+:class:`~swarm.kernel.simulation.Simulation` and drives it synchronously. Its rules advance time, crash
 UAVs, add late joiners, cut and heal partitions, change the loss on every link and add targets
 (all through the public API: ``step``, ``add_fault``, ``add_uav``, ``add_target``). After every
 rule its ``@invariant`` feeds the new events to a :class:`swarm.testing.invariants.Monitor` and fails
@@ -64,8 +64,8 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
 from faults.schedule import ClockSkew, Crash, Drop, Fault, Join, Liar, Partition, Pause, Restart
+from swarm.kernel.simulation import Simulation
 from swarm.scenario import Scenario, parse_scenario
-from swarm.simulation import Simulation
 from swarm.testing.invariants import (
     Checker,
     DynamicsChecker,

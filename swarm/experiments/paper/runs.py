@@ -85,8 +85,8 @@ def _single(scenario_name: str, run_dir: Path, duration_s: float | None, progres
             key: str) -> bool:
     """One run with the scenario's seed, all outputs in ``run_dir``. Returns True if it was
     already there (kept)."""
+    from swarm.kernel.simulation import Simulation
     from swarm.outputs import write_run
-    from swarm.simulation import Simulation
 
     sc = load_scenario(scenario_name)
     expected = expected_duration(sc, duration_s)

@@ -133,7 +133,7 @@ class HandoverChecker(_WatchChecker):
         self._seen: dict[int, tuple[float, float, float]] = {}
         # target -> watchers that have held it since they began watching it (rule 3's "in sight")
         self._held: dict[int, set[int]] = {}
-        # target -> its owner, as the handover metric (swarm.metrics) has it: the UAV that held
+        # target -> its owner, as the handover metric (swarm.kernel.metrics) has it: the UAV that held
         # it last, kept while it watches it (a newcomer takes it over only at its release)
         self._owner: dict[int, int] = {}
         #: Every (target, faster watcher) pair that was offered a takeover at some time: a free

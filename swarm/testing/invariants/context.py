@@ -18,7 +18,7 @@ from faults.registry import fault_from_dict, fault_to_dict
 from faults.sensing import skewed_stamps
 from swarm import events as event_schema
 from swarm.errors import SwarmError
-from swarm.rng import RngTree
+from swarm.kernel.rng import RngTree
 from swarm.scenario import Scenario
 
 EPS = 1e-6  # (s, m: slack for floating-point comparisons of times and distances)

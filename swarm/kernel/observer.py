@@ -1,7 +1,7 @@
 """The tick's observe phase: ground truth into the metrics, the event log and the paths.
 
 After the actors answered, the observer records, in UAV-id order, each one's mode changes,
-scan and sightings (ground truth, into :class:`swarm.metrics.Metrics`), pose and frames read;
+scan and sightings (ground truth, into :class:`swarm.kernel.metrics.Metrics`), pose and frames read;
 then the metrics' events (found, release, handover, ...), every target's position and the
 safety violations. It also keeps what the run's results read: each UAV's and target's path,
 the sampled time series, and, at recording level ``"summary"``, the per-tick count of frame
@@ -17,9 +17,9 @@ import numpy as np
 from agents.actor import ActorOutput, SensorReading
 from agents.planners.base import Plan
 from faults.tick import TickFaults
-from swarm.metrics import Metrics
-from swarm.recorder import EventLog
-from swarm.world import World
+from swarm.kernel.metrics import Metrics
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.world import World
 
 # From this many targets on, a tick's ``target`` events are packed from the positions' array
 # (pack_target_events) instead of tuple by tuple: 10^5 targets cost 50 ms a tick that way.
@@ -76,7 +76,7 @@ class Observer:
         self.dt = dt
         self.min_separation_m = min_separation_m
         # Flat (t, x, y, t, x, y, ...) per UAV: an array is made from a flat list of floats
-        # several times faster than from a list of tuples (swarm.results).
+        # several times faster than from a list of tuples (swarm.kernel.results).
         self.paths: dict[int, list[float]] = {}
         # The targets' positions, one (n, 2) array per tick (the world's own, which it replaces
         # rather than changes): per-target lists cost 10^5 list appends a tick and 32 bytes a

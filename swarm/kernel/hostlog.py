@@ -4,7 +4,7 @@ Every change the embedding API makes to a running simulation (``add_target``, ``
 ``add_fault``, ``take_control``, ``release_control``, ``set_state``, ``set_waypoint``) is applied
 here, by :func:`apply_change`, from its name and a table of plain arguments (UAVs by name,
 headings in degrees for what is added and in radians for ``set_state``, times in seconds): the
-call checked its input first (:mod:`swarm.host`). The change is logged as a ``host`` event
+call checked its input first (:mod:`swarm.kernel.host`). The change is logged as a ``host`` event
 (:class:`swarm.events.Host`) at the tick boundary where it takes effect, before anything else of
 that tick, so an embedded run can be replayed from its event log:
 :func:`schedule_recorded_host_changes` schedules every recorded change of a run on a fresh
@@ -24,7 +24,7 @@ from swarm.events import Event
 from swarm.scenario import UavSpec
 
 if TYPE_CHECKING:
-    from swarm.simulation import Simulation
+    from swarm.kernel.simulation import Simulation
 
 __all__ = ["CHANGES", "apply_change", "schedule_recorded_host_changes"]
 

@@ -21,12 +21,12 @@ from faults.base import BatteryLike, FaultKind
 from faults.injector import FaultInjector
 from faults.registry import FaultSchedule, uav_names
 from faults.tick import TickFault, TickFaults
-from swarm.clock import FAULT, Clock
 from swarm.errors import UsageError
-from swarm.fleet import Fleet
-from swarm.recorder import EventLog
-from swarm.rng import RngTree
-from swarm.world import World
+from swarm.kernel.clock import FAULT, Clock
+from swarm.kernel.fleet import Fleet
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.rng import RngTree
+from swarm.kernel.world import World
 
 
 class RunFaults:
@@ -45,7 +45,7 @@ class RunFaults:
                                       fault_rng=lambda kind, k: rng.generator("fault", kind, k))
         self.tick = TickFaults(rng.generator, names, area, dt)
         self.radio: Radio | None = None  # (set once the radio is built: it filters through the injector)
-        # (issue 33) The UAVs' batteries (swarm.mission.Mission.battery_of), which the battery
+        # (issue 33) The UAVs' batteries (swarm.kernel.mission.Mission.battery_of), which the battery
         # fault acts on; none without [endurance].
         self.batteries: Callable[[int], BatteryLike | None] = lambda uid: None
 

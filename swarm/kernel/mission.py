@@ -6,21 +6,21 @@ with neither, and then nothing here runs.
 The simulation calls it at two points of a tick: :meth:`Mission.begin_tick` right after the
 faults' tick start (the last tick's drain, homecomings, landings, launches; this tick's wind),
 and :meth:`Mission.sense` after the tick faults have acted on the readings (each UAV's energy
-reading). It acts on the fleet only through :meth:`swarm.fleet.Fleet.land`,
-:meth:`~swarm.fleet.Fleet.launch` and :meth:`~swarm.fleet.Fleet.fail_stop`.
+reading). It acts on the fleet only through :meth:`swarm.kernel.fleet.Fleet.land`,
+:meth:`~swarm.kernel.fleet.Fleet.launch` and :meth:`~swarm.kernel.fleet.Fleet.fail_stop`.
 
 Wind. ``w(t) = mean + g(t)``, uniform over the area; each gust component an
 Ornstein-Uhlenbeck process with standard deviation ``sigma`` and time constant ``tau``, stepped
 exactly once per tick from the run's ``("wind",)`` stream (``g' = g e^{-dt/tau} + sigma
 sqrt(1 - e^{-2 dt/tau}) N(0, 1)``, starting from its stationary law), so gusts are reproducible
-by seed. Every flying UAV drifts by ``w(t) dt`` over the tick (:attr:`swarm.world.World.wind`):
+by seed. Every flying UAV drifts by ``w(t) dt`` over the tick (:attr:`swarm.kernel.world.World.wind`):
 its ground velocity is its air velocity plus the wind; its speed, heading, turn rate and the
 airframe limits stay air-relative (the dynamics invariant reads the tick's ``wind`` event).
 
 Energy. A UAV of a type with an energy budget drains ``P(v) dt`` a tick at its airspeed ``v``
 (times a battery fault's drain factor), never below zero: a UAV that reaches zero in flight is
 lost (``energy_out`` once, then a crash). Each tick it is told (:class:`agents.actor.EnergyReading`)
-the way home to its pad (:mod:`swarm.homeway`: round the no-fly zones, inside the area), the
+the way home to its pad (:mod:`swarm.kernel.homeway`: round the no-fly zones, inside the area), the
 energy that way takes at its minimum-power speed against the mean wind plus ``reserve_frac``
 of its capacity, and what it has beyond that as seconds of flight at its present power
 (``spare_s``): at 0 it must go (``must_go``). A watcher asks for relief early enough that a
@@ -45,12 +45,12 @@ from typing import Any
 import numpy as np
 
 from agents.actor import EnergyReading, SensorReading, UavActor
-from swarm.fleet import Fleet
-from swarm.homeway import HomeWay, leg_energy_wh
-from swarm.recorder import EventLog
+from swarm.kernel.fleet import Fleet
+from swarm.kernel.homeway import HomeWay, leg_energy_wh
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.world import ALIVE, CRASHED, LANDED, World
 from swarm.scenario import Scenario
 from swarm.scenario.mission import EnduranceSettings, EnergySpec, min_power_speed, power_w
-from swarm.world import ALIVE, CRASHED, LANDED, World
 
 __all__ = ["Battery", "Mission", "WindField", "mission"]
 
@@ -174,7 +174,7 @@ class Mission:
     def needed_home_wh(self, uid: int, t: float) -> float:
         """Energy to fly home from where the UAV is: the turn onto its way at its present speed
         (an arc of its turn radius through the heading change, plus a turn diameter it may have
-        to come back), then its way (:mod:`swarm.homeway`) at the minimum-power speed against
+        to come back), then its way (:mod:`swarm.kernel.homeway`) at the minimum-power speed against
         the mean wind."""
         b = self.world.uavs[uid]
         bat = self.uavs[uid].battery

@@ -1,4 +1,4 @@
-"""What a running simulation looks like at one instant (:meth:`swarm.simulation.Simulation.snapshot`):
+"""What a running simulation looks like at one instant (:meth:`swarm.kernel.simulation.Simulation.snapshot`):
 plain frozen records, safe to keep, compare and send elsewhere."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from swarm.simulation import Simulation
+    from swarm.kernel.simulation import Simulation
 
 
 @dataclass(frozen=True, slots=True)

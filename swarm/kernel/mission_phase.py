@@ -1,5 +1,5 @@
 """The mission phase's interface (issue 33): what the simulation calls each tick, and the phase
-of a run without ``[wind]`` or ``[endurance]``, which does nothing (:mod:`swarm.mission` is the
+of a run without ``[wind]`` or ``[endurance]``, which does nothing (:mod:`swarm.kernel.mission` is the
 real one; importing it, and shapely with it, is left to runs that have those tables)."""
 
 from __future__ import annotations

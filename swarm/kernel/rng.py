@@ -52,7 +52,7 @@ class RngTree:
 # the very algorithms numpy runs (SeedSequence's entropy mixing, PCG64's seeding and its XSL-RR
 # output, ``Generator.random``'s 53-bit double): the same numbers bit for bit
 # (tests/test_rng_vector.py checks them against the Generators). The stream itself is made only
-# if something draws from it later (swarm.world.Targets: a moving target's motion noise).
+# if something draws from it later (swarm.kernel.world.Targets: a moving target's motion noise).
 
 _M32 = 0xFFFFFFFF
 _INIT_A, _MULT_A, _INIT_B, _MULT_B = 0x43B0D7E5, 0x931E8875, 0x8B51F9DD, 0x58F38DED

@@ -6,7 +6,7 @@ two ticks. Everything a host does takes effect at a boundary:
 * the *present* is the boundary where a change made now takes effect: ``sim.now`` when the
   simulation is not inside a tick, else the end of the tick under way (``sim.now + dt``: a
   task that runs while the actors think, without waiting, acts at the next boundary);
-* a change (:mod:`swarm.hostlog`) made at a boundary is applied at once; one made inside a tick
+* a change (:mod:`swarm.kernel.hostlog`) made at a boundary is applied at once; one made inside a tick
   is queued and applied at the next boundary, in call order; each is logged (``host``);
 * at each boundary, before anything of the next tick (faults, frames, the tick itself), the
   simulation applies the queued changes, then serves the alarms due there in order (time,
@@ -18,7 +18,7 @@ two ticks. Everything a host does takes effect at a boundary:
 A boundary is served once, when the simulation first stands at it (``run_until(t)`` serves the
 boundary it stops at before it returns). The host changes themselves are checked here (one
 :class:`~swarm.errors.UsageError` subclass per kind of bad input, the run unchanged) and
-applied by :mod:`swarm.hostlog`.
+applied by :mod:`swarm.kernel.hostlog`.
 """
 
 from __future__ import annotations
@@ -41,13 +41,13 @@ from swarm.errors import (
     UnknownUavError,
     UsageError,
 )
-from swarm.hostlog import apply_change
+from swarm.kernel.hostlog import apply_change
 
 if TYPE_CHECKING:
-    from swarm.driving import LoopBinding
     from swarm.geo.geography import Geography
-    from swarm.simulation import Simulation
-    from swarm.world import World
+    from swarm.kernel.driving import LoopBinding
+    from swarm.kernel.simulation import Simulation
+    from swarm.kernel.world import World
 
 # What an alarm does when its boundary comes.
 _CALL, _WAKE, _REPLAY = 0, 1, 2
@@ -303,7 +303,7 @@ def not_geographic(what: str) -> NotGeographicError:
 
 class HostApi:
     """The embedding API's calls that change a run or act at a simulated time, and the local
-    frame's conversions: a part of :class:`swarm.simulation.Simulation` (it inherits them), here
+    frame's conversions: a part of :class:`swarm.kernel.simulation.Simulation` (it inherits them), here
     beside the contract they follow. Each checks its input and hands the change to :class:`Host`."""
 
     _host: Host
@@ -339,7 +339,7 @@ class HostApi:
         assert self._geography is not None
         return self._geography.frame
 
-    # --- changing the run: checked, applied at a tick boundary, logged (swarm.hostlog) ---
+    # --- changing the run: checked, applied at a tick boundary, logged (swarm.kernel.hostlog) ---
 
     def add_target(self, x: float | None = None, y: float | None = None, heading_deg: float = 0.0, speed: float = 0.0,
                    value: float = 1.0, *, lon: float | None = None, lat: float | None = None) -> int:

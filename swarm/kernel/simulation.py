@@ -16,15 +16,10 @@ A simulation is bound to the first event loop that drives it: the host's running
 Library code never prints, exits or calls ``asyncio.run``.
 
 Between two ticks the simulation stands at a tick boundary, where a host acts
-(:mod:`swarm.host`: its changes, ``call_at``, ``wait_until``; logged by :mod:`swarm.hostlog`).
-One tick at time ``t`` (see ARCHITECTURE.md): the host's changes at boundary ``t``, then faults,
-joins and frames due by ``t`` (clock priorities), then the tick's phases, each a call into the
-part that owns it: start (:mod:`swarm.faulting`, :mod:`swarm.fleet`), mission (wind, energy:
-:mod:`swarm.mission`), sense (the world, the tick faults, the energy readings), wake the actors
-and wait for all of them (:mod:`swarm.fleet`), observe (:mod:`swarm.observer`), transmit
-(:mod:`swarm.transmission`), integrate (the world), end (sampling, the log, the next tick). This
-class builds those parts, runs the phases, drives the clock, and is the embedding API; it knows
-no fault kind.
+(:mod:`swarm.kernel.host`: its changes, ``call_at``, ``wait_until``; logged by :mod:`swarm.kernel.hostlog`).
+One tick runs the phases listed in :mod:`swarm.kernel` (boundary, start, mission, sense, wake,
+observe, transmit, integrate, end), each a call into the part that owns it. This class builds
+those parts, runs the phases, drives the clock, and is the embedding API; it knows no fault kind.
 """
 
 from __future__ import annotations
@@ -43,25 +38,25 @@ from agents.maps.mapgroup import MapGroup, maps_share
 from comms.framecache import DecodeCache
 from faults.injector import FaultInjector
 from faults.registry import fault_from_dict
-from swarm import build
-from swarm.clock import TICK, Clock
-from swarm.driving import LoopBinding
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event
-from swarm.faulting import RunFaults
-from swarm.fleet import Fleet
-from swarm.host import Host, HostApi
-from swarm.memory import check_memory
-from swarm.metrics import Metrics
-from swarm.mission_phase import NO_MISSION
-from swarm.observer import Observer
-from swarm.recorder import EventLog
-from swarm.results import RunResult, radio_totals, run_metrics, run_result
-from swarm.rng import RngTree
+from swarm.kernel import build
+from swarm.kernel.clock import TICK, Clock
+from swarm.kernel.driving import LoopBinding
+from swarm.kernel.faulting import RunFaults
+from swarm.kernel.fleet import Fleet
+from swarm.kernel.host import Host, HostApi
+from swarm.kernel.memory import check_memory
+from swarm.kernel.metrics import Metrics
+from swarm.kernel.mission_phase import NO_MISSION
+from swarm.kernel.observer import Observer
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.results import RunResult, radio_totals, run_metrics, run_result
+from swarm.kernel.rng import RngTree
+from swarm.kernel.snapshot import Snapshot, TargetSnapshot, UavSnapshot, take_snapshot
+from swarm.kernel.transmission import Transmission
+from swarm.kernel.world import PENDING, Targets, UavBody, World
 from swarm.scenario import Scenario, UavSpec
-from swarm.snapshot import Snapshot, TargetSnapshot, UavSnapshot, take_snapshot
-from swarm.transmission import Transmission
-from swarm.world import PENDING, Targets, UavBody, World
 
 __all__ = ["Simulation", "Snapshot", "TargetSnapshot", "UavSnapshot"]
 
@@ -89,11 +84,11 @@ class Simulation(HostApi):
         ``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
         planner call (same event log as planning one by one, only faster; see
         :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself.
-        ``memory_limit_gb``: refuse (:class:`~swarm.memory.MemoryLimitError`) a scenario whose
+        ``memory_limit_gb``: refuse (:class:`~swarm.kernel.memory.MemoryLimitError`) a scenario whose
         estimated memory is above it (default: ``SWARM_MEMORY_LIMIT_GB``, else half of this
         machine's memory). ``dt_s``: the tick (default: the scenario's), e.g. a host's own step."""
         scenario = build.configured(scenario, seed, planner, planner_options, duration_s, allow_planner_imports, dt_s)
-        # Before anything is allocated: refuse a run that cannot fit (swarm.memory).
+        # Before anything is allocated: refuse a run that cannot fit (swarm.kernel.memory).
         self.memory_estimate = check_memory(scenario, memory_limit_gb)
         self.scenario = sc = scenario
         self.seed = sc.seed
@@ -105,9 +100,9 @@ class Simulation(HostApi):
         self._names: dict[str, int] = {}  # shared with the faults: names added later resolve
         self._tick_index = 0
         self._sample_every = max(1, round(sc.metrics.sample_s / self.dt))
-        self._binding = LoopBinding()  # the event loop that drives it (swarm.driving)
+        self._binding = LoopBinding()  # the event loop that drives it (swarm.kernel.driving)
         self._advancing = False  # inside run_until (a second driver is refused)
-        self._host = Host(self)  # the host's side: changes, alarms, bodies driven from outside (swarm.host)
+        self._host = Host(self)  # the host's side: changes, alarms, bodies driven from outside (swarm.kernel.host)
         # Ground truth (area grid, targets, threats), the metrics that observe it, UAV types.
         self._grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
         self._tau = sc.effective_tau
@@ -242,7 +237,7 @@ class Simulation(HostApi):
     # --- the tick ---------------------------------------------------------------------------
 
     async def _tick(self) -> None:
-        """One tick at ``t``: the data flow of ARCHITECTURE.md, one phase per call.
+        """One tick at ``t``: the phases listed in :mod:`swarm.kernel`, one call each.
 
         Faults, joins and frames due at ``t`` ran before this (clock priorities)."""
         t = self.now
@@ -280,7 +275,7 @@ class Simulation(HostApi):
         return xy, readings
 
     def _integrate(self, alive: list[int], outputs: dict[int, ActorOutput]) -> None:
-        """Physics: every live UAV the simulator flies (not the host's: swarm.host) flies its
+        """Physics: every live UAV the simulator flies (not the host's: swarm.kernel.host) flies its
         command for ``dt``, then the targets move."""
         dt = self.dt
         if self._host.controlled:
@@ -302,7 +297,7 @@ class Simulation(HostApi):
     # --- driving ----------------------------------------------------------------------------
 
     async def _advance(self, k_end: int, progress: Callable[[float, float], None] | None = None) -> None:
-        """Run every tick up to boundary ``k_end``, serving each boundary reached (swarm.host)."""
+        """Run every tick up to boundary ``k_end``, serving each boundary reached (swarm.kernel.host)."""
         clock, host = self._clock, self._host
         eps = 1e-9 * self.dt
         t_end = k_end * self.dt
@@ -384,7 +379,7 @@ class Simulation(HostApi):
     # --- results ---------------------------------------------------------------------------
 
     def metrics_dict(self) -> dict:
-        """The run's metrics so far (what ``metrics.json`` holds; see :mod:`swarm.results`)."""
+        """The run's metrics so far (what ``metrics.json`` holds; see :mod:`swarm.kernel.results`)."""
         return run_metrics(self)
 
     def result(self) -> RunResult:

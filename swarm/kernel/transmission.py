@@ -17,8 +17,8 @@ import numpy as np
 
 from agents.actor import ActorOutput, UavActor
 from comms.radio import Delivery, Radio
-from swarm.clock import DELIVERY, Clock
-from swarm.world import ALIVE, World
+from swarm.kernel.clock import DELIVERY, Clock
+from swarm.kernel.world import ALIVE, World
 
 # A lost copy, reported as (t, sender, receiver, bytes, cause).
 Lost = Callable[[float, int, int, int, str], None]

@@ -361,7 +361,7 @@ class World:
         self.violations = {"separation": 0, "threat": 0, "dynamics": 0}
         # Polygon no-fly zones (issue 26, agents.zones.Keepout; none in a metric scenario).
         self.zones: list = []
-        # The wind of this tick (issue 26, swarm.mission; None: still air): every UAV drifts with it.
+        # The wind of this tick (issue 26, swarm.kernel.mission; None: still air): every UAV drifts with it.
         self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
         self.dynamics_by_uav: dict[int, list[float]] = {}

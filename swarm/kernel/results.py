@@ -16,13 +16,13 @@ from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from comms.radio import Radio
 from faults.injector import FaultInjector
-from swarm.metrics import Metrics
-from swarm.observer import Observer
+from swarm.kernel.metrics import Metrics
+from swarm.kernel.observer import Observer
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.transmission import Transmission
+from swarm.kernel.world import Targets, World
 from swarm.provenance import versions
-from swarm.recorder import EventLog
 from swarm.scenario import Scenario
-from swarm.transmission import Transmission
-from swarm.world import Targets, World
 
 __all__ = ["RunResult", "radio_totals", "run_metrics", "run_result"]
 
@@ -45,7 +45,7 @@ class RunResult:
 
 
 class Run(Protocol):
-    """What the results read of a simulation (:class:`swarm.simulation.Simulation` is one):
+    """What the results read of a simulation (:class:`swarm.kernel.simulation.Simulation` is one):
     its documented parts and the internals the results are made of, so that this module does
     not depend on the kernel."""
 
@@ -143,7 +143,7 @@ def run_metrics(sim: Run) -> dict:
              "latency_s": h.latency_s, "overlap_s": max(h.latency_s, 0.0), "gap_s": max(-h.latency_s, 0.0)}
             for h in m.handovers
         ],
-        **assignment,  # time_to_first_detection_s ... uav_time_share (swarm.metrics.Metrics.assignment)
+        **assignment,  # time_to_first_detection_s ... uav_time_share (swarm.kernel.metrics.Metrics.assignment)
         "radio": radio,
         "violations": dict(sim._world.violations),
         "dynamics_violations_by_uav": {

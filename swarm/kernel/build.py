@@ -2,7 +2,7 @@
 
 Each function turns one part of a :class:`~swarm.scenario.Scenario` into the objects the kernel
 runs (UAV types, target motion, threats, the radio, the actors' settings). They hold no state
-and decide nothing at run time; :class:`swarm.simulation.Simulation` composes them.
+and decide nothing at run time; :class:`swarm.kernel.simulation.Simulation` composes them.
 """
 
 from __future__ import annotations
@@ -23,15 +23,15 @@ from agents.knowledge import KnownThreat
 from agents.types import UavType
 from comms.radio import LinkFilter, Radio
 from swarm.errors import UsageError
-from swarm.rng import RngTree, first_randoms, generator_from_state, stream_states
+from swarm.kernel.rng import RngTree, first_randoms, generator_from_state, stream_states
+from swarm.kernel.world import TargetMotion, Targets
 from swarm.scenario import Scenario, UavTypeSpec, load_scenario
 from swarm.scenario.trust import allowed
-from swarm.world import TargetMotion, Targets
 
 if TYPE_CHECKING:
     from agents.maps.grid import Grid
     from swarm.geo.geography import Geography
-    from swarm.mission import Mission
+    from swarm.kernel.mission import Mission
 
 __all__ = ["actor_settings", "add_random_targets", "auth_key", "geography", "radio", "random_targets", "target_motion", "threats",
            "uav_type_from_spec", "uav_types"]
@@ -54,10 +54,10 @@ def target_motion(sc: Scenario) -> TargetMotion:
 def random_targets(sc: Scenario, seed: int, first: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float,
                                                                   Callable[[int], np.random.Generator]]:
     """The scenario's ``targets.count`` random targets, ids ``first, first + 1, ...``, as
-    :meth:`swarm.world.Targets.add_many` takes them: ``x, y, theta, v, value, make``.
+    :meth:`swarm.kernel.world.Targets.add_many` takes them: ``x, y, theta, v, value, make``.
 
     Target ``i``'s place, heading and speed are the first four uniforms of its own stream
-    ``("target", i)``, computed for all targets at once (:func:`swarm.rng.first_randoms`, the
+    ``("target", i)``, computed for all targets at once (:func:`swarm.kernel.rng.first_randoms`, the
     same numbers as making each generator, which costs 35 us: issue 25, a million targets build
     in a second); ``make(i)`` gives the stream after those four, made only when the target's
     motion first draws from it."""
@@ -147,13 +147,13 @@ def random_start(g: np.random.Generator, sc: Scenario, geo: Geography | None) ->
 
 
 def mission(sim: Any) -> Mission | None:
-    """(issues 26, 33) The run's wind and endurance (:mod:`swarm.mission`), its batteries handed
+    """(issues 26, 33) The run's wind and endurance (:mod:`swarm.kernel.mission`), its batteries handed
     to the run's fault host (the battery fault's access), or None for a scenario without
     ``[wind]`` and ``[endurance]``."""
     sc, geo = sim.scenario, sim._geography
     if sc.wind is None and sc.endurance is None:
         return None
-    from swarm.mission import mission as build_mission
+    from swarm.kernel.mission import mission as build_mission
 
     m = build_mission(sc, sim._world, sim._fleet, sim._log, sim.dt, (sim._grid.width_m, sim._grid.height_m),
                       sim._rng.generator("wind"), list(geo.zones) if geo is not None else [],
@@ -195,7 +195,7 @@ def _actor_settings(sc: Scenario) -> ActorSettings:
 def configured(scenario: Scenario | str | Path, seed: int | None, planner: str | type | None,
                 planner_options: Mapping[str, Any] | None, duration_s: float | None,
                 allow_planner_imports: bool | Iterable[str], dt_s: float | None = None) -> Scenario:
-    """The scenario with :class:`swarm.simulation.Simulation`'s arguments applied."""
+    """The scenario with :class:`swarm.kernel.simulation.Simulation`'s arguments applied."""
     # A class is named by where it lives (module:Class), as a scenario would name it.
     name = planner if planner is None or isinstance(planner, str) else f"{planner.__module__}:{planner.__qualname__}"
     if not isinstance(scenario, Scenario):

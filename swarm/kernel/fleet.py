@@ -24,10 +24,10 @@ from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import MODE_NAMES
 from swarm.errors import SimulationError
-from swarm.recorder import EventLog
-from swarm.rng import RngTree
+from swarm.kernel.recorder import EventLog
+from swarm.kernel.rng import RngTree
+from swarm.kernel.world import ALIVE, CRASHED, LANDED, PENDING, World
 from swarm.scenario import Scenario
-from swarm.world import ALIVE, CRASHED, LANDED, PENDING, World
 
 # What a fleet reports of a frame copy it had to drop: (sender, receiver, bytes, cause).
 LostCopy = Callable[[int, int, int, str], None]
@@ -106,7 +106,7 @@ class Fleet:
     def fail_stop(self, uid: int, now: float) -> None:
         """Take the UAV down: it no longer senses, sends, receives or moves. A pending one never
         flies; a flying (or landed) one's task is cancelled and its unread frames are lost. A
-        crash sticks: a landed UAV that crashes is never launched again (swarm.mission)."""
+        crash sticks: a landed UAV that crashes is never launched again (swarm.kernel.mission)."""
         b = self.world.uavs[uid]
         if b.state == CRASHED:
             return
