@@ -428,6 +428,7 @@ def test_the_demo_scenario_has_one_fault_of_every_kind():
     assert {f.kind for f in sc.faults} == set(FAULT_KINDS) and sc.radio.auth
 
 
+@pytest.mark.slow  # the whole 400 s demo of 8 UAVs (its fault list is checked above, in the quick loop)
 def test_every_fault_kind_fires_in_the_demo_scenario():
     with Simulation("demo-all-faults") as sim:
         m = sim.run().metrics
