@@ -47,8 +47,12 @@ def _assert_none(violations: list) -> None:
     assert violations == [], "\n".join(map(str, violations))
 
 
-@pytest.mark.slow  # 500 runs of 60-240 s
-@settings(max_examples=examples(500), deadline=None, suppress_health_check=_HEALTH)
+# 250 runs, not 500 (issue 35: the suite's second-largest test, 383 s of a 30-minute CI run on a
+# loaded machine): the same property is searched by the tests below on other draws too, the
+# short runs (50), the missions (60: geographic areas, no-fly zones and wind drawn or not, plain
+# rectangles among them) and, with faults, the excuses (150); `deep` draws ten times as many.
+@pytest.mark.slow  # 250 runs of 60-240 s
+@settings(max_examples=examples(250), deadline=None, suppress_health_check=_HEALTH)
 @given(scenario_documents(planners=SURVEILLING, surveillance=True, faults=False, min_uavs=2, max_uavs=4,
                           min_duration_s=60, max_duration_s=240))
 def test_no_fault_run_breaks_no_assignment_rule(doc):

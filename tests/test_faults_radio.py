@@ -428,6 +428,7 @@ def test_the_demo_scenario_has_one_fault_of_every_kind():
     assert {f.kind for f in sc.faults} == set(FAULT_KINDS) and sc.radio.auth
 
 
+@pytest.mark.slow  # the whole 400 s demo of 8 UAVs (its fault list is checked above, in the quick loop)
 def test_every_fault_kind_fires_in_the_demo_scenario():
     with Simulation("demo-all-faults") as sim:
         m = sim.run().metrics
@@ -438,17 +439,20 @@ def test_every_fault_kind_fires_in_the_demo_scenario():
 
 def test_no_spoofed_frame_changes_any_map_in_the_demo_scenario():
     """The issue's check: with [radio] auth on, the demo's maps are those of the same run
-    without its spoofer (the last fault, so the others keep their places and streams)."""
+    without its spoofer (the last fault, so the others keep their places and streams). Over
+    the demo's first 120 s (the spoofer sends from 20 s on, a frame a second to every UAV: a
+    hundred forged frames, and the faults before 120 s, are enough; the whole 400 s cost three
+    times as much and judged nothing more of the spoofer)."""
     sc = load_scenario("demo-all-faults")
-    assert sc.faults[-1].kind == "spoofer"
+    assert sc.faults[-1].kind == "spoofer" and sc.faults[-1].start_s < 120.0 / 2
     quiet = sc.model_copy(update={"faults": sc.faults[:-1]})
     maps = []
     for scenario in (sc, quiet):
-        with Simulation(scenario) as sim:
+        with Simulation(scenario, duration_s=120.0) as sim:
             m = sim.run().metrics
             maps.append({name: sim.uav_map(name) for name in sim._names})
         if scenario is sc:
-            assert m["faults_applied"]["spoofer"] > 0 and m["radio"]["rejected_auth"] > 0
+            assert m["faults_applied"]["spoofer"] >= 90 and m["radio"]["rejected_auth"] > 0
     assert maps[0].keys() == maps[1].keys()
     for name in maps[0]:
         assert np.array_equal(maps[0][name], maps[1][name]), name
