@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+import swarm.events as ev
 from agents.inputs import SensorReading
 from agents.types import UavType
 from comms.radio import Delivery, Radio, RadioCounters
@@ -21,7 +22,6 @@ from faults.base import BatteryLike, FaultKind
 from faults.injector import FaultInjector
 from faults.registry import FaultSchedule, uav_names
 from faults.tick import TickFault, TickFaults
-from swarm import events as ev
 from swarm.errors import UsageError
 from swarm.kernel.clock import FAULT, Clock
 from swarm.kernel.fleet import Fleet

@@ -13,6 +13,7 @@ import asyncio
 from collections.abc import Callable, Mapping
 from typing import Any
 
+import swarm.events as ev
 from agents.actor import ActorOutput, UavActor
 from agents.inputs import ActorSettings, SensorReading
 from agents.maps.grid import Grid
@@ -24,7 +25,6 @@ from agents.types import UavType
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import MODE_NAMES
-from swarm import events as ev
 from swarm.errors import SimulationError
 from swarm.kernel.recorder import EventLog
 from swarm.kernel.rng import RngTree

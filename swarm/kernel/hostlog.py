@@ -18,8 +18,8 @@ import math
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
+import swarm.events as ev
 from faults.registry import fault_from_dict
-from swarm import events as ev
 from swarm.errors import UsageError
 from swarm.events import Event
 from swarm.scenario import UavSpec

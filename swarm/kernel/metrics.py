@@ -35,10 +35,10 @@ from typing import Any
 
 import numpy as np
 
+import swarm.events as ev
 from agents.maps.grid import Grid
 from agents.maps.umap import DENSE_MAX_CELLS, NEVER, UncertaintyMap
 from comms.messages import MODE_SURVEIL
-from swarm import events as ev
 from swarm.events import Wire
 
 _BLOCK = 64  # cells per side of the blocks whose q certainty() recomputes on large areas

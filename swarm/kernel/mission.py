@@ -46,9 +46,9 @@ from typing import Any
 
 import numpy as np
 
+import swarm.events as ev
 from agents.actor import UavActor
 from agents.inputs import EnergyReading, SensorReading
-from swarm import events as ev
 from swarm.kernel.fleet import Fleet
 from swarm.kernel.homeway import HomeWay, leg_energy_wh
 from swarm.kernel.recorder import EventLog

@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 
+import swarm.events as ev
 from agents.actor import ActorOutput
 from agents.inputs import SensorReading
 from agents.planners.base import Plan
 from faults.tick import TickFaults
-from swarm import events as ev
 from swarm.events import Wire, pack_target_events
 from swarm.kernel.metrics import Metrics
 from swarm.kernel.recorder import EventLog

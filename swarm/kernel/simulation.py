@@ -33,12 +33,12 @@ from typing import Any
 
 import numpy as np
 
+import swarm.events as ev
 from agents.actor import ActorOutput, UavActor
 from agents.inputs import SensorReading
 from agents.maps.grid import PREFETCH_MIN
 from faults.injector import FaultInjector
 from faults.registry import fault_from_dict
-from swarm import events as ev
 from swarm.errors import APIMisuseError, UsageError
 from swarm.events import Event
 from swarm.kernel import build

@@ -6,8 +6,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import swarm.events as event_schema
 from faults.base import PHANTOM_TARGET_ID
-from swarm import events as event_schema
 from swarm.testing.invariants.checker import SURVEIL, Checker, poses_of
 from swarm.testing.invariants.context import EPS
 

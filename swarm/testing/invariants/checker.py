@@ -6,8 +6,8 @@ import abc
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+import swarm.events as event_schema
 from comms.messages import MODE_NAMES, MODE_SURVEIL
-from swarm import events as event_schema
 from swarm.errors import UsageError
 from swarm.testing.invariants.context import InvariantViolation, RunContext, Violation, describe_fault
 

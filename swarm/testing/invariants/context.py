@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
+import swarm.events as event_schema
 from agents.assignment import exclusion_break, handover_break, watch_break
 from agents.types import UavType
 from faults.base import FaultKind
 from faults.registry import fault_from_dict, fault_to_dict
 from faults.sensing import skewed_stamps
-from swarm import events as event_schema
 from swarm.errors import SwarmError
 from swarm.kernel.rng import RngTree
 from swarm.scenario import Scenario

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from swarm import events as event_schema
+import swarm.events as event_schema
 from swarm.errors import UsageError
 from swarm.testing.invariants.checker import Checker, poses_of
 from swarm.testing.invariants.context import EPS, owed_map

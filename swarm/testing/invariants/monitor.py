@@ -7,8 +7,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import swarm.events as event_schema
 from faults.base import FaultKind
-from swarm import events as event_schema
 from swarm.errors import UsageError
 from swarm.outputs import read_run_dir
 from swarm.scenario import Scenario, parse_scenario

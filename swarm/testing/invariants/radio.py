@@ -6,8 +6,8 @@ import math
 from collections import deque
 from typing import Any
 
+import swarm.events as event_schema
 from comms.radio import SPOOF_SENDER
-from swarm import events as event_schema
 from swarm.testing.invariants.checker import Checker, poses_of
 from swarm.testing.invariants.context import EPS
 

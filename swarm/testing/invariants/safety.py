@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
+import swarm.events as event_schema
 from agents.dynamics import integrate, wrap_angle
-from swarm import events as event_schema
 from swarm.testing.invariants.checker import Checker, poses_of
 from swarm.testing.invariants.context import RECOVER_S
 
