@@ -53,6 +53,9 @@ class Geography:
     area: Keepout | None  # the area's boundary (inverted), or None for a rectangle
     inside: np.ndarray | None  # (ny, nx) bool: cells whose centre is inside the area polygon
     outside: Disk | None  # the cells outside, as one mask over the grid (stamped as seen)
+    # The area polygon as a prepared shapely polygon (local metres), or None for a rectangle:
+    # what the cells and the targets (swarm.kernel.world.Targets, issue 33) are tested against.
+    polygon: Any = None
 
     @property
     def keepouts(self) -> tuple[Keepout, ...]:
@@ -71,7 +74,7 @@ def geography(sc: Any, grid: Grid) -> Geography | None:
         except GeoProblem as p:  # (validated when it loaded: only a hand-built scenario gets here)
             raise ValueError(f"geo.{'.'.join(map(str, p.key))}: {p.expected}") from None
     zones = zone_keepouts(sc, frame)
-    area = inside = outside = None
+    area = inside = outside = poly = None
     if frame is not None:
         import shapely
 
@@ -84,4 +87,4 @@ def geography(sc: Any, grid: Grid) -> Geography | None:
         inside = shapely.contains_xy(poly, gx, gy)
         if not inside.all():
             outside = Disk(0, grid.ny, 0, grid.nx, ~inside, (0, 0), key=(-1.0, -1.0, -1.0))
-    return Geography(frame, zones, area, inside, outside)
+    return Geography(frame, zones, area, inside, outside, poly)

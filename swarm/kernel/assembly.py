@@ -121,7 +121,7 @@ def assemble(sc: Scenario, batch_planning: bool) -> Parts:
     grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
     area = (grid.width_m, grid.height_m)
     geo = build.geography(sc, grid)
-    targets = Targets(build.target_motion(sc), boundary=build.target_boundary(geo))
+    targets = Targets(build.target_motion(sc), boundary=geo.polygon if geo is not None else None)
     world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None)
     metrics = Metrics(grid, tau, inside=geo.inside if geo is not None else None)
     observer = Observer(world, metrics, log, dt, sc.recording.level == "summary", sc.safety.min_separation_m)

@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -125,18 +125,6 @@ def geography(sc: Scenario, grid: Grid) -> Geography | None:
     geo = build_geography(sc, grid)
     assert geo is not None  # (it has [geo] or [[no_fly]])
     return geo
-
-
-def target_boundary(geo: Geography | None) -> Any:
-    """The area polygon targets stay inside (issue 33: a vessel turns back at the coast), as a
-    prepared shapely polygon in local metres; None for a rectangular area."""
-    if geo is None or geo.area is None:
-        return None
-    import shapely
-
-    boundary = shapely.Polygon(geo.area.vertices)
-    shapely.prepare(boundary)
-    return boundary
 
 
 def random_start(g: np.random.Generator, sc: Scenario, geo: Geography | None) -> tuple[float, float, float, float]:
