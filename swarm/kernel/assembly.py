@@ -110,10 +110,13 @@ class Parts:
     fleet: Fleet
     mission: Mission | None  # (issues 26, 33: wind and endurance; None without)
     faults: RunFaults
+    tick_plane: bool  # (issue 36) the per-tick services, or the per-actor code (the oracle)
 
 
-def assemble(sc: Scenario, batch_planning: bool) -> Parts:
-    """Every part of a simulation of ``sc``, each built once its inputs are (module docstring)."""
+def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Parts:
+    """Every part of a simulation of ``sc``, each built once its inputs are (module docstring).
+    ``tick_plane``: :class:`~swarm.kernel.simulation.Simulation`'s (the parts that have a
+    per-tick service and the per-actor oracle it replaces are given it)."""
     rng, clock, log = RngTree(sc.seed), Clock(), EventLog()
     names: dict[str, int] = {}
     dt, tau = sc.dt_s, sc.effective_tau
@@ -149,7 +152,7 @@ def assemble(sc: Scenario, batch_planning: bool) -> Parts:
     batteries = mission.battery_of if mission is not None else _no_battery
     faults = RunFaults(clock, world, fleet, log, rng, names, area, dt, sc.radio.latency_s, injector, radio, batteries)
     return Parts(rng, clock, log, names, grid, types, targets, geo, world, metrics, observer, map_group, decoder,
-                 radio, transmission, fleet, mission, faults)
+                 radio, transmission, fleet, mission, faults, tick_plane)
 
 
 def _mission(sc: Scenario, world: World, fleet: Fleet, log: EventLog, rng: RngTree,

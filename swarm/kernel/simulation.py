@@ -67,6 +67,7 @@ class Simulation(HostApi):
         duration_s: float | None = None,
         dt_s: float | None = None,
         batch_planning: bool = True,
+        tick_plane: bool = True,
         memory_limit_gb: float | None = None,
         allow_planner_imports: bool | Iterable[str] = False,
     ):
@@ -79,6 +80,9 @@ class Simulation(HostApi):
         ``batch_planning``: serve all UAVs that replan in the same tick with one vectorised
         planner call (same event log as planning one by one, only faster; see
         :mod:`agents.planners.batching`). ``False`` makes each actor call its planner itself.
+        ``tick_plane``: do the tick's array work (receiving, frames, geometry, radio delivery) in
+        per-tick services for all UAVs at once (issue 36; same event log). ``False`` runs the
+        per-actor code those services replace: the oracle the tick-plane tests compare against.
         ``memory_limit_gb``: refuse (:class:`~swarm.kernel.memory.MemoryLimitError`) a scenario whose
         estimated memory is above it (default: ``SWARM_MEMORY_LIMIT_GB``, else half of this
         machine's memory). ``dt_s``: the tick (default: the scenario's), e.g. a host's own step."""
@@ -94,7 +98,8 @@ class Simulation(HostApi):
         self._binding = LoopBinding()  # the event loop that drives it (swarm.kernel.driving)
         self._advancing = False  # inside run_until (a second driver is refused)
         # The parts, built in dependency order (swarm.kernel.assembly).
-        p = assemble(sc, batch_planning)
+        self.tick_plane = tick_plane
+        p = assemble(sc, batch_planning, tick_plane)
         self._rng, self._clock, self._log, self._names = p.rng, p.clock, p.log, p.names
         self._grid, self._types, self._targets, self._geography = p.grid, p.types, p.targets, p.geography
         self._world, self._metrics, self._observer = p.world, p.metrics, p.observer
