@@ -623,6 +623,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:
         raise SwarmError(f"unknown bench case(s) {unknown}; known: {', '.join(k.name for k in CASES)}")
+    if args.against is not None:
+        from swarm.experiments.against import main as against_main
+
+        return against_main(args.against, pairs=args.pairs, quick=args.quick, only=args.case or None)
     return bench_main(quick=args.quick, only=args.case or None, as_array=args.json, components=args.components)
 
 
@@ -746,6 +750,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--components", action="store_true",
                    help="also the CPU time per UAV-tick of each component of the tick (receive, outbox, anti-entropy, "
                         "geometry, radio, observer, world, actors, planning): in each line, and as a table on stderr")
+    b.add_argument("--against", metavar="REFERENCE", default=None,
+                   help="run each case alternately with this yardstick (../shared/bench/reference_limit.py), each in "
+                        "its own process, and print the ratios of their rates (a JSON line per case, a table on stderr)")
+    b.add_argument("--pairs", type=int, default=3, help="with --against: how many (case, reference) pairs (default 3)")
     b.set_defaults(func=_cmd_bench)
 
     sw = sub.add_parser("sweep", help="run planners x settings x seeds and summarise (process pool or Dask)")
