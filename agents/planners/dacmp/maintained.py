@@ -97,6 +97,8 @@ WHOLE_CELLS = 1 << 12
 # update_many recomputes maps together until their changed cells reach this many: enough maps to
 # share the calls of their small boxes, few enough that their E and levels stay in cache.
 BATCH_CELLS = 1 << 16
+# A pyramid remembers what its last this many updates rewrote (for group members that copy it).
+HISTORY = 8
 
 
 def base_time(t: float, tau: float) -> float:
@@ -350,6 +352,7 @@ def reduce_whole(src: np.ndarray, dst: np.ndarray) -> None:
 
 
 Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
+Written = list[list[Rect] | None]  # per plane (P_0, P_1, ...): the boxes an update rewrote (None: all)
 Reduce = tuple[Plane, Plane, Rect]  # output box of REDUCE(src) into dst: (src, dst, (i0, i1, j0, j1))
 
 
@@ -466,7 +469,7 @@ class MaintainedPyramid:
 
     __slots__ = ("umap", "levels", "shapes", "planes", "t0", "s", "regions", "row_edges", "col_edges",
                  "_chunk_rows", "_chunk_cols", "_chunk_sums", "_chunk_block_row", "_chunk_block_col", "_block_rows",
-                 "_block_cols", "_block_sums", "_block_cells")
+                 "_block_cols", "_block_sums", "_block_cells", "version", "_history", "_synced", "_own")
 
     def __init__(self, umap: UncertaintyMap, levels: int):
         self.umap = umap
@@ -501,6 +504,15 @@ class MaintainedPyramid:
         self._chunk_block_col = [bisect.bisect_right(self._block_cols, j) - 1 for j in range(len(self._chunk_cols) - 1)]
         self._block_sums = np.zeros((ny, nx))
         self._block_cells = np.outer(np.diff(self.row_edges), np.diff(self.col_edges)).astype(np.float64)
+        # What each update rewrote (for the members that copy this pyramid: _from_base): the
+        # number of updates so far and, for the last HISTORY of them, the boxes of each plane it
+        # wrote (None: all of the plane, or not known).
+        self.version = 0
+        self._history: list[Written] = []
+        # As a group member's: the base pyramid and its version this state was copied from, and
+        # the boxes of each plane where this state differs from that copy (its own extra scans').
+        self._synced: tuple[MaintainedPyramid, int] | None = None
+        self._own: Written | None = None
 
     @classmethod
     def of(cls, umap: UncertaintyMap, levels: int) -> MaintainedPyramid:
@@ -581,12 +593,56 @@ class MaintainedPyramid:
         umap.take_changes()  # (what it wrote since: in the base or its extra scans, both read now)
         self.t0 = base.t0
         self.s = math.exp(-umap.tau * (t - cast("float", base.t0)))
-        for mine, theirs in zip(self.planes, base.planes):
-            np.copyto(cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array))
+        # Only where the copy is stale: where the base rewrote its planes since this state was
+        # copied from it, and where this state has its own extra scans' values (everywhere else
+        # it already holds the base's values; the same values, copied: bit for bit a full copy).
+        stale = self._stale(base)
+        for l, (mine, theirs) in enumerate(zip(self.planes, base.planes)):
+            a, b = cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array)
+            boxes = stale[l] if stale is not None else None
+            if boxes is None:
+                np.copyto(a, b)
+            else:
+                for r0, r1, c0, c1 in boxes:
+                    a[r0:r1, c0:c1] = b[r0:r1, c0:c1]
         self._chunk_sums = dict(base._chunk_sums)
         np.copyto(self._block_sums, base._block_sums)
         extra = umap.extra_disks() or []
-        return self._plan([(d.iy0, d.iy1, d.ix0, d.ix1) for d, _ in extra], whole=False)
+        work = self._plan([(d.iy0, d.iy1, d.ix0, d.ix1) for d, _ in extra], whole=False)
+        self._synced = (base, base.version)
+        self._own = self._written(work) if work is not None else [[] for _ in self.planes]
+        return work
+
+    def _stale(self, base: MaintainedPyramid) -> Written | None:
+        """The boxes of each plane where this member's state may differ from ``base``'s now
+        (None: a plane, or all of them, to copy whole): what the base rewrote since this state
+        was copied from it, and this state's own boxes (:meth:`_from_base`)."""
+        if self._synced is None or self._synced[0] is not base or self._own is None:
+            return None
+        behind = base.version - self._synced[1]
+        if behind > len(base._history):
+            return None
+        out: Written = [[] for _ in self.planes]
+        for written in [*base._history[len(base._history) - behind:], self._own]:
+            for l, boxes in enumerate(written):
+                mine = out[l]
+                if boxes is None or mine is None:
+                    out[l] = None
+                else:
+                    mine += boxes
+        return out
+
+    def _written(self, work: _Work) -> Written:
+        """The boxes of each plane that this work rewrites (None: the whole plane; a dense
+        map's small levels above the work's plan are recomputed whole: :meth:`_recompute`)."""
+        return [work.boxes, *work.plan, *([None] * (len(self.planes) - 1 - len(work.plan)))]
+
+    def _record(self, written: Written | None) -> None:
+        """Count an update that rewrote these boxes of each plane (None: all of every plane)."""
+        self.version += 1
+        self._history.append(written if written is not None else [None] * len(self.planes))
+        if len(self._history) > HISTORY:
+            del self._history[0]
 
     @staticmethod
     def _recompute(work: list[_Work]) -> None:
@@ -608,6 +664,7 @@ class MaintainedPyramid:
             planes = w.pyr.planes
             for k in range(len(w.plan) + 1, len(planes)):
                 reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
+            w.pyr._record(w.pyr._written(w))
 
     def _changed(self, t: float) -> _Work | None:
         """Set ``t0`` and ``s`` for a plan at ``t`` (clearing the state when ``t0`` moved or the
@@ -616,8 +673,10 @@ class MaintainedPyramid:
         t0 = base_time(t, tau)
         changes = self.umap.take_changes()
         self.s = math.exp(-tau * (t - t0))
+        self._synced = None  # (from here on its own state, not a copy of a base's)
         if t0 != self.t0 or changes is None:
             self.t0 = t0
+            self._record(None)
             for p in self.planes:
                 p.clear()
             self._chunk_sums.clear()
