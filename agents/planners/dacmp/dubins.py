@@ -135,6 +135,9 @@ class DubinsPoses:
         self.s = np.array([math.sin(a) for a in theta]).reshape(column)
         self.r = r
         self.inv_r = 1.0 / r
+        # A point at the start needs the guard of _lengths only with a radius or an inverse that
+        # is not finite (with finite ones the formula itself gives +0.0 there).
+        self.guard = not (np.isfinite(r).all() and np.isfinite(self.inv_r).all())
         if shape is not None:
             def full(a: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
                 return np.ascontiguousarray(np.broadcast_to(a, shape))
@@ -143,18 +146,20 @@ class DubinsPoses:
             self.r = full(self.r, shape)
 
     def lengths(self, d: np.ndarray) -> np.ndarray:
-        turning = _lengths(d, self.c, self.s, self.r, self.inv_r)
+        turning = _lengths(d, self.c, self.s, self.r, self.inv_r, self.guard)
         if self.free is None:
             return turning
         return np.where(self.free, np.hypot(d[0], d[1]), turning)
 
 
 def _lengths(d: np.ndarray, c: float | np.ndarray, s: float | np.ndarray, r: float | np.ndarray,
-             inv_r: float | np.ndarray) -> np.ndarray:
+             inv_r: float | np.ndarray, guard: bool = True) -> np.ndarray:
     """The closed form of the module docstring, for stacked offsets ``d = (dx, dy)`` (each at
     least 1-d) from the start and the start's ``cos``, ``sin``, ``r`` and ``1 / r`` (scalars, or
     arrays broadcasting into the offsets' shape). Temporaries are updated in place and the two
-    coordinates share operations: the same numbers, fewer numpy calls."""
+    coordinates share operations: the same numbers, fewer numpy calls. ``guard``: set the
+    points at the start to 0 afterwards (needed only where ``r`` or ``1 / r`` is not finite:
+    with finite ones the formula gives +0.0 there, whatever the signs of the zeros)."""
     # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
     xy = c * d  # (c dx, c dy)
     sd = s * d  # (s dx, s dy)
@@ -231,6 +236,7 @@ def _lengths(d: np.ndarray, c: float | np.ndarray, s: float | np.ndarray, r: flo
     out *= r
     # A point at the start gets +0.0 from the formula itself, but not with a radius whose
     # inverse overflows (0 * inf): guarded.
-    zero = d == 0.0
-    out[zero[0] & zero[1]] = 0.0
+    if guard:
+        zero = d == 0.0
+        out[zero[0] & zero[1]] = 0.0
     return out

@@ -196,7 +196,7 @@ class Plane:
         plane's view, of a tiled one's cells as a new C-contiguous array) of cells within one
         tile, without the read's piecewise copy."""
         if self._a is not None:
-            return float(self._a[r0:r1, c0:c1].sum())
+            return float(np.add.reduce(self._a[r0:r1, c0:c1], axis=None))  # (= .sum(): its wrapper's call)
         th, tw = self.tile
         ty, tx = r0 // th, c0 // tw
         tile = self._tile(ty * self._ntx + tx)
@@ -349,6 +349,22 @@ def reduce_whole(src: np.ndarray, dst: np.ndarray) -> None:
     the map)."""
     n, w = src.shape
     np.matmul(np.matmul(_reduce_matrix(n), src), _reduce_matrix(w).T, out=dst)
+
+
+def reduce_whole_many(jobs: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    """:func:`reduce_whole` of each ``(src, dst)``, those of one shape in two stacked BLAS
+    calls (numpy's matmul makes the call a single map's makes for each map of a stack: the same
+    numbers; ``tests/test_maintained_pyramid.py`` compares the bytes)."""
+    shapes: dict[tuple[int, ...], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for job in jobs:
+        shapes.setdefault(job[0].shape, []).append(job)
+    for (n, w), group in shapes.items():
+        if len(group) == 1:
+            reduce_whole(*group[0])
+            continue
+        out = np.matmul(np.matmul(_reduce_matrix(n), np.stack([src for src, _ in group])), _reduce_matrix(w).T)
+        for (_, dst), values in zip(group, out):
+            dst[...] = values
 
 
 Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
@@ -660,10 +676,12 @@ class MaintainedPyramid:
         finally:
             for w in tiled:
                 cast("SeenPlane", w.pyr.planes[0]).close()
+        # The small levels above each plan, computed whole, level by level: all maps' together.
+        for k in range(1, max((len(w.pyr.planes) for w in work), default=0)):
+            reduce_whole_many([(cast("np.ndarray", w.pyr.planes[k - 1].dense_array),
+                                cast("np.ndarray", w.pyr.planes[k].dense_array))
+                               for w in work if len(w.plan) < k < len(w.pyr.planes)])
         for w in work:
-            planes = w.pyr.planes
-            for k in range(len(w.plan) + 1, len(planes)):
-                reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
             w.pyr._record(w.pyr._written(w))
 
     def _changed(self, t: float) -> _Work | None:
