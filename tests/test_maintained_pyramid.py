@@ -419,3 +419,57 @@ def test_whole_levels_reduced_together_are_each_maps_own(shapes, copies, seed):
     for src, dst in zip(srcs, alone):
         maintained.reduce_whole(src, dst)
     assert all(same(x, y) for x, y in zip(together, alone))
+
+
+def _reflect_indices(lo: int, hi: int, n: int) -> np.ndarray:
+    j = np.arange(lo, hi) % (2 * n)
+    return np.where(j >= n, 2 * n - 1 - j, j)
+
+
+def ref_reduce_box(src: np.ndarray, box) -> np.ndarray:
+    """One output box of REDUCE(src) as reduce_boxes computed it before its temporaries were
+    updated in place: ``(a0 + a4) + 4 (a1 + a3) + 6 a2`` over rows, then columns, times 1/256."""
+    i0, i1, j0, j1 = box
+    n, w = src.shape
+    x = src[_reflect_indices(2 * i0 - 2, 2 * i1 + 1, n)][:, _reflect_indices(2 * j0 - 2, 2 * j1 + 1, w)]
+    ni, nj = i1 - i0, j1 - j0
+    r = x[0 : 2 * ni - 1 : 2] + x[4 : 2 * ni + 3 : 2]
+    r += 4 * (x[1 : 2 * ni : 2] + x[3 : 2 * ni + 2 : 2])
+    r += 6 * x[2 : 2 * ni + 1 : 2]
+    out = r[:, 0 : 2 * nj - 1 : 2] + r[:, 4 : 2 * nj + 3 : 2]
+    out += 4 * (r[:, 1 : 2 * nj : 2] + r[:, 3 : 2 * nj + 2 : 2])
+    out += 6 * r[:, 2 : 2 * nj + 1 : 2]
+    out *= np.float32(maintained.SCALE)
+    return out
+
+
+@settings(max_examples=examples(80), deadline=None)
+@given(h=st.integers(1, 60), w=st.integers(1, 60), tile=st.sampled_from([None, (8, 12), (16, 16), (5, 3)]),
+       out_tile=st.sampled_from([None, (4, 6), (16, 16)]), seed=st.integers(0, 2**32 - 1),
+       boxes=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)), min_size=1, max_size=6))
+def test_reduced_boxes_and_tiled_reads_are_the_plain_formulas(h, w, tile, out_tile, seed, boxes):
+    """reduce_boxes (temporaries in place; tiled planes read and written a tile at a time where
+    a box lies in one) writes the bytes of the formula written out on a dense copy, and a tiled
+    plane reads back, one tile or many, what was written (zeros where nothing was)."""
+    rng = np.random.default_rng(seed)
+    dense = (rng.random((h, w)) * 10.0 ** rng.integers(-30, 30, (h, w))).astype(np.float32)
+    dense[rng.random((h, w)) < 0.3] = 0.0
+    dense[: h // 3, : w // 3] = 0.0  # (whole tiles never written: absent)
+    src = maintained.Plane((h, w), tile)
+    src.write(0, 0, dense)
+    m, mw = (h + 1) // 2, (w + 1) // 2
+    dst = maintained.Plane((m, mw), out_tile)
+    rects = []
+    for a, b, c, d in boxes:
+        i0, i1 = sorted((int(a * m), int(b * m) + 1))
+        j0, j1 = sorted((int(c * mw), int(d * mw) + 1))
+        rects.append((i0, min(i1, m), j0, min(j1, mw)))
+    maintained.reduce_boxes([(src, dst, rects)])
+    for i0, i1, j0, j1 in rects:
+        assert same(dst.read(i0, i1, j0, j1), ref_reduce_box(dense, (i0, i1, j0, j1)))
+    for a, b, c, d in boxes:  # reads of any region, in one tile or across several
+        r0, r1 = sorted((int(a * h), int(b * h) + 1))
+        c0, c1 = sorted((int(c * w), int(d * w) + 1))
+        r1, c1 = min(r1, h), min(c1, w)
+        assert same(np.array(src.read(r0, r1, c0, c1)), dense[r0:r1, c0:c1])
+        assert same(src.read(r0, r1, c0, c1, out=np.full((r1 - r0, c1 - c0), np.nan, np.float32)), dense[r0:r1, c0:c1])

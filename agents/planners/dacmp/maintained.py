@@ -183,6 +183,16 @@ class Plane:
         if out is None:
             out = np.empty((r1 - r0, c1 - c0), np.float32)
         get = self._tiles.get
+        th, tw = self.tile
+        ty0, tx0 = r0 // th, c0 // tw
+        if (r1 - 1) // th == ty0 and (c1 - 1) // tw == tx0:  # within one tile (no piece list)
+            tile = get(ty0 * self._ntx + tx0)
+            if tile is None:
+                out[...] = 0.0
+            else:
+                y0, x0 = ty0 * th, tx0 * tw
+                out[...] = tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]
+            return out
         for key, rows, cols, out_rows, out_cols in self._pieces(r0, r1, c0, c1):
             tile = get(key)
             if tile is None:
@@ -203,7 +213,7 @@ class Plane:
         if tile is None:
             return 0.0
         y0, x0 = ty * th, tx * tw
-        return float(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]).sum())
+        return float(np.add.reduce(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]), axis=None))
 
     def _tile(self, key: int) -> np.ndarray | None:
         return self._tiles.get(key)
@@ -215,6 +225,18 @@ class Plane:
             self._a[r0 : r0 + h, c0 : c0 + w] = values
             return
         tiles = self._tiles
+        th, tw = self.tile
+        ty0, tx0 = r0 // th, c0 // tw
+        if (r0 + h - 1) // th == ty0 and (c0 + w - 1) // tw == tx0:  # within one tile (no piece list)
+            key = ty0 * self._ntx + tx0
+            tile = tiles.get(key)
+            if tile is None:
+                if not values.any():
+                    return  # zeros where the plane is implicitly zero
+                tile = tiles[key] = np.zeros(self.tile, np.float32)
+            y0, x0 = ty0 * th, tx0 * tw
+            tile[r0 - y0 : r0 - y0 + h, c0 - x0 : c0 - x0 + w] = values
+            return
         for key, rows, cols, in_rows, in_cols in self._pieces(r0, r0 + h, c0, c0 + w):
             piece = values[in_rows, in_cols]
             tile = tiles.get(key)
@@ -443,12 +465,20 @@ def _reduce_stack(x: np.ndarray, jobs: list[Reduce]) -> None:
     of these boxes."""
     hh, ww = x.shape[1:]
     ni, nj = (hh - 3) // 2, (ww - 3) // 2
+    # (a0 + a4) + 4 (a1 + a3) + 6 a2 over rows, then over columns, each product and sum in a
+    # temporary of its own updated in place (the same float32 operations, fewer arrays).
     r = x[:, 0 : 2 * ni - 1 : 2] + x[:, 4 : 2 * ni + 3 : 2]
-    r += 4 * (x[:, 1 : 2 * ni : 2] + x[:, 3 : 2 * ni + 2 : 2])
-    r += 6 * x[:, 2 : 2 * ni + 1 : 2]
+    t = x[:, 1 : 2 * ni : 2] + x[:, 3 : 2 * ni + 2 : 2]
+    t *= 4
+    r += t
+    np.multiply(x[:, 2 : 2 * ni + 1 : 2], 6, out=t)
+    r += t
     out = r[:, :, 0 : 2 * nj - 1 : 2] + r[:, :, 4 : 2 * nj + 3 : 2]
-    out += 4 * (r[:, :, 1 : 2 * nj : 2] + r[:, :, 3 : 2 * nj + 2 : 2])
-    out += 6 * r[:, :, 2 : 2 * nj + 1 : 2]
+    u = r[:, :, 1 : 2 * nj : 2] + r[:, :, 3 : 2 * nj + 2 : 2]
+    u *= 4
+    out += u
+    np.multiply(r[:, :, 2 : 2 * nj + 1 : 2], 6, out=u)
+    out += u
     out *= np.float32(SCALE)
     for k, (_, dst, (i0, i1, j0, j1)) in enumerate(jobs):
         dst.write(i0, j0, out[k, : i1 - i0, : j1 - j0])
