@@ -427,8 +427,8 @@ def _reflect_indices(lo: int, hi: int, n: int) -> np.ndarray:
 
 
 def ref_reduce_box(src: np.ndarray, box) -> np.ndarray:
-    """One output box of REDUCE(src) as reduce_boxes computed it before its temporaries were
-    updated in place: ``(a0 + a4) + 4 (a1 + a3) + 6 a2`` over rows, then columns, times 1/256."""
+    """One output box of REDUCE(src) on a dense array, reflected at the border: ``(a0 + a4) + 4
+    (a1 + a3) + 6 a2`` over rows, then columns, times 1/256."""
     i0, i1, j0, j1 = box
     n, w = src.shape
     x = src[_reflect_indices(2 * i0 - 2, 2 * i1 + 1, n)][:, _reflect_indices(2 * j0 - 2, 2 * j1 + 1, w)]
@@ -448,9 +448,9 @@ def ref_reduce_box(src: np.ndarray, box) -> np.ndarray:
        out_tile=st.sampled_from([None, (4, 6), (16, 16)]), seed=st.integers(0, 2**32 - 1),
        boxes=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)), min_size=1, max_size=6))
 def test_reduced_boxes_and_tiled_reads_are_the_plain_formulas(h, w, tile, out_tile, seed, boxes):
-    """reduce_boxes (temporaries in place; tiled planes read and written a tile at a time where
-    a box lies in one) writes the bytes of the formula written out on a dense copy, and a tiled
-    plane reads back, one tile or many, what was written (zeros where nothing was)."""
+    """reduce_boxes (tiled planes read and written without a piece list where a box lies in one
+    tile) writes the bytes of the formula written out on a dense copy, and a tiled plane reads
+    back, one tile or many, what was written (zeros where nothing was)."""
     rng = np.random.default_rng(seed)
     dense = (rng.random((h, w)) * 10.0 ** rng.integers(-30, 30, (h, w))).astype(np.float32)
     dense[rng.random((h, w)) < 0.3] = 0.0
