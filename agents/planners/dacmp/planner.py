@@ -426,9 +426,8 @@ class Batch:
         order, as the formulas in the comments (``tests/test_plan_speed.py`` compares the bytes
         with them written out)."""
         planner, g = self.planner, self.grid
-        # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers):
-        # (z // cell_m).astype(np.int64), the float floor division cast on output.
-        cells = np.floor_divide(z, g.cell_m, out=np.empty(z.shape, np.int64), casting="unsafe")
+        # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers).
+        cells = (z // g.cell_m).astype(np.int64)
         p_sum = self.layers.level_sum(self.layer_base, self.layer_weights, self.layer_scale, cells[0], cells[1])
         d = z - self.p0  # from the UAV
         # f_Sl = p_sum / (1 + ((Dub - R) / R) ** 2), on Dub's own (fresh) array.
@@ -731,7 +730,7 @@ class Layers:
         idx = self.row_part.take(iy, axis=1, mode="clip")  # (levels, UAVs, points)
         idx += self.col_part.take(ix, axis=1, mode="clip")
         idx += base
-        terms = np.multiply(self.flat.take(idx), lam)  # lambda_l * P_l, in float64 (P_l cast exactly)
+        terms = self.flat.take(idx).astype(np.float64) * lam  # lambda_l * P_l (float64: same-type multiply)
         # A reduction over the first axis adds whole rows, one level after the other.
         p: np.ndarray = np.add.reduce(terms, axis=0, initial=0.0)
         p *= s
