@@ -323,16 +323,19 @@ group_ops = st.lists(st.tuples(st.sampled_from(["all", "all", "all", "one", "one
 
 @settings(max_examples=examples(40), deadline=None)
 @given(n=st.integers(1, 4), nx=st.integers(1, 70), ny=st.integers(1, 70), levels=st.integers(0, 8),
-       tau=st.sampled_from([1e-3, 0.005, 0.05]), steps=group_ops)
-def test_group_members_pyramids_follow_the_base_exactly(n, nx, ny, levels, tau, steps):
+       tau=st.sampled_from([1e-3, 0.005, 0.05]), steps=group_ops, history=st.sampled_from([1, maintained.HISTORY]))
+def test_group_members_pyramids_follow_the_base_exactly(n, nx, ny, levels, tau, steps, history):
     """Issue 36, T9: the pyramids of MapGroup members are made from one pyramid of the group's
     base plus what each member's extra scans reach; each is bit for bit a pyramid computed from
     scratch from a copy of its map, whoever planned when, across base-time spans, with scans
-    every member has (they move into the base), scans one member has, and members leaving."""
+    every member has (they move into the base), scans one member has, and members leaving; a
+    member copies from the base's pyramid only what is stale, or everything when it fell more
+    than ``HISTORY`` base updates behind."""
     followed: list[MaintainedPyramid] = []
     original = MaintainedPyramid._from_base
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(MaintainedPyramid, "_from_base", lambda self, base, t: followed.append(self) or original(self, base, t))
+        mp.setattr(maintained, "HISTORY", history)  # (1: members fall behind the base's history often)
         _run_group(n, nx, ny, levels, tau, steps, followed)
 
 
@@ -370,3 +373,103 @@ def _run_group(n, nx, ny, levels, tau, steps, followed):
         check(MaintainedPyramid.of(m, levels), m, t, levels)
     if group.members:
         assert followed  # the members' pyramids did follow the base's
+
+
+def test_members_copy_only_what_is_stale_and_stay_exact():
+    """A member's pyramid copies from the base's only the boxes the base rewrote since its last
+    copy and the boxes of its own extra scans (issue 36: not the whole planes each time), and is
+    still bit for bit a pyramid computed from scratch. (A member more than HISTORY base updates
+    behind copies everything: the property above runs with HISTORY 1 too.)"""
+    grid = Grid(20_000.0, 15_000.0, 100.0)  # (levels 0 and 1 in boxes, the smaller ones whole)
+    group = MapGroup(grid, 0.005, 1.0)
+    a, b = group.new_map(), group.new_map()
+    stale: list[object] = []
+    original = MaintainedPyramid._stale
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(MaintainedPyramid, "_stale", lambda self, base: stale.append(original(self, base)) or stale[-1])
+        t = 10.0
+        for step in range(2 * maintained.HISTORY + 4):
+            disk = grid.disk_stamp(300.0 + 250.0 * step, 1_000.0 + 120.0 * step, 900.0)
+            for m in (a, b):
+                m.stamp(disk, t)  # into the base
+            a.stamp(grid.disk_stamp(15_000.0 - 200.0 * step, 12_000.0, 700.0), t)  # each one's own (b's when it plans)
+            b.stamp(grid.disk_stamp(15_000.0, 12_000.0 - 200.0 * step, 700.0), t)
+            t += 10.0
+            planning = [a, b] if step % 3 else [a]  # b sometimes a base update behind
+            pyramids = [MaintainedPyramid.of(m, 4) for m in planning]
+            MaintainedPyramid.update_many(pyramids, [t] * len(pyramids))
+            for m, p in zip(planning, pyramids):
+                check(p, m, t, 4)
+    partial = [s for s in stale if s is not None]
+    assert len(partial) >= 2 * maintained.HISTORY and all(boxes is not None for s in partial for boxes in s[:2])
+
+
+@settings(max_examples=examples(60), deadline=None)
+@given(shapes=st.lists(st.tuples(st.integers(1, 70), st.integers(1, 70)), min_size=1, max_size=4),
+       copies=st.integers(1, 6), seed=st.integers(0, 2**32 - 1))
+def test_whole_levels_reduced_together_are_each_maps_own(shapes, copies, seed):
+    """reduce_whole_many (the small levels of several maps in stacked BLAS calls) writes the
+    bytes reduce_whole writes for each map alone."""
+    rng = np.random.default_rng(seed)
+    srcs = [rng.random(shape).astype(np.float32) * rng.choice([0.0, 1e-30, 1.0, 1e30]) for shape in shapes
+            for _ in range(copies)]
+    together = [np.full(((h + 1) // 2, (w + 1) // 2), np.nan, np.float32) for h, w in (s.shape for s in srcs)]
+    alone = [d.copy() for d in together]
+    maintained.reduce_whole_many(list(zip(srcs, together)))
+    for src, dst in zip(srcs, alone):
+        maintained.reduce_whole(src, dst)
+    assert all(same(x, y) for x, y in zip(together, alone))
+
+
+def _reflect_indices(lo: int, hi: int, n: int) -> np.ndarray:
+    j = np.arange(lo, hi) % (2 * n)
+    return np.where(j >= n, 2 * n - 1 - j, j)
+
+
+def ref_reduce_box(src: np.ndarray, box) -> np.ndarray:
+    """One output box of REDUCE(src) on a dense array, reflected at the border: ``(a0 + a4) + 4
+    (a1 + a3) + 6 a2`` over rows, then columns, times 1/256."""
+    i0, i1, j0, j1 = box
+    n, w = src.shape
+    x = src[_reflect_indices(2 * i0 - 2, 2 * i1 + 1, n)][:, _reflect_indices(2 * j0 - 2, 2 * j1 + 1, w)]
+    ni, nj = i1 - i0, j1 - j0
+    r = x[0 : 2 * ni - 1 : 2] + x[4 : 2 * ni + 3 : 2]
+    r += 4 * (x[1 : 2 * ni : 2] + x[3 : 2 * ni + 2 : 2])
+    r += 6 * x[2 : 2 * ni + 1 : 2]
+    out = r[:, 0 : 2 * nj - 1 : 2] + r[:, 4 : 2 * nj + 3 : 2]
+    out += 4 * (r[:, 1 : 2 * nj : 2] + r[:, 3 : 2 * nj + 2 : 2])
+    out += 6 * r[:, 2 : 2 * nj + 1 : 2]
+    out *= np.float32(maintained.SCALE)
+    return out
+
+
+@settings(max_examples=examples(80), deadline=None)
+@given(h=st.integers(1, 60), w=st.integers(1, 60), tile=st.sampled_from([None, (8, 12), (16, 16), (5, 3)]),
+       out_tile=st.sampled_from([None, (4, 6), (16, 16)]), seed=st.integers(0, 2**32 - 1),
+       boxes=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)), min_size=1, max_size=6))
+def test_reduced_boxes_and_tiled_reads_are_the_plain_formulas(h, w, tile, out_tile, seed, boxes):
+    """reduce_boxes (tiled planes read and written without a piece list where a box lies in one
+    tile) writes the bytes of the formula written out on a dense copy, and a tiled plane reads
+    back, one tile or many, what was written (zeros where nothing was)."""
+    rng = np.random.default_rng(seed)
+    dense = (rng.random((h, w)) * 10.0 ** rng.integers(-30, 30, (h, w))).astype(np.float32)
+    dense[rng.random((h, w)) < 0.3] = 0.0
+    dense[: h // 3, : w // 3] = 0.0  # (whole tiles never written: absent)
+    src = maintained.Plane((h, w), tile)
+    src.write(0, 0, dense)
+    m, mw = (h + 1) // 2, (w + 1) // 2
+    dst = maintained.Plane((m, mw), out_tile)
+    rects = []
+    for a, b, c, d in boxes:
+        i0, i1 = sorted((int(a * m), int(b * m) + 1))
+        j0, j1 = sorted((int(c * mw), int(d * mw) + 1))
+        rects.append((i0, min(i1, m), j0, min(j1, mw)))
+    maintained.reduce_boxes([(src, dst, rects)])
+    for i0, i1, j0, j1 in rects:
+        assert same(dst.read(i0, i1, j0, j1), ref_reduce_box(dense, (i0, i1, j0, j1)))
+    for a, b, c, d in boxes:  # reads of any region, in one tile or across several
+        r0, r1 = sorted((int(a * h), int(b * h) + 1))
+        c0, c1 = sorted((int(c * w), int(d * w) + 1))
+        r1, c1 = min(r1, h), min(c1, w)
+        assert same(np.array(src.read(r0, r1, c0, c1)), dense[r0:r1, c0:c1])
+        assert same(src.read(r0, r1, c0, c1, out=np.full((r1 - r0, c1 - c0), np.nan, np.float32)), dense[r0:r1, c0:c1])

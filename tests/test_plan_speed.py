@@ -16,9 +16,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.lib.stride_tricks import as_strided
 
+from agents.knowledge import Knowledge
+from agents.maps.grid import Grid
+from agents.maps.umap import UncertaintyMap
+from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses, dubins_length
-from agents.planners.dacmp.planner import DacmpPlanner
+from agents.planners.dacmp.planner import Batch, DacmpPlanner, Layers, UavSearch
 from agents.planners.dacmp.pyramid import Scratch, gaussian_pyramid, level_index, level_shapes, pyr_down, pyr_down_stack
+from agents.types import UavType
+from comms.messages import MODE_SEARCH, MODE_SURVEIL, NO_TARGET
 
 
 def same(a, b) -> bool:
@@ -252,3 +258,152 @@ def test_clip_to_unit_by_maximum_minimum_is_np_clip():
     np.maximum(y, -1.0, out=y)
     np.minimum(y, 1.0, out=y)
     assert same(y, np.clip(x, -1.0, 1.0))
+
+
+# --- the particle swarm's fitness, particle bound and loop (issue 36: their temporaries updated
+# in place) against the formulas written out with fresh arrays, as they were -------------------
+
+def ref_fitness(batch, z, kept=False):
+    planner, g = batch.planner, batch.grid
+    cells = (z // g.cell_m).astype(np.int64)
+    idx = batch.layers.row_part.take(cells[1], axis=1, mode="clip")
+    idx += batch.layers.col_part.take(cells[0], axis=1, mode="clip")
+    idx += batch.layer_base
+    terms = batch.layers.flat.take(idx).astype(np.float64) * batch.layer_weights
+    p_sum = batch.layers.lam_total - np.add.reduce(terms, axis=0, initial=0.0) * batch.layer_scale
+    d = z - batch.p0
+    dub = batch.dubins.lengths(d)
+    R = batch.R
+    f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
+    if batch.crowding is not None:
+        f_sl *= batch.crowding(z)
+    if batch.guided:
+        dot = batch.guide_dir * d
+        cosang = np.clip((dot[0] + dot[1]) / np.maximum(batch.g_norm * np.hypot(d[0], d[1]), 1e-9), -1.0, 1.0)
+        f_sg = 1.0 / (1.0 + np.exp(np.arccos(cosang) / math.pi))
+        if len(batch.guided) < len(batch.uavs):
+            f_sg = np.where(batch.has_guide, f_sg, 0.5)
+    else:
+        f_sg = np.full(p_sum.shape, 0.5)
+    f_s = planner.eta * f_sl + (1.0 - planner.eta) * f_sg
+    if kept and not batch.with_targets and not batch.with_threats:
+        return f_s, f_s, np.zeros(p_sum.shape)
+    f_t = np.zeros(p_sum.shape)
+    inside = (z >= 0) & (z <= batch.area)
+    ok = inside[0] & inside[1]
+    unit = planner.field_unit_m
+    for i, u in batch.with_targets:
+        u.target_terms(z[0, i], z[1, i], f_t[i], unit, g.cell_m / unit)
+    for i, u in batch.with_threats:
+        for th in u.threats:
+            ok[i] &= np.hypot(z[0, i] - th.x, z[1, i] - th.y) > th.radius + planner.threat_margin_m
+    return np.where(ok, f_s + f_t, -np.inf), f_s, f_t
+
+
+def ref_keep_near(batch, z):
+    d = z - batch.p0
+    dist = np.hypot(d[0], d[1])
+    scale = np.where(dist > batch.r_max, batch.r_max / np.maximum(dist, 1e-9), 1.0)
+    return np.clip(batch.p0 + d * scale, 0.0, batch.area)
+
+
+def ref_pso(planner, uavs, g, layers):
+    """DacmpPlanner._pso with fresh arrays at every step and the reference fitness and bound."""
+    U, M, n_it = len(uavs), planner.particles, planner.iterations
+    batch = Batch(planner, uavs, g, layers, M)
+    rows = np.arange(U)
+    radius = np.abs(np.stack([u.ring_radius for u in uavs]))
+    angle = np.stack([u.ring_angle for u in uavs])
+    z = ref_keep_near(batch, batch.p0 + radius * np.stack([np.cos(angle), np.sin(angle)]))
+    v = np.zeros((2, U, M))
+    bf = ref_fitness(batch, z, kept=True)[0].copy()
+    best_z = z.copy()
+    gi = np.argmax(bf, axis=1)
+    draws = np.repeat(np.stack([u.pso_draws for u in uavs], axis=2)[:, :, None], 2, axis=2)
+    for it in range(n_it):
+        frac = it / (n_it - 1) if n_it > 1 else 1.0
+        w = planner.w_start + (planner.w_end - planner.w_start) * frac
+        c1 = planner.c1_start + (planner.c1_end - planner.c1_start) * frac
+        c2 = planner.c2_start + (planner.c2_end - planner.c2_start) * frac
+        g_best = best_z[:, rows, gi][:, :, None]
+        v = w * v + (c1 * draws[it, 0]) * (best_z - z) + (c2 * draws[it, 1]) * (g_best - z)
+        z = ref_keep_near(batch, z + v * draws[it, 2])
+        f = ref_fitness(batch, z, kept=True)[0]
+        better = f > bf
+        best_z = np.where(better, z, best_z)
+        bf = np.where(better, f, bf)
+        gi = bf.argmax(axis=1)
+    wz, best = best_z[:, rows, gi][:, :, None], bf[rows, gi]
+    f_s = ref_fitness(batch, np.repeat(wz, M, axis=2), kept=True)[1]
+    unit = planner.field_unit_m
+    return [Plan(g.width_m / 2, g.height_m / 2) if not np.isfinite(best[i])
+            else u.decide(float(wz[0, i, 0]), float(wz[1, i, 0]), f_s[i, 0], unit, g.cell_m / unit)
+            for i, u in enumerate(uavs)]
+
+
+_KINDS = [UavType("B", 20.0, 40.0, 3.0, math.radians(30), 1500.0, 5.0, 5.1, 10_000.0),
+          UavType("A", 10.0, 20.0, 2.0, math.radians(30), 2000.0, 2.0, 2.1, 4_000.0)]
+
+
+@st.composite
+def swarms(draw):
+    """Two to five UAVs on one map: own scans, targets, threats, peers' intents, surveillance."""
+    grid = Grid(draw(st.sampled_from([900.0, 8_000.0, 20_000.0])), draw(st.sampled_from([700.0, 16_000.0])), 100.0)
+    t = draw(st.floats(10.0, 2000.0))
+    views = []
+    for uav in range(draw(st.integers(1, 5))):
+        kind = draw(st.sampled_from(_KINDS))
+        x, y = draw(st.floats(0.0, grid.width_m)), draw(st.floats(0.0, grid.height_m))
+        umap = UncertaintyMap(grid, 1.0 / 400.0)
+        for _ in range(draw(st.integers(0, 5))):
+            umap.scan(draw(st.floats(0.0, grid.width_m)), draw(st.floats(0.0, grid.height_m)),
+                      draw(st.floats(200.0, 3000.0)), draw(st.floats(0.0, t)))
+        k = Knowledge()
+        for tid in range(draw(st.integers(0, 3))):
+            k.see_target(tid, draw(st.floats(0.0, grid.width_m)), draw(st.floats(0.0, grid.height_m)),
+                         draw(st.floats(-15.0, 15.0)), draw(st.floats(-15.0, 15.0)), t - draw(st.floats(0.0, 30.0)), 1.0)
+        for th in range(draw(st.integers(0, 2))):
+            r = draw(st.floats(200.0, 3000.0))
+            k.add_threat(th, draw(st.floats(0.0, grid.width_m)), draw(st.floats(0.0, grid.height_m)), r, r + 3000.0)
+        for other in range(draw(st.integers(0, 2))):
+            p = k.peer(100 + other)
+            p.type, p.x, p.y, p.t_pose = "A", x + 1000.0, y, t - 1.0
+            p.wx, p.wy, p.t_intent = draw(st.floats(0.0, grid.width_m)), draw(st.floats(0.0, grid.height_m)), t - 2.0
+            p.mode, p.target = draw(st.sampled_from([(MODE_SEARCH, NO_TARGET), (MODE_SURVEIL, 0), (MODE_SURVEIL, 1)]))
+        v, theta = draw(st.floats(kind.speed_min, kind.speed_max)), draw(st.floats(-math.pi, math.pi))
+        rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+        views.append(PlanView(t, uav, kind, x, y, v, theta, umap, k, rng, grid, 10.0, draw(st.booleans()), None))
+    return views
+
+
+@settings(max_examples=examples(60), deadline=None)
+@given(views=swarms(), particles=st.integers(1, 30), iterations=st.integers(1, 8), levels=st.integers(0, 7),
+       eta=st.sampled_from([0.0, 0.5, 1.0]), seed=st.integers(0, 2**32 - 1))
+def test_fitness_bound_and_particle_swarm_are_the_plain_formulas(views, particles, iterations, levels, eta, seed):
+    """Batch.fitness, Batch.keep_near and DacmpPlanner._pso, whose temporaries are updated in
+    place, give the bytes of the formulas with fresh arrays: the bound of points anywhere
+    (outside the area, at the UAV itself, beyond r_max), the fitness at points it bounded and at
+    the targets, and whole particle swarms."""
+    planner = DacmpPlanner(particles=particles, iterations=iterations, levels=levels, eta=eta)
+    g = views[0].grid
+    uavs = [UavSearch.build(planner, v, slot) for slot, v in enumerate(views)]
+    layers = Layers(planner, uavs)
+    for u in uavs:
+        u.draw(planner)
+    rng = np.random.default_rng(seed)
+    batch = Batch(planner, uavs, g, layers, particles)
+    z = batch.p0 + rng.normal(0.0, 1.0, batch.p0.shape) * rng.choice([10.0, 3000.0, 30_000.0], (1, len(uavs), 1))
+    z[:, :, 0] = batch.p0[:, :, 0]  # at the UAV
+    with np.errstate(all="ignore"):
+        kept = batch.keep_near(z)
+        assert same(kept, ref_keep_near(batch, z))
+        # The fitness reads the map near each UAV (Layers' windows): the kept points, and with
+        # targets (DacmpPlanner.keep scores a target where it is) the targets.
+        free = kept.copy()
+        for i, u in enumerate(uavs):
+            for j, (_tid, tx, ty, _v) in enumerate(u.targets[:particles]):
+                free[:, i, j] = tx, ty
+        for points, is_kept in ((free, False), (kept, True)):
+            for got, want in zip(batch.fitness(points, kept=is_kept), ref_fitness(batch, points, kept=is_kept)):
+                assert same(got, want)
+        assert planner._pso(uavs, g, layers) == ref_pso(planner, uavs, g, layers)

@@ -135,6 +135,9 @@ class DubinsPoses:
         self.s = np.array([math.sin(a) for a in theta]).reshape(column)
         self.r = r
         self.inv_r = 1.0 / r
+        # A point at the start needs the guard of _lengths only with a radius or an inverse that
+        # is not finite (with finite ones the formula itself gives +0.0 there).
+        self.guard = not (np.isfinite(r).all() and np.isfinite(self.inv_r).all())
         if shape is not None:
             def full(a: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
                 return np.ascontiguousarray(np.broadcast_to(a, shape))
@@ -143,18 +146,20 @@ class DubinsPoses:
             self.r = full(self.r, shape)
 
     def lengths(self, d: np.ndarray) -> np.ndarray:
-        turning = _lengths(d, self.c, self.s, self.r, self.inv_r)
+        turning = _lengths(d, self.c, self.s, self.r, self.inv_r, self.guard)
         if self.free is None:
             return turning
         return np.where(self.free, np.hypot(d[0], d[1]), turning)
 
 
 def _lengths(d: np.ndarray, c: float | np.ndarray, s: float | np.ndarray, r: float | np.ndarray,
-             inv_r: float | np.ndarray) -> np.ndarray:
+             inv_r: float | np.ndarray, guard: bool = True) -> np.ndarray:
     """The closed form of the module docstring, for stacked offsets ``d = (dx, dy)`` (each at
     least 1-d) from the start and the start's ``cos``, ``sin``, ``r`` and ``1 / r`` (scalars, or
     arrays broadcasting into the offsets' shape). Temporaries are updated in place and the two
-    coordinates share operations: the same numbers, fewer numpy calls."""
+    coordinates share operations: the same numbers, fewer numpy calls. ``guard``: set the
+    points at the start to 0 afterwards (needed only where ``r`` or ``1 / r`` is not finite:
+    with finite ones the formula gives +0.0 there, whatever the signs of the zeros)."""
     # Vehicle frame, scaled by r, mirrored onto the left side (y >= 0).
     xy = c * d  # (c dx, c dy)
     sd = s * d  # (s dx, s dy)
@@ -168,13 +173,16 @@ def _lengths(d: np.ndarray, c: float | np.ndarray, s: float | np.ndarray, r: flo
 
     # |p - c_L|^2 - 1 = x^2 + (y-1)^2 - 1 = x^2 + y (y - 2)   (exact for y == 0: t == |x|)
     t2 = x * x
-    t2 += y * (y - 2.0)
+    w = y - 2.0
+    w *= y
+    t2 += w
     inside = (t2.ravel() < 0.0).nonzero()[0]  # flat indices: cheaper to gather and scatter than a mask
 
     # --- CS (LS) for every point; overwritten below for points inside the left circle.
-    t = np.maximum(t2, 0.0)
+    t = np.maximum(t2, 0.0, out=t2)
     np.sqrt(t, out=t)
-    num = t * (y - 1.0)
+    num = np.subtract(y, 1.0, out=w)
+    num *= t
     num += x  # x + t (y - 1)
     den = t * x
     den += 1.0
@@ -189,30 +197,46 @@ def _lengths(d: np.ndarray, c: float | np.ndarray, s: float | np.ndarray, r: flo
     out: np.ndarray = alpha
     out += t
 
-    # --- CC (RL) for points strictly inside the left turning circle (usually none).
+    # --- CC (RL) for points strictly inside the left turning circle (usually none). The x and
+    # y rows of q and u share their operations (stacked: the same numbers, fewer calls).
     if inside.size:
-        xi, yi = xy.reshape(2, -1).take(inside, axis=1)
-        qy = yi + 1.0  # q = p - c_R, c_R = (0, -1); 1 < |q| < 3 here
+        q = xy.reshape(2, -1).take(inside, axis=1)  # (x, y), then y + 1: q = p - c_R, c_R = (0, -1)
+        xi, qy = q
+        qy += 1.0  # 1 < |q| < 3 here
         dq = np.hypot(xi, qy)
-        cos_gamma = (dq * dq + 3.0) / (4.0 * dq)
+        cos_gamma = dq * dq
+        cos_gamma += 3.0
+        cos_gamma /= 4.0 * dq  # (|q|^2 + 3) / (4 |q|)
         # Clipped to [-1, 1] (np.clip's numbers, without its Python-level overhead).
         np.maximum(cos_gamma, -1.0, out=cos_gamma)
         np.minimum(cos_gamma, 1.0, out=cos_gamma)
-        gamma = np.arccos(cos_gamma)
-        ang_u = np.arctan2(qy, xi) - gamma  # the root with the short first arc
+        gamma = np.arccos(cos_gamma, out=cos_gamma)
+        ang_u = np.arctan2(qy, xi)
+        ang_u -= gamma  # the root with the short first arc
         # first arc (clockwise): a = pi/2 - angle(u), in [0, pi/3]; wrap to [-pi, pi), clip rounding
-        a = np.maximum(np.mod(0.5 * math.pi - ang_u + math.pi, _TWO_PI) - math.pi, 0.0)
-        ux = np.cos(ang_u)
-        uy = np.sin(ang_u)
+        a = np.subtract(0.5 * math.pi, ang_u)
+        a += math.pi
+        np.mod(a, _TWO_PI, out=a)
+        a -= math.pi
+        np.maximum(a, 0.0, out=a)
+        u = np.empty_like(q)
+        np.cos(ang_u, out=u[0])
+        np.sin(ang_u, out=u[1])
         # second centre c_2 = c_R + 2u; the switch point is c_R + u, seen from c_2 in direction -u
-        b = np.mod(np.arctan2(qy - 2.0 * uy, xi - 2.0 * ux) - np.arctan2(-uy, -ux), _TWO_PI)
+        to_p = q - 2.0 * u
+        np.negative(u, out=u)
+        b = np.arctan2(to_p[1], to_p[0])
+        b -= np.arctan2(u[1], u[0])
+        np.mod(b, _TWO_PI, out=b)
         # b lies in (pi, 2 pi): a value near 0 is 2 pi lost to rounding (point at the start)
         np.add(b, _TWO_PI, out=b, where=b < 0.5 * math.pi)
-        out.put(inside, a + b)
+        a += b
+        out.put(inside, a)
 
     out *= r
     # A point at the start gets +0.0 from the formula itself, but not with a radius whose
     # inverse overflows (0 * inf): guarded.
-    zero = d == 0.0
-    out[zero[0] & zero[1]] = 0.0
+    if guard:
+        zero = d == 0.0
+        out[zero[0] & zero[1]] = 0.0
     return out

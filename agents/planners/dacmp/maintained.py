@@ -51,7 +51,17 @@ of it and recomputes what its extra scans' boxes reach, as it would for a change
 so by the exactness above the result is bit for bit the state the member's own updates reach
 (``tests/test_maintained_pyramid.py`` checks it against a recomputation under scans every
 member has, scans one has, members leaving and plans across spans). A member that leaves the
-group continues from that state with its own changes.
+group continues from that state with its own changes. The copy is of what is stale only: each
+pyramid counts its updates (``version``) and remembers the boxes of each plane its last
+:data:`HISTORY` updates rewrote, and a member copies the boxes the base rewrote since its last
+copy plus its own previous extra boxes (elsewhere it holds the base's values already), or
+everything when it is further behind; the same values as a full copy, without copying the
+whole planes (about 1.3 MB a member on the paper's map) at every plan.
+
+Whole levels. The small levels of dense maps computed whole (:func:`reduce_whole`: two BLAS
+calls) are computed for all maps of an update together, a level at a time, the maps of one
+shape stacked (:func:`reduce_whole_many`: numpy's matmul makes for each map of a stack the
+call one map alone makes, so the bytes are the same).
 
 Guide point (eq. 20). A sub-area's mean ``q`` is ``1 - s * sum(E) / cells``. The sums of ``E``
 are kept per *chunk*: the sub-areas of a dense map, the pieces of the sub-areas cut at the tile
@@ -97,6 +107,8 @@ WHOLE_CELLS = 1 << 12
 # update_many recomputes maps together until their changed cells reach this many: enough maps to
 # share the calls of their small boxes, few enough that their E and levels stay in cache.
 BATCH_CELLS = 1 << 16
+# A pyramid remembers what its last this many updates rewrote (for group members that copy it).
+HISTORY = 8
 
 
 def base_time(t: float, tau: float) -> float:
@@ -181,6 +193,16 @@ class Plane:
         if out is None:
             out = np.empty((r1 - r0, c1 - c0), np.float32)
         get = self._tiles.get
+        th, tw = self.tile
+        ty0, tx0 = r0 // th, c0 // tw
+        if (r1 - 1) // th == ty0 and (c1 - 1) // tw == tx0:  # within one tile (no piece list)
+            tile = get(ty0 * self._ntx + tx0)
+            if tile is None:
+                out[...] = 0.0
+            else:
+                y0, x0 = ty0 * th, tx0 * tw
+                out[...] = tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]
+            return out
         for key, rows, cols, out_rows, out_cols in self._pieces(r0, r1, c0, c1):
             tile = get(key)
             if tile is None:
@@ -194,14 +216,14 @@ class Plane:
         plane's view, of a tiled one's cells as a new C-contiguous array) of cells within one
         tile, without the read's piecewise copy."""
         if self._a is not None:
-            return float(self._a[r0:r1, c0:c1].sum())
+            return float(np.add.reduce(self._a[r0:r1, c0:c1], axis=None))  # (= .sum(): its wrapper's call)
         th, tw = self.tile
         ty, tx = r0 // th, c0 // tw
         tile = self._tile(ty * self._ntx + tx)
         if tile is None:
             return 0.0
         y0, x0 = ty * th, tx * tw
-        return float(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]).sum())
+        return float(np.add.reduce(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]), axis=None))
 
     def _tile(self, key: int) -> np.ndarray | None:
         return self._tiles.get(key)
@@ -213,6 +235,18 @@ class Plane:
             self._a[r0 : r0 + h, c0 : c0 + w] = values
             return
         tiles = self._tiles
+        th, tw = self.tile
+        ty0, tx0 = r0 // th, c0 // tw
+        if (r0 + h - 1) // th == ty0 and (c0 + w - 1) // tw == tx0:  # within one tile (no piece list)
+            key = ty0 * self._ntx + tx0
+            tile = tiles.get(key)
+            if tile is None:
+                if not values.any():
+                    return  # zeros where the plane is implicitly zero
+                tile = tiles[key] = np.zeros(self.tile, np.float32)
+            y0, x0 = ty0 * th, tx0 * tw
+            tile[r0 - y0 : r0 - y0 + h, c0 - x0 : c0 - x0 + w] = values
+            return
         for key, rows, cols, in_rows, in_cols in self._pieces(r0, r0 + h, c0, c0 + w):
             piece = values[in_rows, in_cols]
             tile = tiles.get(key)
@@ -349,7 +383,24 @@ def reduce_whole(src: np.ndarray, dst: np.ndarray) -> None:
     np.matmul(np.matmul(_reduce_matrix(n), src), _reduce_matrix(w).T, out=dst)
 
 
+def reduce_whole_many(jobs: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    """:func:`reduce_whole` of each ``(src, dst)``, those of one shape in two stacked BLAS
+    calls (numpy's matmul makes the call a single map's makes for each map of a stack: the same
+    numbers; ``tests/test_maintained_pyramid.py`` compares the bytes)."""
+    shapes: dict[tuple[int, ...], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for job in jobs:
+        shapes.setdefault(job[0].shape, []).append(job)
+    for (n, w), group in shapes.items():
+        if len(group) == 1:
+            reduce_whole(*group[0])
+            continue
+        out = np.matmul(np.matmul(_reduce_matrix(n), np.stack([src for src, _ in group])), _reduce_matrix(w).T)
+        for (_, dst), values in zip(group, out):
+            dst[...] = values
+
+
 Rect = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
+Written = list[list[Rect] | None]  # per plane (P_0, P_1, ...): the boxes an update rewrote (None: all)
 Reduce = tuple[Plane, Plane, Rect]  # output box of REDUCE(src) into dst: (src, dst, (i0, i1, j0, j1))
 
 
@@ -466,7 +517,7 @@ class MaintainedPyramid:
 
     __slots__ = ("umap", "levels", "shapes", "planes", "t0", "s", "regions", "row_edges", "col_edges",
                  "_chunk_rows", "_chunk_cols", "_chunk_sums", "_chunk_block_row", "_chunk_block_col", "_block_rows",
-                 "_block_cols", "_block_sums", "_block_cells")
+                 "_block_cols", "_block_sums", "_block_cells", "version", "_history", "_synced", "_own")
 
     def __init__(self, umap: UncertaintyMap, levels: int):
         self.umap = umap
@@ -501,6 +552,15 @@ class MaintainedPyramid:
         self._chunk_block_col = [bisect.bisect_right(self._block_cols, j) - 1 for j in range(len(self._chunk_cols) - 1)]
         self._block_sums = np.zeros((ny, nx))
         self._block_cells = np.outer(np.diff(self.row_edges), np.diff(self.col_edges)).astype(np.float64)
+        # What each update rewrote (for the members that copy this pyramid: _from_base): the
+        # number of updates so far and, for the last HISTORY of them, the boxes of each plane it
+        # wrote (None: all of the plane, or not known).
+        self.version = 0
+        self._history: list[Written] = []
+        # As a group member's: the base pyramid and its version this state was copied from, and
+        # the boxes of each plane where this state differs from that copy (its own extra scans').
+        self._synced: tuple[MaintainedPyramid, int] | None = None
+        self._own: Written | None = None
 
     @classmethod
     def of(cls, umap: UncertaintyMap, levels: int) -> MaintainedPyramid:
@@ -572,7 +632,8 @@ class MaintainedPyramid:
 
     def _from_base(self, base: MaintainedPyramid, t: float) -> _Work | None:
         """Set ``t0`` and ``s`` for a plan at ``t``, copy the state of ``base`` (the pyramid of
-        this member map's group base, brought to the same ``t0``), and plan the work on the boxes
+        this member map's group base, brought to the same ``t0``; only where this state is stale:
+        :meth:`_stale`), and plan the work on the boxes
         of the map's extra scans: outside them the map's cells are the base's. Each value being
         one formula of its inputs (the module docstring), the result is bit for bit the state
         this map's own updates would reach (the boxes an update recomputes are those its
@@ -581,12 +642,56 @@ class MaintainedPyramid:
         umap.take_changes()  # (what it wrote since: in the base or its extra scans, both read now)
         self.t0 = base.t0
         self.s = math.exp(-umap.tau * (t - cast("float", base.t0)))
-        for mine, theirs in zip(self.planes, base.planes):
-            np.copyto(cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array))
+        # Only where the copy is stale: where the base rewrote its planes since this state was
+        # copied from it, and where this state has its own extra scans' values (everywhere else
+        # it already holds the base's values; the same values, copied: bit for bit a full copy).
+        stale = self._stale(base)
+        for l, (mine, theirs) in enumerate(zip(self.planes, base.planes)):
+            a, b = cast("np.ndarray", mine.dense_array), cast("np.ndarray", theirs.dense_array)
+            boxes = stale[l] if stale is not None else None
+            if boxes is None:
+                np.copyto(a, b)
+            else:
+                for r0, r1, c0, c1 in boxes:
+                    a[r0:r1, c0:c1] = b[r0:r1, c0:c1]
         self._chunk_sums = dict(base._chunk_sums)
         np.copyto(self._block_sums, base._block_sums)
         extra = umap.extra_disks() or []
-        return self._plan([(d.iy0, d.iy1, d.ix0, d.ix1) for d, _ in extra], whole=False)
+        work = self._plan([(d.iy0, d.iy1, d.ix0, d.ix1) for d, _ in extra], whole=False)
+        self._synced = (base, base.version)
+        self._own = self._written(work) if work is not None else [[] for _ in self.planes]
+        return work
+
+    def _stale(self, base: MaintainedPyramid) -> Written | None:
+        """The boxes of each plane where this member's state may differ from ``base``'s now
+        (None: a plane, or all of them, to copy whole): what the base rewrote since this state
+        was copied from it, and this state's own boxes (:meth:`_from_base`)."""
+        if self._synced is None or self._synced[0] is not base or self._own is None:
+            return None
+        behind = base.version - self._synced[1]
+        if behind > len(base._history):
+            return None
+        out: Written = [[] for _ in self.planes]
+        for written in [*base._history[len(base._history) - behind:], self._own]:
+            for l, boxes in enumerate(written):
+                mine = out[l]
+                if boxes is None or mine is None:
+                    out[l] = None
+                else:
+                    mine += boxes
+        return out
+
+    def _written(self, work: _Work) -> Written:
+        """The boxes of each plane that this work rewrites (None: the whole plane; a dense
+        map's small levels above the work's plan are recomputed whole: :meth:`_recompute`)."""
+        return [work.boxes, *work.plan, *([None] * (len(self.planes) - 1 - len(work.plan)))]
+
+    def _record(self, written: Written | None) -> None:
+        """Count an update that rewrote these boxes of each plane (None: all of every plane)."""
+        self.version += 1
+        self._history.append(written if written is not None else [None] * len(self.planes))
+        if len(self._history) > HISTORY:
+            del self._history[0]
 
     @staticmethod
     def _recompute(work: list[_Work]) -> None:
@@ -604,10 +709,13 @@ class MaintainedPyramid:
         finally:
             for w in tiled:
                 cast("SeenPlane", w.pyr.planes[0]).close()
+        # The small levels above each plan, computed whole, level by level: all maps' together.
+        for k in range(1, max((len(w.pyr.planes) for w in work), default=0)):
+            reduce_whole_many([(cast("np.ndarray", w.pyr.planes[k - 1].dense_array),
+                                cast("np.ndarray", w.pyr.planes[k].dense_array))
+                               for w in work if len(w.plan) < k < len(w.pyr.planes)])
         for w in work:
-            planes = w.pyr.planes
-            for k in range(len(w.plan) + 1, len(planes)):
-                reduce_whole(cast("np.ndarray", planes[k - 1].dense_array), cast("np.ndarray", planes[k].dense_array))
+            w.pyr._record(w.pyr._written(w))
 
     def _changed(self, t: float) -> _Work | None:
         """Set ``t0`` and ``s`` for a plan at ``t`` (clearing the state when ``t0`` moved or the
@@ -616,8 +724,10 @@ class MaintainedPyramid:
         t0 = base_time(t, tau)
         changes = self.umap.take_changes()
         self.s = math.exp(-tau * (t - t0))
+        self._synced = None  # (from here on its own state, not a copy of a base's)
         if t0 != self.t0 or changes is None:
             self.t0 = t0
+            self._record(None)
             for p in self.planes:
                 p.clear()
             self._chunk_sums.clear()

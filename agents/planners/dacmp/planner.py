@@ -356,8 +356,17 @@ class DacmpPlanner(DacmpSettings):
         c2r1 = c2s[:, None, None, None] * draws[:, 1]
         for it in range(n_it):
             g_best = best_z[:, rows, gi][:, :, None]
-            v = ws[it] * v + c1r0[it] * (best_z - z) + c2r1[it] * (g_best - z)
-            z = keep_near(z + v * draws[it, 2])  # eq. 15: z += dz * Q
+            # v = w v + c1 r1 (best - z) + c2 r2 (g_best - z), in place, in that order.
+            v *= ws[it]
+            step = best_z - z
+            step *= c1r0[it]
+            v += step
+            np.subtract(g_best, z, out=step)
+            step *= c2r1[it]
+            v += step
+            np.multiply(v, draws[it, 2], out=step)
+            step += z
+            z = keep_near(step)  # eq. 15: z += dz * Q
             f, _, _ = fitness(z, kept=True)
             better = f > bf
             np.copyto(best_z, z, where=better)
@@ -411,30 +420,48 @@ class Batch:
 
     def fitness(self, z: np.ndarray, kept: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(f, f_S, f_t)`` at the points ``z`` (``z[:, i]``: UAV ``i``'s ``points`` points).
-        ``kept``: the points come from :meth:`keep_near`, so they lie inside the area."""
+        ``kept``: the points come from :meth:`keep_near`, so they lie inside the area.
+
+        The temporaries are updated in place: the same operations on each element, in the same
+        order, as the formulas in the comments (``tests/test_plan_speed.py`` compares the bytes
+        with them written out)."""
         planner, g = self.planner, self.grid
         # Each point's cell, as Grid.cells_of (its clip to the grid is in level_sum's gathers).
         cells = (z // g.cell_m).astype(np.int64)
         p_sum = self.layers.level_sum(self.layer_base, self.layer_weights, self.layer_scale, cells[0], cells[1])
         d = z - self.p0  # from the UAV
-        dub = self.dubins.lengths(d)
-        R = self.R
-        f_sl = p_sum / (1.0 + ((dub - R) / R) ** 2)
+        # f_Sl = p_sum / (1 + ((Dub - R) / R) ** 2), on Dub's own (fresh) array.
+        f_sl = self.dubins.lengths(d)
+        f_sl -= self.R
+        f_sl /= self.R
+        np.square(f_sl, out=f_sl)
+        f_sl += 1.0
+        np.divide(p_sum, f_sl, out=f_sl)
         if self.crowding is not None:
             f_sl *= self.crowding(z)
+        eta = planner.eta
+        f_s = np.multiply(f_sl, eta, out=f_sl)  # eta f_Sl + (1 - eta) f_Sg: this term first
         if self.guided:
+            # cos = (g . d) / max(|g| |d|, 1e-9), clipped to [-1, 1]; f_Sg = 1 / (1 + exp(acos / pi)).
             dot = self.guide_dir * d
-            cosang = (dot[0] + dot[1]) / np.maximum(self.g_norm * np.hypot(d[0], d[1]), 1e-9)
-            # Clip to [-1, 1] (np.clip's numbers, without its Python-level overhead).
+            cosang = np.add(dot[0], dot[1], out=dot[0])
+            norm = np.hypot(d[0], d[1])
+            np.multiply(self.g_norm, norm, out=norm)
+            np.maximum(norm, 1e-9, out=norm)
+            cosang /= norm
             np.maximum(cosang, -1.0, out=cosang)
             np.minimum(cosang, 1.0, out=cosang)
-            ang = np.arccos(cosang)
-            f_sg = 1.0 / (1.0 + np.exp(ang / math.pi))
+            f_sg = np.arccos(cosang, out=cosang)
+            f_sg /= math.pi
+            np.exp(f_sg, out=f_sg)
+            f_sg += 1.0
+            np.divide(1.0, f_sg, out=f_sg)
             if len(self.guided) < len(self.uavs):
                 f_sg = np.where(self.has_guide, f_sg, 0.5)
+            f_sg *= 1.0 - eta
+            f_s += f_sg
         else:
-            f_sg = np.full(p_sum.shape, 0.5)
-        f_s = planner.eta * f_sl + (1.0 - planner.eta) * f_sg
+            f_s += (1.0 - eta) * 0.5  # f_Sg = 0.5 everywhere (the same double product)
         if kept and not self.with_targets and not self.with_threats:
             # Nothing to add and every point feasible: f = f_S (f_S > 0, so f_S + 0.0 is f_S).
             return f_s, f_s, self.no_targets
@@ -462,8 +489,16 @@ class Batch:
         """
         d = z - self.p0
         dist = np.hypot(d[0], d[1])
-        scale = np.where(dist > self.r_max, self.r_max / np.maximum(dist, 1e-9), 1.0)
-        kept: np.ndarray = self.p0 + d * scale
+        # p0 + d * scale, scale = r_max / max(dist, 1e-9) where dist > r_max, else 1 (and
+        # d * 1 is d: no product where no point is beyond r_max).
+        far = dist > self.r_max
+        if far.any():
+            np.maximum(dist, 1e-9, out=dist)
+            scale = np.divide(self.r_max, dist, out=dist)
+            np.copyto(scale, 1.0, where=np.logical_not(far, out=far))
+            d *= scale
+        kept: np.ndarray = d
+        kept += self.p0
         # = np.clip(kept, 0.0, self.area), without its Python-level overhead.
         np.maximum(kept, 0.0, out=kept)
         np.minimum(kept, self.area, out=kept)
