@@ -179,9 +179,9 @@ def test_archive_grows_without_losing_rows():
         m = 100
         keys = [(float(x), float(y), 5.0) for x, y in rng.random((m, 2))]
         width = 8 + 4 * k
-        meta = np.column_stack([np.full(m, k), np.arange(m), np.full(m, 2), np.full(m, 3), np.full(m, 4),
-                                np.zeros(m, np.int64), np.zeros(m, np.int64)])
-        archive.add(keys, meta, rng.integers(0, 256, (m, width), dtype=np.uint8), float(k))
+        xyr = tuple(np.array(col) for col in zip(*keys))
+        archive.add(keys, xyr, (k, np.arange(m), 2, 3, 4, 0, 0), rng.integers(0, 256, (m, width), dtype=np.uint8),
+                    float(k))
         got = archive.get(keys[17])
         assert got is not None and got[:4] == (k, k + 2, 17, 20)
     assert len(archive) == 3000

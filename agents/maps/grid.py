@@ -11,6 +11,13 @@ box and mask, the scan's values ``where(mask, t, -inf)`` and their split over ma
 exact ``(x, y, radius)`` in a small first-in-first-out cache owned by the grid, and
 :meth:`Grid.prefetch_disks` builds many at once. The cache is a pure memo of :meth:`Grid.disk`:
 hits, misses and prefetched disks give the same cells, so it can never change a result.
+
+The tick plane (issue 36; :meth:`Grid.set_tick_plane`, on unless a simulation runs with
+``tick_plane=False``) builds a tick's disks in one batch (near the grid's edges too), and keeps
+their cells, bit-packed, in a :class:`DiskArchive` for as long as anti-entropy may resend their
+scans: a resent scan (:meth:`UncertaintyMap.stamp_once`) then finds its cells there instead of
+computing them. Off, the per-object code it replaces runs: kept as the oracle its property tests
+compare it with (``tests/test_tick_geometry.py``), bit for bit.
 """
 
 from __future__ import annotations
@@ -250,7 +257,7 @@ class DiskArchive:
         self.rows: dict[int, int] = {}  # hash(key) -> its newest row
         cap = 1024
         # Per row: iy0, ix0, h, w (the box), the packed mask's row length, nearest row, column.
-        self.meta = np.zeros((cap, 7), np.int64)
+        self.meta = np.zeros((cap, 7), np.int32)
         self.xyr = np.zeros((cap, 3))  # the key
         self.bits = np.zeros((cap, 8), np.uint8)
         self.when = np.zeros(cap)  # the time of the batch that built it
@@ -261,9 +268,11 @@ class DiskArchive:
     def __len__(self) -> int:
         return self.count
 
-    def add(self, keys: list[DiskKey], meta: np.ndarray, bits: np.ndarray, t: float) -> None:
-        """Archive the disks ``keys`` of a batch at ``t`` (``meta`` and ``bits`` per key, as in
-        the ring); drops what is older than ``t - keep_s`` first."""
+    def add(self, keys: list[DiskKey], xyr: tuple[np.ndarray | float, ...], meta: tuple[np.ndarray | int, ...],
+            bits: np.ndarray, t: float) -> None:
+        """Archive the disks ``keys`` of a batch at ``t``: ``xyr`` the keys' columns, ``meta``
+        the ring's seven columns, ``bits`` the packed masks, one row per key (a number stands
+        for a column of it); drops what is older than ``t - keep_s`` first."""
         cap = len(self.hashes)
         rows, hashes, when = self.rows, self.hashes, self.when
         cut = t - self.keep_s
@@ -282,8 +291,10 @@ class DiskArchive:
         new = [hash(k) for k in keys]
         head = self.head
         at: slice | np.ndarray = slice(head, head + m) if head + m <= cap else (head + np.arange(m)) % cap
-        self.meta[at] = meta
-        self.xyr[at] = keys
+        for j, col in enumerate(meta):
+            self.meta[at, j] = col
+        for j, key_col in enumerate(xyr):
+            self.xyr[at, j] = key_col
         self.bits[at, : bits.shape[1]] = bits
         when[at] = t
         if isinstance(at, slice):
@@ -304,7 +315,7 @@ class DiskArchive:
             new_cap *= 2
         n = self.count
         order = (self.head - n + np.arange(n)) % cap
-        meta, xyr = np.zeros((new_cap, 7), np.int64), np.zeros((new_cap, 3))
+        meta, xyr = np.zeros((new_cap, 7), np.int32), np.zeros((new_cap, 3))
         bits = np.zeros((new_cap, max(width, self.bits.shape[1])), np.uint8)
         when = np.zeros(new_cap)
         meta[:n], xyr[:n], when[:n] = self.meta[order], self.xyr[order], self.when[order]
@@ -646,10 +657,13 @@ class Grid:
                 stamps = self._batch_stamps(tiles, ix0, iy0, hs, ws, H, mask, values, near_r, near_c)
         archive = cache.archive
         if archive is not None and t is not None:
-            kk = np.arange(m) if keep is None else np.flatnonzero(keep)
-            if len(kk):
-                meta = np.stack([iy0[kk], ix0[kk], hs[kk], ws[kk], np.full(len(kk), W), near_r[kk], near_c[kk]], axis=1)
-                archive.add(todo if keep is None else [todo[k] for k in kk.tolist()], meta,
+            if keep is None:
+                archive.add(todo, (x, y, radius), (iy0, ix0, hs, ws, W, near_r, near_c),
+                            np.packbits(mask.reshape(m, -1), axis=1), t)
+            elif keep.any():
+                kk = np.flatnonzero(keep)
+                archive.add([todo[k] for k in kk.tolist()], (x[kk], y[kk], radius),
+                            (iy0[kk], ix0[kk], hs[kk], ws[kk], W, near_r[kk], near_c[kk]),
                             np.packbits(mask[kk].reshape(len(kk), -1), axis=1), t)
         kept = [True] * m if keep is None else keep.tolist()
         for k, (key, y0, x0, h, w, nr, nc) in enumerate(zip(todo, iy0.tolist(), ix0.tolist(), hs.tolist(), ws.tolist(),
