@@ -187,6 +187,20 @@ def test_archive_grows_without_losing_rows():
     assert len(archive) == 3000
 
 
+def test_archive_keeps_at_most_its_row_cap(monkeypatch):
+    import agents.maps.grid as grid_module
+
+    monkeypatch.setattr(grid_module, "ARCHIVE_MAX_ROWS", 5 * PREFETCH_MIN)
+    g = Grid(20_000.0, 20_000.0, 100.0)
+    g.set_tick_plane(True, 1e9)
+    keys = [[(1000.0 + 37.0 * i + k, 2000.0 + 11.0 * i, 700.0) for i in range(PREFETCH_MIN)] for k in range(12)]
+    for k, batch in enumerate(keys):
+        g.prefetch_disks(*zip(*batch), float(k), (64, 64))
+        archive = g._cache.archive
+        assert archive is not None and len(archive) == min(k + 1, 5) * PREFETCH_MIN
+    assert [archive.get(key) is not None for batch in keys for key in batch[:1]] == [False] * 7 + [True] * 5
+
+
 def _maps_and_log(name: str, plane: bool, duration_s: float, seed: int, **kw: object) -> tuple[list[bytes], str]:
     from swarm import Simulation
 

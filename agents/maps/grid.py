@@ -235,6 +235,13 @@ class Disk:
         return p
 
 
+# The most disks a DiskArchive keeps however long its horizon (the oldest go first): about 150 MB
+# of 2 km disks on 100 m cells. bench-1000's 600 s horizon would need 600 000: the last 524 s are
+# kept, where nearly all resent scans lie (bench-100 over 600 s: ages 197 s median, 543 s 99th
+# percentile).
+ARCHIVE_MAX_ROWS = 1 << 19
+
+
 class DiskArchive:
     """The geometry of the disks :meth:`Grid.prefetch_disks` built in the last ``keep_s``
     seconds, compact, for the scans anti-entropy resends (:meth:`UncertaintyMap.stamp_once`).
@@ -243,11 +250,11 @@ class DiskArchive:
     memo, and usually goes to one UAV: building a :class:`Disk` and its tile bands for it costs
     several times the stamp. The archive keeps, per exact ``(x, y, radius)``, the disk's box, the
     row and column nearest its centre and its mask as bits (about 230 bytes for a 2 km radius on
-    100 m cells), in a ring of rows oldest first, dropped once older than ``keep_s``. No Python
-    object per disk (the garbage collector would walk them all): rows are found by the key's
-    ``hash`` and checked against the stored ``(x, y, radius)``. A pure memo: :meth:`get` gives
-    exactly :meth:`Grid.disk`'s cells, and a miss (a hash collision included) only costs
-    computing them.
+    100 m cells), in a ring of rows oldest first, dropped once older than ``keep_s`` (or beyond
+    :data:`ARCHIVE_MAX_ROWS`). No Python object per disk (the garbage collector would walk them
+    all): rows are found by the key's ``hash`` and checked against the stored ``(x, y,
+    radius)``. A pure memo: :meth:`get` gives exactly :meth:`Grid.disk`'s cells, and a miss (a
+    hash collision included) only costs computing them.
     """
 
     __slots__ = ("keep_s", "rows", "meta", "xyr", "bits", "when", "hashes", "head", "count")
@@ -276,15 +283,15 @@ class DiskArchive:
         cap = len(self.hashes)
         rows, hashes, when = self.rows, self.hashes, self.when
         cut = t - self.keep_s
+        m = len(keys)
         while self.count:
             old = (self.head - self.count) % cap
-            if when[old] >= cut:
+            if when[old] >= cut and self.count + m <= ARCHIVE_MAX_ROWS:
                 break
             h = hashes[old]
             if rows.get(h) == old:  # (not re-archived since)
                 del rows[h]
             self.count -= 1
-        m = len(keys)
         if self.count + m > cap or bits.shape[1] > self.bits.shape[1]:
             self._grow(self.count + m, bits.shape[1])
             cap, rows, hashes, when = len(self.hashes), self.rows, self.hashes, self.when
