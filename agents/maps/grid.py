@@ -11,11 +11,19 @@ box and mask, the scan's values ``where(mask, t, -inf)`` and their split over ma
 exact ``(x, y, radius)`` in a small first-in-first-out cache owned by the grid, and
 :meth:`Grid.prefetch_disks` builds many at once. The cache is a pure memo of :meth:`Grid.disk`:
 hits, misses and prefetched disks give the same cells, so it can never change a result.
+
+The tick plane (issue 36; :meth:`Grid.set_tick_plane`, on unless a simulation runs with
+``tick_plane=False``) builds a tick's disks in one batch (near the grid's edges too), and keeps
+their cells, bit-packed, in a :class:`DiskArchive` for as long as anti-entropy may resend their
+scans: a resent scan (:meth:`UncertaintyMap.stamp_once`) then finds its cells there instead of
+computing them. Off, the per-object code it replaces runs: kept as the oracle its property tests
+compare it with (``tests/test_tick_geometry.py``), bit for bit.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
@@ -28,7 +36,9 @@ import numpy as np
 # record is reused within a few ticks (own scan, ground truth, every receiver); a simulation
 # sizes the cache to its swarm (set_disk_cache_size). A miss only costs recomputing the disk.
 DISK_CACHE_SIZE = 1024
-# Fewer disks than this are cheaper one by one (numpy call overhead of the batch).
+# Fewer disks than this are cheaper one by one (numpy call overhead of the batch): a simulation
+# builds the tick's disks together (Grid.prefetch_disks) from this many live UAVs. (Measured with
+# the tick plane's batch too: 6 disks cost about twice as much batched as one by one.)
 PREFETCH_MIN = 16
 
 DiskKey = tuple[float, float, float]  # (x, y, radius) of a scan: what a Disk is memoised by
@@ -56,7 +66,7 @@ class DiskLookup(Protocol):
 
 
 class _GridCache:
-    __slots__ = ("disks", "centres", "size", "nx", "ny")
+    __slots__ = ("disks", "centres", "size", "nx", "ny", "plane", "archive")
 
     def __init__(self) -> None:
         self.nx: int | None = None
@@ -64,6 +74,32 @@ class _GridCache:
         self.disks: dict[DiskKey, Disk | None] = {}
         self.centres: tuple[np.ndarray, np.ndarray] | None = None
         self.size = DISK_CACHE_SIZE
+        # (issue 36) True: the tick plane's geometry (batched disks, the resend archive); False:
+        # the per-object code it replaces, kept as the oracle (Grid.set_tick_plane).
+        self.plane = True
+        self.archive: DiskArchive | None = None
+
+
+_NEVER_BITS = np.uint32(0xFF800000)  # float32 -inf
+_F32_PACK = struct.Struct("<f").pack
+_F32_BITS = struct.Struct("<I").unpack
+
+
+def where_seen(mask: np.ndarray, t: float) -> np.ndarray:
+    """``np.where(mask, float32(t), -inf)`` (float32, a new array), bit for bit, by integer
+    arithmetic on the bits (about 4x cheaper on a batch of disks): ``-inf``'s bits plus
+    ``mask`` times the difference to ``float32(t)``'s, modulo 2**32. (``struct``'s ``"f"``
+    rounds a float to float32 as numpy does: to nearest, ties to even.)"""
+    try:
+        bits = _F32_BITS(_F32_PACK(t))[0]
+    except OverflowError:  # (beyond float32: numpy rounds it to inf)
+        with np.errstate(over="ignore"):
+            bits = int(np.float32(t).view(np.uint32))
+    delta = np.uint32((bits - 0xFF800000) & 0xFFFFFFFF)
+    v = np.multiply(mask, delta, dtype=np.uint32)
+    v += _NEVER_BITS
+    out: np.ndarray = v.view(np.float32)
+    return out
 
 
 class Disk:
@@ -199,6 +235,114 @@ class Disk:
         return p
 
 
+# The most disks a DiskArchive keeps however long its horizon (the oldest go first): about 150 MB
+# of 2 km disks on 100 m cells. bench-1000's 600 s horizon would need 600 000: the last 524 s are
+# kept, where nearly all resent scans lie (bench-100 over 600 s: ages 197 s median, 543 s 99th
+# percentile).
+ARCHIVE_MAX_ROWS = 1 << 19
+
+
+class DiskArchive:
+    """The geometry of the disks :meth:`Grid.prefetch_disks` built in the last ``keep_s``
+    seconds, compact, for the scans anti-entropy resends (:meth:`UncertaintyMap.stamp_once`).
+
+    A resent scan is up to ``radio.sync_horizon_s`` old, long out of :meth:`Grid.disk_stamp`'s
+    memo, and usually goes to one UAV: building a :class:`Disk` and its tile bands for it costs
+    several times the stamp. The archive keeps, per exact ``(x, y, radius)``, the disk's box, the
+    row and column nearest its centre and its mask as bits (about 230 bytes for a 2 km radius on
+    100 m cells), in a ring of rows oldest first, dropped once older than ``keep_s`` (or beyond
+    :data:`ARCHIVE_MAX_ROWS`). No Python object per disk (the garbage collector would walk them
+    all): rows are found by the key's ``hash`` and checked against the stored ``(x, y,
+    radius)``. A pure memo: :meth:`get` gives exactly :meth:`Grid.disk`'s cells, and a miss (a
+    hash collision included) only costs computing them.
+    """
+
+    __slots__ = ("keep_s", "rows", "meta", "xyr", "bits", "when", "hashes", "head", "count")
+
+    def __init__(self, keep_s: float):
+        self.keep_s = float(keep_s)
+        self.rows: dict[int, int] = {}  # hash(key) -> its newest row
+        cap = 1024
+        # Per row: iy0, ix0, h, w (the box), the packed mask's row length, nearest row, column.
+        self.meta = np.zeros((cap, 7), np.int32)
+        self.xyr = np.zeros((cap, 3))  # the key
+        self.bits = np.zeros((cap, 8), np.uint8)
+        self.when = np.zeros(cap)  # the time of the batch that built it
+        self.hashes = [0] * cap
+        self.head = 0  # the next row written
+        self.count = 0  # rows held: the oldest is head - count (mod capacity)
+
+    def __len__(self) -> int:
+        return self.count
+
+    def add(self, keys: list[DiskKey], xyr: tuple[np.ndarray | float, ...], meta: tuple[np.ndarray | int, ...],
+            bits: np.ndarray, t: float) -> None:
+        """Archive the disks ``keys`` of a batch at ``t``: ``xyr`` the keys' columns, ``meta``
+        the ring's seven columns, ``bits`` the packed masks, one row per key (a number stands
+        for a column of it); drops what is older than ``t - keep_s`` first."""
+        cap = len(self.hashes)
+        rows, hashes, when = self.rows, self.hashes, self.when
+        cut = t - self.keep_s
+        m = len(keys)
+        while self.count:
+            old = (self.head - self.count) % cap
+            if when[old] >= cut and self.count + m <= ARCHIVE_MAX_ROWS:
+                break
+            h = hashes[old]
+            if rows.get(h) == old:  # (not re-archived since)
+                del rows[h]
+            self.count -= 1
+        if self.count + m > cap or bits.shape[1] > self.bits.shape[1]:
+            self._grow(self.count + m, bits.shape[1])
+            cap, rows, hashes, when = len(self.hashes), self.rows, self.hashes, self.when
+        new = [hash(k) for k in keys]
+        head = self.head
+        at: slice | np.ndarray = slice(head, head + m) if head + m <= cap else (head + np.arange(m)) % cap
+        for j, col in enumerate(meta):
+            self.meta[at, j] = col
+        for j, key_col in enumerate(xyr):
+            self.xyr[at, j] = key_col
+        self.bits[at, : bits.shape[1]] = bits
+        when[at] = t
+        if isinstance(at, slice):
+            hashes[at] = new
+            rows.update(zip(new, range(head, head + m)))
+        else:
+            for h, row in zip(new, at.tolist()):
+                rows[h] = row
+                hashes[row] = h
+        self.head = (head + m) % cap
+        self.count += m
+
+    def _grow(self, need: int, width: int) -> None:
+        """Room for ``need`` rows of ``width`` mask bytes: the rows laid out afresh, oldest first."""
+        cap = len(self.hashes)
+        new_cap = cap
+        while new_cap < need:
+            new_cap *= 2
+        n = self.count
+        order = (self.head - n + np.arange(n)) % cap
+        meta, xyr = np.zeros((new_cap, 7), np.int32), np.zeros((new_cap, 3))
+        bits = np.zeros((new_cap, max(width, self.bits.shape[1])), np.uint8)
+        when = np.zeros(new_cap)
+        meta[:n], xyr[:n], when[:n] = self.meta[order], self.xyr[order], self.when[order]
+        bits[:n, : self.bits.shape[1]] = self.bits[order]
+        hashes = [self.hashes[i] for i in order.tolist()] + [0] * (new_cap - n)
+        self.meta, self.xyr, self.bits, self.when, self.hashes = meta, xyr, bits, when, hashes
+        self.rows = {h: i for i, h in enumerate(hashes[:n])}  # (later rows win: the newest)
+        self.head = n % new_cap
+
+    def get(self, key: DiskKey) -> tuple[int, int, int, int, np.ndarray, int, int] | None:
+        """``(iy0, iy1, ix0, ix1, mask, near_row, near_col)`` of an archived disk (half-open
+        bounds; the mask over the box), or None if it is not archived."""
+        row = self.rows.get(hash(key))
+        if row is None or tuple(self.xyr[row].tolist()) != key:
+            return None
+        iy0, ix0, h, w, rw, nr, nc = self.meta[row].tolist()
+        mask = np.unpackbits(self.bits[row], count=h * rw).view(np.bool_).reshape(h, rw)[:, :w]
+        return iy0, iy0 + h, ix0, ix0 + w, mask, nr, nc
+
+
 @dataclass(frozen=True, slots=True)
 class Grid:
     width_m: float
@@ -318,13 +462,18 @@ class Grid:
         element-wise arithmetic, only batched (a simulation prefetches the scans of all its
         UAVs at the start of a tick). With ``t``, each disk's :meth:`Disk.values` for ``t`` is
         prepared too, and with ``tiles=(th, tw)`` its :meth:`Disk.stamps` for maps of such
-        tiles. Disks near the grid's edge, already known, or smaller than a cell are left to
-        :meth:`disk_stamp`.
+        tiles. With the tick plane (:meth:`set_tick_plane`) every disk is built in the batch
+        (:meth:`_build_batch`) and archived for resends; without it (the oracle), disks near the
+        grid's edge, already known, or smaller than a cell are left to :meth:`disk_stamp`.
+        Batches of fewer than :data:`PREFETCH_MIN` new disks are left to it either way.
         """
         cache = self._cache
         disks = cache.disks
         todo = [(x, y, r) for x, y, r in zip(xs, ys, radii) if (x, y, r) not in disks]
         if len(todo) < PREFETCH_MIN:
+            return
+        if cache.plane:
+            self._build_batch(todo, t, tiles)
             return
         c = self.cell_m
         a = np.array(todo, dtype=np.float64)
@@ -429,6 +578,189 @@ class Grid:
             p += per_disk[k]
             d.stamps_memo = (shape, t, st)
             disks[key] = d
+
+    def _build_batch(self, todo: list[DiskKey], t: float | None, tiles: tuple[int, int] | None) -> None:
+        """The tick plane's :meth:`prefetch_disks`: every disk of ``todo`` (not yet known) built
+        at once, exactly as :meth:`disk_stamp` builds it one by one (the same element-wise float
+        operations), with its values at ``t`` and its :meth:`Disk.stamps` for maps of ``tiles``,
+        into the memo and the resend archive.
+
+        All disks share one padded ``(H, W)`` box (the largest): a disk's mask, values and
+        squared distances are its top-left ``(h, w)`` corner (cells beyond it are never read)."""
+        cache = self._cache
+        c = self.cell_m
+        nx, ny = self.nx, self.ny
+        a = np.array(todo, dtype=np.float64)
+        x, y, r = a[:, 0], a[:, 1], a[:, 2]
+        with np.errstate(invalid="ignore", over="ignore"):
+            # _disk_bounds' bounds, element-wise (same float operations; ceil/floor are exact),
+            # then clipped to the grid.
+            fx0 = np.maximum(np.ceil((x - r) / c - 0.5) - 1, 0.0)
+            fx1 = np.minimum(np.floor((x + r) / c - 0.5) + 1, nx - 1.0)
+            fy0 = np.maximum(np.ceil((y - r) / c - 0.5) - 1, 0.0)
+            fy1 = np.minimum(np.floor((y + r) / c - 0.5) + 1, ny - 1.0)
+            # Numbers no arithmetic here holds exactly are left to disk_stamp (none are honest).
+            ok = (np.abs(a).max(axis=1) < 1e15) & (r >= 0.0)
+        disks = cache.disks
+        empty = ok & ((fx1 < fx0) | (fy1 < fy0))
+        if empty.any():
+            ok &= ~empty
+            for i in np.flatnonzero(empty).tolist():
+                disks[todo[i]] = None
+        if not ok.all():
+            if not ok.any():
+                return
+            sel = np.flatnonzero(ok)
+            todo = [todo[i] for i in sel.tolist()]
+            x, y, r, fx0, fx1, fy0, fy1 = x[sel], y[sel], r[sel], fx0[sel], fx1[sel], fy0[sel], fy1[sel]
+        ix0, iy0 = fx0.astype(np.int64), fy0.astype(np.int64)
+        ws, hs = fx1.astype(np.int64) + 1 - ix0, fy1.astype(np.int64) + 1 - iy0
+        # _disk_bounds checks the mask for a cell only when the centre may cover none.
+        check = ~((r >= c) & (x >= 0.0) & (x <= self.width_m) & (y >= 0.0) & (y <= self.height_m))
+        radii, which = np.unique(r, return_inverse=True)
+        for g in range(len(radii)):
+            idx = np.flatnonzero(which == g) if len(radii) > 1 else None
+            if idx is None:
+                self._build_group(todo, x, y, float(radii[g]), ix0, iy0, hs, ws, check, t, tiles)
+            else:
+                self._build_group([todo[i] for i in idx.tolist()], x[idx], y[idx], float(radii[g]), ix0[idx], iy0[idx],
+                                  hs[idx], ws[idx], check[idx], t, tiles)
+        if len(disks) > cache.size:
+            for old in list(islice(disks, len(disks) - cache.size)):  # oldest first
+                del disks[old]
+
+    def _build_group(self, todo: list[DiskKey], x: np.ndarray, y: np.ndarray, radius: float, ix0: np.ndarray,
+                     iy0: np.ndarray, hs: np.ndarray, ws: np.ndarray, check: np.ndarray, t: float | None,
+                     tiles: tuple[int, int] | None) -> None:
+        """:meth:`_build_batch`'s disks of one radius (boxes ``[iy0:iy0+hs, ix0:ix0+ws]``, on the
+        grid). They share one padded ``(H, W)`` box (the largest): a disk's mask, values and
+        squared distances are its top-left ``(h, w)`` corner (cells beyond it are never read)."""
+        cache = self._cache
+        disks = cache.disks
+        m = len(todo)
+        nx, ny = self.nx, self.ny
+        H, W = int(hs.max()), int(ws.max())
+        ch, cw = np.arange(H), np.arange(W)
+        centres_x, centres_y = self._centres()
+        # (cx[ix0:ix1+1] - x) ** 2 per disk; beyond its own width +inf (outside the mask, never
+        # the nearest column).
+        dx2 = (centres_x[np.minimum(ix0[:, None] + cw, nx - 1)] - x[:, None]) ** 2
+        dy2 = (centres_y[np.minimum(iy0[:, None] + ch, ny - 1)] - y[:, None]) ** 2
+        if W > int(ws.min()):
+            dx2[cw >= ws[:, None]] = np.inf
+        if H > int(hs.min()):
+            dy2[ch >= hs[:, None]] = np.inf
+        mask = (dy2[:, :, None] + dx2[:, None, :]) <= radius * radius
+        keep = (~check | mask.reshape(m, -1).any(axis=1)) if check.any() else None
+        near_r = dy2.argmin(axis=1)
+        near_c = dx2.argmin(axis=1)
+        mask.flags.writeable = False
+        values = None
+        stamps: list[list[Stamp]] | None = None
+        if t is not None:
+            values = where_seen(mask, t)
+            values.flags.writeable = False
+            if tiles is not None:
+                stamps = self._batch_stamps(tiles, ix0, iy0, hs, ws, H, mask, values, near_r, near_c)
+        archive = cache.archive
+        if archive is not None and t is not None:
+            if keep is None:
+                archive.add(todo, (x, y, radius), (iy0, ix0, hs, ws, W, near_r, near_c),
+                            np.packbits(mask.reshape(m, -1), axis=1), t)
+            elif keep.any():
+                kk = np.flatnonzero(keep)
+                archive.add([todo[k] for k in kk.tolist()], (x[kk], y[kk], radius),
+                            (iy0[kk], ix0[kk], hs[kk], ws[kk], W, near_r[kk], near_c[kk]),
+                            np.packbits(mask[kk].reshape(len(kk), -1), axis=1), t)
+        kept = [True] * m if keep is None else keep.tolist()
+        for k, (key, y0, x0, h, w, nr, nc) in enumerate(zip(todo, iy0.tolist(), ix0.tolist(), hs.tolist(), ws.tolist(),
+                                                             near_r.tolist(), near_c.tolist())):
+            if not kept[k]:
+                disks[key] = None
+                continue
+            d = Disk(y0, y0 + h, x0, x0 + w, mask[k, :h, :w], (nr, nc), key)
+            if values is not None:
+                d.values_memo = (cast(float, t), values[k, :h, :w])
+                if stamps is not None:
+                    d.stamps_memo = (cast(tuple[int, int], tiles), cast(float, t), stamps[k])
+            disks[key] = d
+
+    def _batch_stamps(self, tiles: tuple[int, int], ix0: np.ndarray, iy0: np.ndarray, hs: np.ndarray, ws: np.ndarray,
+                      H: int, mask: np.ndarray, values: np.ndarray, near_r: np.ndarray, near_c: np.ndarray
+                      ) -> list[list[Stamp]]:
+        """:meth:`Disk.stamps` of a group's disks of one padded ``(H, W)`` box (:meth:`_build_group`),
+        all made at once: each disk's values laid over the full width of the tile columns it
+        touches, and the tiles holding a cell of it found by stamps()'s nearest-cell test for all
+        disks together, listed in stamps()'s order; each piece a slice of the disk's flat bands."""
+        th, tw = tiles
+        m, _, W = mask.shape
+        ntx = -(-self.nx // tw)
+        # Each disk's values over the full width of the tile columns it touches (rows of the
+        # padded box; -inf outside the disk): column j of the box goes to band (a + j) // tw,
+        # column (a + j) % tw, a = ix0 % tw.
+        pos = (ix0 % tw)[:, None] + np.arange(W)
+        nc = int(pos[:, -1].max()) // tw + 1
+        bands = np.empty((m, nc, H, tw), dtype=np.float32)
+        bands.fill(-np.inf)
+        bands[np.arange(m)[:, None], pos // tw, :, pos % tw] = np.swapaxes(values, 1, 2)
+        bands.flags.writeable = False
+        # Candidate pieces (disk, tile row j, tile column b): rows r0:r1 and columns c0:c1 of the box.
+        tx0, ty0 = ix0 // tw, iy0 // th
+        nr = int(((iy0 + hs - 1) // th - ty0).max()) + 1
+        ty = ty0[:, None] + np.arange(nr)  # (m, nr)
+        r0 = np.maximum(iy0[:, None], ty * th) - iy0[:, None]
+        r1 = np.minimum((iy0 + hs)[:, None], (ty + 1) * th) - iy0[:, None]
+        tx = tx0[:, None] + np.arange(nc)  # (m, nc)
+        c0 = np.maximum(ix0[:, None], tx * tw) - ix0[:, None]
+        c1 = np.minimum((ix0 + ws)[:, None], (tx + 1) * tw) - ix0[:, None]
+        nrr = np.clip(near_r[:, None], r0, r1 - 1)
+        ncc = np.clip(near_c[:, None], c0, c1 - 1)
+        valid = (r1 > r0)[:, :, None] & (c1 > c0)[:, None, :]
+        kk = np.arange(m)[:, None, None]
+        hit = valid & mask[kk, np.clip(nrr, 0, H - 1)[:, :, None], np.clip(ncc, 0, W - 1)[:, None, :]]
+        hk, hj, hb = np.nonzero(hit)  # (row-major: per disk, by tile row then column)
+        rr0, rr1 = r0[hk, hj], r1[hk, hj]
+        base = iy0[hk] - ty[hk, hj] * th
+        # Per piece: tile key, start and stop in the tile, start and stop in the disk's flat bands.
+        pieces = np.stack([ty[hk, hj] * ntx + tx[hk, hb], (rr0 + base) * tw, (rr1 + base) * tw,
+                           (hb * H + rr0) * tw, (hb * H + rr1) * tw], axis=1).tolist()
+        flat = bands.reshape(m, -1)
+        out: list[list[Stamp]] = []
+        p = 0
+        for k, n in enumerate(np.bincount(hk, minlength=m).tolist()):
+            fk = flat[k]
+            out.append([(key, start, stop, fk[a0:a1]) for key, start, stop, a0, a1 in pieces[p : p + n]])
+            p += n
+        return out
+
+    def set_tick_plane(self, on: bool, resend_keep_s: float = 0.0) -> None:
+        """(issue 36) ``on``: the tick plane's disk geometry: :meth:`prefetch_disks` builds every
+        disk of a tick in one batch, and with ``resend_keep_s > 0`` keeps their cells that long
+        in a :class:`DiskArchive` for anti-entropy resends (:meth:`UncertaintyMap.stamp_once`).
+        Off: the per-object code it replaces (the oracle). The same cells either way."""
+        cache = self._cache
+        cache.plane = bool(on)
+        cache.archive = DiskArchive(resend_keep_s) if on and resend_keep_s > 0 else None
+
+    @property
+    def tick_plane(self) -> bool:
+        return self._cache.plane
+
+    def disk_cells(self, x: float, y: float, radius: float) -> tuple[int, int, int, int, np.ndarray, int, int] | None:
+        """``(iy0, iy1, ix0, ix1, mask, near_row, near_col)`` of the disk of ``(x, y, radius)``
+        (half-open bounds, the mask over the box, the box row and column nearest the centre), or
+        None when no cell centre is inside: from the resend archive when it holds the disk, else
+        computed (:meth:`disk_box`). For a scan applied once (:meth:`UncertaintyMap.stamp_once`)."""
+        archive = self._cache.archive
+        if archive is not None:
+            got = archive.get((x, y, radius))
+            if got is not None:
+                return got
+        b = self._disk_bounds(x, y, radius)
+        if b is None:
+            return None
+        iy0, iy1, ix0, ix1, mask, dy2, dx2 = b
+        return iy0, iy1 + 1, ix0, ix1 + 1, mask, int(dy2.argmin()), int(dx2.argmin())
 
     def set_disk_cache_size(self, n: int) -> None:
         """How many disks :meth:`disk_stamp` remembers (a simulation sizes it to its swarm)."""

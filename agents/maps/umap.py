@@ -27,7 +27,7 @@ from typing import SupportsInt
 
 import numpy as np
 
-from agents.maps.grid import Disk, Grid
+from agents.maps.grid import Disk, Grid, where_seen
 
 NEVER = np.float32(-np.inf)
 
@@ -238,7 +238,48 @@ class UncertaintyMap:
         the disk's cells for this map alone (``grid.disk_box``) instead of building a shared
         :class:`Disk` and its tile bands: for a heard scan no other map is about to apply (an
         anti-entropy resend goes to one UAV; issue 25: 35 us a scan that way, about 15 so).
-        The same cells, and the same tiles allocated (those holding a cell of the disk)."""
+        The same cells, and the same tiles allocated (those holding a cell of the disk).
+
+        With the tick plane (:meth:`Grid.set_tick_plane`) the disk's cells come from the grid's
+        resend archive when it holds them (:meth:`Grid.disk_cells`) instead of being computed;
+        without it, :meth:`_stamp_once_oracle`."""
+        grid = self.grid
+        if not grid.tick_plane:
+            return self._stamp_once_oracle(x, y, radius, t)
+        cells = grid.disk_cells(x, y, radius)
+        if cells is None:
+            return
+        iy0, iy1, ix0, ix1, mask, near_r, near_c = cells
+        changes = self._changes
+        if changes is not None:
+            self._changed(iy0, iy1, ix0, ix1)
+        values = where_seen(mask, t)
+        if self.dense:
+            view = self._tiles[0][iy0:iy1, ix0:ix1]
+            np.maximum(view, values, out=view)
+            return
+        th, tw = self.tile_shape
+        tiles = self._tiles
+        ntx = self._ntx
+        item = mask.item
+        maximum = np.maximum
+        for ty in range(iy0 // th, (iy1 - 1) // th + 1):
+            r0, r1 = max(iy0, ty * th) - iy0, min(iy1, (ty + 1) * th) - iy0
+            nr = min(max(near_r, r0), r1 - 1)
+            a = iy0 - ty * th
+            for tx in range(ix0 // tw, (ix1 - 1) // tw + 1):
+                c0, c1 = max(ix0, tx * tw) - ix0, min(ix1, (tx + 1) * tw) - ix0
+                if item(nr, min(max(near_c, c0), c1 - 1)):  # (a tile holds a cell iff its nearest does)
+                    key = ty * ntx + tx
+                    tile = tiles.get(key)
+                    if tile is None:
+                        tile = self._alloc(key)
+                    cc = ix0 - tx * tw
+                    view = tile.reshape(th, tw)[r0 + a:r1 + a, c0 + cc:c1 + cc]
+                    maximum(view, values[r0:r1, c0:c1], out=view)
+
+    def _stamp_once_oracle(self, x: float, y: float, radius: float, t: float) -> None:
+        """:meth:`stamp_once` without the tick plane (the per-object code, kept as the oracle)."""
         b = self.grid.disk_box(x, y, radius)
         if b is None:
             return

@@ -122,6 +122,10 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     dt, tau = sc.dt_s, sc.effective_tau
     # Ground truth (area grid, targets, threats, polygons) and the metrics that observe it.
     grid = Grid(sc.area.width_m, sc.area.height_m, sc.area.cell_m)
+    # (issue 36, geometry) The tick's disks built together, and kept as long as anti-entropy can
+    # resend their scans (a digest's horizon, one more round, two ticks of slack).
+    grid.set_tick_plane(tick_plane, sc.radio.sync_horizon_s + sc.radio.sync_every_s + 2 * sc.dt_s
+                        if sc.radio.sync_every_s > 0 else 0.0)
     area = (grid.width_m, grid.height_m)
     geo = build.geography(sc, grid)
     targets = Targets(build.target_motion(sc), boundary=geo.polygon if geo is not None else None)
