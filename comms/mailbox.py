@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import repeat
 
 
 @dataclass(slots=True)
@@ -37,6 +39,23 @@ class Mailbox:
         if n >= stats.max_depth:
             stats.max_depth = n + 1
         return True
+
+    def put_many(self, t: float, senders: Sequence[int], frames: Sequence[bytes]) -> int:
+        """:meth:`put` of each ``(t, senders[k], frames[k])`` in turn, at once; returns how many
+        were accepted (the first ones: the rest found the mailbox full and are counted)."""
+        items = self._items
+        stats = self.stats
+        n, k = len(items), len(frames)
+        take = min(k, max(self.capacity - n, 0))
+        if take < k:
+            stats.dropped_full += k - take
+            senders, frames = senders[:take], frames[:take]
+        if take:
+            items.extend(zip(repeat(t, take), senders, frames))
+            stats.accepted += take
+            if n + take > stats.max_depth:
+                stats.max_depth = n + take
+        return take
 
     def drain(self) -> list[tuple[float, int, bytes]]:
         items = list(self._items)
