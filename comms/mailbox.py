@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import repeat
 
 
 @dataclass(slots=True)
@@ -40,18 +38,18 @@ class Mailbox:
             stats.max_depth = n + 1
         return True
 
-    def put_many(self, t: float, senders: Sequence[int], frames: Sequence[bytes]) -> int:
-        """:meth:`put` of each ``(t, senders[k], frames[k])`` in turn, at once; returns how many
-        were accepted (the first ones: the rest found the mailbox full and are counted)."""
-        items = self._items
+    def put_many(self, items: list[tuple[float, int, bytes]]) -> int:
+        """:meth:`put` of each ``(t, sender, frame_bytes)`` of ``items`` in turn, at once; returns
+        how many were accepted (the first ones: the rest found the mailbox full, and are counted)."""
+        mine = self._items
         stats = self.stats
-        n, k = len(items), len(frames)
-        take = min(k, max(self.capacity - n, 0))
+        n, k = len(mine), len(items)
+        take = k if n + k <= self.capacity else max(self.capacity - n, 0)
         if take < k:
             stats.dropped_full += k - take
-            senders, frames = senders[:take], frames[:take]
+            items = items[:take]
         if take:
-            items.extend(zip(repeat(t, take), senders, frames))
+            mine.extend(items)
             stats.accepted += take
             if n + take > stats.max_depth:
                 stats.max_depth = n + take

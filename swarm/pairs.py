@@ -74,7 +74,12 @@ class Near:
                 got = (self.i, self.j, self.d2)
             else:
                 keep = np.flatnonzero(self.d2 <= r * r)
-                got = (self.i[keep], self.j[keep], self.d2[keep])
+                if len(keep) == len(self.d2):
+                    got = (self.i, self.j, self.d2)
+                elif not len(keep):
+                    got = (keep, keep, self.d2[:0])
+                else:
+                    got = (self.i[keep], self.j[keep], self.d2[keep])
             self._within[r] = got
         return got
 
@@ -91,18 +96,20 @@ class TickPairs:
     def __init__(self, reach_m: float):
         self.reach_m = float(reach_m)
         self._ids: list[int] | None = None
-        self._xy = np.zeros((0, 2))
+        self._xy = b""  # the positions of the last query, as bytes (float64, row-major)
         self._near: Near | None = None
         self.queries = 0  # pair queries made (tests: one a tick)
 
     def of(self, ids: list[int], xy: np.ndarray) -> Near:
         """The pairs of points ``xy`` (rows in ``ids`` order) within the reach."""
+        xy = np.asarray(xy, dtype=np.float64)
+        key = xy.tobytes()  # (a copy: the caller may reuse its array; cheaper than array_equal)
         near = self._near
-        if near is not None and ids == self._ids and xy.shape == self._xy.shape and np.array_equal(xy, self._xy):
+        if near is not None and key == self._xy and ids == self._ids:
             return near
         near = self._near = self._query(xy)
         self._ids = list(ids)
-        self._xy = np.array(xy, dtype=np.float64)  # (a copy: the caller may reuse its array)
+        self._xy = key
         self.queries += 1
         return near
 

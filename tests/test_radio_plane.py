@@ -188,7 +188,7 @@ def test_mailbox_put_many_is_put_in_turn():
                 m.put(0.5, 9, bytes([q]))
         senders, frames = list(range(k)), [bytes([10 + q]) for q in range(k)]
         took = sum(one.put(1.0, s, f) for s, f in zip(senders, frames))
-        assert many.put_many(1.0, senders, frames) == took
+        assert many.put_many([(1.0, s, f) for s, f in zip(senders, frames)]) == took
         assert many.stats == one.stats
         assert many.drain() == one.drain()
 

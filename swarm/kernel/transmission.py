@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Callable, Mapping
 from functools import partial
+from itertools import repeat
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from comms.radio import Delivery, DeliveryBatch, Radio
 from swarm.kernel.clock import DELIVERY, Clock
 from swarm.kernel.world import ALIVE, World
 from swarm.pairs import TickPairs
+
+# Below this many copies, a batch is delivered copy by copy (the arrays' fixed cost is more).
+_BATCH_MIN_COPIES = 48
 
 # A lost copy, reported as (t, sender, receiver, bytes, cause).
 Lost = Callable[[float, int, int, int, str], None]
@@ -113,6 +117,9 @@ class Transmission:
         its mailbox at once; the copies lost (receiver down, mailbox full) reported in batch
         order, as copy by copy."""
         n = len(batch)
+        if n < _BATCH_MIN_COPIES:  # (a few copies: one by one costs less than the arrays)
+            self._deliver(batch.deliveries())
+            return
         self.in_flight -= n
         uavs, actors = self.world.uavs, self.actors
         recv = batch.receivers
@@ -123,15 +130,14 @@ class Transmission:
         frame = batch.frame[order]
         frames = np.empty(len(batch.frames), dtype=object)
         frames[:] = batch.frames
-        datas = frames[frame].tolist()
-        senders = batch.senders[frame].tolist()
-        at = batch.arrival_t
+        # Each copy's mailbox entry, by receiver (batch order within)
+        entries = list(zip(repeat(batch.arrival_t, n), batch.senders[frame].tolist(), frames[frame].tolist()))
         lost: list[tuple[int, str]] = []  # (copy's position in the batch, cause)
         for r, lo, hi in zip(by_recv[starts].tolist(), starts, ends):
             if uavs[r].state != ALIVE:
                 lost += [(k, "receiver_down") for k in order[lo:hi].tolist()]
                 continue
-            took = actors[r].mailbox.put_many(at, senders[lo:hi], datas[lo:hi])
+            took = actors[r].mailbox.put_many(entries[lo:hi])
             if took < hi - lo:
                 lost += [(k, "mailbox_full") for k in order[lo + took:hi].tolist()]
         if lost:

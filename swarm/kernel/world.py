@@ -513,11 +513,13 @@ class World:
         """Count separation and threat-clearance violations now; returns them for the log."""
         found: list[tuple[str, int, int]] = []
         tick = self.pairs
-        if len(ids) >= 2 and tick is not None and min_sep <= tick.reach_m:
+        if len(ids) < 2 or _all_far_apart(xy, min_sep):
+            pass
+        elif tick is not None and min_sep <= tick.reach_m:
             # The tick's pairs (tick plane), in (i, j) order, judged at min_sep exactly.
             near_i, near_j, _d2 = tick.of(ids, xy).within(min_sep)
             found += [("separation", ids[a], ids[b]) for a, b in zip(near_i.tolist(), near_j.tolist())]
-        elif len(ids) >= 2 and not _all_far_apart(xy, min_sep):
+        else:
             from scipy.spatial import cKDTree  # (imported the first time two UAVs come near)
 
             pairs = cKDTree(xy).query_pairs(min_sep, output_type="ndarray")
