@@ -146,6 +146,7 @@ class Radio:
         link_filter: LinkFilter | None = None,
         link_rngs: Callable[[list[tuple[int, int]]], list[np.random.Generator]] | None = None,
         tick_plane: bool = False,
+        batch_min_links: int | None = None,
     ):
         """``link_rng(src, dst)``: the stream of a directed link; ``link_rngs(links)`` (optional):
         the streams of many links at once, the same as ``link_rng`` gives each.
@@ -154,9 +155,11 @@ class Radio:
         networkx graph up to date only when something reads :attr:`graph`; a tick's frames may
         then go out together (:meth:`broadcast_all`). ``False``: the graph is updated every
         tick (the per-actor path, the oracle). Either way the graph read, the neighbours, the
-        copies and every draw are the same."""
+        copies and every draw are the same. ``batch_min_links``: :meth:`broadcast_all` works from
+        this many directed links (default :data:`BATCH_MIN_LINKS`; below, copy by copy costs less)."""
         self.model = model
         self.tick_plane = tick_plane
+        self.batch_min_links = BATCH_MIN_LINKS if batch_min_links is None else batch_min_links
         self._link_rng_factory = link_rng
         self._link_rngs: dict[tuple[int, int], np.random.Generator] = {}
         # With link_rngs: the directed links of edges added since their streams were last made.
@@ -590,51 +593,45 @@ class Radio:
         model = self.model
         flt = self.filter
         if not self.tick_plane or (flt is not None and not getattr(flt, "idle", False)) or not self._lossless \
-                or model.log_distance is not None or model.jitter_s > 0.0 or len(self._nb) < BATCH_MIN_LINKS:
+                or model.log_distance is not None or model.jitter_s > 0.0 or len(self._nb) < self.batch_min_links:
             return None
         index, start, nb = self._index, self._start, self._nb
-        rows = len(start) - 1
+        # Each frame's copies: entries lo .. lo + count of the neighbour lists (none for a sender
+        # that is down: row -1).
+        rows = np.array([index.get(f[0], -1) for f in frames], dtype=np.int64)
+        start_arr = np.array(start, dtype=np.int64)
+        lo = start_arr[rows]
+        cnt = np.where(rows >= 0, start_arr[rows + 1] - lo, 0)
+        for f, to in [(f, fr[2]) for f, fr in enumerate(frames) if fr[2] is not None]:
+            # unicast: the one entry of `to` among the sender's neighbours, if any
+            k = int(lo[f])
+            j = bisect_left(nb, to, k, k + int(cnt[f]))
+            if j < k + int(cnt[f]) and nb[j] == to:
+                lo[f], cnt[f] = j, 1
+            else:
+                cnt[f] = 0
+        sizes = np.array([len(fr[1]) for fr in frames], dtype=np.int64)
         c = self.counters
+        c.sent += int(cnt.sum())
+        c.bytes_sent += int((sizes * cnt).sum())
         bw = model.bandwidth_bytes_per_s
-        tokens = self._tokens
-        sent: list[bytes] = []
-        senders: list[int] = []
-        los: list[int] = []
-        counts: list[int] = []
-        for src, data, to in frames:
-            k = index.get(src)
-            if k is None or k >= rows:
-                continue
-            lo, hi = start[k], start[k + 1]
-            if to is not None:  # unicast: the one entry of `to` among src's neighbours, if any
-                if lo == hi:
+        if bw is not None:  # the senders' budgets, frame by frame in turn
+            tokens = self._tokens
+            for f, (src, data, _to) in enumerate(frames):
+                n = int(cnt[f])
+                if not n:
                     continue
-                j = bisect_left(nb, to, lo, hi)
-                if j == hi or nb[j] != to:
-                    continue
-                lo, hi = j, j + 1
-            elif lo == hi:
-                continue
-            size = len(data)
-            n = hi - lo
-            c.sent += n
-            c.bytes_sent += size * n
-            if bw is not None:
+                size = len(data)
                 if tokens.get(src, 0.0) < size:
                     c.drop("bandwidth", n)
                     if on_lost is not None:
-                        for dst in nb[lo:hi]:
+                        for dst in nb[lo[f]:lo[f] + n]:
                             on_lost(src, dst, size, "bandwidth")
+                    cnt[f] = 0
                     continue
                 tokens[src] -= size
-            sent.append(data)
-            senders.append(src)
-            los.append(lo)
-            counts.append(n)
-        cnt = np.array(counts, dtype=np.int64)
         frame = np.repeat(np.arange(len(cnt)), cnt)
-        # copy k of frame f: neighbour entry los[f] + (k - first copy of f)
-        first = np.cumsum(cnt) - cnt
-        entry = np.repeat(np.array(los, dtype=np.int64) - first, cnt) + np.arange(len(frame))
-        return DeliveryBatch(t + model.latency_s, sent, np.array(senders, dtype=np.int64), frame,
-                             self._nb_arr[entry])
+        # copy k of frame f: neighbour entry lo[f] + (k - the first copy of f)
+        entry = np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(len(frame))
+        return DeliveryBatch(t + model.latency_s, [fr[1] for fr in frames],
+                             np.array([fr[0] for fr in frames], dtype=np.int64), frame, self._nb_arr[entry])

@@ -106,7 +106,7 @@ def test_tick_plane_radio_equals_the_per_copy_radio(moves, frames, model, faults
     injectors = [FaultInjector(FaultSchedule(list(faults)), NAMES, lambda kind, k: np.random.default_rng([3, k]))
                  for _ in range(2)]
     old = Radio(model, _link_rng, injectors[0], _link_rngs, tick_plane=False)
-    new = Radio(model, _link_rng, injectors[1], _link_rngs, tick_plane=True)
+    new = Radio(model, _link_rng, injectors[1], _link_rngs, tick_plane=True, batch_min_links=0)
     reach = max(model.radius_m, 1.0) * 1.5 if math.isfinite(model.radius_m) else math.inf
     tick_pairs = TickPairs(reach)
     batched = 0
@@ -219,7 +219,10 @@ def _run(scenario: str, tick_plane: bool, overrides: dict, duration_s: float | N
     ("demo-all-faults", {}, None),  # every fault kind: crashes (receivers down), spoofers, partitions, delays
     ("paper-case3", {"radio.range_m": 10000.0, "radio.bandwidth_bytes_per_s": 400.0}, 120.0),  # links come and go
 ])
-def test_tick_plane_runs_equal_per_actor_runs(scenario, overrides, duration_s):
+def test_tick_plane_runs_equal_per_actor_runs(scenario, overrides, duration_s, monkeypatch):
+    # (the arrays' way for every batch, however small: the case's swarms are)
+    monkeypatch.setattr("comms.radio.BATCH_MIN_LINKS", 0)
+    monkeypatch.setattr("swarm.kernel.transmission._BATCH_MIN_COPIES", 0)
     plane = _run(scenario, True, overrides, duration_s)
     oracle = _run(scenario, False, overrides, duration_s)
     assert plane[0] == oracle[0]  # the event log, byte for byte
