@@ -29,7 +29,6 @@ range (for the log-distance model: the range its link budget implies, :attr:`Log
 from __future__ import annotations
 
 import math
-from bisect import bisect_left
 from collections.abc import Callable, MutableMapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast
@@ -188,8 +187,10 @@ class Radio:
         self._ii, self._jj = empty, empty  # the links: rows i < j, in (i, j) order
         self._codes = empty  # (u << 32) | v of the links (ids, u < v)
         self._start: list[int] = [0]  # neighbours of row k: _nb[_start[k]:_start[k + 1]]
-        self._nb: list[int] = []  # (ids, ascending per row)
-        self._nb_arr = empty  # _nb as an array
+        self._nb_arr = empty  # the neighbour lists (ids, ascending per row), end to end
+        self._start_arr = np.zeros(1, np.int64)  # _start as an array
+        self._nb_list: list[int] | None = None  # _nb_arr as a list, when made
+        self._nb_keys: np.ndarray | None = None  # row * (max id + 1) + id per entry (ascending), when made
         self._nb_link = empty  # each _nb entry's link (index into _ii/_jj)
         self._values: tuple[np.ndarray, np.ndarray | None, np.ndarray] | None = None  # (d, margin, loss), when made
         self._adj: dict[int, dict[int, dict[str, float]]] = {}  # per sender, this tick: its links' data
@@ -277,13 +278,16 @@ class Radio:
             # Each link both ways, by sender: a sender's lower neighbours (the links (i, k) it is
             # the j of, in i order) then its higher ones (k < j, in j order): ascending ids.
             src = np.concatenate((jj, ii))
-            order = np.argsort(src, kind="stable")
+            # (a stable sort: radix on 16-bit rows)
+            order = np.argsort(src.astype(np.int16) if n < 1 << 15 else src, kind="stable")
             nb_rows = np.concatenate((ii, jj))[order]
             self._nb_link = np.concatenate((np.arange(m), np.arange(m)))[order]
             self._nb_arr = ida[nb_rows]
-            self._nb = self._nb_arr.tolist()
+            self._nb_list = None
+            self._nb_keys = None
             start = np.zeros(n + 1, np.int64)
             np.cumsum(np.bincount(src, minlength=n), out=start[1:])
+            self._start_arr = start
             self._start = start.tolist()
         self._refill_tokens(ids, dt)
 
@@ -429,6 +433,13 @@ class Radio:
             k = self._index.get(uid)
             return [] if k is None or k >= len(self._start) - 1 else self._nb[self._start[k]:self._start[k + 1]]
         return self._neighbours.get(uid, [])
+
+    @property
+    def _nb(self) -> list[int]:
+        """The neighbour lists as a Python list (made once per change of links, when needed)."""
+        if self._nb_list is None:
+            self._nb_list = self._nb_arr.tolist()
+        return self._nb_list
 
     def _links_of(self, src: int) -> dict[int, dict[str, float]]:
         """(tick plane) ``src``'s links' data by neighbour, as the graph's edge data holds it
@@ -595,21 +606,29 @@ class Radio:
         if not self.tick_plane or (flt is not None and not getattr(flt, "idle", False)) or not self._lossless \
                 or model.log_distance is not None or model.jitter_s > 0.0 or len(self._nb) < self.batch_min_links:
             return None
-        index, start, nb = self._index, self._start, self._nb
+        index, start = self._index, self._start
         # Each frame's copies: entries lo .. lo + count of the neighbour lists (none for a sender
         # that is down: row -1).
         rows = np.array([index.get(f[0], -1) for f in frames], dtype=np.int64)
-        start_arr = np.array(start, dtype=np.int64)
+        start_arr = self._start_arr
         lo = start_arr[rows]
         cnt = np.where(rows >= 0, start_arr[rows + 1] - lo, 0)
-        for f, to in [(f, fr[2]) for f, fr in enumerate(frames) if fr[2] is not None]:
-            # unicast: the one entry of `to` among the sender's neighbours, if any
-            k = int(lo[f])
-            j = bisect_left(nb, to, k, k + int(cnt[f]))
-            if j < k + int(cnt[f]) and nb[j] == to:
-                lo[f], cnt[f] = j, 1
-            else:
-                cnt[f] = 0
+        uni = [(f, fr[2]) for f, fr in enumerate(frames) if fr[2] is not None]
+        if uni:  # unicast: the one entry of `to` among the sender's neighbours, if any
+            keys = self._nb_keys
+            if keys is None:
+                width = max(self._ids, default=0) + 1
+                keys = self._nb_keys = np.repeat(np.arange(len(start) - 1), np.diff(self._start_arr)) * width \
+                    + self._nb_arr
+            f_u = np.array([f for f, _ in uni], dtype=np.int64)
+            to_u = np.array([to for _, to in uni], dtype=np.int64)
+            want = rows[f_u] * (max(self._ids, default=0) + 1) + to_u
+            j = np.minimum(np.searchsorted(keys, want), max(len(keys) - 1, 0))
+            hit = (rows[f_u] >= 0) & (cnt[f_u] > 0) & (to_u <= max(self._ids, default=0))
+            if len(keys):
+                hit &= keys[j] == want
+            lo[f_u] = np.where(hit, j, lo[f_u])
+            cnt[f_u] = hit
         sizes = np.array([len(fr[1]) for fr in frames], dtype=np.int64)
         c = self.counters
         c.sent += int(cnt.sum())
@@ -625,7 +644,7 @@ class Radio:
                 if tokens.get(src, 0.0) < size:
                     c.drop("bandwidth", n)
                     if on_lost is not None:
-                        for dst in nb[lo[f]:lo[f] + n]:
+                        for dst in self._nb[lo[f]:lo[f] + n]:
                             on_lost(src, dst, size, "bandwidth")
                     cnt[f] = 0
                     continue

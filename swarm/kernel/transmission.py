@@ -21,6 +21,7 @@ from collections import defaultdict
 from collections.abc import Callable, Mapping
 from functools import partial
 from itertools import repeat
+from operator import itemgetter
 
 import numpy as np
 
@@ -71,11 +72,13 @@ class Transmission:
             record_lost(t, src, dst, nbytes, cause)
 
         if radio.tick_plane and not first:
-            frames: list[tuple[int, bytes, int | None]] = []
-            for uid in alive:
-                out = outputs[uid]
-                frames += [(uid, frame, None) for frame in out.frames]
-                frames += [(uid, frame, dst) for dst, frame in out.replies]
+            outs = [outputs[uid] for uid in alive]
+            frames: list[tuple[int, bytes, int | None]] = [
+                (uid, frame, None) for uid, out in zip(alive, outs) for frame in out.frames]
+            replies: list[tuple[int, bytes, int | None]] = [
+                (uid, frame, dst) for uid, out in zip(alive, outs) for dst, frame in out.replies]
+            if replies:  # each UAV's frames, then its answers (a stable sort by sender)
+                frames = sorted(frames + replies, key=itemgetter(0))
             batch = radio.broadcast_all(t, frames, lost)
             if batch is not None:
                 if len(batch):
