@@ -38,6 +38,23 @@ class Mailbox:
             stats.max_depth = n + 1
         return True
 
+    def put_many(self, items: list[tuple[float, int, bytes]]) -> int:
+        """:meth:`put` of each ``(t, sender, frame_bytes)`` of ``items`` in turn, at once; returns
+        how many were accepted (the first ones: the rest found the mailbox full, and are counted)."""
+        mine = self._items
+        stats = self.stats
+        n, k = len(mine), len(items)
+        take = k if n + k <= self.capacity else max(self.capacity - n, 0)
+        if take < k:
+            stats.dropped_full += k - take
+            items = items[:take]
+        if take:
+            mine.extend(items)
+            stats.accepted += take
+            if n + take > stats.max_depth:
+                stats.max_depth = n + take
+        return take
+
     def drain(self) -> list[tuple[float, int, bytes]]:
         items = list(self._items)
         self._items.clear()

@@ -34,6 +34,7 @@ from swarm.kernel.recorder import EventLog
 from swarm.kernel.rng import RngTree
 from swarm.kernel.transmission import Transmission
 from swarm.kernel.world import Targets, World
+from swarm.pairs import TickPairs
 from swarm.scenario import Scenario, apply_overrides, load_scenario
 from swarm.scenario.trust import allowed
 
@@ -129,7 +130,12 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     area = (grid.width_m, grid.height_m)
     geo = build.geography(sc, grid)
     targets = Targets(build.target_motion(sc), boundary=geo.polygon if geo is not None else None)
-    world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None)
+    types = build.uav_types(sc)
+    # (issue 36) The tick plane's one pair query a tick, shared by the radio, detect-and-avoid
+    # and the safety check, reaching as far as the farthest of them.
+    pairs = TickPairs(max(sc.radio.link_model().radius_m, sc.safety.min_separation_m,
+                          *(k.daa_range for k in types.values()))) if tick_plane else None
+    world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None, pairs=pairs)
     metrics = Metrics(grid, tau, inside=geo.inside if geo is not None else None)
     observer = Observer(world, metrics, log, dt, sc.recording.level == "summary", sc.safety.min_separation_m)
     # The UAVs' maps share storage where they agree (same cells as maps of their own;
@@ -144,12 +150,12 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     uavs = world.uavs
     radio = build.radio(
         sc, link_rng=lambda s, d: rng.generator("link", uavs[s].name, uavs[d].name), link_filter=injector,
-        link_rngs=lambda links: rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]))
+        link_rngs=lambda links: rng.generators([("link", uavs[s].name, uavs[d].name) for s, d in links]),
+        tick_plane=tick_plane)
     # The actors (filled as UAVs are added), shared by the fleet that runs them and the
     # transmission that fills their mailboxes (a down UAV's unread frames: lost there).
     actors: dict[int, UavActor] = {}
-    transmission = Transmission(radio, clock, world, actors, observer.lost)
-    types = build.uav_types(sc)
+    transmission = Transmission(radio, clock, world, actors, observer.lost, pairs)
     fleet = Fleet(sc, world, grid, tau, rng, log, build.actor_settings(sc, geo), decoder, map_group, batch_planning,
                   types, actors, transmission.lose)
     mission = _mission(sc, world, fleet, log, rng, geo)

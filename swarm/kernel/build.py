@@ -96,11 +96,13 @@ def threats(sc: Scenario) -> list[KnownThreat]:
 
 
 def radio(sc: Scenario, link_rng: Callable[[int, int], np.random.Generator], link_filter: LinkFilter,
-          link_rngs: Callable[[list[tuple[int, int]]], list[np.random.Generator]] | None = None) -> Radio:
+          link_rngs: Callable[[list[tuple[int, int]]], list[np.random.Generator]] | None = None,
+          tick_plane: bool = False) -> Radio:
     """The radio graph with the scenario's link model; ``link_rng(src, dst)`` gives a directed
     link's own random stream (``link_rngs`` those of many links at once), ``link_filter`` (the
-    fault injector) sees every frame copy."""
-    return Radio(sc.radio.link_model(), link_rng=link_rng, link_filter=link_filter, link_rngs=link_rngs)
+    fault injector) sees every frame copy; ``tick_plane``: a link table, the graph synced when read."""
+    return Radio(sc.radio.link_model(), link_rng=link_rng, link_filter=link_filter, link_rngs=link_rngs,
+                 tick_plane=tick_plane)
 
 
 def auth_key(sc: Scenario) -> bytes | None:

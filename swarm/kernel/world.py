@@ -24,7 +24,7 @@ from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
 from agents.types import UavType
 from agents.zones import Keepout
-from swarm.pairs import pairs_within
+from swarm.pairs import TickPairs, pairs_within
 
 # A UAV's state: not yet flying, flying, on the ground at its base between two sorties (issue
 # 33: [endurance]; it neither flies, senses nor sends), or down for good (or until a restart).
@@ -380,7 +380,9 @@ def _all_far_apart(xy: np.ndarray, r: float) -> bool:
 
 class World:
     def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat],
-                 zones: list[Keepout] | None = None):
+                 zones: list[Keepout] | None = None, pairs: TickPairs | None = None):
+        """``pairs``: the tick plane's one pair query a tick, which detect-and-avoid and the safety
+        check share with the radio (None: each makes its own)."""
         self.grid = grid
         self.uavs: dict[int, UavBody] = {}
         self.targets = targets
@@ -392,6 +394,7 @@ class World:
         self.wind: tuple[float, float] | None = None
         # uid -> [count, first t, last t] of its dynamics violations (they are counted, not logged)
         self.dynamics_by_uav: dict[int, list[float]] = {}
+        self.pairs = pairs
 
     def add_uav(self, body: UavBody) -> None:
         self.uavs[body.uid] = body
@@ -455,14 +458,22 @@ class World:
             return out
         uavs = self.uavs
         pxy = xy if xy is not None and pop == ids else self.positions(pop)
-        # (The candidates' reach a hair beyond the range; the test below is exact.)
-        pairs = pairs_within(pxy, rmax * (1.0 + 1e-9) + 1e-6)
-        if not len(pairs):
-            return out
-        # Both directions of each pair: observer a senses b if b is within a's own range.
-        a = np.concatenate((pairs[:, 0], pairs[:, 1]))
-        b = np.concatenate((pairs[:, 1], pairs[:, 0]))
-        d2 = ((pxy[a] - pxy[b]) ** 2).sum(axis=1)
+        tick = self.pairs
+        if tick is not None and pxy is xy and rmax <= tick.reach_m:
+            # The tick's pairs (tick plane), squared distances included (the same numbers).
+            i, j, d2 = tick.of(pop, pxy).within(rmax)
+            if not len(i):
+                return out
+            a, b, d2 = np.concatenate((i, j)), np.concatenate((j, i)), np.concatenate((d2, d2))
+        else:
+            # (The candidates' reach a hair beyond the range; the test below is exact.)
+            pairs = pairs_within(pxy, rmax * (1.0 + 1e-9) + 1e-6)
+            if not len(pairs):
+                return out
+            # Both directions of each pair: observer a senses b if b is within a's own range.
+            a = np.concatenate((pairs[:, 0], pairs[:, 1]))
+            b = np.concatenate((pairs[:, 1], pairs[:, 0]))
+            d2 = ((pxy[a] - pxy[b]) ** 2).sum(axis=1)
         pranges = np.array([uavs[u].kind.daa_range for u in pop])
         keep = d2 <= pranges[a] ** 2
         a, b = a[keep], b[keep]
@@ -501,7 +512,14 @@ class World:
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
         """Count separation and threat-clearance violations now; returns them for the log."""
         found: list[tuple[str, int, int]] = []
-        if len(ids) >= 2 and not _all_far_apart(xy, min_sep):
+        tick = self.pairs
+        if len(ids) < 2 or _all_far_apart(xy, min_sep):
+            pass
+        elif tick is not None and min_sep <= tick.reach_m:
+            # The tick's pairs (tick plane), in (i, j) order, judged at min_sep exactly.
+            near_i, near_j, _d2 = tick.of(ids, xy).within(min_sep)
+            found += [("separation", ids[a], ids[b]) for a, b in zip(near_i.tolist(), near_j.tolist())]
+        else:
             from scipy.spatial import cKDTree  # (imported the first time two UAVs come near)
 
             pairs = cKDTree(xy).query_pairs(min_sep, output_type="ndarray")
