@@ -125,7 +125,8 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     area = (grid.width_m, grid.height_m)
     geo = build.geography(sc, grid)
     targets = Targets(build.target_motion(sc), boundary=geo.polygon if geo is not None else None)
-    world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None)
+    world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None,
+                  vector_physics=tick_plane)
     metrics = Metrics(grid, tau, inside=geo.inside if geo is not None else None, incremental=tick_plane, dt=dt)
     observer = Observer(world, metrics, log, dt, sc.recording.level == "summary", sc.safety.min_separation_m)
     # The UAVs' maps share storage where they agree (same cells as maps of their own;

@@ -22,7 +22,7 @@ from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_co
 from agents.inputs import SensedTarget, SensedUav, SensorReading
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
-from agents.types import UavType
+from agents.types import GRAVITY, UavType
 from agents.zones import Keepout
 from swarm.pairs import pairs_within
 
@@ -378,10 +378,64 @@ def _all_far_apart(xy: np.ndarray, r: float) -> bool:
                    for k, (xa, ya) in enumerate(pts) for xb, yb in pts[k + 1:])
 
 
+# From this many UAVs on, World.fly moves them as numpy arrays (the tick plane's, issue 36; the
+# same IEEE operations as apply(), math's cos and sin): below it the per-UAV calls are cheaper.
+_FLY_VECTOR_MIN = 64
+
+
+def _airframes(kinds: list[UavType]) -> np.ndarray:
+    """Rows ``accel_max, speed_min, speed_max, GRAVITY * tan(bank_max)`` with a column per UAV
+    (the last is :meth:`UavType.turn_rate_max`'s numerator, computed as it computes it)."""
+    return np.array([(k.accel_max, k.speed_min, k.speed_max, GRAVITY * math.tan(k.bank_max_rad)) for k in kinds],
+                    dtype=np.float64).T
+
+
+def fly_arrays(airframes: np.ndarray, x: np.ndarray, y: np.ndarray, v: np.ndarray, theta: np.ndarray,
+               a: np.ndarray, omega: np.ndarray, dt: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`agents.dynamics.limit_command`, :func:`~agents.dynamics.command_violates` and
+    :func:`~agents.dynamics.integrate` for many UAVs at once (``airframes``: :func:`_airframes`
+    of their types), element by element the same operations in the same order
+    (``max``/``min``/``clamp`` as their comparisons, math's cos and sin): ``(x, y, v, theta,
+    violates)`` after ``dt``."""
+    acc, vmin, vmax, gtan = airframes
+    # limit_command
+    a = np.where(np.isfinite(a), a, 0.0)
+    omega = np.where(np.isfinite(omega), omega, 0.0)
+    lo, hi = -acc, acc
+    slow, fast = (vmin - v) / dt, (vmax - v) / dt
+    lo = np.where(slow > lo, slow, lo)
+    hi = np.where(fast < hi, fast, hi)
+    clamped = np.where(lo > a, lo, a)
+    clamped = np.where(hi < clamped, hi, clamped)
+    a = np.where(lo <= hi, clamped, np.where(v > vmax, -acc, acc))
+    v_next = v + a * dt
+    vm = np.where(v_next > v, v_next, v)
+    w_max = gtan / np.where(1e-6 > vm, 1e-6, vm)
+    omega = np.where(-w_max > omega, -w_max, omega)
+    omega = np.where(w_max < omega, w_max, omega)
+    # command_violates (tol 1e-9; the command is finite by now)
+    tol = 1e-9
+    bad = (~(np.isfinite(a) & np.isfinite(omega)) | (np.abs(a) > acc * (1 + tol) + tol)
+           | (v_next < vmin * (1 - tol) - tol) | (v_next > vmax * (1 + tol) + tol)
+           | (np.abs(omega) > w_max * (1 + tol) + tol))
+    # integrate
+    theta_mid = theta + 0.5 * omega * dt
+    v_mean = 0.5 * (v + v_next)
+    x = x + v_mean * _math_v(math.cos, theta_mid) * dt
+    y = y + v_mean * _math_v(math.sin, theta_mid) * dt
+    return x, y, v_next, _wrap_v(theta + omega * dt), bad
+
+
 class World:
     def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat],
-                 zones: list[Keepout] | None = None):
+                 zones: list[Keepout] | None = None, vector_physics: bool = False):
+        """``vector_physics`` (the tick plane's, issue 36): :meth:`fly` moves a large swarm as
+        arrays; False: one :meth:`apply` per UAV (the oracle)."""
         self.grid = grid
+        self.vector_physics = vector_physics
+        self._fly_kinds: list[UavType] = []  # fly(): the types its airframe rows are of
+        self._fly_airframes = np.zeros((4, 0))
         self.uavs: dict[int, UavBody] = {}
         self.targets = targets
         self.threats = threats
@@ -497,6 +551,35 @@ class World:
         if self.wind is not None:  # (issue 26) ground velocity = air velocity + wind
             b.x += self.wind[0] * dt
             b.y += self.wind[1] * dt
+
+    def fly(self, ids: list[int], commands: list[tuple[float, float]], dt: float, t: float = math.nan) -> None:
+        """:meth:`apply` of each ``(a, omega)`` of ``commands`` to its UAV of ``ids``, in order;
+        with :attr:`vector_physics` and from :data:`_FLY_VECTOR_MIN` UAVs on, all at once
+        (:func:`fly_arrays`: the same numbers)."""
+        if not self.vector_physics or len(ids) < _FLY_VECTOR_MIN:
+            for uid, (a, omega) in zip(ids, commands):
+                self.apply(uid, a, omega, dt, t)
+            return
+        uavs = self.uavs
+        bodies = [uavs[u] for u in ids]
+        kinds = [b.kind for b in bodies]
+        if kinds != self._fly_kinds:  # (the swarm's types, in this order: as last tick, mostly)
+            self._fly_kinds, self._fly_airframes = kinds, _airframes(kinds)
+        x, y, v, th = np.array([(b.x, b.y, b.v, b.theta) for b in bodies], dtype=np.float64).T
+        a, omega = np.array(commands, dtype=np.float64).T
+        x, y, v, th, bad = fly_arrays(self._fly_airframes, x, y, v, th, a, omega, dt)
+        if bad.any():
+            for k in np.flatnonzero(bad).tolist():
+                self.violations["dynamics"] += 1
+                seen = self.dynamics_by_uav.setdefault(ids[k], [0, t, t])
+                seen[0] += 1
+                seen[2] = t
+        wind = self.wind
+        for b, bx, by, bv, bth in zip(bodies, x.tolist(), y.tolist(), v.tolist(), th.tolist()):
+            if wind is not None:
+                bx += wind[0] * dt
+                by += wind[1] * dt
+            b.x, b.y, b.v, b.theta = bx, by, bv, bth
 
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
         """Count separation and threat-clearance violations now; returns them for the log."""
