@@ -82,6 +82,15 @@ def test_the_vector_path_is_taken_and_counts_a_violation():
     assert w.uavs[3].v == 88.0 and w.uavs[0].v == 31.0
 
 
+def test_rx_many_writes_what_rx_writes_frame_by_frame():
+    from swarm import events as ev
+
+    received = [(3, 120, True), (0, 77, False), (5, 1 << 20, True)]
+    assert ev.rx_many(t=4.0, dst=2, received=received) == [
+        ev.rx(t=4.0, src=s, dst=2, bytes=n, accepted=ok) for s, n, ok in received]
+    assert ev.rx_many(t=4.0, dst=2, received=[]) == []
+
+
 def test_runs_give_the_same_log_and_time_series_with_and_without_the_tick_plane():
     from swarm import Simulation
 
@@ -92,3 +101,49 @@ def test_runs_give_the_same_log_and_time_series_with_and_without_the_tick_plane(
             out.append((r.metrics["event_log_sha256"], r.timeseries, r.metrics["coverage"], r.metrics["certainty"]))
     assert out[0] == out[1]
     assert np.isfinite(out[0][3])
+
+
+def _step_with_dynamics(tg: Targets, dt: float, grid: Grid, nas: list[float], nws: list[float]) -> None:
+    """Targets._step_each as it was written with agents.dynamics' clamp, integrate and wrap_angle
+    (the reference its written-out loop must equal)."""
+    from agents.dynamics import clamp, integrate, wrap_angle
+
+    m = tg.motion
+    sq = math.sqrt(dt)
+    keep = math.exp(-dt / m.turn_reversion_s)
+    w, h = grid.width_m, grid.height_m
+    for i in range(len(tg)):
+        a = clamp(float(tg.a[i]) + m.accel_sigma * sq * nas[i], -m.accel_max, m.accel_max)
+        om = clamp(float(tg.omega[i]) * keep + m.turn_sigma * sq * nws[i], -m.turn_rate_max, m.turn_rate_max)
+        v = float(tg.v[i])
+        a = clamp(a, -v / dt, (m.speed_max - v) / dt)
+        x, y, v, th = integrate(float(tg.x[i]), float(tg.y[i]), v, float(tg.theta[i]), a, om, dt)
+        if x < 0.0:
+            x, th = -x, math.pi - th
+        elif x > w:
+            x, th = 2 * w - x, math.pi - th
+        if y < 0.0:
+            y, th = -y, -th
+        elif y > h:
+            y, th = 2 * h - y, -th
+        tg.x[i], tg.y[i], tg.v[i], tg.theta[i], tg.a[i], tg.omega[i] = x, y, v, wrap_angle(th), a, om
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 12), st.sampled_from([1.0, 0.5, 3.0]))
+@settings(max_examples=examples(50))
+def test_targets_one_by_one_move_as_the_dynamics_functions_move_them(seed, n, dt):
+    """(issue 36) The per-target loop has clamp(), integrate() and wrap_angle() written out: it
+    moves targets exactly as those functions do, reflections at the border included."""
+    rng = np.random.default_rng(seed)
+    grid = Grid(2000.0, 1500.0, 100.0)
+    motion = TargetMotion(speed_max=40.0, accel_max=2.0, accel_sigma=3.0, turn_sigma=0.5, turn_rate_max=0.3)
+    loop, ref = Targets(motion), Targets(motion)
+    for i in range(n):
+        x, y, th, v = rng.uniform(0, 2000), rng.uniform(0, 1500), rng.uniform(-4, 4), rng.uniform(0, 40)
+        loop.add(x, y, th, v, 1.0, np.random.default_rng([seed, i]))
+        ref.add(x, y, th, v, 1.0, np.random.default_rng([seed, i]))
+    for _ in range(60):
+        na, nw = ref._draw_pairs()
+        _step_with_dynamics(ref, dt, grid, na.tolist(), nw.tolist())
+        loop._step_each(dt, grid)
+        assert np.array_equal(loop._s[:6, :n], ref._s[:6, :n])

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_command, wrap_angle
+from agents.dynamics import TWO_PI, command_violates, integrate, limit_command
 from agents.inputs import SensedTarget, SensedUav, SensorReading
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
@@ -290,23 +290,41 @@ class Targets:
         else:
             na_a, nw_a = self._draw_pairs()
             nas, nws = na_a.tolist(), nw_a.tolist()
+        cos, sin, pi = math.cos, math.sin, math.pi
         for i in range(n):
             na, nw = nas[i], nws[i]  # = rngs[i].standard_normal(2).tolist()
-            a = clamp(accs[i] + sigma_a * na, -a_max, a_max)
-            om = clamp(oms[i] * keep + sigma_w * nw, -w_max, w_max)
+            # clamp(), integrate() and wrap_angle() of agents.dynamics written out (the same
+            # operations in the same order, without three calls a target).
+            a = accs[i] + sigma_a * na
+            a = -a_max if -a_max > a else a
+            a = a_max if a_max < a else a
+            om = oms[i] * keep + sigma_w * nw
+            om = -w_max if -w_max > om else om
+            om = w_max if w_max < om else om
             v = vs[i]
             # Keep the speed in [0, speed_max] by limiting the applied acceleration.
-            a = clamp(a, -v / dt, (v_max - v) / dt)
-            x, y, v, th = integrate(xs[i], ys[i], v, ths[i], a, om, dt)
+            lo, hi = -v / dt, (v_max - v) / dt
+            a = lo if lo > a else a
+            a = hi if hi < a else a
+            th = ths[i]
+            v_next = v + a * dt
+            theta_mid = th + 0.5 * om * dt
+            v_mean = 0.5 * (v + v_next)
+            x = xs[i] + v_mean * cos(theta_mid) * dt
+            y = ys[i] + v_mean * sin(theta_mid) * dt
+            th = (th + om * dt + pi) % TWO_PI - pi
+            th = th - TWO_PI if th >= pi else th
+            v = v_next
             if x < 0.0:
-                x, th = -x, math.pi - th
+                x, th = -x, pi - th
             elif x > w:
-                x, th = 2 * w - x, math.pi - th
+                x, th = 2 * w - x, pi - th
             if y < 0.0:
                 y, th = -y, -th
             elif y > h:
                 y, th = 2 * h - y, -th
-            xs[i], ys[i], vs[i], ths[i] = x, y, v, wrap_angle(th)
+            th = (th + pi) % TWO_PI - pi
+            xs[i], ys[i], vs[i], ths[i] = x, y, v, th - TWO_PI if th >= pi else th
             accs[i], oms[i] = a, om
         st[_X:_OM + 1, :n] = state
 
