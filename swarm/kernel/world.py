@@ -453,6 +453,7 @@ class World:
         self.grid = grid
         self.vector_physics = vector_physics
         self._fly_kinds: list[UavType] = []  # fly(): the types its airframe rows are of
+        self._ids_in_order = True  # uavs (a dict) holds the UAVs in id order
         self._fly_airframes = np.zeros((4, 0))
         self.uavs: dict[int, UavBody] = {}
         self.targets = targets
@@ -466,9 +467,15 @@ class World:
         self.dynamics_by_uav: dict[int, list[float]] = {}
 
     def add_uav(self, body: UavBody) -> None:
-        self.uavs[body.uid] = body
+        uavs = self.uavs
+        if uavs and body.uid not in uavs and body.uid < next(reversed(uavs)):
+            self._ids_in_order = False  # (added out of id order: alive_ids() sorts)
+        uavs[body.uid] = body
 
     def alive_ids(self) -> list[int]:
+        """The flying UAVs' ids, in id order."""
+        if self._ids_in_order:  # (the usual: UAVs added with increasing ids, the dict in id order)
+            return [u for u, b in self.uavs.items() if b.state == ALIVE]
         return [u for u, b in sorted(self.uavs.items()) if b.state == ALIVE]
 
     def positions(self, ids: list[int]) -> np.ndarray:
@@ -506,6 +513,8 @@ class World:
                 for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
                     inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
         daa = self._detect_and_avoid(ids, bodies, xy)
+        if not self.threats:  # (most scenarios: no threat to test each UAV against)
+            return [SensorReading(t, b.x, b.y, b.v, b.theta, seen, [], d) for b, seen, d in zip(bodies, inside, daa)]
         readings = []
         for k, (b, seen) in enumerate(zip(bodies, inside)):
             r = b.kind.detect_radius
