@@ -147,3 +147,27 @@ def test_targets_one_by_one_move_as_the_dynamics_functions_move_them(seed, n, dt
         _step_with_dynamics(ref, dt, grid, na.tolist(), nw.tolist())
         loop._step_each(dt, grid)
         assert np.array_equal(loop._s[:6, :n], ref._s[:6, :n])
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 8), st.integers(1, 8))
+@settings(max_examples=examples(100))
+def test_a_few_uavs_sense_targets_as_the_numpy_test_senses_them(seed, n_uavs, n_targets):
+    """sense_many's scalar path for a few (UAV, target) pairs gives the readings of its numpy
+    path (the same targets, order and values), targets on and near the detection circle included."""
+    rng = np.random.default_rng(seed)
+    w = World(Grid(10_000.0, 10_000.0, 100.0), Targets(TargetMotion()), [])
+    kinds = [UavType(n, 20.0, 60.0, 2.0, 0.5, r, 1.0, 1.0, 1000.0) for n, r in (("A", 1500.0), ("B", 2000.0))]
+    for uid in range(n_uavs):
+        w.add_uav(UavBody(uid, f"U{uid}", kinds[uid % 2], *rng.uniform(0.0, 10_000.0, 2), 30.0, 0.0, "alive"))
+    for i in range(n_targets):
+        b = w.uavs[int(rng.integers(n_uavs))]
+        ang = rng.uniform(0, 2 * math.pi)
+        d = b.kind.detect_radius * float(rng.choice([0.5, 1.0, 1.0 + 1e-12, 1.5]))  # (on the circle too)
+        w.targets.add(b.x + d * math.cos(ang), b.y + d * math.sin(ang), 0.3, 5.0, 1.0, np.random.default_rng(i))
+    ids = list(range(n_uavs))
+    xy = w.positions(ids)
+    few: list[list] = [[] for _ in ids]
+    many: list[list] = [[] for _ in ids]
+    w._sense_few([w.uavs[u] for u in ids], xy, few)
+    w._sense_many_targets([w.uavs[u] for u in ids], xy, many)
+    assert few == many

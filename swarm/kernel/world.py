@@ -380,6 +380,9 @@ class Targets:
         st[_A, :n], st[_OM, :n] = a, om
 
 
+# Up to this many (UAV, target) pairs, sense_many tests them in Python floats (_sense_few), not numpy.
+_SENSE_SCALAR_MAX = 64
+
 # Up to this many UAVs, check_safety first compares every pair itself (cheaper than a k-d tree).
 _SCREEN_MAX = 16
 
@@ -498,20 +501,10 @@ class World:
         if len(tg) and ids:
             if xy is None:
                 xy = self.positions(ids)
-            txy = tg.xy
-            r2 = np.array([b.kind.detect_radius for b in bodies]) ** 2
-            # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis;
-            # UAVs in chunks of at most about 4M pairs (bounded memory with many targets).
-            chunk = max(1, (1 << 22) // len(txy))
-            for k0 in range(0, len(ids), chunk):
-                d2 = (txy[:, 0] - xy[k0:k0 + chunk, 0:1]) ** 2 + (txy[:, 1] - xy[k0:k0 + chunk, 1:2]) ** 2
-                rows, cols = (d2 <= r2[k0:k0 + chunk, None]).nonzero()  # row-major: targets in id order
-                if not len(cols):
-                    continue
-                # (Python floats, as the targets' lists gave them before: the state read once)
-                st = tg.state_of(cols)
-                for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
-                    inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
+            if len(ids) * len(tg) <= _SENSE_SCALAR_MAX:
+                self._sense_few(bodies, xy, inside)
+            else:
+                self._sense_many_targets(bodies, xy, inside)
         daa = self._detect_and_avoid(ids, bodies, xy)
         if not self.threats:  # (most scenarios: no threat to test each UAV against)
             return [SensorReading(t, b.x, b.y, b.v, b.theta, seen, [], d) for b, seen, d in zip(bodies, inside, daa)]
@@ -521,6 +514,44 @@ class World:
             threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
             readings.append(SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats, daa[k]))
         return readings
+
+    def _sense_many_targets(self, bodies: list[UavBody], xy: np.ndarray, inside: list[list[SensedTarget]]) -> None:
+        """sense_many's targets: every (UAV, target) distance tested with numpy."""
+        tg = self.targets
+        txy = tg.xy
+        r2 = np.array([b.kind.detect_radius for b in bodies]) ** 2
+        # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis;
+        # UAVs in chunks of at most about 4M pairs (bounded memory with many targets).
+        chunk = max(1, (1 << 22) // len(txy))
+        for k0 in range(0, len(bodies), chunk):
+            d2 = (txy[:, 0] - xy[k0:k0 + chunk, 0:1]) ** 2 + (txy[:, 1] - xy[k0:k0 + chunk, 1:2]) ** 2
+            rows, cols = (d2 <= r2[k0:k0 + chunk, None]).nonzero()  # row-major: targets in id order
+            if not len(cols):
+                continue
+            # (Python floats, as the targets' lists gave them before: the state read once)
+            st = tg.state_of(cols)
+            for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
+                inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
+
+    def _sense_few(self, bodies: list[UavBody], xy: np.ndarray, inside: list[list[SensedTarget]]) -> None:
+        """sense_many's targets for a few (UAV, target) pairs: the same squared distances and
+        test in Python floats (numpy's calls cost more than the arithmetic here), the same
+        readings in the same order."""
+        tg = self.targets
+        txs, tys = tg.x.tolist(), tg.y.tolist()
+        ks: list[int] = []
+        hits: list[int] = []
+        for k, ((ux, uy), b) in enumerate(zip(xy.tolist(), bodies)):
+            r = b.kind.detect_radius
+            r2 = r * r  # (= numpy's r ** 2, a square)
+            for i, (tx, ty) in enumerate(zip(txs, tys)):
+                dx, dy = tx - ux, ty - uy
+                if dx * dx + dy * dy <= r2:
+                    ks.append(k)
+                    hits.append(i)
+        if hits:
+            for k, i, x, y, v, th, value in zip(ks, hits, *tg.state_of(np.array(hits))):
+                inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
 
     def _detect_and_avoid(self, ids: list[int], bodies: list[UavBody], xy: np.ndarray | None) -> list[list[SensedUav] | None]:
         """Each UAV's detect-and-avoid reading: every other flying UAV within its type's
