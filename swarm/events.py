@@ -523,6 +523,13 @@ def rx(*, t: float, src: int, dst: int, bytes: int, accepted: bool) -> Wire:
     return Wire(("rx", t, src, dst, bytes, accepted))
 
 
+def rx_many(*, t: float, dst: int, received: Iterable[tuple[int, int, bool]]) -> list[Wire]:
+    """``[rx(t=t, src=src, dst=dst, bytes=n, accepted=ok) for src, n, ok in received]``, in one
+    call: the frames a UAV read in a tick (the observer's per-frame hot path at recording level
+    "frames")."""
+    return [Wire(("rx", t, src, dst, n, ok)) for src, n, ok in received]
+
+
 def lost(*, t: float, src: int, dst: int, bytes: int, cause: str) -> Wire:
     return Wire(("lost", t, src, dst, bytes, cause))
 

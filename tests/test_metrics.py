@@ -1,12 +1,16 @@
-"""Ground-truth metrics: block-wise certainty equals the whole-map formula; handovers."""
+"""Ground-truth metrics: block-wise and incremental certainty equal the whole-map formula;
+handovers."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from agents.maps.grid import Grid
 from swarm.kernel.metrics import Metrics
+from tests.budget import examples
 
 
 @pytest.mark.parametrize("grid", [Grid(50_000.0, 50_000.0, 100.0), Grid(130_000.0, 110_000.0, 100.0)])
@@ -24,6 +28,75 @@ def test_certainty_and_coverage_equal_the_whole_map_formulas(grid):
                 assert m.certainty(t) == whole
             seen = np.isfinite(m.union.to_dense())
             assert m.coverage() == np.count_nonzero(seen) / seen.size
+
+
+@st.composite
+def _truth_runs(draw):
+    """A small dense area (maybe with a polygon's inside mask), a tick and tau (some so small that
+    the histogram's sum cannot be shown exact), and a script of ground-truth scans and reads:
+    scans at tick times (a tick may be stamped by several UAVs, several ticks pass between
+    reads) or, rarely, at a time off the tick grid or going back."""
+    nx, ny = draw(st.integers(5, 60)), draw(st.integers(5, 60))
+    cell = draw(st.sampled_from([50.0, 100.0]))
+    grid = Grid(nx * cell, ny * cell, cell)
+    inside = None
+    if draw(st.booleans()):
+        rng = np.random.default_rng(draw(st.integers(0, 2**16)))
+        inside = rng.random((ny, nx)) < draw(st.floats(0.0, 1.0))
+    dt = draw(st.sampled_from([1.0, 0.5, 0.1, 2.0, 0.3]))
+    tau = draw(st.sampled_from([0.005, 0.05, 1.0, 1e-7, 3e-4]))
+    steps = []
+    k = 0
+    for _ in range(draw(st.integers(1, 40))):
+        k += draw(st.integers(0, 3))
+        t = k * dt
+        if draw(st.integers(0, 30)) == 0:
+            t = draw(st.floats(0.0, k * dt + 5.0, allow_nan=False))  # off the grid, maybe back
+        scans = [(draw(st.floats(-cell * 3, nx * cell + cell * 3)), draw(st.floats(-cell * 3, ny * cell + cell * 3)),
+                  draw(st.sampled_from([cell * 0.7, cell * 2.5, cell * 6.0])))
+                 for _ in range(draw(st.integers(0, 4)))]
+        read = draw(st.sampled_from([None, 0.0, dt, 37.0]))
+        steps.append((t, scans, None if read is None else t + read))
+    return grid, inside, dt, tau, steps
+
+
+@given(_truth_runs())
+@settings(max_examples=examples(200))
+def test_incremental_certainty_and_coverage_are_the_whole_map_numbers(run):
+    """(issue 36) Metrics(incremental=True), the tick plane's (certainty and coverage from a
+    histogram of the ground truth's values, kept up to date from the cells changed since the last
+    read), gives bit for bit the numbers of the whole map: the float32 q array's float64 mean."""
+    grid, inside, dt, tau, steps = run
+    whole = Metrics(grid, tau, inside=inside, dt=dt)
+    inc = Metrics(grid, tau, inside=inside, dt=dt, incremental=True)
+    for t, scans, read in steps:
+        for x, y, r in scans:
+            whole.scan(x, y, r, t)
+            inc.scan(x, y, r, t)
+        if read is not None:
+            assert inc.coverage() == whole.coverage()
+            c = inc.certainty(read)
+            assert c == whole.certainty(read) or (np.isnan(c) and np.isnan(whole.certainty(read)))
+    assert np.array_equal(inc.union.to_dense(), whole.union.to_dense())
+
+
+def test_incremental_certainty_uses_its_histogram_on_a_run():
+    """The property above is not vacuous: on tick-time stamps at tau 0.005 the histogram stays on
+    and answers every read itself (no fallback to the whole map), on a 500 x 500 area."""
+    grid = Grid(50_000.0, 50_000.0, 100.0)
+    m = Metrics(grid, 0.005, dt=1.0, incremental=True)
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 50_000.0, (6, 2))
+    for k in range(300):
+        xy += rng.normal(0.0, 60.0, xy.shape)
+        for x, y in xy:
+            m.scan(float(x), float(y), 2000.0, float(k))
+        if k % 10 == 9:
+            h = m._hist
+            assert h is not None and h.update() and h.mean_q(float(k)) is not None
+            whole = 1.0 - float(np.mean(m.union.uncertainty(float(k)), dtype=np.float64))
+            assert m.certainty(float(k)) == whole
+            assert m.coverage() == np.count_nonzero(np.isfinite(m.union.to_dense())) / (grid.nx * grid.ny)
 
 
 # --- handovers: a new UAV taking a target over from the one that held it --------------------------

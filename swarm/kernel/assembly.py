@@ -135,8 +135,9 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     # and the safety check, reaching as far as the farthest of them.
     pairs = TickPairs(max(sc.radio.link_model().radius_m, sc.safety.min_separation_m,
                           *(k.daa_range for k in types.values()))) if tick_plane else None
-    world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None, pairs=pairs)
-    metrics = Metrics(grid, tau, inside=geo.inside if geo is not None else None)
+    world = World(grid, targets, build.threats(sc), zones=geo.zones if geo is not None else None, pairs=pairs,
+                  vector_physics=tick_plane)
+    metrics = Metrics(grid, tau, inside=geo.inside if geo is not None else None, incremental=tick_plane, dt=dt)
     observer = Observer(world, metrics, log, dt, sc.recording.level == "summary", sc.safety.min_separation_m)
     # The UAVs' maps share storage where they agree (same cells as maps of their own;
     # agents.maps.mapgroup): on areas small enough for dense maps, unless a knowledge horizon

@@ -44,6 +44,123 @@ from swarm.events import Wire
 _BLOCK = 64  # cells per side of the blocks whose q certainty() recomputes on large areas
 
 
+class TruthHistogram:
+    """The cells of a dense ground truth counted by last-seen value, brought up to date from the
+    cells changed since the last read: certainty and coverage without q of every cell each time
+    (issue 36; :attr:`Metrics.incremental`).
+
+    The ground truth holds the (float32) times it was stamped at, or -inf. Each such value has a
+    key, ``rint(value / dt) + 1`` (0: never seen), registered when a stamp at that time lands
+    (:meth:`stamped`; two times sharing a key, or a cell value never registered, turn the
+    histogram off for good: the callers then read the whole map, as without it). A read
+    (:meth:`update`) compares the map with its copy at the previous read and moves the changed
+    cells (those inside the area polygon, if any) between keys. Then
+
+    * coverage is the cells not under key 0;
+    * ``mean(q) = sum over keys of count * q(value) / n``, q computed by the map's own float32
+      operations (:meth:`UncertaintyMap.q_into`) on the values: the q each of those cells has.
+      Every q is a multiple of the float32 unit of the smallest nonzero one; while the sum of all
+      of them stays below 2**52 such units (checked at each read), every float64 partial sum in
+      any order is exact, so this is bit for bit numpy's float64 mean of the whole q array.
+      Otherwise (a very small ``tau * dt`` on a large grid) :meth:`mean_q` says None and the
+      caller computes the whole map.
+    """
+
+    def __init__(self, union: UncertaintyMap, dt: float, inside: np.ndarray | None):
+        self.union = union
+        self.inv_dt = 1.0 / dt
+        self.inside = None if inside is None else np.ascontiguousarray(inside).reshape(-1)
+        self.n = int(np.count_nonzero(inside)) if inside is not None else union.grid.nx * union.grid.ny
+        self.snap = union.to_dense()  # the map at the last read
+        self.values = np.full(64, np.nan, dtype=np.float32)  # key -> its value (NaN: none yet)
+        self.values[0] = NEVER
+        self.count = np.zeros(64, dtype=np.int64)  # key -> cells
+        self.count[0] = self.n
+        self.valid = bool(np.all(self.snap == NEVER))  # (a map fresh from Metrics: all never seen)
+        self.dirty = False
+        self._last_t: float | None = None
+
+    def stamped(self, t: float) -> None:
+        """A stamp at ``t`` landed on the map: register its value's key."""
+        self.dirty = True
+        if t == self._last_t or not self.valid:
+            return  # (every UAV of a tick stamps at the same t)
+        self._last_t = t
+        v = np.float32(t)
+        k = round(float(v) * self.inv_dt) + 1 if math.isfinite(t) else 0
+        if k < 1:
+            self.valid = False
+            return
+        if k >= len(self.values):
+            grow = max(2 * len(self.values), k + 1)
+            self.values = np.concatenate((self.values, np.full(grow - len(self.values), np.nan, np.float32)))
+            self.count = np.concatenate((self.count, np.zeros(grow - len(self.count), np.int64)))
+        have = self.values[k]
+        if np.isnan(have):
+            self.values[k] = v
+        elif have != v:
+            self.valid = False
+
+    def _keys(self, v: np.ndarray) -> np.ndarray | None:
+        """The keys of the values ``v`` (None if one is not registered)."""
+        k = np.maximum(np.rint(v.astype(np.float64) * self.inv_dt), -1.0)  # (-inf -> -1)
+        k += 1.0
+        if len(k) and k.max() >= len(self.values):
+            return None
+        ki = k.astype(np.intp)
+        if not np.array_equal(self.values[ki], v):  # (NaN, unregistered, never equals)
+            return None
+        return ki
+
+    def update(self) -> bool:
+        """Bring the counts up to date with the map; False if the histogram is off."""
+        if not self.valid:
+            return False
+        if not self.dirty:
+            return True
+        self.dirty = False
+        seen = self.union.to_dense_view().reshape(-1)
+        snap = self.snap.reshape(-1)
+        idx = np.flatnonzero(seen != snap)
+        if not len(idx):
+            return True
+        new, old = seen[idx], snap[idx]
+        snap[idx] = new
+        if self.inside is not None:
+            keep = self.inside[idx]
+            new, old = new[keep], old[keep]
+        kn, ko = self._keys(new), self._keys(old)
+        if kn is None or ko is None:
+            self.valid = False
+            return False
+        m = len(self.values)
+        self.count += np.bincount(kn, minlength=m)
+        self.count -= np.bincount(ko, minlength=m)
+        return True
+
+    def covered(self) -> int:
+        """Cells (inside the polygon) seen at least once (after :meth:`update`)."""
+        return self.n - int(self.count[0])
+
+    def mean_q(self, t: float) -> float | None:
+        """``np.mean(q at t, dtype=float64)`` over the cells (after :meth:`update`), or None when
+        the sum could not be shown exact."""
+        if self.n == 0:
+            return None
+        present = np.flatnonzero(self.count)
+        vals = self.values[present]
+        q = self.union.q_into(t, vals, np.empty(len(vals), dtype=np.float32)).astype(np.float64)
+        if not np.all(np.isfinite(q)):
+            return None
+        cnt = self.count[present].astype(np.float64)
+        nz = q[q != 0.0]
+        if len(nz):
+            unit = 2.0 ** (int(np.frexp(nz)[1].min()) - 24)  # the float32 unit of the smallest |q|
+            if float(np.sum(cnt * np.abs(q))) >= unit * 2.0 ** 52:
+                return None
+        return float(np.sum(cnt * q)) / self.n
+
+
 @dataclass(slots=True)
 class Handover:
     t: float
@@ -80,6 +197,11 @@ class Metrics:
     # (issue 26) The cells inside the area polygon, (ny, nx) bools: coverage and certainty
     # count those only. None: every cell (a rectangle).
     inside: np.ndarray | None = None
+    # (issue 36, the tick plane) Certainty and coverage of a dense ground truth from the cells
+    # changed since the last sample (:class:`TruthHistogram`: the same numbers); False: from the
+    # whole map each time (the oracle). ``dt``: the run's tick, which keys the stamp times.
+    incremental: bool = False
+    dt: float = 1.0
     # Per-UAV radio/receive statistics live in the actors; these are the ground-truth views.
 
     def __post_init__(self) -> None:
@@ -95,6 +217,9 @@ class Metrics:
         self._q: np.ndarray | None = None
         if self.grid.nx * self.grid.ny > DENSE_MAX_CELLS:
             self._touched = np.zeros((-(-self.grid.ny // _BLOCK), -(-self.grid.nx // _BLOCK)), dtype=bool)
+        self._hist: TruthHistogram | None = None
+        if self.incremental and self._touched is None:
+            self._hist = TruthHistogram(self.union, self.dt, self.inside)
 
     @property
     def n_cells(self) -> int:
@@ -104,6 +229,8 @@ class Metrics:
         d = self.grid.disk_stamp(x, y, radius)  # shared with the scanning UAV's own map
         if d is not None:
             self.union.stamp(d, t)
+            if self._hist is not None:
+                self._hist.stamped(t)
             if self._touched is not None:
                 self._touched[d.iy0 // _BLOCK : (d.iy1 - 1) // _BLOCK + 1, d.ix0 // _BLOCK : (d.ix1 - 1) // _BLOCK + 1] = True
 
@@ -111,6 +238,8 @@ class Metrics:
     def covered_cells(self) -> int:
         """Cells scanned at least once: those the union has seen. Counted when asked (a few
         times per run) rather than per scan (every UAV, every tick): the same number."""
+        if self._hist is not None and self._hist.update():
+            return self._hist.covered()
         seen = self.union.to_dense_view()
         if self.inside is not None:
             return int(np.count_nonzero((seen != NEVER) & self.inside))
@@ -139,6 +268,10 @@ class Metrics:
 
     def certainty(self, t: float) -> float:
         """Eq. 8, ``1 - mean(q)`` over every cell: exactly ``np.mean(union.uncertainty(t))``."""
+        if self._hist is not None and self._hist.update():
+            mean = self._hist.mean_q(t)
+            if mean is not None:
+                return 1.0 - mean
         if self.inside is not None:  # (over the cells inside the area polygon only)
             return 1.0 - float(np.mean(self.union.uncertainty(t)[self.inside], dtype=np.float64))
         if self._touched is None:

@@ -84,7 +84,7 @@ class Observer:
         add = events.append
         paused, truth = faults.paused, faults.truth
         summary, rx = self.summary, self._rx
-        pose, rx_event = ev.pose, ev.rx
+        pose, rx_many = ev.pose, ev.rx_many
         for uid in alive:
             b = uavs[uid]
             out = outputs[uid]
@@ -111,7 +111,7 @@ class Observer:
                     rx[1] += not ok
                     rx[2] += nbytes
             else:
-                events += [rx_event(t=t, src=sender, dst=uid, bytes=nbytes, accepted=ok) for sender, nbytes, ok in out.received]
+                events += rx_many(t=t, dst=uid, received=out.received)
         types = {u: uavs[u].kind.name for u in alive}
         events += self.metrics.observe(t, self.dt, plans, sensed, types, speed_max_by_type, faults.detected)
         tg = world.targets

@@ -254,9 +254,7 @@ class Simulation(HostApi):
         dt = self.dt
         if self._host.controlled:
             alive = [uid for uid in alive if uid not in self._host.controlled]
-        for uid in alive:
-            out = outputs[uid]
-            self._world.apply(uid, out.a, out.omega, dt, self.now)
+        self._world.fly(alive, [(outputs[uid].a, outputs[uid].omega) for uid in alive], dt, self.now)
         self._targets.step(dt, self._grid)
 
     def _end_tick(self) -> None:

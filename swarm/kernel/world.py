@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from agents.dynamics import TWO_PI, clamp, command_violates, integrate, limit_command, wrap_angle
+from agents.dynamics import TWO_PI, command_violates, integrate, limit_command
 from agents.inputs import SensedTarget, SensedUav, SensorReading
 from agents.knowledge import KnownThreat
 from agents.maps.grid import Grid
-from agents.types import UavType
+from agents.types import GRAVITY, UavType
 from agents.zones import Keepout
 from swarm.pairs import TickPairs, pairs_within
 
@@ -290,23 +290,41 @@ class Targets:
         else:
             na_a, nw_a = self._draw_pairs()
             nas, nws = na_a.tolist(), nw_a.tolist()
+        cos, sin, pi = math.cos, math.sin, math.pi
         for i in range(n):
             na, nw = nas[i], nws[i]  # = rngs[i].standard_normal(2).tolist()
-            a = clamp(accs[i] + sigma_a * na, -a_max, a_max)
-            om = clamp(oms[i] * keep + sigma_w * nw, -w_max, w_max)
+            # clamp(), integrate() and wrap_angle() of agents.dynamics written out (the same
+            # operations in the same order, without three calls a target).
+            a = accs[i] + sigma_a * na
+            a = -a_max if -a_max > a else a
+            a = a_max if a_max < a else a
+            om = oms[i] * keep + sigma_w * nw
+            om = -w_max if -w_max > om else om
+            om = w_max if w_max < om else om
             v = vs[i]
             # Keep the speed in [0, speed_max] by limiting the applied acceleration.
-            a = clamp(a, -v / dt, (v_max - v) / dt)
-            x, y, v, th = integrate(xs[i], ys[i], v, ths[i], a, om, dt)
+            lo, hi = -v / dt, (v_max - v) / dt
+            a = lo if lo > a else a
+            a = hi if hi < a else a
+            th = ths[i]
+            v_next = v + a * dt
+            theta_mid = th + 0.5 * om * dt
+            v_mean = 0.5 * (v + v_next)
+            x = xs[i] + v_mean * cos(theta_mid) * dt
+            y = ys[i] + v_mean * sin(theta_mid) * dt
+            th = (th + om * dt + pi) % TWO_PI - pi
+            th = th - TWO_PI if th >= pi else th
+            v = v_next
             if x < 0.0:
-                x, th = -x, math.pi - th
+                x, th = -x, pi - th
             elif x > w:
-                x, th = 2 * w - x, math.pi - th
+                x, th = 2 * w - x, pi - th
             if y < 0.0:
                 y, th = -y, -th
             elif y > h:
                 y, th = 2 * h - y, -th
-            xs[i], ys[i], vs[i], ths[i] = x, y, v, wrap_angle(th)
+            th = (th + pi) % TWO_PI - pi
+            xs[i], ys[i], vs[i], ths[i] = x, y, v, th - TWO_PI if th >= pi else th
             accs[i], oms[i] = a, om
         st[_X:_OM + 1, :n] = state
 
@@ -362,6 +380,9 @@ class Targets:
         st[_A, :n], st[_OM, :n] = a, om
 
 
+# Up to this many (UAV, target) pairs, sense_many tests them in Python floats (_sense_few), not numpy.
+_SENSE_SCALAR_MAX = 64
+
 # Up to this many UAVs, check_safety first compares every pair itself (cheaper than a k-d tree).
 _SCREEN_MAX = 16
 
@@ -378,12 +399,67 @@ def _all_far_apart(xy: np.ndarray, r: float) -> bool:
                    for k, (xa, ya) in enumerate(pts) for xb, yb in pts[k + 1:])
 
 
+# From this many UAVs on, World.fly moves them as numpy arrays (the tick plane's, issue 36; the
+# same IEEE operations as apply(), math's cos and sin): below it the per-UAV calls are cheaper.
+_FLY_VECTOR_MIN = 64
+
+
+def _airframes(kinds: list[UavType]) -> np.ndarray:
+    """Rows ``accel_max, speed_min, speed_max, GRAVITY * tan(bank_max)`` with a column per UAV
+    (the last is :meth:`UavType.turn_rate_max`'s numerator, computed as it computes it)."""
+    return np.array([(k.accel_max, k.speed_min, k.speed_max, GRAVITY * math.tan(k.bank_max_rad)) for k in kinds],
+                    dtype=np.float64).T
+
+
+def fly_arrays(airframes: np.ndarray, x: np.ndarray, y: np.ndarray, v: np.ndarray, theta: np.ndarray,
+               a: np.ndarray, omega: np.ndarray, dt: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`agents.dynamics.limit_command`, :func:`~agents.dynamics.command_violates` and
+    :func:`~agents.dynamics.integrate` for many UAVs at once (``airframes``: :func:`_airframes`
+    of their types), element by element the same operations in the same order
+    (``max``/``min``/``clamp`` as their comparisons, math's cos and sin): ``(x, y, v, theta,
+    violates)`` after ``dt``."""
+    acc, vmin, vmax, gtan = airframes
+    # limit_command
+    a = np.where(np.isfinite(a), a, 0.0)
+    omega = np.where(np.isfinite(omega), omega, 0.0)
+    lo, hi = -acc, acc
+    slow, fast = (vmin - v) / dt, (vmax - v) / dt
+    lo = np.where(slow > lo, slow, lo)
+    hi = np.where(fast < hi, fast, hi)
+    clamped = np.where(lo > a, lo, a)
+    clamped = np.where(hi < clamped, hi, clamped)
+    a = np.where(lo <= hi, clamped, np.where(v > vmax, -acc, acc))
+    v_next = v + a * dt
+    vm = np.where(v_next > v, v_next, v)
+    w_max = gtan / np.where(1e-6 > vm, 1e-6, vm)
+    omega = np.where(-w_max > omega, -w_max, omega)
+    omega = np.where(w_max < omega, w_max, omega)
+    # command_violates (tol 1e-9; the command is finite by now)
+    tol = 1e-9
+    bad = (~(np.isfinite(a) & np.isfinite(omega)) | (np.abs(a) > acc * (1 + tol) + tol)
+           | (v_next < vmin * (1 - tol) - tol) | (v_next > vmax * (1 + tol) + tol)
+           | (np.abs(omega) > w_max * (1 + tol) + tol))
+    # integrate
+    theta_mid = theta + 0.5 * omega * dt
+    v_mean = 0.5 * (v + v_next)
+    x = x + v_mean * _math_v(math.cos, theta_mid) * dt
+    y = y + v_mean * _math_v(math.sin, theta_mid) * dt
+    return x, y, v_next, _wrap_v(theta + omega * dt), bad
+
+
 class World:
     def __init__(self, grid: Grid, targets: Targets, threats: list[KnownThreat],
-                 zones: list[Keepout] | None = None, pairs: TickPairs | None = None):
+                 zones: list[Keepout] | None = None, pairs: TickPairs | None = None, vector_physics: bool = False):
         """``pairs``: the tick plane's one pair query a tick, which detect-and-avoid and the safety
-        check share with the radio (None: each makes its own)."""
+        check share with the radio (None: each makes its own). ``vector_physics`` (the tick
+        plane's, issue 36): :meth:`fly` moves a large swarm as arrays; False: one :meth:`apply`
+        per UAV (the oracle)."""
         self.grid = grid
+        self.vector_physics = vector_physics
+        self._fly_kinds: list[UavType] = []  # fly(): the types its airframe rows are of
+        self._ids_in_order = True  # uavs (a dict) holds the UAVs in id order
+        self._fly_airframes = np.zeros((4, 0))
         self.uavs: dict[int, UavBody] = {}
         self.targets = targets
         self.threats = threats
@@ -397,9 +473,15 @@ class World:
         self.pairs = pairs
 
     def add_uav(self, body: UavBody) -> None:
-        self.uavs[body.uid] = body
+        uavs = self.uavs
+        if uavs and body.uid not in uavs and body.uid < next(reversed(uavs)):
+            self._ids_in_order = False  # (added out of id order: alive_ids() sorts)
+        uavs[body.uid] = body
 
     def alive_ids(self) -> list[int]:
+        """The flying UAVs' ids, in id order."""
+        if self._ids_in_order:  # (the usual: UAVs added with increasing ids, the dict in id order)
+            return [u for u, b in self.uavs.items() if b.state == ALIVE]
         return [u for u, b in sorted(self.uavs.items()) if b.state == ALIVE]
 
     def positions(self, ids: list[int]) -> np.ndarray:
@@ -422,27 +504,57 @@ class World:
         if len(tg) and ids:
             if xy is None:
                 xy = self.positions(ids)
-            txy = tg.xy
-            r2 = np.array([b.kind.detect_radius for b in bodies]) ** 2
-            # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis;
-            # UAVs in chunks of at most about 4M pairs (bounded memory with many targets).
-            chunk = max(1, (1 << 22) // len(txy))
-            for k0 in range(0, len(ids), chunk):
-                d2 = (txy[:, 0] - xy[k0:k0 + chunk, 0:1]) ** 2 + (txy[:, 1] - xy[k0:k0 + chunk, 1:2]) ** 2
-                rows, cols = (d2 <= r2[k0:k0 + chunk, None]).nonzero()  # row-major: targets in id order
-                if not len(cols):
-                    continue
-                # (Python floats, as the targets' lists gave them before: the state read once)
-                st = tg.state_of(cols)
-                for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
-                    inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
+            if len(ids) * len(tg) <= _SENSE_SCALAR_MAX:
+                self._sense_few(bodies, xy, inside)
+            else:
+                self._sense_many_targets(bodies, xy, inside)
         daa = self._detect_and_avoid(ids, bodies, xy)
+        if not self.threats:  # (most scenarios: no threat to test each UAV against)
+            return [SensorReading(t, b.x, b.y, b.v, b.theta, seen, [], d) for b, seen, d in zip(bodies, inside, daa)]
         readings = []
         for k, (b, seen) in enumerate(zip(bodies, inside)):
             r = b.kind.detect_radius
             threats = [th for th in self.threats if math.hypot(th.x - b.x, th.y - b.y) - th.radius <= r]
             readings.append(SensorReading(t, b.x, b.y, b.v, b.theta, seen, threats, daa[k]))
         return readings
+
+    def _sense_many_targets(self, bodies: list[UavBody], xy: np.ndarray, inside: list[list[SensedTarget]]) -> None:
+        """sense_many's targets: every (UAV, target) distance tested with numpy."""
+        tg = self.targets
+        txy = tg.xy
+        r2 = np.array([b.kind.detect_radius for b in bodies]) ** 2
+        # Row k: the squared distances of every target from UAV k, (target - UAV)**2 per axis;
+        # UAVs in chunks of at most about 4M pairs (bounded memory with many targets).
+        chunk = max(1, (1 << 22) // len(txy))
+        for k0 in range(0, len(bodies), chunk):
+            d2 = (txy[:, 0] - xy[k0:k0 + chunk, 0:1]) ** 2 + (txy[:, 1] - xy[k0:k0 + chunk, 1:2]) ** 2
+            rows, cols = (d2 <= r2[k0:k0 + chunk, None]).nonzero()  # row-major: targets in id order
+            if not len(cols):
+                continue
+            # (Python floats, as the targets' lists gave them before: the state read once)
+            st = tg.state_of(cols)
+            for k, i, x, y, v, th, value in zip((rows + k0).tolist(), cols.tolist(), *st):
+                inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
+
+    def _sense_few(self, bodies: list[UavBody], xy: np.ndarray, inside: list[list[SensedTarget]]) -> None:
+        """sense_many's targets for a few (UAV, target) pairs: the same squared distances and
+        test in Python floats (numpy's calls cost more than the arithmetic here), the same
+        readings in the same order."""
+        tg = self.targets
+        txs, tys = tg.x.tolist(), tg.y.tolist()
+        ks: list[int] = []
+        hits: list[int] = []
+        for k, ((ux, uy), b) in enumerate(zip(xy.tolist(), bodies)):
+            r = b.kind.detect_radius
+            r2 = r * r  # (= numpy's r ** 2, a square)
+            for i, (tx, ty) in enumerate(zip(txs, tys)):
+                dx, dy = tx - ux, ty - uy
+                if dx * dx + dy * dy <= r2:
+                    ks.append(k)
+                    hits.append(i)
+        if hits:
+            for k, i, x, y, v, th, value in zip(ks, hits, *tg.state_of(np.array(hits))):
+                inside[k].append(SensedTarget(i, x, y, v * math.cos(th), v * math.sin(th), value))
 
     def _detect_and_avoid(self, ids: list[int], bodies: list[UavBody], xy: np.ndarray | None) -> list[list[SensedUav] | None]:
         """Each UAV's detect-and-avoid reading: every other flying UAV within its type's
@@ -508,6 +620,35 @@ class World:
         if self.wind is not None:  # (issue 26) ground velocity = air velocity + wind
             b.x += self.wind[0] * dt
             b.y += self.wind[1] * dt
+
+    def fly(self, ids: list[int], commands: list[tuple[float, float]], dt: float, t: float = math.nan) -> None:
+        """:meth:`apply` of each ``(a, omega)`` of ``commands`` to its UAV of ``ids``, in order;
+        with :attr:`vector_physics` and from :data:`_FLY_VECTOR_MIN` UAVs on, all at once
+        (:func:`fly_arrays`: the same numbers)."""
+        if not self.vector_physics or len(ids) < _FLY_VECTOR_MIN:
+            for uid, (a, omega) in zip(ids, commands):
+                self.apply(uid, a, omega, dt, t)
+            return
+        uavs = self.uavs
+        bodies = [uavs[u] for u in ids]
+        kinds = [b.kind for b in bodies]
+        if kinds != self._fly_kinds:  # (the swarm's types, in this order: as last tick, mostly)
+            self._fly_kinds, self._fly_airframes = kinds, _airframes(kinds)
+        x, y, v, th = np.array([(b.x, b.y, b.v, b.theta) for b in bodies], dtype=np.float64).T
+        a, omega = np.array(commands, dtype=np.float64).T
+        x, y, v, th, bad = fly_arrays(self._fly_airframes, x, y, v, th, a, omega, dt)
+        if bad.any():
+            for k in np.flatnonzero(bad).tolist():
+                self.violations["dynamics"] += 1
+                seen = self.dynamics_by_uav.setdefault(ids[k], [0, t, t])
+                seen[0] += 1
+                seen[2] = t
+        wind = self.wind
+        for b, bx, by, bv, bth in zip(bodies, x.tolist(), y.tolist(), v.tolist(), th.tolist()):
+            if wind is not None:
+                bx += wind[0] * dt
+                by += wind[1] * dt
+            b.x, b.y, b.v, b.theta = bx, by, bv, bth
 
     def check_safety(self, ids: list[int], xy: np.ndarray, min_sep: float) -> list[tuple[str, int, int]]:
         """Count separation and threat-clearance violations now; returns them for the log."""
