@@ -338,7 +338,7 @@ PUBLIC_SURFACE = {
     "actors", "add_fault", "add_target", "add_uav", "call_at", "close", "controlled", "done", "dt", "duration_s",
     "from_file", "geographic", "injector", "memory_estimate", "metrics_dict", "mode_names", "n_ticks", "now",
     "release_control", "result", "run", "run_until", "scenario", "seed", "set_state", "set_state_lonlat",
-    "set_waypoint", "snapshot", "step", "subscribe", "take_control", "to_local", "to_lonlat", "uav_map",
+    "set_waypoint", "snapshot", "step", "subscribe", "take_control", "tick_plane", "to_local", "to_lonlat", "uav_map",
     "wait_until", "wall_seconds",
 }
 
