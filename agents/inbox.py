@@ -23,7 +23,26 @@ from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoi
 from agents.maps.grid import DiskKey, Grid
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
-from comms.codec import AuthError, Frame, FrameError, decode
+from comms.codec import (
+    K_HELLO,
+    K_INTENT,
+    K_SCAN,
+    K_THREATS,
+    K_TRACKS,
+    AuthError,
+    Frame,
+    FrameError,
+    FrameRecord,
+    decode,
+    message_kind,
+    read_digest,
+    read_header,
+    read_hello,
+    read_intent,
+    read_scans,
+    read_threat_items,
+    read_track_items,
+)
 from comms.framecache import DecodeCache
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
 from comms.settings import RadioSettings
@@ -59,13 +78,22 @@ class Heard:
     digests: tuple[ScanDigest, ...]
 
 
-def check_frame(frame: Frame, t: float, bounds: Bounds) -> Heard:
+def check_frame(frame: Frame | FrameRecord, t: float, bounds: Bounds) -> Heard:
     """The messages of ``frame`` a receiver at ``t`` accepts. ``bounds`` = ``(max_r, width,
     height, dt)``: places may lie up to ``max_r`` outside the ``width x height`` area, scan radii
     up to ``max_r``; times not after ``t``; ids and speeds in ranges no arithmetic can overflow.
     A frame stamped in the future (or before the run) is ignored whole. Each plausible scan
     comes with its tick (``round(t / dt)``, the scan log's) and its disk's key (in any grid of
-    that size: each receiver looks it up in its own)."""
+    that size: each receiver looks it up in its own).
+
+    ``frame``: decoded (the per-actor path, the oracle), or its unchecked
+    :class:`~comms.codec.FrameRecord` (the tick plane, :class:`~comms.framecache.DecodeCache`
+    with ``records``): checked here as :func:`~comms.codec.decode` checks what msgpack gives, by
+    the codec's own readers, in the same order, in the same pass as the checks above, with no
+    Frame, ScanRecords or Tracks object built; :class:`~comms.codec.FrameError` where decoding
+    raises it, else the Heard of the decoded frame."""
+    if type(frame) is FrameRecord:
+        return _check_record(frame, t, bounds)
     max_r, width, height, dt = bounds
     ft = frame.t
     if not 0.0 <= ft <= t:
@@ -123,6 +151,71 @@ def check_frame(frame: Frame, t: float, bounds: Bounds) -> Heard:
                  tuple(threats), tuple(digests))
 
 
+def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
+    """:func:`check_frame` of a frame record: ``check_frame(decode's frame, t, bounds)`` in one
+    pass (each kind's rules as there; what decode would raise, raised)."""
+    max_r, width, height, dt = bounds
+    ft = read_header(rec)[2]
+    messages = rec.messages
+    lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
+    scans: list[HeardScan] = []
+    hellos: list[Hello] = []
+    intents: list[Intent] = []
+    tracks: list[TrackItem] = []
+    threats: list[tuple[int, float, float, float, float]] = []
+    digests: list[ScanDigest] = []
+    ignored = strange = 0
+    for raw in messages:
+        kind = message_kind(raw)
+        if kind == K_SCAN:
+            origin, records = read_scans(raw)
+            it = iter(records)
+            for tr, x, y, rr in zip(it, it, it, it):
+                # A scan from the future would pin cells at q=0: only accept the past.
+                if 0.0 <= tr <= t and 0.0 <= rr <= max_r and lo_x <= x <= hi_x and lo_y <= y <= hi_y:
+                    scans.append((origin, round(tr / dt), (tr, x, y, rr), (x, y, rr)))
+                else:
+                    ignored += 1
+        elif kind == K_HELLO:
+            m = read_hello(raw)
+            if (0 <= m.uav < MAX_ID and lo_x <= m.x <= hi_x and lo_y <= m.y <= hi_y
+                    and 0.0 <= m.v <= MAX_SPEED and -MAX_ANGLE <= m.theta <= MAX_ANGLE):
+                hellos.append(m)
+            else:
+                strange += 1
+        elif kind == K_INTENT:
+            i = read_intent(raw)
+            if 0 <= i.uav < MAX_ID and lo_x <= i.wx <= hi_x and lo_y <= i.wy <= hi_y and -1 <= i.target < MAX_ID:
+                intents.append(i)
+            else:
+                strange += 1
+        elif kind == K_TRACKS:
+            items = read_track_items(raw)
+            sane = [it for it in items
+                    if 0 <= it.target < MAX_ID and lo_x <= it.x <= hi_x and lo_y <= it.y <= hi_y
+                    and -MAX_SPEED <= it.vx <= MAX_SPEED and -MAX_SPEED <= it.vy <= MAX_SPEED
+                    and 0.0 <= it.t <= t and -MAX_VALUE <= it.value <= MAX_VALUE]
+            strange += len(items) - len(sane)
+            tracks.extend(sane)
+        elif kind == K_THREATS:
+            for th in read_threat_items(raw):
+                if (0 <= th.threat < MAX_ID and lo_x <= th.x <= hi_x and lo_y <= th.y <= hi_y
+                        and 0.0 < th.radius < th.d_max <= 2 * max_r):
+                    threats.append((th.threat, th.x, th.y, th.radius, th.d_max))
+                else:
+                    strange += 1
+        else:
+            dg = read_digest(raw)
+            if 0 <= dg.uav < MAX_ID and -MAX_TIME <= dg.t_cut <= t:
+                digests.append(dg)
+            else:
+                strange += 1
+    if not 0.0 <= ft <= t:
+        return Heard(ft, (), 0, len(messages), (), (), (), (), ())
+    return Heard(ft, tuple(scans), ignored, strange, tuple(hellos), tuple(intents), tuple(tracks),
+                 tuple(threats), tuple(digests))
+
+
 class InboxCounters(Protocol):
     """The tallies :meth:`Inbox.merge` adds to (the actor's ``ActorCounters``)."""
 
@@ -168,7 +261,7 @@ class Inbox:
         # heard(data, key, check) -> the Heard of data's frame for key = (t, bounds), raising
         # FrameError: one call into the shared cache (the value kept beside the frame, or
         # derived and kept), or decode and check.
-        self._heard: Callable[[bytes, Hashable, Callable[[Frame], Heard]], Heard]
+        self._heard: Callable[[bytes, Hashable, Callable[[Frame | FrameRecord], Heard]], Heard]
         if decoder is not None:
             self._heard = decoder.derive
         else:
@@ -209,7 +302,7 @@ class Inbox:
         bounds = self.bounds
         key = (t, bounds)  # what a Heard is checked for (and kept beside its frame for)
 
-        def check(frame: Frame) -> Heard:
+        def check(frame: Frame | FrameRecord) -> Heard:
             return check_frame(frame, t, bounds)
 
         heard_of = self._heard
