@@ -14,9 +14,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Hashable, Sequence
-from dataclasses import dataclass
 from functools import partial
-from typing import Protocol
+from typing import Any, NamedTuple, Protocol
 
 from agents.knowledge import Knowledge
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
@@ -24,6 +23,7 @@ from agents.maps.grid import DiskKey, Grid
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
 from comms.codec import (
+    K_DIGEST,
     K_HELLO,
     K_INTENT,
     K_SCAN,
@@ -41,6 +41,7 @@ from comms.codec import (
     read_intent,
     read_scans,
     read_threat_items,
+    read_track_item,
     read_track_items,
 )
 from comms.framecache import DecodeCache
@@ -63,9 +64,9 @@ HeardScan = tuple[int, int, tuple[float, float, float, float], DiskKey]
 Bounds = tuple[float, float, float, float]  # (max scan radius, width, height, dt): see check_frame
 
 
-@dataclass(frozen=True, slots=True)
-class Heard:
-    """A frame's messages as a receiver at ``t`` accepts them (in the frame's order per kind)."""
+class Heard(NamedTuple):
+    """A frame's messages as a receiver at ``t`` accepts them (in the frame's order per kind).
+    (An immutable named tuple: one is built per frame heard, cheaper than a frozen dataclass.)"""
 
     t_frame: float  # the frame's time (what heard poses and intents are stamped with)
     scans: tuple[HeardScan, ...]
@@ -151,12 +152,24 @@ def check_frame(frame: Frame | FrameRecord, t: float, bounds: Bounds) -> Heard:
                  tuple(threats), tuple(digests))
 
 
+_FLOAT = {float}
+_INF = math.inf
+_tuple_new = tuple.__new__
+
+
 def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
-    """:func:`check_frame` of a frame record: ``check_frame(decode's frame, t, bounds)`` in one
-    pass (each kind's rules as there; what decode would raise, raised)."""
+    """:func:`check_frame` of a frame record: ``check_frame(decode(its bytes), t, bounds)`` in
+    one pass, a second implementation of the rules above (the property tests compare them).
+
+    Values of the types :func:`~comms.codec.encode` writes (exact ints and floats) take fast
+    paths: a plausible number is finite, so the codec's finiteness check is left to the
+    implausible ones. Anything else goes through the codec's readers, which raise what decoding
+    raises, message by message in the frame's order (the first error decoding meets is the one
+    raised)."""
     max_r, width, height, dt = bounds
-    ft = read_header(rec)[2]
-    messages = rec.messages
+    sender, seq, ft, messages, _sent = rec
+    if not (type(sender) is int and type(seq) is int and type(ft) is float and -_INF < ft < _INF):
+        ft = read_header(rec)[2]
     lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
     scans: list[HeardScan] = []
     hellos: list[Hello] = []
@@ -165,16 +178,27 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
     threats: list[tuple[int, float, float, float, float]] = []
     digests: list[ScanDigest] = []
     ignored = strange = 0
+    records: Sequence[Any]
     for raw in messages:
-        kind = message_kind(raw)
+        kind = raw[0] if type(raw) is list and raw and type(raw[0]) is int else message_kind(raw)
         if kind == K_SCAN:
-            origin, records = read_scans(raw)
+            if len(raw) == 3 and type(raw[1]) is int and type(raw[2]) is list and set(map(type, raw[2])) <= _FLOAT:
+                origin, records = raw[1], raw[2]
+                if len(records) % 4:
+                    raise FrameError("scan: record list not a multiple of 4")
+                finite = False  # (the records, checked: only if a scan is implausible)
+            else:
+                origin, records = read_scans(raw)
+                finite = True
             it = iter(records)
             for tr, x, y, rr in zip(it, it, it, it):
                 # A scan from the future would pin cells at q=0: only accept the past.
                 if 0.0 <= tr <= t and 0.0 <= rr <= max_r and lo_x <= x <= hi_x and lo_y <= y <= hi_y:
                     scans.append((origin, round(tr / dt), (tr, x, y, rr), (x, y, rr)))
                 else:
+                    if not finite:
+                        read_scans(raw)  # (raises if a number is not finite)
+                        finite = True
                     ignored += 1
         elif kind == K_HELLO:
             m = read_hello(raw)
@@ -190,13 +214,28 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
             else:
                 strange += 1
         elif kind == K_TRACKS:
-            items = read_track_items(raw)
-            sane = [it for it in items
-                    if 0 <= it.target < MAX_ID and lo_x <= it.x <= hi_x and lo_y <= it.y <= hi_y
-                    and -MAX_SPEED <= it.vx <= MAX_SPEED and -MAX_SPEED <= it.vy <= MAX_SPEED
-                    and 0.0 <= it.t <= t and -MAX_VALUE <= it.value <= MAX_VALUE]
-            strange += len(items) - len(sane)
-            tracks.extend(sane)
+            if len(raw) != 2 or type(raw[1]) is not list:
+                read_track_items(raw)  # (raises what decoding raises: no item list)
+            for item in raw[1]:
+                if type(item) is list and len(item) == 7:
+                    target, x, y, vx, vy, tt, value = item
+                    if (type(target) is int and type(x) is float and type(y) is float and type(vx) is float
+                            and type(vy) is float and type(tt) is float and type(value) is float):
+                        if (0 <= target < MAX_ID and lo_x <= x <= hi_x and lo_y <= y <= hi_y
+                                and -MAX_SPEED <= vx <= MAX_SPEED and -MAX_SPEED <= vy <= MAX_SPEED
+                                and 0.0 <= tt <= t and -MAX_VALUE <= value <= MAX_VALUE):
+                            tracks.append(_tuple_new(TrackItem, item))  # (= TrackItem(*item))
+                        else:
+                            read_track_item(item)  # (raises if a number is not finite)
+                            strange += 1
+                        continue
+                tr_ = read_track_item(item)
+                if (0 <= tr_.target < MAX_ID and lo_x <= tr_.x <= hi_x and lo_y <= tr_.y <= hi_y
+                        and -MAX_SPEED <= tr_.vx <= MAX_SPEED and -MAX_SPEED <= tr_.vy <= MAX_SPEED
+                        and 0.0 <= tr_.t <= t and -MAX_VALUE <= tr_.value <= MAX_VALUE):
+                    tracks.append(tr_)
+                else:
+                    strange += 1
         elif kind == K_THREATS:
             for th in read_threat_items(raw):
                 if (0 <= th.threat < MAX_ID and lo_x <= th.x <= hi_x and lo_y <= th.y <= hi_y
@@ -204,12 +243,14 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
                     threats.append((th.threat, th.x, th.y, th.radius, th.d_max))
                 else:
                     strange += 1
-        else:
+        elif kind == K_DIGEST:
             dg = read_digest(raw)
             if 0 <= dg.uav < MAX_ID and -MAX_TIME <= dg.t_cut <= t:
                 digests.append(dg)
             else:
                 strange += 1
+        else:
+            message_kind(raw)  # (raises: an unknown kind)
     if not 0.0 <= ft <= t:
         return Heard(ft, (), 0, len(messages), (), (), (), (), ())
     return Heard(ft, tuple(scans), ignored, strange, tuple(hellos), tuple(intents), tuple(tracks),

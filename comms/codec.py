@@ -292,6 +292,7 @@ def message_kind(raw: object) -> int:
 
 
 _INF = math.inf
+_tuple_new = tuple.__new__
 
 
 def read_hello(raw: list[Any]) -> Hello:
@@ -336,22 +337,22 @@ def read_scans(raw: list[Any]) -> tuple[int, tuple[float, ...]]:
     return _int(raw[1]), _nums(recs)
 
 
+def read_track_item(it: object) -> TrackItem:
+    """One item of a ``K_TRACKS`` message's item list (:func:`read_track_items`), or :class:`FrameError`."""
+    if type(it) is list and len(it) == 7:
+        target, x, y, vx, vy, t, value = it
+        if (type(target) is int and type(x) is float and type(y) is float and type(vx) is float
+                and type(vy) is float and type(t) is float and type(value) is float
+                and -_INF < x + y + vx + vy + t + value < _INF):
+            return _tuple_new(TrackItem, it)  # (= TrackItem(*it): a named tuple)
+    it = _list(it, 7)
+    return TrackItem(_int(it[0]), *_nums(it[1:]))
+
+
 def read_track_items(raw: list[Any]) -> list[TrackItem]:
     """The items of a message of kind ``K_TRACKS`` (a :class:`Tracks`' items), or :class:`FrameError`."""
     _list(raw, 2)
-    tracks: list[TrackItem] = []
-    append = tracks.append
-    for it in _list(raw[1]):
-        if type(it) is list and len(it) == 7:
-            target, x, y, vx, vy, t, value = it
-            if (type(target) is int and type(x) is float and type(y) is float and type(vx) is float
-                    and type(vy) is float and type(t) is float and type(value) is float
-                    and -_INF < x + y + vx + vy + t + value < _INF):
-                append(TrackItem(target, x, y, vx, vy, t, value))
-                continue
-        it = _list(it, 7)
-        append(TrackItem(_int(it[0]), *_nums(it[1:])))
-    return tracks
+    return [read_track_item(it) for it in _list(raw[1])]
 
 
 def read_threat_items(raw: list[Any]) -> list[ThreatItem]:
@@ -371,11 +372,17 @@ def read_digest(raw: list[Any]) -> ScanDigest:
     """The :class:`ScanDigest` of a message of kind ``K_DIGEST``, or :class:`FrameError`."""
     _list(raw, 7)
     bitmaps: list[tuple[int, bytes]] = []
+    append = bitmaps.append
     for it in _list(raw[6]):
+        if type(it) is list and len(it) == 2:
+            origin, bits = it
+            if type(origin) is int and type(bits) is bytes:
+                append((origin, bits))
+                continue
         it = _list(it, 2)
         if type(it[1]) is not bytes:
             raise FrameError("digest: bitmap is not bytes")
-        bitmaps.append((_int(it[0]), it[1]))
+        append((_int(it[0]), it[1]))
     return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), _int(raw[5]), tuple(bitmaps))
 
 
