@@ -201,6 +201,14 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
                         finite = True
                     ignored += 1
         elif kind == K_HELLO:
+            if len(raw) == 7:
+                _, uav, name, x, y, v, th = raw
+                if (type(uav) is int and type(name) is str and len(name) <= 64 and type(x) is float
+                        and type(y) is float and type(v) is float and type(th) is float
+                        and 0 <= uav < MAX_ID and lo_x <= x <= hi_x and lo_y <= y <= hi_y
+                        and 0.0 <= v <= MAX_SPEED and -MAX_ANGLE <= th <= MAX_ANGLE):
+                    hellos.append(_tuple_new(Hello, (uav, name, x, y, v, th)))  # (= Hello(uav, name, ...))
+                    continue
             m = read_hello(raw)
             if (0 <= m.uav < MAX_ID and lo_x <= m.x <= hi_x and lo_y <= m.y <= hi_y
                     and 0.0 <= m.v <= MAX_SPEED and -MAX_ANGLE <= m.theta <= MAX_ANGLE):
@@ -208,6 +216,13 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
             else:
                 strange += 1
         elif kind == K_INTENT:
+            if len(raw) == 6:
+                _, uav, wx, wy, mode, target = raw
+                if (type(uav) is int and type(wx) is float and type(wy) is float and type(mode) is int
+                        and type(target) is int and (mode == 0 or mode == 1)
+                        and 0 <= uav < MAX_ID and lo_x <= wx <= hi_x and lo_y <= wy <= hi_y and -1 <= target < MAX_ID):
+                    intents.append(_tuple_new(Intent, (uav, wx, wy, mode, target)))  # (= Intent(uav, wx, ...))
+                    continue
             i = read_intent(raw)
             if 0 <= i.uav < MAX_ID and lo_x <= i.wx <= hi_x and lo_y <= i.wy <= hi_y and -1 <= i.target < MAX_ID:
                 intents.append(i)
