@@ -7,7 +7,9 @@ shares, so the result (:class:`Heard`) is kept beside the decoded frame: a recei
 call per frame (:meth:`DecodeCache.derive`, keyed by ``(t, bounds)``) and gets the checked
 frame, and :meth:`Inbox.merge` only does what depends on its own state: its knowledge horizon,
 its scan log, its map, its peers. A pure function of ``(frame, t, bounds)``: the memo changes
-how often it runs, never what a receiver gets.
+how often it runs, never what a receiver gets. On the tick plane the cache holds frame records
+(the sender's packed messages, unchecked) and :func:`check_frame` reads a record into its
+Heard in one pass, with decoding's own checks (the same Heard, or the same FrameError).
 """
 
 from __future__ import annotations

@@ -20,7 +20,11 @@ passes. Without a key nothing of this runs (no MAC written, none checked).
 
 Decoding never trusts the bytes: size cap first, then the CRC, the MAC (with a key), msgpack
 with container limits, then a strict shape and type check of every field. Anything wrong raises
-:class:`FrameError`, which the receiver counts as a rejected frame and carries on.
+:class:`FrameError`, which the receiver counts as a rejected frame and carries on. Decoding
+is two steps: :func:`read` (the wire: size, CRC, MAC, msgpack, magic and version) gives a
+:class:`FrameRecord`, whose header and messages the readers check (:func:`message_kind`,
+:func:`read_hello`, ...); :func:`decode` builds a :class:`Frame` of them, a receiver on the tick
+plane reads a record straight into what it keeps (:func:`agents.inbox.check_frame`).
 """
 
 from __future__ import annotations

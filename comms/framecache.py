@@ -19,6 +19,17 @@ was derived for (:meth:`DecodeCache.derive`: the actors keep what they accept of
 the tick's time, :func:`agents.inbox.check_frame`): also a pure memo, dropped with its frame.
 A receiver makes one call per heard frame: the value kept, or (decoding the bytes if the frame
 is not held) the value derived now and kept.
+
+With ``records`` (the tick plane's frame records, issue 36 T1; ``Simulation(tick_plane=True)``)
+the cache holds, for each frame, its :class:`~comms.codec.FrameRecord` instead of a decoded
+:class:`~comms.codec.Frame`: a sender leaves the messages it packed, keyed by the bytes, with
+nothing checked or built at send time (:func:`comms.codec.encode_record`), and a receiver's
+derive reads the record straight into what it keeps, running decoding's checks as it goes
+(:func:`agents.inbox.check_frame`). Bytes not held (a corrupted copy, a spoofer's frame, a
+copy delayed past eviction) are read from the wire (:func:`comms.codec.read`: size, CRC, MAC,
+msgpack) and checked the same way. A sender's record that fails a check is not final (a numpy
+float in it is a float once read back): the bytes decide. Without ``records`` (the per-actor
+path, the oracle), frames as described above.
 """
 
 from __future__ import annotations
