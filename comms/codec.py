@@ -477,7 +477,12 @@ def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = 
     """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception. ``key``: the
     swarm key; a frame whose MAC is not right under it (or that has none) raises
     :class:`AuthError`."""
-    rec = read(data, max_bytes, key)
+    return frame_of(read(data, max_bytes, key))
+
+
+def frame_of(rec: FrameRecord) -> Frame:
+    """The checked :class:`Frame` of a frame record (what :func:`decode` gives for its bytes),
+    or :class:`FrameError`."""
     try:
         return _frame(rec.sender, rec.seq, rec.t, rec.messages)
     except FrameError:

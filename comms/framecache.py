@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Sequence
 from itertools import islice
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 from comms.codec import (
     DEFAULT_MAX_BYTES,
@@ -45,10 +45,10 @@ from comms.codec import (
     FrameError,
     FrameRecord,
     Packed,
-    _frame,
     decode,
     encode_decoded,
     encode_record,
+    frame_of,
     malformed,
     read,
 )
@@ -89,7 +89,7 @@ class DecodeCache:
         if type(data) is bytes:
             frame = frames.get(data)
             if frame is not None:
-                return frame  # type: ignore[return-value]  # (a Frame: not ``records``)
+                return cast(Frame, frame)  # (not ``records``: frames held)
         self.decoded += 1
         frame = decode(data, self.max_bytes, self.key)  # raises FrameError: not cached
         if type(data) is bytes:
@@ -200,18 +200,13 @@ class DecodeCache:
         fresh = rec is None
         if rec is not None and rec.sent:
             try:
-                return _frame(rec.sender, rec.seq, rec.t, rec.messages)
-            except (FrameError, *UNFORESEEN):
+                return frame_of(rec)
+            except FrameError:
                 rec, fresh = None, True  # (not final: the bytes decide)
         if rec is None:
             self.decoded += 1
             rec = read(data, self.max_bytes, self.key)  # (FrameError: nothing held)
-        try:
-            frame = _frame(rec.sender, rec.seq, rec.t, rec.messages)
-        except FrameError:
-            raise
-        except UNFORESEEN as exc:
-            raise malformed(exc) from None
+        frame = frame_of(rec)
         if fresh:
             self._hold(data, rec)
         return frame
