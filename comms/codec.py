@@ -109,6 +109,21 @@ class TrackLike(Protocol):
     def value(self) -> float: ...
 
 
+class ThreatLike(Protocol):
+    """What :func:`pack_threats` reads of an item: :class:`~comms.messages.ThreatItem`'s fields."""
+
+    @property
+    def threat(self) -> int: ...
+    @property
+    def x(self) -> float: ...
+    @property
+    def y(self) -> float: ...
+    @property
+    def radius(self) -> float: ...
+    @property
+    def d_max(self) -> float: ...
+
+
 def pack_hello(uav: int, type: str, x: float, y: float, v: float, theta: float) -> Packed:
     """= ``Hello(uav, type, x, y, v, theta)``, packed."""
     return [K_HELLO, uav, type, x, y, v, theta]
@@ -131,6 +146,13 @@ def pack_tracks(items: Iterable[TrackLike]) -> Packed:
     return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in items]]
 
 
+def pack_threats(items: Iterable[ThreatLike]) -> Packed:
+    """= ``Threats(tuple(items))``, packed. ``items``: any objects with
+    :class:`~comms.messages.ThreatItem`'s fields give the same bytes (a UAV's own
+    :class:`~agents.knowledge.KnownThreat` records)."""
+    return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in items]]
+
+
 def _pack_message(m: Message | Packed) -> Packed:
     if type(m) is list:  # packed already (pack_hello, ...): what the actors' outboxes send
         return m
@@ -143,7 +165,7 @@ def _pack_message(m: Message | Packed) -> Packed:
     if type(m) is Tracks:
         return pack_tracks(m.items)
     if type(m) is Threats:
-        return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
+        return pack_threats(m.items)
     if type(m) is ScanDigest:
         return [K_DIGEST, m.uav, m.t_cut, m.tick0, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
     raise TypeError(f"not a message: {m!r}")
