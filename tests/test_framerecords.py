@@ -217,19 +217,27 @@ def test_records_are_held_as_frames_are_held():
         big.derive(data, "k", lambda f: 0)
 
 
-def test_a_run_with_records_logs_what_the_per_actor_path_logs():
-    """Simulation(tick_plane=True) holds records, tick_plane=False frames (the oracle): same
-    event log, same counters, on a run with corruption, spoofers and liars."""
+@pytest.mark.slow  # two whole runs of demo-all-faults (about 3 s each)
+@pytest.mark.parametrize("auth", [True, False])
+def test_a_run_with_records_logs_what_the_per_actor_path_logs(auth):
+    """Simulation(tick_plane=True) holds records, tick_plane=False frames (the oracle): the same
+    event log and the same counters (frames delivered and rejected, auth failures, messages and
+    scans ignored) on demo-all-faults, every fault kind (corruption, duplication, delay, a
+    spoofer, a liar, ...), with the swarm key (the spoofer's frames fail the MAC) and without
+    (the spoofer's frames are read and checked)."""
     from swarm import Simulation
+    from swarm.scenario import apply_overrides, load_scenario
 
-    logs = []
+    sc = apply_overrides(load_scenario("demo-all-faults"), {"radio.auth": auth})
+    runs = []
     for tick_plane in (True, False):
-        with Simulation("demo-all-faults", duration_s=60.0, tick_plane=tick_plane) as sim:
-            sim.run()
+        with Simulation(sc, tick_plane=tick_plane) as sim:
+            m = sim.run().metrics
             assert sim._decoder.records is tick_plane
             held = next(iter(sim._decoder._frames.values()))
             assert (type(held) is FrameRecord) is tick_plane
-            counters = {u: vars(a.counters) if hasattr(a.counters, "__dict__") else repr(a.counters)
-                        for u, a in sim.actors.items()}
-            logs.append((sim.metrics_dict()["event_log_sha256"], counters))
-    assert logs[0] == logs[1]
+            runs.append((m["event_log_sha256"], m["radio"], m["per_uav"],
+                         {u: repr(a.counters) for u, a in sorted(sim.actors.items())}))
+    assert runs[0] == runs[1]
+    radio = runs[0][1]
+    assert radio["rejected"] > 0 and (radio["rejected_auth"] > 0) is auth
