@@ -38,15 +38,23 @@ from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.relief import HOME_TARGET, Relief
 from agents.station import loiter
 from agents.types import UavType
-from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, encode, pack_hello, pack_intent, pack_scans, pack_tracks
+from comms.codec import (
+    FRAME_SLACK,
+    SCAN_BYTES,
+    Packed,
+    encode,
+    pack_hello,
+    pack_intent,
+    pack_scans,
+    pack_threats,
+    pack_tracks,
+)
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import (
     MODE_SURVEIL,
     NO_TARGET,
     Message,
-    ThreatItem,
-    Threats,
 )
 
 # Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
@@ -408,15 +416,15 @@ class UavActor:
             self._next_beacon = t + s.beacon_every_s - 1e-9
         k = self.knowledge
         if t >= self._next_tracks and (k.tracks or k.threats):
-            # Packed straight from the tracks: the bytes of Tracks(TrackItem(...) of each).
+            # Packed straight from the tracks and threats: the bytes of Tracks(TrackItem(...) of
+            # each) and Threats(ThreatItem(...) of each).
             items = [tr for _, tr in sorted(k.tracks.items())]
-            threats = Threats(tuple(ThreatItem(th.threat, th.x, th.y, th.radius, th.d_max)
-                                    for _, th in sorted(k.threats.items())))
+            threats = [th for _, th in sorted(k.threats.items())]
             first = True
             for i in range(0, max(len(items), 1), _TRACKS_PER_FRAME):
                 msgs = [pack_tracks(items[i:i + _TRACKS_PER_FRAME])]
-                if first and threats.items:
-                    msgs.append(threats)
+                if first and threats:
+                    msgs.append(pack_threats(threats))
                 first = False
                 frames.append(self._frame(t, msgs))
             self._next_tracks = t + s.tracks_every_s - 1e-9

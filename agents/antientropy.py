@@ -16,8 +16,8 @@ from typing import Protocol
 
 from agents.knowledge import Peer
 from agents.maps.scanlog import ScanLog
-from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed
-from comms.messages import Message, ScanDigest, ScanRecords
+from comms.codec import FRAME_SLACK, SCAN_BYTES, Packed, pack_scans
+from comms.messages import Message, ScanDigest
 from comms.settings import RadioSettings
 
 # Neighbours expected to answer one digest (see answers).
@@ -112,7 +112,7 @@ class AntiEntropy:
                 counters.scans_resent += len(flat) // 4
                 while flat:
                     take, flat = flat[:4 * room], flat[4 * room:]
-                    msgs.append(ScanRecords(origin, tuple(take)))
+                    msgs.append(pack_scans(origin, take))  # (= ScanRecords(origin, tuple(take)), packed)
                     room -= len(take) // 4
                     if room == 0:
                         replies.append((dg.uav, frame(t, msgs)))

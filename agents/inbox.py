@@ -7,23 +7,45 @@ shares, so the result (:class:`Heard`) is kept beside the decoded frame: a recei
 call per frame (:meth:`DecodeCache.derive`, keyed by ``(t, bounds)``) and gets the checked
 frame, and :meth:`Inbox.merge` only does what depends on its own state: its knowledge horizon,
 its scan log, its map, its peers. A pure function of ``(frame, t, bounds)``: the memo changes
-how often it runs, never what a receiver gets.
+how often it runs, never what a receiver gets. On the tick plane the cache holds frame records
+(the sender's packed messages, unchecked) and :func:`check_frame` reads a record into its
+Heard in one pass, with decoding's own checks (the same Heard, or the same FrameError).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Hashable, Sequence
-from dataclasses import dataclass
 from functools import partial
-from typing import Protocol
+from typing import Any, NamedTuple, Protocol
 
 from agents.knowledge import Knowledge
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import DiskKey, Grid
 from agents.maps.scanlog import ScanLog
 from agents.maps.umap import UncertaintyMap
-from comms.codec import AuthError, Frame, FrameError, decode
+from comms.codec import (
+    K_DIGEST,
+    K_HELLO,
+    K_INTENT,
+    K_SCAN,
+    K_THREATS,
+    K_TRACKS,
+    AuthError,
+    Frame,
+    FrameError,
+    FrameRecord,
+    decode,
+    message_kind,
+    read_digest,
+    read_header,
+    read_hello,
+    read_intent,
+    read_scans,
+    read_threat_items,
+    read_track_item,
+    read_track_items,
+)
 from comms.framecache import DecodeCache
 from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
 from comms.settings import RadioSettings
@@ -44,9 +66,9 @@ HeardScan = tuple[int, int, tuple[float, float, float, float], DiskKey]
 Bounds = tuple[float, float, float, float]  # (max scan radius, width, height, dt): see check_frame
 
 
-@dataclass(frozen=True, slots=True)
-class Heard:
-    """A frame's messages as a receiver at ``t`` accepts them (in the frame's order per kind)."""
+class Heard(NamedTuple):
+    """A frame's messages as a receiver at ``t`` accepts them (in the frame's order per kind).
+    (An immutable named tuple: one is built per frame heard, cheaper than a frozen dataclass.)"""
 
     t_frame: float  # the frame's time (what heard poses and intents are stamped with)
     scans: tuple[HeardScan, ...]
@@ -59,13 +81,22 @@ class Heard:
     digests: tuple[ScanDigest, ...]
 
 
-def check_frame(frame: Frame, t: float, bounds: Bounds) -> Heard:
+def check_frame(frame: Frame | FrameRecord, t: float, bounds: Bounds) -> Heard:
     """The messages of ``frame`` a receiver at ``t`` accepts. ``bounds`` = ``(max_r, width,
     height, dt)``: places may lie up to ``max_r`` outside the ``width x height`` area, scan radii
     up to ``max_r``; times not after ``t``; ids and speeds in ranges no arithmetic can overflow.
     A frame stamped in the future (or before the run) is ignored whole. Each plausible scan
     comes with its tick (``round(t / dt)``, the scan log's) and its disk's key (in any grid of
-    that size: each receiver looks it up in its own)."""
+    that size: each receiver looks it up in its own).
+
+    ``frame``: decoded (the per-actor path, the oracle), or its unchecked
+    :class:`~comms.codec.FrameRecord` (the tick plane, :class:`~comms.framecache.DecodeCache`
+    with ``records``): checked here as :func:`~comms.codec.decode` checks what msgpack gives, by
+    the codec's own readers, in the same order, in the same pass as the checks above, with no
+    Frame, ScanRecords or Tracks object built; :class:`~comms.codec.FrameError` where decoding
+    raises it, else the Heard of the decoded frame."""
+    if type(frame) is FrameRecord:
+        return _check_record(frame, t, bounds)
     max_r, width, height, dt = bounds
     ft = frame.t
     if not 0.0 <= ft <= t:
@@ -123,6 +154,126 @@ def check_frame(frame: Frame, t: float, bounds: Bounds) -> Heard:
                  tuple(threats), tuple(digests))
 
 
+_FLOAT = {float}
+_INF = math.inf
+_tuple_new = tuple.__new__
+
+
+def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
+    """:func:`check_frame` of a frame record: ``check_frame(decode(its bytes), t, bounds)`` in
+    one pass, a second implementation of the rules above (the property tests compare them).
+
+    Values of the types :func:`~comms.codec.encode` writes (exact ints and floats) take fast
+    paths: a plausible number is finite, so the codec's finiteness check is left to the
+    implausible ones. Anything else goes through the codec's readers, which raise what decoding
+    raises, message by message in the frame's order (the first error decoding meets is the one
+    raised)."""
+    max_r, width, height, dt = bounds
+    sender, seq, ft, messages, _sent = rec
+    if not (type(sender) is int and type(seq) is int and type(ft) is float and -_INF < ft < _INF):
+        ft = read_header(rec)[2]
+    lo_x, hi_x, lo_y, hi_y = -max_r, width + max_r, -max_r, height + max_r
+    scans: list[HeardScan] = []
+    hellos: list[Hello] = []
+    intents: list[Intent] = []
+    tracks: list[TrackItem] = []
+    threats: list[tuple[int, float, float, float, float]] = []
+    digests: list[ScanDigest] = []
+    ignored = strange = 0
+    records: Sequence[Any]
+    for raw in messages:
+        kind = raw[0] if type(raw) is list and raw and type(raw[0]) is int else message_kind(raw)
+        if kind == K_SCAN:
+            if len(raw) == 3 and type(raw[1]) is int and type(raw[2]) is list and set(map(type, raw[2])) <= _FLOAT:
+                origin, records = raw[1], raw[2]
+                if len(records) % 4:
+                    raise FrameError("scan: record list not a multiple of 4")
+                finite = False  # (the records, checked: only if a scan is implausible)
+            else:
+                origin, records = read_scans(raw)
+                finite = True
+            it = iter(records)
+            for tr, x, y, rr in zip(it, it, it, it):
+                # A scan from the future would pin cells at q=0: only accept the past.
+                if 0.0 <= tr <= t and 0.0 <= rr <= max_r and lo_x <= x <= hi_x and lo_y <= y <= hi_y:
+                    scans.append((origin, round(tr / dt), (tr, x, y, rr), (x, y, rr)))
+                else:
+                    if not finite:
+                        read_scans(raw)  # (raises if a number is not finite)
+                        finite = True
+                    ignored += 1
+        elif kind == K_HELLO:
+            if len(raw) == 7:
+                _, uav, name, x, y, v, th = raw
+                if (type(uav) is int and type(name) is str and len(name) <= 64 and type(x) is float
+                        and type(y) is float and type(v) is float and type(th) is float
+                        and 0 <= uav < MAX_ID and lo_x <= x <= hi_x and lo_y <= y <= hi_y
+                        and 0.0 <= v <= MAX_SPEED and -MAX_ANGLE <= th <= MAX_ANGLE):
+                    hellos.append(_tuple_new(Hello, (uav, name, x, y, v, th)))  # (= Hello(uav, name, ...))
+                    continue
+            m = read_hello(raw)
+            if (0 <= m.uav < MAX_ID and lo_x <= m.x <= hi_x and lo_y <= m.y <= hi_y
+                    and 0.0 <= m.v <= MAX_SPEED and -MAX_ANGLE <= m.theta <= MAX_ANGLE):
+                hellos.append(m)
+            else:
+                strange += 1
+        elif kind == K_INTENT:
+            if len(raw) == 6:
+                _, uav, wx, wy, mode, target = raw
+                if (type(uav) is int and type(wx) is float and type(wy) is float and type(mode) is int
+                        and type(target) is int and (mode == 0 or mode == 1)
+                        and 0 <= uav < MAX_ID and lo_x <= wx <= hi_x and lo_y <= wy <= hi_y and -1 <= target < MAX_ID):
+                    intents.append(_tuple_new(Intent, (uav, wx, wy, mode, target)))  # (= Intent(uav, wx, ...))
+                    continue
+            i = read_intent(raw)
+            if 0 <= i.uav < MAX_ID and lo_x <= i.wx <= hi_x and lo_y <= i.wy <= hi_y and -1 <= i.target < MAX_ID:
+                intents.append(i)
+            else:
+                strange += 1
+        elif kind == K_TRACKS:
+            if len(raw) != 2 or type(raw[1]) is not list:
+                read_track_items(raw)  # (raises what decoding raises: no item list)
+            for item in raw[1]:
+                if type(item) is list and len(item) == 7:
+                    target, x, y, vx, vy, tt, value = item
+                    if (type(target) is int and type(x) is float and type(y) is float and type(vx) is float
+                            and type(vy) is float and type(tt) is float and type(value) is float):
+                        if (0 <= target < MAX_ID and lo_x <= x <= hi_x and lo_y <= y <= hi_y
+                                and -MAX_SPEED <= vx <= MAX_SPEED and -MAX_SPEED <= vy <= MAX_SPEED
+                                and 0.0 <= tt <= t and -MAX_VALUE <= value <= MAX_VALUE):
+                            tracks.append(_tuple_new(TrackItem, item))  # (= TrackItem(*item))
+                        else:
+                            read_track_item(item)  # (raises if a number is not finite)
+                            strange += 1
+                        continue
+                tr_ = read_track_item(item)
+                if (0 <= tr_.target < MAX_ID and lo_x <= tr_.x <= hi_x and lo_y <= tr_.y <= hi_y
+                        and -MAX_SPEED <= tr_.vx <= MAX_SPEED and -MAX_SPEED <= tr_.vy <= MAX_SPEED
+                        and 0.0 <= tr_.t <= t and -MAX_VALUE <= tr_.value <= MAX_VALUE):
+                    tracks.append(tr_)
+                else:
+                    strange += 1
+        elif kind == K_THREATS:
+            for th in read_threat_items(raw):
+                if (0 <= th.threat < MAX_ID and lo_x <= th.x <= hi_x and lo_y <= th.y <= hi_y
+                        and 0.0 < th.radius < th.d_max <= 2 * max_r):
+                    threats.append((th.threat, th.x, th.y, th.radius, th.d_max))
+                else:
+                    strange += 1
+        elif kind == K_DIGEST:
+            dg = read_digest(raw)
+            if 0 <= dg.uav < MAX_ID and -MAX_TIME <= dg.t_cut <= t:
+                digests.append(dg)
+            else:
+                strange += 1
+        else:
+            message_kind(raw)  # (raises: an unknown kind)
+    if not 0.0 <= ft <= t:
+        return Heard(ft, (), 0, len(messages), (), (), (), (), ())
+    return Heard(ft, tuple(scans), ignored, strange, tuple(hellos), tuple(intents), tuple(tracks),
+                 tuple(threats), tuple(digests))
+
+
 class InboxCounters(Protocol):
     """The tallies :meth:`Inbox.merge` adds to (the actor's ``ActorCounters``)."""
 
@@ -168,7 +319,7 @@ class Inbox:
         # heard(data, key, check) -> the Heard of data's frame for key = (t, bounds), raising
         # FrameError: one call into the shared cache (the value kept beside the frame, or
         # derived and kept), or decode and check.
-        self._heard: Callable[[bytes, Hashable, Callable[[Frame], Heard]], Heard]
+        self._heard: Callable[[bytes, Hashable, Callable[[Frame | FrameRecord], Heard]], Heard]
         if decoder is not None:
             self._heard = decoder.derive
         else:
@@ -209,7 +360,7 @@ class Inbox:
         bounds = self.bounds
         key = (t, bounds)  # what a Heard is checked for (and kept beside its frame for)
 
-        def check(frame: Frame) -> Heard:
+        def check(frame: Frame | FrameRecord) -> Heard:
             return check_frame(frame, t, bounds)
 
         heard_of = self._heard

@@ -20,7 +20,11 @@ passes. Without a key nothing of this runs (no MAC written, none checked).
 
 Decoding never trusts the bytes: size cap first, then the CRC, the MAC (with a key), msgpack
 with container limits, then a strict shape and type check of every field. Anything wrong raises
-:class:`FrameError`, which the receiver counts as a rejected frame and carries on.
+:class:`FrameError`, which the receiver counts as a rejected frame and carries on. Decoding
+is two steps: :func:`read` (the wire: size, CRC, MAC, msgpack, magic and version) gives a
+:class:`FrameRecord`, whose header and messages the readers check (:func:`message_kind`,
+:func:`read_hello`, ...); :func:`decode` builds a :class:`Frame` of them, a receiver on the tick
+plane reads a record straight into what it keeps (:func:`agents.inbox.check_frame`).
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ import math
 import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol, cast
 
 import msgpack
 
@@ -105,6 +109,21 @@ class TrackLike(Protocol):
     def value(self) -> float: ...
 
 
+class ThreatLike(Protocol):
+    """What :func:`pack_threats` reads of an item: :class:`~comms.messages.ThreatItem`'s fields."""
+
+    @property
+    def threat(self) -> int: ...
+    @property
+    def x(self) -> float: ...
+    @property
+    def y(self) -> float: ...
+    @property
+    def radius(self) -> float: ...
+    @property
+    def d_max(self) -> float: ...
+
+
 def pack_hello(uav: int, type: str, x: float, y: float, v: float, theta: float) -> Packed:
     """= ``Hello(uav, type, x, y, v, theta)``, packed."""
     return [K_HELLO, uav, type, x, y, v, theta]
@@ -127,6 +146,13 @@ def pack_tracks(items: Iterable[TrackLike]) -> Packed:
     return [K_TRACKS, [[i.target, i.x, i.y, i.vx, i.vy, i.t, i.value] for i in items]]
 
 
+def pack_threats(items: Iterable[ThreatLike]) -> Packed:
+    """= ``Threats(tuple(items))``, packed. ``items``: any objects with
+    :class:`~comms.messages.ThreatItem`'s fields give the same bytes (a UAV's own
+    :class:`~agents.knowledge.KnownThreat` records)."""
+    return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in items]]
+
+
 def _pack_message(m: Message | Packed) -> Packed:
     if type(m) is list:  # packed already (pack_hello, ...): what the actors' outboxes send
         return m
@@ -139,7 +165,7 @@ def _pack_message(m: Message | Packed) -> Packed:
     if type(m) is Tracks:
         return pack_tracks(m.items)
     if type(m) is Threats:
-        return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in m.items]]
+        return pack_threats(m.items)
     if type(m) is ScanDigest:
         return [K_DIGEST, m.uav, m.t_cut, m.tick0, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
     raise TypeError(f"not a message: {m!r}")
@@ -189,10 +215,44 @@ def encode_decoded(sender: int, seq: int, t: float, messages: Sequence[Message |
     return data, frame
 
 
+class FrameRecord(NamedTuple):
+    """A frame's header values and messages, unchecked: what msgpack gives back for its bytes
+    (:func:`read`), or what its sender packed into them (:func:`encode_record`). The tick
+    plane's memo of a sent frame (:class:`comms.framecache.DecodeCache` with ``records``): no
+    message object is built at send time, and a receiver checks the record as decoding checks
+    what msgpack gives, reading it straight into what it keeps (:func:`message_kind` and the
+    readers; :func:`agents.inbox.check_frame`)."""
+
+    sender: Any
+    seq: Any
+    t: Any
+    messages: list[Any]
+    # True: the sender's packed values, which are what msgpack reads back wherever a check
+    # admits them (exact int, float, str, bytes, list, as for encode_decoded); a value a
+    # check rejects (a numpy float, a tuple, a bool) may be read back as another that passes
+    # or fails, so the bytes decide (read). False: read from the bytes (read), final.
+    sent: bool
+
+
+def encode_record(sender: int, seq: int, t: float, messages: Sequence[Message | Packed], key: bytes | None = None,
+                  max_bytes: int = DEFAULT_MAX_BYTES) -> tuple[bytes, FrameRecord | None]:
+    """``encode(sender, seq, t, messages, key)`` and its :class:`FrameRecord` (``sent``), or
+    None when the bytes exceed ``max_bytes`` (decoding rejects them). Nothing is checked: the
+    record's messages are the packed ones, as msgpack reads them back where that differs
+    only by a ScanRecords' records tuple (:func:`_as_read_back`). The messages must not change
+    after (the record holds them, not a copy; every sender builds them afresh per frame)."""
+    t = float(t)
+    packed = [_pack_message(m) for m in messages]
+    data = _wire(sender, seq, t, packed, key)
+    if len(data) > max_bytes:
+        return data, None
+    return data, FrameRecord(sender, seq, t, [_as_read_back(m) for m in packed], True)
+
+
 def _as_read_back(m: Packed) -> Packed:
     """A packed message as msgpack reads it back: itself, but for a ScanRecords' records
     tuple, which comes back as a list."""
-    if m[0] == K_SCAN and type(m[2]) is tuple and len(m) == 3:
+    if len(m) == 3 and m[0] == K_SCAN and type(m[2]) is tuple:
         return [m[0], m[1], list(m[2])]
     return m
 
@@ -238,9 +298,13 @@ def _list(v: object, n: int | None = None) -> list[Any]:
     return v
 
 
-def _message(raw: object) -> Message:
-    # The checks of _list/_int written out for the three kinds every beacon carries (a frame is
-    # decoded once per broadcast, but there are many: this is the codec's hot path).
+def message_kind(raw: object) -> int:
+    """The kind of a message as msgpack gives it (an array, its first item a known kind), or
+    :class:`FrameError`. Its fields are checked by the kind's reader: :func:`read_hello`,
+    :func:`read_intent`, :func:`read_scans`, :func:`read_track_items`, :func:`read_threat_items`,
+    :func:`read_digest` (decoding builds the messages with them, :func:`_message`; a receiver
+    may read a frame's messages with them straight into what it keeps, without the message
+    objects: :func:`agents.inbox.check_frame` of a :class:`FrameRecord`)."""
     if type(raw) is not list:
         raise FrameError(f"expected an array, got {type(raw).__name__}")
     if not raw:
@@ -248,67 +312,137 @@ def _message(raw: object) -> Message:
     kind = raw[0]
     if type(kind) is not int:
         raise FrameError(f"expected an integer, got {type(kind).__name__}")
+    if not K_HELLO <= kind <= K_DIGEST:
+        raise FrameError(f"unknown message kind {kind}")
+    return kind
+
+
+_INF = math.inf
+_tuple_new = tuple.__new__
+
+
+def read_hello(raw: list[Any]) -> Hello:
+    """The :class:`Hello` of a message of kind ``K_HELLO`` (:func:`message_kind`), or :class:`FrameError`."""
     n = len(raw)
+    if n != 7:
+        raise FrameError(f"expected 7 fields, got {n}")
+    _, uav, name, x, y, v, theta = raw
+    if type(name) is not str or len(name) > 64:
+        raise FrameError("hello: bad type name")
+    # (What encode writes, checked without a call per field: exact floats whose sum is finite
+    # are all finite. Anything else, an int among them say, takes the checks one by one.)
+    if (type(uav) is int and type(x) is float and type(y) is float and type(v) is float and type(theta) is float
+            and -_INF < x + y + v + theta < _INF):
+        return Hello(uav, name, x, y, v, theta)
+    return Hello(_int(uav), name, _num(x), _num(y), _num(v), _num(theta))
+
+
+def read_intent(raw: list[Any]) -> Intent:
+    """The :class:`Intent` of a message of kind ``K_INTENT``, or :class:`FrameError`."""
+    n = len(raw)
+    if n != 6:
+        raise FrameError(f"expected 6 fields, got {n}")
+    mode = _int(raw[4])
+    if mode not in (0, 1):
+        raise FrameError("intent: bad mode")
+    _, uav, wx, wy, _mode, target = raw
+    if type(uav) is int and type(wx) is float and type(wy) is float and type(target) is int and -_INF < wx + wy < _INF:
+        return Intent(uav, wx, wy, mode, target)
+    return Intent(_int(uav), _num(wx), _num(wy), mode, _int(target))
+
+
+def read_scans(raw: list[Any]) -> tuple[int, tuple[float, ...]]:
+    """``(origin, records)`` of a message of kind ``K_SCAN`` (a :class:`ScanRecords`' fields),
+    or :class:`FrameError`."""
+    n = len(raw)
+    if n != 3:
+        raise FrameError(f"expected 3 fields, got {n}")
+    recs = _list(raw[2])
+    if len(recs) % 4:
+        raise FrameError("scan: record list not a multiple of 4")
+    return _int(raw[1]), _nums(recs)
+
+
+def read_track_item(it: object) -> TrackItem:
+    """One item of a ``K_TRACKS`` message's item list (:func:`read_track_items`), or :class:`FrameError`."""
+    if type(it) is list and len(it) == 7:
+        target, x, y, vx, vy, t, value = it
+        if (type(target) is int and type(x) is float and type(y) is float and type(vx) is float
+                and type(vy) is float and type(t) is float and type(value) is float
+                and -_INF < x + y + vx + vy + t + value < _INF):
+            return _tuple_new(TrackItem, it)  # (= TrackItem(*it): a named tuple)
+    it = _list(it, 7)
+    return TrackItem(_int(it[0]), *_nums(it[1:]))
+
+
+def read_track_items(raw: list[Any]) -> list[TrackItem]:
+    """The items of a message of kind ``K_TRACKS`` (a :class:`Tracks`' items), or :class:`FrameError`."""
+    _list(raw, 2)
+    return [read_track_item(it) for it in _list(raw[1])]
+
+
+def read_threat_items(raw: list[Any]) -> list[ThreatItem]:
+    """The items of a message of kind ``K_THREATS`` (a :class:`Threats`' items), or :class:`FrameError`."""
+    _list(raw, 2)
+    threats: list[ThreatItem] = []
+    for it in _list(raw[1]):
+        it = _list(it, 5)
+        item = ThreatItem(_int(it[0]), *_nums(it[1:]))
+        if item.radius <= 0 or item.d_max < item.radius:
+            raise FrameError("threat: bad radius")
+        threats.append(item)
+    return threats
+
+
+def read_digest(raw: list[Any]) -> ScanDigest:
+    """The :class:`ScanDigest` of a message of kind ``K_DIGEST``, or :class:`FrameError`."""
+    _list(raw, 7)
+    bitmaps: list[tuple[int, bytes]] = []
+    append = bitmaps.append
+    for it in _list(raw[6]):
+        if type(it) is list and len(it) == 2:
+            origin, bits = it
+            if type(origin) is int and type(bits) is bytes:
+                append((origin, bits))
+                continue
+        it = _list(it, 2)
+        if type(it[1]) is not bytes:
+            raise FrameError("digest: bitmap is not bytes")
+        append((_int(it[0]), it[1]))
+    return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), _int(raw[5]), tuple(bitmaps))
+
+
+def _message(raw: object) -> Message:
+    kind = message_kind(raw)
+    raw = cast("list[Any]", raw)
     if kind == K_HELLO:
-        if n != 7:
-            raise FrameError(f"expected 7 fields, got {n}")
-        name = raw[2]
-        if type(name) is not str or len(name) > 64:
-            raise FrameError("hello: bad type name")
-        return Hello(_int(raw[1]), name, _num(raw[3]), _num(raw[4]), _num(raw[5]), _num(raw[6]))
+        return read_hello(raw)
     if kind == K_INTENT:
-        if n != 6:
-            raise FrameError(f"expected 6 fields, got {n}")
-        mode = _int(raw[4])
-        if mode not in (0, 1):
-            raise FrameError("intent: bad mode")
-        return Intent(_int(raw[1]), _num(raw[2]), _num(raw[3]), mode, _int(raw[5]))
+        return read_intent(raw)
     if kind == K_SCAN:
-        if n != 3:
-            raise FrameError(f"expected 3 fields, got {n}")
-        recs = _list(raw[2])
-        if len(recs) % 4:
-            raise FrameError("scan: record list not a multiple of 4")
-        return ScanRecords(_int(raw[1]), _nums(recs))
+        return ScanRecords(*read_scans(raw))
     if kind == K_TRACKS:
-        _list(raw, 2)
-        tracks: list[TrackItem] = []
-        for it in _list(raw[1]):
-            it = _list(it, 7)
-            tracks.append(TrackItem(_int(it[0]), *_nums(it[1:])))
-        return Tracks(tuple(tracks))
+        return Tracks(tuple(read_track_items(raw)))
     if kind == K_THREATS:
-        _list(raw, 2)
-        threats: list[ThreatItem] = []
-        for it in _list(raw[1]):
-            it = _list(it, 5)
-            item = ThreatItem(_int(it[0]), *_nums(it[1:]))
-            if item.radius <= 0 or item.d_max < item.radius:
-                raise FrameError("threat: bad radius")
-            threats.append(item)
-        return Threats(tuple(threats))
-    if kind == K_DIGEST:
-        _list(raw, 7)
-        bitmaps: list[tuple[int, bytes]] = []
-        for it in _list(raw[6]):
-            it = _list(it, 2)
-            if type(it[1]) is not bytes:
-                raise FrameError("digest: bitmap is not bytes")
-            bitmaps.append((_int(it[0]), it[1]))
-        return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), _int(raw[5]), tuple(bitmaps))
-    raise FrameError(f"unknown message kind {kind}")
+        return Threats(tuple(read_threat_items(raw)))
+    return read_digest(raw)
+
+
+def read_header(rec: FrameRecord) -> tuple[int, int, float]:
+    """A frame record's ``(sender, seq, t)``, checked as decoding checks them (before its
+    messages), or :class:`FrameError`."""
+    return _int(rec.sender), _int(rec.seq), _num(rec.t)
 
 
 def _frame(sender: object, seq: object, t: object, messages: list[Any]) -> Frame:
-    """The checked :class:`Frame` of a frame's header values and messages as msgpack gives them
-    (decoding, and the sender's side: :func:`encode_decoded`)."""
+    """The checked :class:`Frame` of a frame's header values and messages as msgpack gives them."""
     return Frame(_int(sender), _int(seq), _num(t), tuple([_message(m) for m in messages]))
 
 
-def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = None) -> Frame:
-    """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception. ``key``: the
-    swarm key; a frame whose MAC is not right under it (or that has none) raises
-    :class:`AuthError`."""
+def read(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = None) -> FrameRecord:
+    """Bytes -> their :class:`FrameRecord` (not ``sent``): the checks of :func:`decode` up to
+    the frame's header fields and messages, which are left to check (:func:`_frame`,
+    :func:`message_kind` and the readers), or :class:`FrameError` (:class:`AuthError`)."""
     if not isinstance(data, (bytes, bytearray)):
         raise FrameError("frame is not bytes")
     if len(data) > max_bytes:
@@ -344,8 +478,36 @@ def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = 
             raise FrameError("bad magic")
         if raw[1] != VERSION or type(raw[1]) is not int:
             raise FrameError(f"unsupported version {raw[1]!r}")
-        return _frame(raw[2], raw[3], raw[4], _list(raw[5]))
+        return FrameRecord(raw[2], raw[3], raw[4], _list(raw[5]), False)
     except FrameError:
         raise
-    except (TypeError, ValueError, IndexError, RecursionError) as exc:
-        raise FrameError(f"malformed frame: {exc}") from None
+    except UNFORESEEN as exc:
+        raise malformed(exc) from None
+
+
+# What checking msgpack's output may raise besides FrameError (an unforeseen shape): raised as
+# a FrameError, "malformed frame" (malformed).
+UNFORESEEN = (TypeError, ValueError, IndexError, RecursionError)
+
+
+def malformed(exc: Exception) -> FrameError:
+    """The :class:`FrameError` for an error of :data:`UNFORESEEN` met checking a frame."""
+    return FrameError(f"malformed frame: {exc}")
+
+
+def decode(data: bytes, max_bytes: int = DEFAULT_MAX_BYTES, key: bytes | None = None) -> Frame:
+    """Bytes -> :class:`Frame`, or :class:`FrameError`; never any other exception. ``key``: the
+    swarm key; a frame whose MAC is not right under it (or that has none) raises
+    :class:`AuthError`."""
+    return frame_of(read(data, max_bytes, key))
+
+
+def frame_of(rec: FrameRecord) -> Frame:
+    """The checked :class:`Frame` of a frame record (what :func:`decode` gives for its bytes),
+    or :class:`FrameError`."""
+    try:
+        return _frame(rec.sender, rec.seq, rec.t, rec.messages)
+    except FrameError:
+        raise
+    except UNFORESEEN as exc:
+        raise malformed(exc) from None

@@ -7,6 +7,7 @@ UAV / target / threat ids; times are simulated seconds; positions metres; angles
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 # A UAV's task (Intent.mode, Plan.mode, the ``mode`` of pose events) and its name in outputs
 # (timeseries.csv, metrics.json, figures).
@@ -16,8 +17,12 @@ MODE_NAMES: dict[int, str] = {MODE_SEARCH: "search", MODE_SURVEIL: "surveil"}
 NO_TARGET = -1
 
 
-@dataclass(frozen=True, slots=True)
-class Hello:
+# Hello, Intent and TrackItem are what a receiver keeps of every frame it hears (a beacon's
+# two, a Tracks message's tens; agents.inbox.Heard): immutable named tuples, built about three
+# times faster than frozen dataclasses. The other messages are frozen dataclasses.
+
+
+class Hello(NamedTuple):
     """Presence and pose: how a UAV learns that another exists and where it is."""
 
     uav: int
@@ -28,8 +33,7 @@ class Hello:
     theta: float
 
 
-@dataclass(frozen=True, slots=True)
-class Intent:
+class Intent(NamedTuple):
     """The sender's next waypoint and task (eq. 23 needs other UAVs' next waypoints)."""
 
     uav: int
@@ -51,8 +55,7 @@ class ScanRecords:
     records: tuple[float, ...]
 
 
-@dataclass(frozen=True, slots=True)
-class TrackItem:
+class TrackItem(NamedTuple):
     target: int
     x: float
     y: float

@@ -145,7 +145,7 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     map_group = (MapGroup(grid, tau, dt) if maps_share(grid.nx * grid.ny, grid.width_m, grid.height_m,
                                                        sc.radio.horizon_m) else None)
     # Each broadcast frame decoded once (with the swarm key, if [radio] auth).
-    decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc))
+    decoder = DecodeCache(sc.radio.frame_max_bytes, key=build.auth_key(sc), records=tick_plane)
     # The radio: every frame copy through the fault injector, each link its own random stream.
     injector = FaultInjector(FaultSchedule([]), names, fault_rng=lambda kind, k: rng.generator("fault", kind, k))
     uavs = world.uavs
