@@ -448,9 +448,9 @@ def ref_reduce_box(src: np.ndarray, box) -> np.ndarray:
        out_tile=st.sampled_from([None, (4, 6), (16, 16)]), seed=st.integers(0, 2**32 - 1),
        boxes=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)), min_size=1, max_size=6))
 def test_reduced_boxes_and_tiled_reads_are_the_plain_formulas(h, w, tile, out_tile, seed, boxes):
-    """reduce_boxes (tiled planes read and written without a piece list where a box lies in one
-    tile) writes the bytes of the formula written out on a dense copy, and a tiled plane reads
-    back, one tile or many, what was written (zeros where nothing was)."""
+    """reduce_boxes, on dense and tiled planes (stacked boxes, reads and writes piece by piece),
+    writes the bytes of the formula written out on a dense copy, and a tiled plane reads back,
+    one tile or many, what was written (zeros where nothing was)."""
     rng = np.random.default_rng(seed)
     dense = (rng.random((h, w)) * 10.0 ** rng.integers(-30, 30, (h, w))).astype(np.float32)
     dense[rng.random((h, w)) < 0.3] = 0.0

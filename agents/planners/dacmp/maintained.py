@@ -193,16 +193,6 @@ class Plane:
         if out is None:
             out = np.empty((r1 - r0, c1 - c0), np.float32)
         get = self._tiles.get
-        th, tw = self.tile
-        ty0, tx0 = r0 // th, c0 // tw
-        if (r1 - 1) // th == ty0 and (c1 - 1) // tw == tx0:  # within one tile (no piece list)
-            tile = get(ty0 * self._ntx + tx0)
-            if tile is None:
-                out[...] = 0.0
-            else:
-                y0, x0 = ty0 * th, tx0 * tw
-                out[...] = tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]
-            return out
         for key, rows, cols, out_rows, out_cols in self._pieces(r0, r1, c0, c1):
             tile = get(key)
             if tile is None:
@@ -216,14 +206,14 @@ class Plane:
         plane's view, of a tiled one's cells as a new C-contiguous array) of cells within one
         tile, without the read's piecewise copy."""
         if self._a is not None:
-            return float(np.add.reduce(self._a[r0:r1, c0:c1], axis=None))  # (= .sum(): its wrapper's call)
+            return float(self._a[r0:r1, c0:c1].sum())
         th, tw = self.tile
         ty, tx = r0 // th, c0 // tw
         tile = self._tile(ty * self._ntx + tx)
         if tile is None:
             return 0.0
         y0, x0 = ty * th, tx * tw
-        return float(np.add.reduce(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]), axis=None))
+        return float(np.ascontiguousarray(tile[r0 - y0 : r1 - y0, c0 - x0 : c1 - x0]).sum())
 
     def _tile(self, key: int) -> np.ndarray | None:
         return self._tiles.get(key)
@@ -235,18 +225,6 @@ class Plane:
             self._a[r0 : r0 + h, c0 : c0 + w] = values
             return
         tiles = self._tiles
-        th, tw = self.tile
-        ty0, tx0 = r0 // th, c0 // tw
-        if (r0 + h - 1) // th == ty0 and (c0 + w - 1) // tw == tx0:  # within one tile (no piece list)
-            key = ty0 * self._ntx + tx0
-            tile = tiles.get(key)
-            if tile is None:
-                if not values.any():
-                    return  # zeros where the plane is implicitly zero
-                tile = tiles[key] = np.zeros(self.tile, np.float32)
-            y0, x0 = ty0 * th, tx0 * tw
-            tile[r0 - y0 : r0 - y0 + h, c0 - x0 : c0 - x0 + w] = values
-            return
         for key, rows, cols, in_rows, in_cols in self._pieces(r0, r0 + h, c0, c0 + w):
             piece = values[in_rows, in_cols]
             tile = tiles.get(key)
