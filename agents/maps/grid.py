@@ -583,10 +583,8 @@ class Grid:
         """The tick plane's :meth:`prefetch_disks`: every disk of ``todo`` (not yet known) built
         at once, exactly as :meth:`disk_stamp` builds it one by one (the same element-wise float
         operations), with its values at ``t`` and its :meth:`Disk.stamps` for maps of ``tiles``,
-        into the memo and the resend archive.
-
-        All disks share one padded ``(H, W)`` box (the largest): a disk's mask, values and
-        squared distances are its top-left ``(h, w)`` corner (cells beyond it are never read)."""
+        into the memo and (for tiled maps, the only ones stamping resends apart) the resend
+        archive. The bounds of all at once, then the rest per radius (:meth:`_build_group`)."""
         cache = self._cache
         c = self.cell_m
         nx, ny = self.nx, self.ny
@@ -663,7 +661,7 @@ class Grid:
             if tiles is not None:
                 stamps = self._batch_stamps(tiles, ix0, iy0, hs, ws, H, mask, values, near_r, near_c)
         archive = cache.archive
-        if archive is not None and t is not None:
+        if archive is not None and t is not None and tiles is not None:  # (only tiled maps stamp_once)
             if keep is None:
                 archive.add(todo, (x, y, radius), (iy0, ix0, hs, ws, W, near_r, near_c),
                             np.packbits(mask.reshape(m, -1), axis=1), t)
