@@ -594,17 +594,20 @@ class Radio:
 
     def broadcast_all(self, t: float, frames: list[tuple[int, bytes, int | None]],
                       on_lost: Callable[[int, int, int, str], object] | None = None) -> DeliveryBatch | None:
-        """(tick plane) :meth:`broadcast` of each ``(src, data, to)`` in turn, at once, when nothing
-        can happen to a copy and nothing is drawn: no active link filter, no loss, no
-        log-distance model, no jitter (the bandwidth budget is applied frame by frame, as
-        there). Returns the surviving copies as one :class:`DeliveryBatch` (the same copies, in
-        the same order, as the :class:`Delivery` records broadcast appends; the same counters and
-        ``on_lost`` calls), or None, having done nothing, when a copy could be lost or drawn for
-        (then broadcast each)."""
+        """(tick plane) :meth:`broadcast` of each ``(src, data, to)`` in turn, at once, when no link
+        filter acts, no log-distance model and no jitter: every copy arrives at the same time.
+        The bandwidth budget is applied frame by frame, and a lossy link's draw made copy by copy
+        from its own stream, as there (a lossy radio with a bandwidth cap goes frame by frame,
+        which orders the two kinds of loss). Returns the surviving copies as one
+        :class:`DeliveryBatch` (the same copies, in the same order, as the :class:`Delivery`
+        records broadcast appends; the same counters, ``on_lost`` calls and draws), or None,
+        having done nothing, when it does not apply (then broadcast each)."""
         model = self.model
         flt = self.filter
-        if not self.tick_plane or (flt is not None and not getattr(flt, "idle", False)) or not self._lossless \
-                or model.log_distance is not None or model.jitter_s > 0.0 or len(self._nb) < self.batch_min_links:
+        bw = model.bandwidth_bytes_per_s
+        if not self.tick_plane or (flt is not None and not getattr(flt, "idle", False)) \
+                or model.log_distance is not None or model.jitter_s > 0.0 or (bw is not None and not self._lossless) \
+                or len(self._nb_arr) < self.batch_min_links:
             return None
         index, start = self._index, self._start
         # Each frame's copies: entries lo .. lo + count of the neighbour lists (none for a sender
@@ -633,7 +636,6 @@ class Radio:
         c = self.counters
         c.sent += int(cnt.sum())
         c.bytes_sent += int((sizes * cnt).sum())
-        bw = model.bandwidth_bytes_per_s
         if bw is not None:  # the senders' budgets, frame by frame in turn
             tokens = self._tokens
             for f, (src, data, _to) in enumerate(frames):
@@ -652,5 +654,24 @@ class Radio:
         frame = np.repeat(np.arange(len(cnt)), cnt)
         # copy k of frame f: neighbour entry lo[f] + (k - the first copy of f)
         entry = np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(len(frame))
-        return DeliveryBatch(t + model.latency_s, [fr[1] for fr in frames],
-                             np.array([fr[0] for fr in frames], dtype=np.int64), frame, self._nb_arr[entry])
+        senders = np.array([fr[0] for fr in frames], dtype=np.int64)
+        receivers = self._nb_arr[entry]
+        if not self._lossless:  # each copy on a lossy link: one draw from its link's stream, in turn
+            p = self._table_values()[2][self._nb_link[entry]]
+            drawn = np.flatnonzero(p > 0.0)
+            if len(drawn):
+                keep = np.ones(len(frame), dtype=bool)
+                rngs = self._link_rngs
+                fr_d = frame[drawn]
+                for k, f, s, d, pk in zip(drawn.tolist(), fr_d.tolist(), senders[fr_d].tolist(),
+                                          receivers[drawn].tolist(), p[drawn].tolist()):
+                    rng = rngs.get((s, d))
+                    if rng is None:
+                        rng = self._new_rng(s, d)
+                    if rng.random() < pk:
+                        keep[k] = False
+                        c.drop("loss")
+                        if on_lost is not None:
+                            on_lost(s, d, len(frames[f][1]), "loss")
+                frame, receivers = frame[keep], receivers[keep]
+        return DeliveryBatch(t + model.latency_s, [fr[1] for fr in frames], senders, frame, receivers)

@@ -559,7 +559,9 @@ class World:
     def _detect_and_avoid(self, ids: list[int], bodies: list[UavBody], xy: np.ndarray | None) -> list[list[SensedUav] | None]:
         """Each UAV's detect-and-avoid reading: every other flying UAV within its type's
         ``daa_range`` (true position and velocity, in id order), or None for a UAV without the
-        sensor (range 0). One k-d tree over the flying UAVs for all of them."""
+        sensor (range 0). One pair query over the flying UAVs for all of them: the tick's, shared
+        with the radio and the safety check (:class:`~swarm.pairs.TickPairs`, the tick plane), or
+        its own."""
         ranges = [b.kind.daa_range for b in bodies]
         out: list[list[SensedUav] | None] = [[] if r > 0 else None for r in ranges]
         rmax = max(ranges, default=0.0)
