@@ -189,17 +189,13 @@ def apf_command(
         # the most clearance from everything known (the guard's own side on a tie).
         guard_turn = _clearer_side(kind, x, y, v, theta, threats, zones, guard_turn)
 
-    cos_th, sin_th = math.cos(theta), math.sin(theta)
-    vx, vy = v * cos_th, v * sin_th
+    vx, vy = v * math.cos(theta), v * math.sin(theta)
     conflict = 0.0  # turn direction for the earliest predicted conflict (+1 left, -1 right)
     conflict_speed = speed
     t_first = math.inf
-    # (the loop's constants, computed once: the same values)
-    lookahead, dmax, hypot = s.lookahead_s, s.uav_dmax_m, math.hypot
-    near_max2, course2 = (2.0 * s.min_separation_m) ** 2, (0.25 * s.min_separation_m) ** 2
     for ox, oy, ovx, ovy in others:
         ex, ey = x - ox, y - oy
-        dd = hypot(ex, ey)
+        dd = math.hypot(ex, ey)
         # Closest point of approach under constant velocities.
         wx_, wy_ = ovx - vx, ovy - vy
         w2 = wx_ * wx_ + wy_ * wy_
@@ -213,13 +209,13 @@ def apf_command(
                 # closer than 2 d_min long before their CPA: a conflict all the same).
                 t_near = t_cpa
                 near2 = miss2
-                if t_cpa >= lookahead:
-                    t_near = lookahead
+                if t_cpa >= s.lookahead_s:
+                    t_near = s.lookahead_s
                     qx, qy = -ex + wx_ * t_near, -ey + wy_ * t_near
                     near2 = qx * qx + qy * qy
-                if near2 < near_max2 and t_near < t_first:
+                if near2 < (2.0 * s.min_separation_m) ** 2 and t_near < t_first:
                     t_first = t_near
-                    if miss2 < course2:
+                    if miss2 < (0.25 * s.min_separation_m) ** 2:
                         # Nearly a collision course: the side of a miss this small is noise
                         # (heard poses, turning), and the two UAVs could read it the same way
                         # round and turn into each other. Use a side both agree on: the
@@ -230,9 +226,9 @@ def apf_command(
                     # left, and speed up if it will be behind us, slow down if ahead. (When
                     # two UAVs converge at a shallow angle it lies almost along both headings:
                     # a turn barely moves either away from it, a change of speed does.)
-                    conflict = -1.0 if cos_th * my - sin_th * mx >= 0.0 else 1.0
-                    conflict_speed = kind.speed_min if cos_th * mx + sin_th * my > 0.0 else kind.speed_max
-        if dd < 1e-9 or dd > dmax:
+                    conflict = -1.0 if math.cos(theta) * my - math.sin(theta) * mx >= 0.0 else 1.0
+                    conflict_speed = kind.speed_min if math.cos(theta) * mx + math.sin(theta) * my > 0.0 else kind.speed_max
+        if dd < 1e-9 or dd > s.uav_dmax_m:
             continue
         c = s.uav_c
         denom = math.exp(dd / c) - math.exp(s.min_separation_m / c)

@@ -380,8 +380,9 @@ class Targets:
         st[_A, :n], st[_OM, :n] = a, om
 
 
-# Up to this many (UAV, target) pairs, sense_many tests them in Python floats (_sense_few), not numpy.
-_SENSE_SCALAR_MAX = 64
+# Up to this many (UAV, target) pairs (measured crossover), sense_many tests them in Python floats
+# (_sense_few), not numpy.
+_SENSE_SCALAR_MAX = 32
 
 # Up to this many UAVs, check_safety first compares every pair itself (cheaper than a k-d tree).
 _SCREEN_MAX = 16
