@@ -199,7 +199,9 @@ SAME_CLASS = {
                                             "p._changed", "w.pyr._e_keys",
                                             # a group member's pyramid made from the base's (issue 36, T9)
                                             "MaintainedPyramid._follow_bases", "p._from_base", "base._chunk_sums",
-                                            "base._block_sums"},
+                                            "base._block_sums",
+                                            # ... copying only what is stale: what each update rewrote
+                                            "base._history", "w.pyr._record", "w.pyr._written"},
     "agents/planners/surveillance.py": {"planner._prepared"},
 }
 
