@@ -7,8 +7,10 @@ import math
 from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
-from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, ScanLog
+from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Near, ScanLog
+from agents.maps.scanlog_oracle import OracleScanLog
 
 DT = 1.0
 
@@ -250,3 +252,79 @@ def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon
         more, _ = _apply(data.draw(_ops), dt, horizon_s)  # (the same log, more scans heard)
         for origin, scan in more.scans():
             assert log.add(origin, *scan) == model.add(origin, *scan)
+
+
+# --- the array log against the oracle (issue 36, T5 and T6) --------------------------------------
+
+_far_tick = st.integers(-2, 3000)  # (far ahead too: the ring grows, and wraps once forgetting moves it)
+
+
+class ArrayLogAgainstOracle(RuleBasedStateMachine):
+    """Two pairs of logs, each an array :class:`ScanLog` and an :class:`OracleScanLog` built alike
+    and driven alike (adds, tracks of consecutive ticks, forgetting, digests, answers to digests
+    of the other pair or to arbitrary ones, merges): every result of the array log is the
+    oracle's, and so are its count and scans."""
+
+    @initialize(dt=st.sampled_from([1.0, 0.5, 0.1]), horizon_s=st.sampled_from([math.inf, 5.0, 20.0, 100.0]))
+    def start(self, dt: float, horizon_s: float) -> None:
+        self.dt = dt
+        self.pairs = [(ScanLog(dt, horizon_s), OracleScanLog(dt, horizon_s)) for _ in range(2)]
+
+    @rule(p=st.integers(0, 1), origin=_origin, k=st.one_of(st.integers(-2, 300), _far_tick), x=_coord, y=_coord)
+    def add(self, p: int, origin: int, k: int, x: float, y: float) -> None:
+        new, oracle = self.pairs[p]
+        t = k * self.dt
+        assert new.add(origin, t, x, y, 3.0) == oracle.add(origin, t, x, y, 3.0)
+
+    @rule(p=st.integers(0, 1), origin=_origin, k0=_far_tick, length=st.integers(1, 120), x=_coord, y=_coord,
+          step=st.sampled_from([1, -1]))
+    def track(self, p: int, origin: int, k0: int, length: int, x: float, y: float, step: int) -> None:
+        """An origin's scans over consecutive ticks (the receivers' add_tick), forwards or backwards."""
+        new, oracle = self.pairs[p]
+        for k in range(max(k0, 0), max(k0, 0) + length)[::step]:
+            scan = (k * self.dt, x + k % 7, y + k % 5, 3.0)
+            assert new.add_tick(origin, k, scan) == oracle.add_tick(origin, k, scan)
+
+    @rule(p=st.integers(0, 1), k=_far_tick)
+    def forget(self, p: int, k: int) -> None:
+        for log in self.pairs[p]:
+            log.forget_before(k * self.dt)
+
+    @rule(p=st.integers(0, 1), k_cut=_far_tick, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]))
+    def digest(self, p: int, k_cut: int, start: int, max_bytes: int | None) -> None:
+        new, oracle = self.pairs[p]
+        assert new.digest(k_cut * self.dt, start, max_bytes) == oracle.digest(k_cut * self.dt, start, max_bytes)
+
+    @rule(p=st.integers(0, 1), k_cut=_far_tick, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]),
+          limit=st.integers(-1, 400), near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)))
+    def answer(self, p: int, k_cut: int, start: int, max_bytes: int | None, limit: int, near: Near | None) -> None:
+        """Answer the other pair's digest (the array log's: the same as its oracle's, by digest)."""
+        tick0, lo, hi, bitmaps, _ = self.pairs[1 - p][0].digest(k_cut * self.dt, start, max_bytes)
+        new, oracle = self.pairs[p]
+        args = (tick0, lo, hi, bitmaps, k_cut * self.dt, limit, near)
+        assert list(new.missing(*args)) == list(oracle.missing(*args))
+
+    @rule(p=st.integers(0, 1), tick0=st.integers(-8, 3000), lo=st.integers(0, 9), hi=st.sampled_from([2, 9, ORIGIN_MAX]),
+          bitmaps=st.lists(st.tuples(_origin, st.binary(max_size=400)), max_size=4), k_cut=_far_tick,
+          limit=st.integers(-1, 400), near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)))
+    def answer_anything(self, p: int, tick0: int, lo: int, hi: int, bitmaps: list[tuple[int, bytes]], k_cut: int,
+                        limit: int, near: Near | None) -> None:
+        """Answer a digest no log would send (any window, range, bytes; origins repeated)."""
+        new, oracle = self.pairs[p]
+        args = (tick0, lo, hi, tuple(bitmaps), k_cut * self.dt, limit, near)
+        assert list(new.missing(*args)) == list(oracle.missing(*args))
+
+    @rule(p=st.integers(0, 1), near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)))
+    def merge(self, p: int, near: Near | None) -> None:
+        (new, oracle), (other, other_oracle) = self.pairs[p], self.pairs[1 - p]
+        assert new.merge(other, near) == oracle.merge(other_oracle, near)
+
+    @invariant()
+    def same_scans(self) -> None:
+        for new, oracle in getattr(self, "pairs", ()):
+            assert new.count == oracle.count
+            assert list(new.scans()) == list(oracle.scans())
+
+
+ArrayLogAgainstOracle.TestCase.settings = settings(max_examples=examples(150), stateful_step_count=30, deadline=None)
+TestArrayLogAgainstOracle = ArrayLogAgainstOracle.TestCase
