@@ -256,65 +256,89 @@ def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon
 
 # --- the array log against the oracle (issue 36, T5 and T6) --------------------------------------
 
-_far_tick = st.integers(-2, 3000)  # (far ahead too: the ring grows, and wraps once forgetting moves it)
+_near = st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float))
+_back = st.integers(-5, 150)  # ticks before the clock: a scan heard (late, or a few ticks early)
+_cut_back = st.integers(-3, 30)  # where digests are cut
 
 
 class ArrayLogAgainstOracle(RuleBasedStateMachine):
     """Two pairs of logs, each an array :class:`ScanLog` and an :class:`OracleScanLog` built alike
-    and driven alike (adds, tracks of consecutive ticks, forgetting, digests, answers to digests
-    of the other pair or to arbitrary ones, merges): every result of the array log is the
-    oracle's, and so are its count and scans."""
+    and driven alike: scans added around a clock that moves on (late ones, repeated ones, a
+    few far off), tracks of consecutive ticks, forgetting, digests, answers to the other pair's
+    digests and to arbitrary ones, merges. Every result of the array log is the oracle's, and
+    so are its count and scans. The clock runs past the ring's size many times over, so the
+    ring wraps, grows (a scan far ahead, a long horizon) and is cleared by forgetting."""
 
-    @initialize(dt=st.sampled_from([1.0, 0.5, 0.1]), horizon_s=st.sampled_from([math.inf, 5.0, 20.0, 100.0]))
-    def start(self, dt: float, horizon_s: float) -> None:
+    @initialize(dt=st.sampled_from([1.0, 0.5, 0.1]), horizon_s=st.sampled_from([math.inf, 5.0, 20.0, 100.0]),
+                now=st.integers(0, 3000), tracks=st.lists(st.tuples(st.integers(0, 1), _origin, _back,
+                                                                     st.integers(1, 200), _coord, _coord), max_size=8))
+    def start(self, dt: float, horizon_s: float, now: int, tracks: list[tuple[int, int, int, int, float, float]]
+              ) -> None:
         self.dt = dt
+        self.now = now  # the clock, in ticks
         self.pairs = [(ScanLog(dt, horizon_s), OracleScanLog(dt, horizon_s)) for _ in range(2)]
+        for track in tracks:
+            self.track(*track, step=1)
 
-    @rule(p=st.integers(0, 1), origin=_origin, k=st.one_of(st.integers(-2, 300), _far_tick), x=_coord, y=_coord)
-    def add(self, p: int, origin: int, k: int, x: float, y: float) -> None:
+    def _tick(self, back: int) -> int:
+        return self.now - back
+
+    @rule(ticks=st.integers(1, 80), forget=st.booleans())
+    def advance(self, ticks: int, forget: bool) -> None:
+        self.now += ticks
+        if forget:
+            for pair in self.pairs:
+                for log in pair:
+                    log.forget_before(self.now * self.dt)
+
+    @rule(p=st.integers(0, 1), origin=_origin, back=_back | _back | _back | st.integers(-2000, 2000), x=_coord, y=_coord)
+    def add(self, p: int, origin: int, back: int, x: float, y: float) -> None:
         new, oracle = self.pairs[p]
-        t = k * self.dt
+        t = self._tick(back) * self.dt
         assert new.add(origin, t, x, y, 3.0) == oracle.add(origin, t, x, y, 3.0)
 
-    @rule(p=st.integers(0, 1), origin=_origin, k0=_far_tick, length=st.integers(1, 120), x=_coord, y=_coord,
-          step=st.sampled_from([1, -1]))
-    def track(self, p: int, origin: int, k0: int, length: int, x: float, y: float, step: int) -> None:
+    @rule(p=st.integers(0, 1), origin=_origin, back=_back, length=st.integers(1, 200),
+          x=_coord, y=_coord, step=st.sampled_from([1, -1]))
+    def track(self, p: int, origin: int, back: int, length: int, x: float, y: float, step: int) -> None:
         """An origin's scans over consecutive ticks (the receivers' add_tick), forwards or backwards."""
         new, oracle = self.pairs[p]
-        for k in range(max(k0, 0), max(k0, 0) + length)[::step]:
+        k0 = max(self._tick(back), 0)
+        for k in range(k0, k0 + length)[::step]:
             scan = (k * self.dt, x + k % 7, y + k % 5, 3.0)
             assert new.add_tick(origin, k, scan) == oracle.add_tick(origin, k, scan)
 
-    @rule(p=st.integers(0, 1), k=_far_tick)
-    def forget(self, p: int, k: int) -> None:
+    @rule(p=st.integers(0, 1), back=st.integers(-5, 60))
+    def forget(self, p: int, back: int) -> None:
         for log in self.pairs[p]:
-            log.forget_before(k * self.dt)
+            log.forget_before(self._tick(back) * self.dt)
 
-    @rule(p=st.integers(0, 1), k_cut=_far_tick, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]))
-    def digest(self, p: int, k_cut: int, start: int, max_bytes: int | None) -> None:
+    @rule(p=st.integers(0, 1), back=_cut_back, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]))
+    def digest(self, p: int, back: int, start: int, max_bytes: int | None) -> None:
         new, oracle = self.pairs[p]
-        assert new.digest(k_cut * self.dt, start, max_bytes) == oracle.digest(k_cut * self.dt, start, max_bytes)
+        t_cut = self._tick(back) * self.dt
+        assert new.digest(t_cut, start, max_bytes) == oracle.digest(t_cut, start, max_bytes)
 
-    @rule(p=st.integers(0, 1), k_cut=_far_tick, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]),
-          limit=st.integers(-1, 400), near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)))
-    def answer(self, p: int, k_cut: int, start: int, max_bytes: int | None, limit: int, near: Near | None) -> None:
+    @rule(p=st.integers(0, 1), back=_cut_back, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]),
+          limit=st.integers(-1, 400), near=_near)
+    def answer(self, p: int, back: int, start: int, max_bytes: int | None, limit: int, near: Near | None) -> None:
         """Answer the other pair's digest (the array log's: the same as its oracle's, by digest)."""
-        tick0, lo, hi, bitmaps, _ = self.pairs[1 - p][0].digest(k_cut * self.dt, start, max_bytes)
+        t_cut = self._tick(back) * self.dt
+        tick0, lo, hi, bitmaps, _ = self.pairs[1 - p][0].digest(t_cut, start, max_bytes)
         new, oracle = self.pairs[p]
-        args = (tick0, lo, hi, bitmaps, k_cut * self.dt, limit, near)
+        args = (tick0, lo, hi, bitmaps, t_cut, limit, near)
         assert list(new.missing(*args)) == list(oracle.missing(*args))
 
-    @rule(p=st.integers(0, 1), tick0=st.integers(-8, 3000), lo=st.integers(0, 9), hi=st.sampled_from([2, 9, ORIGIN_MAX]),
-          bitmaps=st.lists(st.tuples(_origin, st.binary(max_size=400)), max_size=4), k_cut=_far_tick,
-          limit=st.integers(-1, 400), near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)))
-    def answer_anything(self, p: int, tick0: int, lo: int, hi: int, bitmaps: list[tuple[int, bytes]], k_cut: int,
+    @rule(p=st.integers(0, 1), tick0=st.integers(-8, 600), lo=st.integers(0, 9), hi=st.sampled_from([2, 9, ORIGIN_MAX]),
+          bitmaps=st.lists(st.tuples(_origin, st.binary(max_size=200)), max_size=4), back=_cut_back,
+          limit=st.integers(-1, 400), near=_near)
+    def answer_anything(self, p: int, tick0: int, lo: int, hi: int, bitmaps: list[tuple[int, bytes]], back: int,
                         limit: int, near: Near | None) -> None:
-        """Answer a digest no log would send (any window, range, bytes; origins repeated)."""
+        """Answer a digest no log would send (any window, range and bytes; origins repeated)."""
         new, oracle = self.pairs[p]
-        args = (tick0, lo, hi, tuple(bitmaps), k_cut * self.dt, limit, near)
+        args = (max(self.now - tick0, -8), lo, hi, tuple(bitmaps), self._tick(back) * self.dt, limit, near)
         assert list(new.missing(*args)) == list(oracle.missing(*args))
 
-    @rule(p=st.integers(0, 1), near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)))
+    @rule(p=st.integers(0, 1), near=_near)
     def merge(self, p: int, near: Near | None) -> None:
         (new, oracle), (other, other_oracle) = self.pairs[p], self.pairs[1 - p]
         assert new.merge(other, near) == oracle.merge(other_oracle, near)
@@ -326,5 +350,18 @@ class ArrayLogAgainstOracle(RuleBasedStateMachine):
             assert list(new.scans()) == list(oracle.scans())
 
 
-ArrayLogAgainstOracle.TestCase.settings = settings(max_examples=examples(150), stateful_step_count=30, deadline=None)
+ArrayLogAgainstOracle.TestCase.settings = settings(max_examples=examples(150), stateful_step_count=40, deadline=None)
 TestArrayLogAgainstOracle = ArrayLogAgainstOracle.TestCase
+
+
+def test_the_ring_grows_to_hold_ticks_however_far_apart():
+    """Ticks far apart (a late join's first scans, a scan from far ahead) never share a column:
+    every distance up to a few rings, as the oracle lists them."""
+    for gap in range(0, 3000, 8):
+        for late in (0, 7):
+            new, oracle = ScanLog(DT, 100.0), OracleScanLog(DT, 100.0)
+            for log in (new, oracle):
+                for k in (3, 3 + gap, 3 + gap + late, gap // 2):
+                    log.add(*_scan(1, k))
+            assert list(new.scans()) == list(oracle.scans())
+            assert new.digest(float(3 + gap + late)) == oracle.digest(float(3 + gap + late))
