@@ -240,25 +240,28 @@ class ScanLog:
         lo = 0 if math.isinf(self.horizon_ticks) else max(0, k_cut - cast(int, self.horizon_ticks))
         return lo & ~7, k_cut
 
-    def _rows_window(self, tick0: int, k_cut: int, a: int, b: int) -> tuple[np.ndarray, int, int] | None:
+    def _rows_window(self, tick0: int, k_cut: int, a: int, b: int | None) -> tuple[np.ndarray, int, int] | None:
         """The bits of ticks ``tick0..k_cut`` (``tick0`` a multiple of 8, ``<= k_cut``) of the
-        ``a``-th to ``b - 1``-th origins in ascending order that can be set, as ``(part, jlo,
-        c0)``: ``part[i, j]`` is the byte of ticks ``tick0 + 8 (jlo + j) ..`` of the ``i``-th
-        (bit ``k % 8`` for tick ``k``; ticks after ``k_cut`` clear), every byte before ``jlo``
-        and after ``part`` is clear, and the ring column of ``part[:, 0]`` is ``c0``, the
-        others following it (wrapping). None: nothing held there."""
+        ``a``-th to ``b - 1``-th origins in ascending order (``b`` None: of every row, in row
+        order) that can be set, as ``(part, jlo, c0)``: ``part[i, j]`` is the byte of ticks
+        ``tick0 + 8 (jlo + j) ..`` of the ``i``-th (bit ``k % 8`` for tick ``k``; ticks after
+        ``k_cut`` clear), every byte before ``jlo`` and after ``part`` is clear, and the ring
+        column of ``part[:, 0]`` is ``c0``, the others following it (wrapping). A copy. None:
+        nothing held there."""
         lo, hi = self._lo, self._hi
         n = ((k_cut - tick0) >> 3) + 1
         jlo, jhi = max(0, (lo - tick0) >> 3), min(n, (hi - tick0) >> 3)
-        if lo >= hi or jhi <= jlo or a >= b:
+        if lo >= hi or jhi <= jlo or (b is not None and a >= b):
             return None
-        rows = self._order()[1][a:b]
         c0 = ((tick0 >> 3) + jlo) % self._cap8
         m = jhi - jlo
+        rows: slice | np.ndarray = slice(0, len(self._origins)) if b is None else self._order()[1][a:b]
         if c0 + m <= self._cap8:
             part = self._bits[rows, c0:c0 + m]
+            if b is None:
+                part = part.copy()
         else:
-            part = self._bits[rows[:, None], (np.arange(c0, c0 + m) % self._cap8)[None, :]]
+            part = self._bits[rows].take(np.arange(c0, c0 + m) % self._cap8, axis=1)
         if jhi == n:
             part[:, -1] &= (1 << (((k_cut - tick0) & 7) + 1)) - 1  # the last byte's ticks up to k_cut
         return part, jlo, c0
@@ -272,16 +275,15 @@ class ScanLog:
         if c is not None and c[0] == tick0 and c[1] == k_cut and c[2] == self._version:
             return c[3], c[4]
         out: dict[int, bytes] = {}
-        got = self._rows_window(tick0, k_cut, 0, len(self._origins))
+        got = self._rows_window(tick0, k_cut, 0, None)
         if got is not None:
             part, jlo, _ = got
             m = part.shape[1]
             buf = part.tobytes()
             pad = bytes(jlo)
-            s = 0
-            for origin in self._order()[0]:
-                b = buf[s:s + m].rstrip(b"\0")
-                s += m
+            origins, rows = self._order()
+            for origin, r in zip(origins, rows.tolist()):
+                b = buf[r * m:r * m + m].rstrip(b"\0")
                 if b:
                     out[origin] = pad + b
         items = tuple(out.items())
