@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -11,6 +12,7 @@ from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, ru
 
 from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Near, ScanLog
 from agents.maps.scanlog_oracle import OracleScanLog
+from swarm import Simulation
 
 DT = 1.0
 
@@ -365,3 +367,20 @@ def test_the_ring_grows_to_hold_ticks_however_far_apart():
                     log.add(*_scan(1, k))
             assert list(new.scans()) == list(oracle.scans())
             assert new.digest(float(3 + gap + late)) == oracle.digest(float(3 + gap + late))
+
+
+@pytest.mark.slow
+def test_a_run_with_every_fault_keeps_its_scan_logs_and_event_log_with_the_oracle():
+    """``Simulation(tick_plane=False)`` gives every actor the oracle's log, ``True`` the array
+    log; over demo-all-faults (every fault kind: liars, spoofers, restarts, joins, corruption,
+    partitions...) the two runs end with the same scans in every UAV's log and the same event log."""
+    runs = {}
+    for plane in (True, False):
+        with Simulation("demo-all-faults", tick_plane=plane) as sim:
+            sim.run()
+            runs[plane] = (sim.metrics_dict()["event_log_sha256"],
+                           {uid: list(a.scans.scans()) for uid, a in sim.actors.items()},
+                           {type(a.scans) for a in sim.actors.values()})
+    assert runs[True][2] == {ScanLog} and runs[False][2] == {OracleScanLog}
+    assert sum(len(s) for s in runs[True][1].values()) > 1000
+    assert runs[True][:2] == runs[False][:2]
