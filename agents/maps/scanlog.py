@@ -96,8 +96,9 @@ class ScanLog:
         # is clear). Every tick held lies in [_lo, _hi) (multiples of 8, _hi - _lo <= cap; empty
         # when _lo >= _hi), so no two share a column; the ring grows when that would not hold.
         # _bv and _cv: the same memory as flat memoryviews (add_tick's single bits and doubles).
-        h = self.horizon_ticks
-        cap = _round_cap(256 if math.isinf(h) else min(cast(int, h), 4096) + FORGET_SLACK_TICKS + 72)
+        # The ring starts small and grows by half as the ticks held spread (to about
+        # horizon_ticks + FORGET_SLACK_TICKS + a digest period, once forgetting keeps pace).
+        cap = _round_cap(0)
         self._cap, self._cap8 = cap, cap // 8
         self._set_ring(np.zeros((4, cap // 8), np.uint8), np.zeros((4, 2 * cap), np.float64))
         self._lo = self._hi = 0
@@ -147,7 +148,9 @@ class ScanLog:
             bits = np.zeros((n, self._cap8), np.uint8)
             bits[:row] = self._bits
             cen = np.zeros((n, 2 * self._cap), np.float64)
-            cen[:row] = self._cen
+            if self._lo < self._hi:  # (only the centres of the ticks held: the rest of a row stays untouched memory)
+                cols = np.arange(self._lo, self._hi) % self._cap
+                cen.view(np.complex128)[:row, cols] = self._cen.view(np.complex128)[:row, cols]
             self._set_ring(bits, cen)
         self._row[origin] = row
         self._origins.append(origin)
