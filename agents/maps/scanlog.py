@@ -84,9 +84,9 @@ class ScanLog:
         self.count = 0  # scans held
         self._version = 0  # bumped by every change: invalidates _cut_cache
         self._cut_cache: tuple[int, int, int, dict[int, bytes], Bitmaps] | None = None
-        # Rows: origin -> row (in the order origins were first heard), row -> origin, and the
+        # Rows: origin -> row (in the order origins were first heard; with its scans), row -> origin, and the
         # origins ascending with their rows (built again when a row is added: None until then).
-        self._row: dict[int, int] = {}
+        self._row: dict[int, tuple[int, dict[int, Scan]]] = {}  # (its row, _recs[row])
         self._origins: list[int] = []
         self._sorted: list[int] | None = []
         self._rows = np.zeros(0, np.intp)
@@ -118,21 +118,19 @@ class ScanLog:
         :func:`agents.inbox.check_frame`); the tuple is stored as it is (shared, immutable)."""
         if tick < self._floor:
             return True
-        row = self._row.get(origin)
-        if row is None:
-            row = self._new_row(origin)
+        held = self._row.get(origin)
+        if held is None:
+            held = self._new_row(origin)
+        row, recs = held
+        if tick in recs:  # (= its bit set)
+            return False
+        recs[tick] = scan
         if not self._lo <= tick < self._hi:
             self._extend(tick)
-        c = tick % self._cap
-        i = row * self._cap8 + (c >> 3)
-        bv = self._bv
-        old = bv[i]
-        bit = 1 << (tick & 7)
-        if old & bit:
-            return False
-        bv[i] = old | bit
-        self._recs[row][tick] = scan
-        j = 2 * (row * self._cap + c)
+        cap = self._cap
+        c = tick % cap
+        self._bv[row * self._cap8 + (c >> 3)] |= 1 << (tick & 7)
+        j = 2 * (row * cap + c)
         cv = self._cv
         cv[j] = scan[1]
         cv[j + 1] = scan[2]
@@ -140,8 +138,9 @@ class ScanLog:
         self._version += 1
         return True
 
-    def _new_row(self, origin: int) -> int:
-        """The row of an origin heard for the first time (the matrices grow by half as many rows)."""
+    def _new_row(self, origin: int) -> tuple[int, dict[int, Scan]]:
+        """The row of an origin heard for the first time, and its scans by tick (the matrices
+        grow by half as many rows)."""
         row = len(self._origins)
         if row == len(self._bits):
             n = row + max(4, row // 2)
@@ -152,11 +151,12 @@ class ScanLog:
                 cols = np.arange(self._lo, self._hi) % self._cap
                 cen.view(np.complex128)[:row, cols] = self._cen.view(np.complex128)[:row, cols]
             self._set_ring(bits, cen)
-        self._row[origin] = row
+        recs: dict[int, Scan] = {}
+        self._row[origin] = (row, recs)
         self._origins.append(origin)
-        self._recs.append({})
+        self._recs.append(recs)
         self._sorted = None
-        return row
+        return row, recs
 
     def _set_ring(self, bits: np.ndarray, cen: np.ndarray) -> None:
         self._bits, self._cen = bits, cen
