@@ -33,6 +33,7 @@ from agents.knowledge import Knowledge, Peer
 from agents.maps.grid import Grid
 from agents.maps.mapgroup import MapGroup
 from agents.maps.scanlog import ScanLog
+from agents.maps.scanlog_oracle import OracleScanLog
 from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.relief import HOME_TARGET, Relief
@@ -126,6 +127,7 @@ class UavActor:
         mailbox: Mailbox,
         decoder: DecodeCache | None = None,
         map_group: MapGroup | None = None,
+        tick_plane: bool = True,
     ):
         self.uid = uid
         self.name = name
@@ -139,7 +141,8 @@ class UavActor:
         # (the same cells as a map of its own).
         self.umap = map_group.new_map() if map_group is not None else UncertaintyMap(grid, tau)
         radio = settings.radio
-        self.scans = ScanLog(settings.dt, radio.sync_horizon_s)
+        # (issue 36) The scan log as arrays (tick_plane), or kept per origin: the oracle.
+        self.scans = (ScanLog if tick_plane else OracleScanLog)(settings.dt, radio.sync_horizon_s)
         self._log_scans = radio.sync_every_s > 0  # without anti-entropy nothing reads the log
         self.anti_entropy = AntiEntropy(uid, radio, self.scans)  # (its digests and answers)
         # A scan is applied and logged only if it is plausible: a radius up to the area's size and

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
-from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, ScanLog
+from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Near, ScanLog
+from agents.maps.scanlog_oracle import OracleScanLog
+from swarm import Simulation
 
 DT = 1.0
 
@@ -250,3 +254,133 @@ def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon
         more, _ = _apply(data.draw(_ops), dt, horizon_s)  # (the same log, more scans heard)
         for origin, scan in more.scans():
             assert log.add(origin, *scan) == model.add(origin, *scan)
+
+
+# --- the array log against the oracle (issue 36, T5 and T6) --------------------------------------
+
+_near = st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float))
+_back = st.integers(-5, 150)  # ticks before the clock: a scan heard (late, or a few ticks early)
+_cut_back = st.integers(-3, 30)  # where digests are cut
+
+
+class ArrayLogAgainstOracle(RuleBasedStateMachine):
+    """Two pairs of logs, each an array :class:`ScanLog` and an :class:`OracleScanLog` built alike
+    and driven alike: scans added around a clock that moves on (late ones, repeated ones, a
+    few far off), tracks of consecutive ticks, forgetting, digests, answers to the other pair's
+    digests and to arbitrary ones, merges. Every result of the array log is the oracle's, and
+    so are its count and scans. The clock runs past the ring's size many times over, so the
+    ring wraps, grows (a scan far ahead, a long horizon) and is cleared by forgetting."""
+
+    @initialize(dt=st.sampled_from([1.0, 0.5, 0.1]), horizon_s=st.sampled_from([math.inf, 5.0, 20.0, 100.0]),
+                now=st.integers(0, 3000), tracks=st.lists(st.tuples(st.integers(0, 1), _origin, _back,
+                                                                     st.integers(1, 200), _coord, _coord), max_size=8))
+    def start(self, dt: float, horizon_s: float, now: int, tracks: list[tuple[int, int, int, int, float, float]]
+              ) -> None:
+        self.dt = dt
+        self.now = now  # the clock, in ticks
+        self.pairs = [(ScanLog(dt, horizon_s), OracleScanLog(dt, horizon_s)) for _ in range(2)]
+        for track in tracks:
+            self.track(*track, step=1)
+
+    def _tick(self, back: int) -> int:
+        return self.now - back
+
+    @rule(ticks=st.integers(1, 80), forget=st.booleans())
+    def advance(self, ticks: int, forget: bool) -> None:
+        self.now += ticks
+        if forget:
+            for pair in self.pairs:
+                for log in pair:
+                    log.forget_before(self.now * self.dt)
+
+    @rule(p=st.integers(0, 1), origin=_origin, back=_back | _back | _back | st.integers(-2000, 2000), x=_coord, y=_coord)
+    def add(self, p: int, origin: int, back: int, x: float, y: float) -> None:
+        new, oracle = self.pairs[p]
+        t = self._tick(back) * self.dt
+        assert new.add(origin, t, x, y, 3.0) == oracle.add(origin, t, x, y, 3.0)
+
+    @rule(p=st.integers(0, 1), origin=_origin, back=_back, length=st.integers(1, 200),
+          x=_coord, y=_coord, step=st.sampled_from([1, -1]))
+    def track(self, p: int, origin: int, back: int, length: int, x: float, y: float, step: int) -> None:
+        """An origin's scans over consecutive ticks (the receivers' add_tick), forwards or backwards."""
+        new, oracle = self.pairs[p]
+        k0 = max(self._tick(back), 0)
+        for k in range(k0, k0 + length)[::step]:
+            scan = (k * self.dt, x + k % 7, y + k % 5, 3.0)
+            assert new.add_tick(origin, k, scan) == oracle.add_tick(origin, k, scan)
+
+    @rule(p=st.integers(0, 1), back=st.integers(-5, 60))
+    def forget(self, p: int, back: int) -> None:
+        for log in self.pairs[p]:
+            log.forget_before(self._tick(back) * self.dt)
+
+    @rule(p=st.integers(0, 1), back=_cut_back, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]))
+    def digest(self, p: int, back: int, start: int, max_bytes: int | None) -> None:
+        new, oracle = self.pairs[p]
+        t_cut = self._tick(back) * self.dt
+        assert new.digest(t_cut, start, max_bytes) == oracle.digest(t_cut, start, max_bytes)
+
+    @rule(p=st.integers(0, 1), back=_cut_back, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]),
+          limit=st.integers(-1, 400), near=_near)
+    def answer(self, p: int, back: int, start: int, max_bytes: int | None, limit: int, near: Near | None) -> None:
+        """Answer the other pair's digest (the array log's: the same as its oracle's, by digest)."""
+        t_cut = self._tick(back) * self.dt
+        tick0, lo, hi, bitmaps, _ = self.pairs[1 - p][0].digest(t_cut, start, max_bytes)
+        new, oracle = self.pairs[p]
+        args = (tick0, lo, hi, bitmaps, t_cut, limit, near)
+        assert list(new.missing(*args)) == list(oracle.missing(*args))
+
+    @rule(p=st.integers(0, 1), tick0=st.integers(-8, 600), lo=st.integers(0, 9), hi=st.sampled_from([2, 9, ORIGIN_MAX]),
+          bitmaps=st.lists(st.tuples(_origin, st.binary(max_size=200)), max_size=4), back=_cut_back,
+          limit=st.integers(-1, 400), near=_near)
+    def answer_anything(self, p: int, tick0: int, lo: int, hi: int, bitmaps: list[tuple[int, bytes]], back: int,
+                        limit: int, near: Near | None) -> None:
+        """Answer a digest no log would send (any window, range and bytes; origins repeated)."""
+        new, oracle = self.pairs[p]
+        args = (max(self.now - tick0, -8), lo, hi, tuple(bitmaps), self._tick(back) * self.dt, limit, near)
+        assert list(new.missing(*args)) == list(oracle.missing(*args))
+
+    @rule(p=st.integers(0, 1), near=_near)
+    def merge(self, p: int, near: Near | None) -> None:
+        (new, oracle), (other, other_oracle) = self.pairs[p], self.pairs[1 - p]
+        assert new.merge(other, near) == oracle.merge(other_oracle, near)
+
+    @invariant()
+    def same_scans(self) -> None:
+        for new, oracle in getattr(self, "pairs", ()):
+            assert new.count == oracle.count
+            assert list(new.scans()) == list(oracle.scans())
+
+
+ArrayLogAgainstOracle.TestCase.settings = settings(max_examples=examples(150), stateful_step_count=40, deadline=None)
+TestArrayLogAgainstOracle = ArrayLogAgainstOracle.TestCase
+
+
+def test_the_ring_grows_to_hold_ticks_however_far_apart():
+    """Ticks far apart (a late join's first scans, a scan from far ahead) never share a column:
+    every distance up to a few rings, as the oracle lists them."""
+    for gap in range(0, 3000, 8):
+        for late in (0, 7):
+            new, oracle = ScanLog(DT, 100.0), OracleScanLog(DT, 100.0)
+            for log in (new, oracle):
+                for k in (3, 3 + gap, 3 + gap + late, gap // 2):
+                    log.add(*_scan(1, k))
+            assert list(new.scans()) == list(oracle.scans())
+            assert new.digest(float(3 + gap + late)) == oracle.digest(float(3 + gap + late))
+
+
+@pytest.mark.slow
+def test_a_run_with_every_fault_keeps_its_scan_logs_and_event_log_with_the_oracle():
+    """``Simulation(tick_plane=False)`` gives every actor the oracle's log, ``True`` the array
+    log; over demo-all-faults (every fault kind: liars, spoofers, restarts, joins, corruption,
+    partitions...) the two runs end with the same scans in every UAV's log and the same event log."""
+    runs = {}
+    for plane in (True, False):
+        with Simulation("demo-all-faults", tick_plane=plane) as sim:
+            sim.run()
+            runs[plane] = (sim.metrics_dict()["event_log_sha256"],
+                           {uid: list(a.scans.scans()) for uid, a in sim.actors.items()},
+                           {type(a.scans) for a in sim.actors.values()})
+    assert runs[True][2] == {ScanLog} and runs[False][2] == {OracleScanLog}
+    assert sum(len(s) for s in runs[True][1].values()) > 1000
+    assert runs[True][:2] == runs[False][:2]

@@ -29,24 +29,32 @@ swarm. Both are still max-CRDTs: the log's state is a set of scans and its join 
 centre commutes with both (``keep(A | B) = keep(A) | keep(B)``), so order, loss and duplicates
 still cannot change the result. What "maps agree" then means is stated in
 :class:`swarm.testing.invariants.MapAgreementChecker`.
+
+Storage (issue 36, T5 and T6): one bit matrix per log, a row per origin and a column per tick in
+a ring of ``cap`` ticks (tick ``k`` in column ``k % cap``), with the scans' centres in a matrix of
+the same shape: adding a scan sets one bit and two doubles, forgetting clears whole columns, and
+a digest or an answer is a few array operations over all origins at once (the window's bytes of
+every row; their AND-NOT with a digest's rows; the horizon test on the centres of the lacking
+scans; the limit by position). :class:`agents.maps.scanlog_oracle.OracleScanLog` is the same log
+kept per origin in Python containers, the code this replaces: the specification the arrays are
+tested against (``Simulation(tick_plane=False)`` runs it).
 """
 
 from __future__ import annotations
 
 import math
-from array import array
+from bisect import bisect_left, bisect_right
 from collections.abc import Iterator
 from itertools import groupby
 from operator import itemgetter
-from typing import Any, cast
+from typing import cast
 
 import numpy as np
 
 ORIGIN_MAX = 2**31 - 1  # "every origin from lo on" in a digest's range
 FORGET_SLACK_TICKS = 64
 
-# Per origin: [bitmap, its base tick, tick -> scan, centres] (see ScanLog.__init__).
-_Origin = list[Any]  # (a list, mutated in place: cheaper than an object on add_tick's path)
+Scan = tuple[float, float, float, float]  # (t, x, y, r)
 Bitmaps = tuple[tuple[int, bytes], ...]  # a digest's (origin, bits) pairs (ScanDigest.bitmaps)
 Near = tuple[float, float, float]  # (x, y, H): only scans centred within H of (x, y)
 
@@ -59,29 +67,41 @@ def within(x: float, y: float, near: Near | None) -> bool:
     return dx * dx + dy * dy <= near[2] * near[2]
 
 
+def _round_cap(ticks: int) -> int:
+    """A ring size of at least ``ticks``: a multiple of 64 ticks (8 bytes of a row)."""
+    return -(-max(ticks, 64) // 64) * 64
+
+
 class ScanLog:
-    __slots__ = ("dt", "horizon_ticks", "_floor", "_org", "_scans", "count", "_version",
-                 "_cut_cache")
+    __slots__ = ("dt", "horizon_ticks", "_floor", "count", "_version", "_cut_cache",
+                 "_row", "_origins", "_sorted", "_rows", "_recs", "_bits", "_cen", "_bv", "_cv",
+                 "_cap", "_cap8", "_lo", "_hi")
 
     def __init__(self, dt: float, horizon_s: float = math.inf):
         self.dt = dt
         self.horizon_ticks = math.inf if math.isinf(horizon_s) else max(1, math.ceil(horizon_s / dt))
-        # origin -> [bits, base, scans, centres], one record per origin (add_tick, the receivers'
-        # hot path, looks up one dict instead of several):
-        # bits: bitmap of ticks >= base (bit k - base set: the scan of tick k is known), base a
-        #   multiple of 8 (bitmaps start on a byte);
-        # scans: tick -> (t, x, y, r);
-        # centres: x and y of the scan of tick k at 2 (k - base) and 2 (k - base) + 1, two
-        #   doubles per bit of `bits` (0.0 where no scan is known: the bits say which are): what
-        #   missing() tests a digest's lacking scans against the sender's horizon with, all at
-        #   once as one numpy array (a digest lacks hundreds of scans outside that horizon, and
-        #   lacks them again at every digest).
-        self._org: dict[int, _Origin] = {}
         self._floor = 0  # ticks before this are forgotten (forget_before)
-        self._scans: dict[int, dict[int, tuple[float, float, float, float]]] = {}  # origin -> its scans (as in _org)
         self.count = 0  # scans held
         self._version = 0  # bumped by every change: invalidates _cut_cache
         self._cut_cache: tuple[int, int, int, dict[int, bytes], Bitmaps] | None = None
+        # Rows: origin -> row (in the order origins were first heard; with its scans), row -> origin, and the
+        # origins ascending with their rows (built again when a row is added: None until then).
+        self._row: dict[int, tuple[int, dict[int, Scan]]] = {}  # (its row, _recs[row])
+        self._origins: list[int] = []
+        self._sorted: list[int] | None = []
+        self._rows = np.zeros(0, np.intp)
+        self._recs: list[dict[int, Scan]] = []  # row -> tick -> the scan as it was added (shared tuple)
+        # The ring: tick k of row r is bit k % 8 of _bits[r, (k % cap) // 8] (set: the scan is
+        # known), its centre _cen[r, 2 (k % cap)] and the next double (x, y; stale where the bit
+        # is clear). Every tick held lies in [_lo, _hi) (multiples of 8, _hi - _lo <= cap; empty
+        # when _lo >= _hi), so no two share a column; the ring grows when that would not hold.
+        # _bv and _cv: the same memory as flat memoryviews (add_tick's single bits and doubles).
+        # The ring starts small and grows by half as the ticks held spread (to about
+        # horizon_ticks + FORGET_SLACK_TICKS + a digest period, once forgetting keeps pace).
+        cap = _round_cap(0)
+        self._cap, self._cap8 = cap, cap // 8
+        self._set_ring(np.zeros((4, cap // 8), np.uint8), np.zeros((4, 2 * cap), np.float64))
+        self._lo = self._hi = 0
 
     def add(self, origin: int, t: float, x: float, y: float, r: float) -> bool:
         """Record a scan. False if this origin's scan of that tick was known already (or
@@ -92,49 +112,97 @@ class ScanLog:
             return False
         return self.add_tick(origin, tick, (t, x, y, r))
 
-    def add_tick(self, origin: int, tick: int, scan: tuple[float, float, float, float]) -> bool:
+    def add_tick(self, origin: int, tick: int, scan: Scan) -> bool:
         """:meth:`add` of ``scan = (t, x, y, r)`` whose tick ``round(t / dt) >= 0`` the caller
         knows already (a heard frame's scans are checked once for all receivers:
         :func:`agents.inbox.check_frame`); the tuple is stored as it is (shared, immutable)."""
         if tick < self._floor:
             return True
-        entry = self._org.get(origin)
-        if entry is None:
-            entry = self._org[origin] = [bytearray(), tick & ~7, {}, array("d")]
-            self._scans[origin] = entry[2]
-        bits: bytearray = entry[0]
-        base: int = entry[1]
-        centres: array[float] = entry[3]
-        if tick < base:  # an older scan (resent, or delayed): the bitmap grows downwards
-            grow = (base - (tick & ~7)) >> 3
-            bits[:0] = bytes(grow)
-            centres[:0] = array("d", bytes(128 * grow))  # (16 doubles a byte of bits)
-            base = entry[1] = base - 8 * grow
-        k = tick - base
-        i = k >> 3
-        bit = 1 << (k & 7)
-        if i < len(bits):
-            old = bits[i]
-            if old & bit:
-                return False
-            bits[i] = old | bit
-        else:
-            centres.frombytes(bytes(128 * (i + 1 - len(bits))))
-            bits.extend(bytes(i - len(bits)))
-            bits.append(bit)
-        entry[2][tick] = scan
-        centres[2 * k] = scan[1]
-        centres[2 * k + 1] = scan[2]
+        held = self._row.get(origin)
+        if held is None:
+            held = self._new_row(origin)
+        row, recs = held
+        if tick in recs:  # (= its bit set)
+            return False
+        recs[tick] = scan
+        if not self._lo <= tick < self._hi:
+            self._extend(tick)
+        cap = self._cap
+        c = tick % cap
+        self._bv[row * self._cap8 + (c >> 3)] |= 1 << (tick & 7)
+        j = 2 * (row * cap + c)
+        cv = self._cv
+        cv[j] = scan[1]
+        cv[j + 1] = scan[2]
         self.count += 1
         self._version += 1
         return True
 
-    def scans(self) -> Iterator[tuple[int, tuple[float, float, float, float]]]:
+    def _new_row(self, origin: int) -> tuple[int, dict[int, Scan]]:
+        """The row of an origin heard for the first time, and its scans by tick (the matrices
+        grow by half as many rows)."""
+        row = len(self._origins)
+        if row == len(self._bits):
+            n = row + max(4, row // 2)
+            bits = np.zeros((n, self._cap8), np.uint8)
+            bits[:row] = self._bits
+            cen = np.zeros((n, 2 * self._cap), np.float64)
+            if self._lo < self._hi:  # (only the centres of the ticks held: the rest of a row stays untouched memory)
+                cols = np.arange(self._lo, self._hi) % self._cap
+                cen.view(np.complex128)[:row, cols] = self._cen.view(np.complex128)[:row, cols]
+            self._set_ring(bits, cen)
+        recs: dict[int, Scan] = {}
+        self._row[origin] = (row, recs)
+        self._origins.append(origin)
+        self._recs.append(recs)
+        self._sorted = None
+        return row, recs
+
+    def _set_ring(self, bits: np.ndarray, cen: np.ndarray) -> None:
+        self._bits, self._cen = bits, cen
+        self._bv = bits.data.cast("B")
+        self._cv = cen.data.cast("B").cast("d")
+        self._cut_cache = None
+
+    def _extend(self, tick: int) -> None:
+        """Widen ``[_lo, _hi)`` to take ``tick``; a larger ring if the ticks held would then
+        share columns (the columns of the ticks held move to their new places)."""
+        t8 = tick & ~7
+        lo, hi = self._lo, self._hi
+        if lo >= hi:  # empty: every column is clear
+            self._lo, self._hi = t8, t8 + 8
+            return
+        new_lo, new_hi = min(lo, t8), max(hi, t8 + 8)
+        if new_hi - new_lo > self._cap:
+            cap = _round_cap(max(new_hi - new_lo, self._cap + self._cap // 2))
+            rows = len(self._bits)
+            bits = np.zeros((rows, cap // 8), np.uint8)
+            cen = np.zeros((rows, 2 * cap), np.float64)
+            b8 = np.arange(lo >> 3, hi >> 3)
+            bits[:, b8 % (cap // 8)] = self._bits[:, b8 % self._cap8]
+            ticks = np.arange(lo, hi)
+            cen.view(np.complex128)[:, ticks % cap] = self._cen.view(np.complex128)[:, ticks % self._cap]
+            self._cap, self._cap8 = cap, cap // 8
+            self._set_ring(bits, cen)
+        self._lo, self._hi = new_lo, new_hi
+
+    def _order(self) -> tuple[list[int], np.ndarray]:
+        """The origins ascending, and their rows in that order."""
+        ordered = self._sorted
+        if ordered is None:
+            origins = self._origins
+            rows = sorted(range(len(origins)), key=origins.__getitem__)
+            ordered = self._sorted = [origins[r] for r in rows]
+            self._rows = np.array(rows, np.intp)
+        return ordered, self._rows
+
+    def scans(self) -> Iterator[tuple[int, Scan]]:
         """Every scan held, as ``(origin, (t, x, y, r))``, by origin then tick."""
-        for origin in sorted(self._scans):
-            byt = self._scans[origin]
-            for k in sorted(byt):
-                yield origin, byt[k]
+        origins, rows = self._order()
+        for origin, row in zip(origins, rows.tolist()):
+            recs = self._recs[row]
+            for k in sorted(recs):
+                yield origin, recs[k]
 
     def merge(self, other: ScanLog, near: Near | None = None) -> int:
         """The state-based join: add every scan of ``other`` (inside ``near``, if given) to this
@@ -152,25 +220,54 @@ class ScanLog:
         if k_min <= self._floor:
             return
         self._floor = k_min
-        for entry in self._org.values():
-            base = entry[1]
-            if base >= k_min:
-                continue
-            drop = (k_min - base) >> 3
-            del entry[0][:drop]
-            del entry[3][:16 * drop]
-            entry[1] = base + 8 * drop
-            scans = entry[2]
-            for k in range(base, k_min):  # a few ticks per call: the log is trimmed as it goes
-                if scans.pop(k, None) is not None:
-                    self.count -= 1
-            self._version += 1
+        lo, hi = self._lo, self._hi
+        if lo >= hi or lo >= k_min:
+            return
+        end = min(hi, k_min)  # the columns of ticks lo..end - 1 are cleared
+        nrows = len(self._origins)
+        cols = (np.arange(lo >> 3, end >> 3) % self._cap8)
+        sub = self._bits[:nrows, cols]
+        if sub.any():
+            rows, j = np.nonzero(np.unpackbits(sub, axis=1, bitorder="little"))
+            recs = self._recs
+            for r, k in zip(rows.tolist(), (j + lo).tolist()):
+                del recs[r][k]
+            self.count -= len(rows)
+            self._bits[:nrows, cols] = 0
+        self._lo = end  # (= hi: empty)
+        self._version += 1
 
     def window(self, t_cut: float) -> tuple[int, int]:
         """``(tick0, k_cut)``: the ticks a digest cut at ``t_cut`` covers (tick0 a multiple of 8)."""
         k_cut = math.floor(t_cut / self.dt)
         lo = 0 if math.isinf(self.horizon_ticks) else max(0, k_cut - cast(int, self.horizon_ticks))
         return lo & ~7, k_cut
+
+    def _rows_window(self, tick0: int, k_cut: int, a: int, b: int | None) -> tuple[np.ndarray, int, int] | None:
+        """The bits of ticks ``tick0..k_cut`` (``tick0`` a multiple of 8, ``<= k_cut``) of the
+        ``a``-th to ``b - 1``-th origins in ascending order (``b`` None: of every row, in row
+        order) that can be set, as ``(part, jlo, c0)``: ``part[i, j]`` is the byte of ticks
+        ``tick0 + 8 (jlo + j) ..`` of the ``i``-th (bit ``k % 8`` for tick ``k``; ticks after
+        ``k_cut`` clear), every byte before ``jlo`` and after ``part`` is clear, and the ring
+        column of ``part[:, 0]`` is ``c0``, the others following it (wrapping). A copy. None:
+        nothing held there."""
+        lo, hi = self._lo, self._hi
+        n = ((k_cut - tick0) >> 3) + 1
+        jlo, jhi = max(0, (lo - tick0) >> 3), min(n, (hi - tick0) >> 3)
+        if lo >= hi or jhi <= jlo or (b is not None and a >= b):
+            return None
+        c0 = ((tick0 >> 3) + jlo) % self._cap8
+        m = jhi - jlo
+        rows: slice | np.ndarray = slice(0, len(self._origins)) if b is None else self._order()[1][a:b]
+        if c0 + m <= self._cap8:
+            part = self._bits[rows, c0:c0 + m]
+            if b is None:
+                part = part.copy()
+        else:
+            part = self._bits[rows].take(np.arange(c0, c0 + m) % self._cap8, axis=1)
+        if jhi == n:
+            part[:, -1] &= (1 << (((k_cut - tick0) & 7) + 1)) - 1  # the last byte's ticks up to k_cut
+        return part, jlo, c0
 
     def _cut(self, tick0: int, k_cut: int) -> tuple[dict[int, bytes], Bitmaps]:
         """Per origin, the bitmap bytes of ticks ``tick0..k_cut`` (bit ``k - tick0``; trailing
@@ -181,20 +278,17 @@ class ScanLog:
         if c is not None and c[0] == tick0 and c[1] == k_cut and c[2] == self._version:
             return c[3], c[4]
         out: dict[int, bytes] = {}
-        org = self._org
-        n = ((k_cut - tick0) >> 3) + 1
-        last = (1 << (((k_cut - tick0) & 7) + 1)) - 1  # the last byte's ticks up to k_cut
-        for origin in sorted(org):
-            bits, base = org[origin][0], org[origin][1]
-            if base > k_cut:
-                continue
-            i = (tick0 - base) >> 3  # the window's first byte in bits (tick0, base: multiples of 8)
-            b: bytearray = bits[i:i + n] if i >= 0 else bytearray(-i) + bits[:n + i]  # (< 0: pad)
-            if len(b) == n:
-                b[-1] &= last
-            packed = bytes(b.rstrip(b"\0"))
-            if packed:
-                out[origin] = packed
+        got = self._rows_window(tick0, k_cut, 0, None)
+        if got is not None:
+            part, jlo, _ = got
+            m = part.shape[1]
+            buf = part.tobytes()
+            pad = bytes(jlo)
+            origins, rows = self._order()
+            for origin, r in zip(origins, rows.tolist()):
+                b = buf[r * m:r * m + m].rstrip(b"\0")
+                if b:
+                    out[origin] = pad + b
         items = tuple(out.items())
         self._cut_cache = (tick0, k_cut, self._version, out, items)
         return out, items
@@ -239,49 +333,44 @@ class ScanLog:
         ``near``: only scans centred inside that horizon (the digest sender's: it would not
         keep the others, and would be sent them again at every digest)."""
         k_cut = math.floor(t_cut / self.dt)
-        if k_cut < 0 or limit <= 0 or not self._org or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
+        if k_cut < 0 or limit <= 0 or not self._row or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
             return
-        mine, items = self._cut(tick0, k_cut)
-        if lo == 0 and hi == ORIGIN_MAX and bitmaps == items:
-            return  # the usual case on a good radio: the same knowledge, nothing to send
-        theirs = dict(bitmaps)
-        differ = [(origin, b, other) for origin, b in mine.items()
-                  if lo <= origin <= hi and (other := theirs.get(origin, b"")) != b]
-        if not differ:
+        origins, rows = self._order()
+        a, b = bisect_left(origins, lo), bisect_right(origins, hi)
+        got = self._rows_window(tick0, k_cut, a, b)
+        if got is None:
             return
-        # All at once, a row of w ticks (tick0 on) per origin that differs: bit r * w + j set
-        # where this log knows the scan of tick tick0 + j of the r-th and the digest does not.
-        n = ((k_cut - tick0) >> 3) + 1
-        w = 8 * n
-        have = np.frombuffer(b"".join([b.ljust(n, b"\0") for _, b, _ in differ]), np.uint8)
-        known = np.frombuffer(b"".join([other[:n].ljust(n, b"\0") for _, _, other in differ]), np.uint8)
-        lacks = np.flatnonzero(np.unpackbits(have & ~known, bitorder="little").view(bool))
-        if near is not None and lacks.size:
-            lacks = lacks[_inside(lacks, w, tick0, [self._org[origin] for origin, _, _ in differ], near)]
+        mine, jlo, c0 = got
+        # AND-NOT with the digest's bytes for the same origins and ticks (inverted as bytes: a
+        # bit clear where the sender knows the scan; an origin it does not list, all set).
+        m = mine.shape[1]
+        get = dict(bitmaps).get
+        end = jlo + m
+        unknown = b"".join([get(o, b"")[jlo:end].ljust(m, b"\0") for o in origins[a:b]]).translate(_NOT)
+        mine &= np.frombuffer(unknown, np.uint8).reshape(mine.shape)
+        if not np.count_nonzero(mine):
+            return
+        lacks = np.unpackbits(mine, bitorder="little").view(bool).nonzero()[0]  # bit i * 8 m + j: row i, tick
+        row, j = np.divmod(lacks, 8 * m)  # tick0 + 8 jlo + j
+        if near is not None:
+            # The centres of the lacking scans, each (x, y) as one complex x + iy: within() of
+            # each, the same operations on the same doubles.
+            cap = self._cap
+            col = (8 * c0 + j) % cap if 8 * (c0 + m) > cap else 8 * c0 + j
+            z = self._cen.view(np.complex128)[rows[a:b].take(row), col]
+            z -= complex(near[0], near[1])  # (x - near[0]) + i (y - near[1])
+            dx, dy = z.real, z.imag
+            inside = dx * dx + dy * dy <= near[2] * near[2]
+            row, j = row[inside], j[inside]
         # The first `limit`, by origin then tick (the rows' order, then the bits').
-        row, j = np.divmod(lacks[:limit], w)
-        for r, ticks in groupby(zip(row.tolist(), (j + tick0).tolist()), itemgetter(0)):
-            origin = differ[r][0]
-            scans = self._org[origin][2]
-            yield origin, [v for _, k in ticks for v in scans[k]]
+        recs, rlist = self._recs, rows.tolist()
+        first = tick0 + 8 * jlo
+        for i, ticks in groupby(zip(row[:limit].tolist(), j[:limit].tolist()), itemgetter(0)):
+            scans = recs[rlist[a + i]]
+            yield origins[a + i], [v for _, k in ticks for v in scans[first + k]]
 
 
-def _inside(lacks: np.ndarray, w: int, tick0: int, entries: list[_Origin], near: Near) -> np.ndarray:
-    """Which of the bits ``lacks`` (bit ``r * w + j``: the scan of tick ``tick0 + j`` of
-    ``entries[r]``) are scans centred within the horizon ``near``: :func:`within` of each,
-    as one array (the same operations on the same doubles, so the same results)."""
-    row = lacks // w
-    # Every entry's centres one after the other, each pair as one complex x + iy (one gather
-    # for both): bit r * w + j's scan is at index r * w + j + shift[r].
-    shift, start = [], 0
-    for r, entry in enumerate(entries):
-        shift.append(start + tick0 - entry[1] - r * w)
-        start += len(entry[3]) >> 1
-    z = np.frombuffer(b"".join([entry[3] for entry in entries]), np.complex128).take(lacks + np.array(shift).take(row))
-    z -= complex(near[0], near[1])  # (x - near[0]) + i (y - near[1])
-    dx, dy = z.real, z.imag
-    inside: np.ndarray = dx * dx + dy * dy <= near[2] * near[2]
-    return inside
+_NOT = bytes(255 - i for i in range(256))  # bytes.translate table: every bit inverted
 
 
 __all__ = ["ORIGIN_MAX", "Near", "ScanLog", "within"]

@@ -40,10 +40,13 @@ class Fleet:
 
     def __init__(self, sc: Scenario, world: World, grid: Grid, tau: float, rng: RngTree, log: EventLog,
                  settings: ActorSettings, decoder: DecodeCache, map_group: MapGroup | None,
-                 batch_planning: bool, types: dict[str, UavType], actors: dict[int, UavActor], lost: LostCopy):
+                 batch_planning: bool, types: dict[str, UavType], actors: dict[int, UavActor], lost: LostCopy,
+                 tick_plane: bool = True):
         """``actors``: the run's actors by UAV id, filled here as UAVs are added (shared with the
         transmission, which fills their mailboxes); ``lost``: how a frame copy the fleet drops
-        is counted (a down or landed UAV's unread frames)."""
+        is counted (a down or landed UAV's unread frames); ``tick_plane``: each actor's
+        (:class:`~agents.actor.UavActor`)."""
+        self.tick_plane = tick_plane
         self.scenario = sc
         self.world = world
         self.grid = grid
@@ -92,7 +95,7 @@ class Fleet:
             uid, b.name, b.kind, self.grid, self.tau, self.planner(uid, b.name, b.kind.name),
             self.rng.generator("uav", b.name, *stream_key), self.settings,
             mailbox if mailbox is not None else Mailbox(self.scenario.radio.mailbox_capacity),
-            decoder=self.decoder, map_group=self.map_group,
+            decoder=self.decoder, map_group=self.map_group, tick_plane=self.tick_plane,
         )
         self.actors[uid] = actor
         return actor
