@@ -135,6 +135,9 @@ class InboxCounters(Protocol):
 
 
 Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each frame drained
+# The receive service's memo of one tick (Inbox.merge's ``memo``): per (t, bounds), per frame's
+# bytes, its Heard or the FrameError decoding it raised.
+HeardMemo = dict[Hashable, dict[bytes, "Heard | FrameError"]]
 
 
 class Inbox:
@@ -181,7 +184,8 @@ class Inbox:
         return digests
 
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
-              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:
+              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
+              memo: HeardMemo | None = None) -> Received:
         """Merge ``frames`` (a mailbox's ``(arrival, sender, data)``), heard at ``t`` by the UAV
         at ``(here_x, here_y)``, into its map, scan log (None: not kept) and knowledge; count
         them in ``counters``. Returns ``(sender, nbytes, accepted)`` per frame.
@@ -189,7 +193,14 @@ class Inbox:
         A frame that does not decode (with ``[radio] auth``, one failing its MAC too) is
         rejected. One that decodes can still carry numbers no honest UAV sends (a time of
         1e308 s, a threat with no influence ring): those messages are ignored and counted
-        (:func:`check_frame`)."""
+        (:func:`check_frame`).
+
+        ``memo``: the receive service's (:mod:`swarm.kernel.receiving`), one per tick, shared by
+        every receiver it serves: each frame's :class:`Heard` (or the :class:`FrameError` it
+        raised) by ``(t, bounds)`` and bytes, so a frame delivered to k receivers is looked up
+        in the decode cache once, not k times. None (the per-actor path, ``tick_plane=False``):
+        one call into the cache per frame copy. Either way the same :class:`Heard` (a pure
+        function of the frame's bytes and the key), so the same merge."""
         received: Received = []
         if not frames:
             return received
@@ -216,16 +227,19 @@ class Inbox:
         digests = self.digests
         delivered = ignored = strange = beyond = 0
         horizon2 = self.horizon2
+        table = memo.setdefault(key, {}) if memo is not None else None
         for _arrival, sender, data in frames:
-            try:
-                heard = heard_of(data, key, check)
-            except AuthError:  # (a FrameError too)
+            if table is None or (heard := table.get(data)) is None:  # (a miss: into the decode cache)
+                try:
+                    heard = heard_of(data, key, check)
+                except FrameError as exc:  # (the auth failures among them: AuthError)
+                    heard = exc
+                if table is not None and type(data) is bytes:
+                    table[data] = heard
+            if type(heard) is not Heard:  # a FrameError: the frame is rejected
                 counters.rejected += 1
-                counters.rejected_auth += 1
-                append((sender, len(data), False))
-                continue
-            except FrameError:
-                counters.rejected += 1
+                if isinstance(heard, AuthError):
+                    counters.rejected_auth += 1
                 append((sender, len(data), False))
                 continue
             delivered += 1
@@ -275,4 +289,4 @@ class Inbox:
         return received
 
 
-__all__ = ["Bounds", "Heard", "HeardScan", "Inbox", "InboxCounters", "Received", "check_frame"]
+__all__ = ["Bounds", "Heard", "HeardMemo", "HeardScan", "Inbox", "InboxCounters", "Received", "check_frame"]

@@ -147,7 +147,7 @@ def assemble(sc: Scenario, batch_planning: bool, tick_plane: bool = True) -> Par
     transmission = Transmission(radio, clock, world, actors, observer.lost)
     types = build.uav_types(sc)
     fleet = Fleet(sc, world, grid, tau, rng, log, build.actor_settings(sc, geo), decoder, map_group, batch_planning,
-                  types, actors, transmission.lose)
+                  types, actors, transmission.lose, receive_service=tick_plane)
     mission = _mission(sc, world, fleet, log, rng, geo)
     batteries = mission.battery_of if mission is not None else _no_battery
     faults = RunFaults(clock, world, fleet, log, rng, names, area, dt, sc.radio.latency_s, injector, radio, batteries)
