@@ -270,11 +270,17 @@ class UavActor:
 
     def receive(self, r: SensorReading, memo: HeardMemo | None = None) -> None:
         """Merge the frames in its mailbox, heard at ``r.t`` where it senses itself (its own
-        reading), into its map, scan log and knowledge (:meth:`agents.inbox.Inbox.merge`; the
-        receive service passes its per-tick ``memo``). The first thing of its step, or done for
-        it by the receive service just before the step (:attr:`served`)."""
-        self._received = self.inbox.merge(self.mailbox.drain(), r.t, r.x, r.y, self.umap, self.knowledge,
-                                          self.scans if self._log_scans else None, self.counters, memo)
+        reading), into its map, scan log and knowledge (:meth:`agents.inbox.Inbox.merge`). The
+        first thing of its step, or done for it by the receive service just before the step
+        (:attr:`served`), with the same result (:meth:`~agents.inbox.Inbox.take`, sharing its
+        per-tick ``memo`` among receivers)."""
+        scans = self.scans if self._log_scans else None
+        if memo is None:
+            self._received = self.inbox.merge(self.mailbox.drain(), r.t, r.x, r.y, self.umap, self.knowledge, scans,
+                                              self.counters)
+        else:
+            self._received = self.inbox.take(self.mailbox.drain(), r.t, r.x, r.y, self.umap, self.knowledge, scans,
+                                             self.counters, memo)
 
     def goto(self, x: float, y: float) -> None:
         """An operator's waypoint (the embedding API's ``set_waypoint``, a ground station's

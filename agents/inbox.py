@@ -135,9 +135,36 @@ class InboxCounters(Protocol):
 
 
 Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each frame drained
-# The receive service's memo of one tick (Inbox.merge's ``memo``): per (t, bounds), per frame's
-# bytes, its Heard or the FrameError decoding it raised.
-HeardMemo = dict[Hashable, dict[bytes, "Heard | FrameError"]]
+
+
+@dataclass(frozen=True, slots=True)
+class Taken:
+    """A :class:`Heard` as the receive service keeps it for the tick (:meth:`Inbox.take`): the
+    same content, each hello and intent flattened to the tuple of fields a receiver copies,
+    and whether anything beyond scans, hellos and intents is in it."""
+
+    t_frame: float
+    scans: tuple[HeardScan, ...]
+    ignored: int
+    strange: int
+    hellos: tuple[tuple[int, str, float, float, float, float], ...]  # (uav, type, x, y, v, theta)
+    # (uav, wx, wy, mode, target, asks): asks = a relief request (issue 33: search mode, a target)
+    intents: tuple[tuple[int, float, float, int, int, bool], ...]
+    rest: bool  # tracks, threats or digests (rare: looked at only then)
+    heard: Heard
+
+    @classmethod
+    def of(cls, h: Heard) -> Taken:
+        return cls(h.t_frame, h.scans, h.ignored, h.strange,
+                   tuple((m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos),
+                   tuple((i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0)
+                         for i in h.intents),
+                   bool(h.tracks or h.threats or h.digests), h)
+
+
+# The receive service's memo of one tick (Inbox.take): per (t, bounds), per frame's bytes, what
+# it is to a receiver (Taken) or the FrameError decoding it raised.
+HeardMemo = dict[Hashable, dict[bytes, "Taken | FrameError"]]
 
 
 class Inbox:
@@ -183,9 +210,103 @@ class Inbox:
         digests, self.digests = self.digests, []
         return digests
 
+    def take(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
+             umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
+             memo: HeardMemo) -> Received:
+        """:meth:`merge`, for the receive service (:mod:`swarm.kernel.receiving`): the same
+        rules with the same results, in a loop that does per receiver only what depends on
+        the receiver. ``memo`` is the service's for this tick, shared by every receiver it
+        serves: a frame delivered to k receivers is looked up in the decode cache (and its
+        messages flattened, :class:`Taken`) once, not k times. :meth:`merge` stays the
+        specification (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py
+        compares the two tick by tick)."""
+        received: Received = []
+        if not frames:
+            return received
+        append = received.append
+        k = knowledge
+        peers = k.peers
+        peer = k.peer
+        me = self.uid
+        stamp = umap.stamp
+        grid = self.grid
+        disk_stamp = grid.disk_stamp
+        known_disk = grid.disk_lookup()
+        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
+        old = t - self.fresh_s
+        log_add = scans.add_tick if scans is not None else None
+        bounds = self.bounds
+        key = (t, bounds)
+        table = memo.get(key)
+        if table is None:
+            table = memo[key] = {}
+        heard_of = self._heard
+        digests = self.digests
+        delivered = ignored = strange = beyond = 0
+        horizon2 = self.horizon2
+        for _arrival, sender, data in frames:
+            rec = table.get(data)
+            if rec is None:  # the first receiver of this frame (at this t) this tick
+                try:
+                    rec = Taken.of(heard_of(data, key, partial(check_frame, t=t, bounds=bounds)))
+                except FrameError as exc:  # (the auth failures among them: AuthError)
+                    rec = exc
+                if type(data) is bytes:
+                    table[data] = rec
+            if type(rec) is not Taken:  # a FrameError: rejected
+                counters.rejected += 1
+                if isinstance(rec, AuthError):
+                    counters.rejected_auth += 1
+                append((sender, len(data), False))
+                continue
+            delivered += 1
+            append((sender, len(data), True))
+            ignored += rec.ignored
+            strange += rec.strange
+            for origin, tick, scan, disk_key in rec.scans:
+                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
+                    beyond += 1
+                elif log_add is None or log_add(origin, tick, scan):
+                    d = known_disk(disk_key, _MISSING)
+                    if d is _MISSING:
+                        if once is not None and scan[0] < old:
+                            once(*disk_key, scan[0])
+                            continue
+                        d = disk_stamp(*disk_key)
+                    if d is not None:
+                        stamp(d, scan[0])
+            ft = rec.t_frame
+            for uav, typ, x, y, v, theta in rec.hellos:
+                if uav != me:
+                    p = peers.get(uav) or peer(uav)
+                    if ft >= p.t_pose:
+                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = typ, x, y, v, theta, ft
+            for uav, wx, wy, mode, target, asks in rec.intents:
+                if uav != me:
+                    p = peers.get(uav) or peer(uav)
+                    if ft >= p.t_intent:
+                        p.wx, p.wy, p.mode, p.target, p.t_intent = wx, wy, mode, target, ft
+                        if asks:
+                            p.mode, p.asks = MODE_SURVEIL, True
+                        elif p.asks:
+                            p.asks = False
+            if rec.rest:
+                heard = rec.heard
+                if heard.tracks:
+                    k.merge_tracks(heard.tracks)
+                for th in heard.threats:
+                    k.add_threat(*th)
+                for dg in heard.digests:
+                    if dg.uav != me:
+                        digests.append(dg)
+        counters.delivered += delivered
+        counters.scans_ignored += ignored
+        counters.scans_beyond += beyond
+        counters.messages_ignored += strange
+        return received
+
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
-              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
-              memo: HeardMemo | None = None) -> Received:
+              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:
         """Merge ``frames`` (a mailbox's ``(arrival, sender, data)``), heard at ``t`` by the UAV
         at ``(here_x, here_y)``, into its map, scan log (None: not kept) and knowledge; count
         them in ``counters``. Returns ``(sender, nbytes, accepted)`` per frame.
@@ -193,14 +314,7 @@ class Inbox:
         A frame that does not decode (with ``[radio] auth``, one failing its MAC too) is
         rejected. One that decodes can still carry numbers no honest UAV sends (a time of
         1e308 s, a threat with no influence ring): those messages are ignored and counted
-        (:func:`check_frame`).
-
-        ``memo``: the receive service's (:mod:`swarm.kernel.receiving`), one per tick, shared by
-        every receiver it serves: each frame's :class:`Heard` (or the :class:`FrameError` it
-        raised) by ``(t, bounds)`` and bytes, so a frame delivered to k receivers is looked up
-        in the decode cache once, not k times. None (the per-actor path, ``tick_plane=False``):
-        one call into the cache per frame copy. Either way the same :class:`Heard` (a pure
-        function of the frame's bytes and the key), so the same merge."""
+        (:func:`check_frame`)."""
         received: Received = []
         if not frames:
             return received
@@ -227,19 +341,16 @@ class Inbox:
         digests = self.digests
         delivered = ignored = strange = beyond = 0
         horizon2 = self.horizon2
-        table = memo.setdefault(key, {}) if memo is not None else None
         for _arrival, sender, data in frames:
-            if table is None or (heard := table.get(data)) is None:  # (a miss: into the decode cache)
-                try:
-                    heard = heard_of(data, key, check)
-                except FrameError as exc:  # (the auth failures among them: AuthError)
-                    heard = exc
-                if table is not None and type(data) is bytes:
-                    table[data] = heard
-            if type(heard) is not Heard:  # a FrameError: the frame is rejected
+            try:
+                heard = heard_of(data, key, check)
+            except AuthError:  # (a FrameError too)
                 counters.rejected += 1
-                if isinstance(heard, AuthError):
-                    counters.rejected_auth += 1
+                counters.rejected_auth += 1
+                append((sender, len(data), False))
+                continue
+            except FrameError:
+                counters.rejected += 1
                 append((sender, len(data), False))
                 continue
             delivered += 1
@@ -289,4 +400,4 @@ class Inbox:
         return received
 
 
-__all__ = ["Bounds", "Heard", "HeardMemo", "HeardScan", "Inbox", "InboxCounters", "Received", "check_frame"]
+__all__ = ["Bounds", "Heard", "HeardMemo", "HeardScan", "Inbox", "InboxCounters", "Received", "Taken", "check_frame"]
