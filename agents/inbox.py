@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Protocol
 
-from agents.knowledge import Knowledge
+from agents.knowledge import Knowledge, TrackRow
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import DiskKey, Grid
 from agents.maps.scanlog import ScanLog
@@ -150,6 +150,7 @@ class Taken:
     hellos: tuple[tuple[int, str, float, float, float, float], ...]  # (uav, type, x, y, v, theta)
     # (uav, wx, wy, mode, target, asks): asks = a relief request (issue 33: search mode, a target)
     intents: tuple[tuple[int, float, float, int, int, bool], ...]
+    tracks: tuple[TrackRow, ...]  # every sane track item, in order
     rest: bool  # tracks, threats or digests (rare: looked at only then)
     heard: Heard
 
@@ -159,6 +160,7 @@ class Taken:
                    tuple((m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos),
                    tuple((i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0)
                          for i in h.intents),
+                   tuple((it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in h.tracks),
                    bool(h.tracks or h.threats or h.digests), h)
 
 
@@ -292,8 +294,8 @@ class Inbox:
                             p.asks = False
             if rec.rest:
                 heard = rec.heard
-                if heard.tracks:
-                    k.merge_tracks(heard.tracks)
+                if rec.tracks:
+                    k.merge_track_rows(rec.tracks)
                 for th in heard.threats:
                     k.add_threat(*th)
                 for dg in heard.digests:
