@@ -63,6 +63,21 @@ def test_demo_all_faults_in_lockstep_short():
     assert_lockstep("demo-all-faults", duration_s=100)
 
 
+@pytest.mark.slow  # two runs of 100 UAVs for 40 s, states compared every tick (about 8 s)
+def test_bench_100_in_lockstep():
+    """Tiled maps, a knowledge horizon (scans beyond it neither applied nor logged) and
+    anti-entropy resends (stamped into one map each): paths the generated scenarios, on small
+    dense areas without a horizon, do not take. The run must take them for the test to count."""
+    seen: dict[str, int] = {}
+
+    def count(sim: Simulation, tick: int) -> None:
+        cs = [a.counters for a in sim.actors.values()]
+        seen.update(resent=sum(c.scans_resent for c in cs), beyond=sum(c.scans_beyond for c in cs))
+
+    assert_lockstep("bench-100", planner="greedy", duration_s=40, seed=0, tamper=count)
+    assert seen["resent"] > 0 and seen["beyond"] > 0, seen
+
+
 # --- the comparison finds what differs ---------------------------------------------------------------
 
 
