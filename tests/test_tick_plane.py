@@ -2,7 +2,7 @@
 array work in per-tick services, ``tick_plane=False`` the per-actor code they replace. Over
 generated scenarios with faults of every registered kind (``FaultKind.generate``, drawn by
 :func:`swarm.testing.strategies.scenario_documents`), with and without ``[radio] auth``, and
-with small mailboxes (overflow), both are stepped in lockstep and every actor's state is
+with small mailboxes (overflow), knowledge horizons and anti-entropy periods, both are stepped in lockstep and every actor's state is
 compared after every tick: maps bit for bit, scan logs, peers, tracks, threats, counters,
 mailboxes, pending digests, plans (:mod:`swarm.testing.oracle`); then the event logs' bytes.
 
@@ -28,11 +28,20 @@ _HEALTH = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_
 @st.composite
 def lockstep_documents(draw: st.DrawFn, max_uavs: int = 6, max_duration_s: int = 60) -> dict:
     """A generated scenario (faults of every kind, lossy radios, small mailboxes among them),
-    ``[radio] auth`` on or off (a spoofer's frames rejected, or merged)."""
+    ``[radio] auth`` on or off (a spoofer's frames rejected, or merged), a knowledge horizon or
+    none, anti-entropy at its default period, more often, or off."""
     doc = draw(scenario_documents(min_uavs=2, max_uavs=max_uavs, min_duration_s=20, max_duration_s=max_duration_s,
                                   max_faults=5))
     if draw(st.booleans(), label="auth"):
         doc["radio"]["auth"] = True
+    # A knowledge horizon (scans beyond it neither applied nor logged; maps then not in a
+    # MapGroup), anti-entropy more often, or none (no scan log kept at all).
+    horizon = draw(st.sampled_from([None, 1500.0, 4000.0, 10000.0]), label="sync_horizon_m")
+    if horizon is not None:
+        doc["radio"]["sync_horizon_m"] = horizon
+    every = draw(st.sampled_from([None, 2.0, 0.0]), label="sync_every_s")
+    if every is not None:
+        doc["radio"]["sync_every_s"] = every
     return doc
 
 
