@@ -137,36 +137,28 @@ class InboxCounters(Protocol):
 Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each frame drained
 
 
-@dataclass(frozen=True, slots=True)
-class Taken:
-    """A :class:`Heard` as the receive service keeps it for the tick (:meth:`Inbox.take`): the
-    same content, each hello and intent flattened to the tuple of fields a receiver copies,
-    and whether anything beyond scans, hellos and intents is in it."""
+# A Heard as the receive service keeps it for the tick (Inbox.take), a plain tuple (cheaper to
+# build and to unpack than an object): (t_frame, scans, ignored, strange, hellos, intents,
+# tracks, rest, heard), the Heard's content with each hello flattened to (uav, type, x, y, v,
+# theta), each intent to (uav, wx, wy, mode, target, asks) (asks: a relief request, issue 33:
+# search mode with a target), each track item to a TrackRow; rest: whether it has tracks,
+# threats or digests (rare: looked at only then); heard: the Heard itself.
+Taken = tuple[float, tuple[HeardScan, ...], int, int, tuple[tuple[int, str, float, float, float, float], ...],
+              tuple[tuple[int, float, float, int, int, bool], ...], tuple[TrackRow, ...], bool, Heard]
 
-    t_frame: float
-    scans: tuple[HeardScan, ...]
-    ignored: int
-    strange: int
-    hellos: tuple[tuple[int, str, float, float, float, float], ...]  # (uav, type, x, y, v, theta)
-    # (uav, wx, wy, mode, target, asks): asks = a relief request (issue 33: search mode, a target)
-    intents: tuple[tuple[int, float, float, int, int, bool], ...]
-    tracks: tuple[TrackRow, ...]  # every sane track item, in order
-    rest: bool  # tracks, threats or digests (rare: looked at only then)
-    heard: Heard
 
-    @classmethod
-    def of(cls, h: Heard) -> Taken:
-        return cls(h.t_frame, h.scans, h.ignored, h.strange,
-                   tuple((m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos),
-                   tuple((i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0)
-                         for i in h.intents),
-                   tuple((it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in h.tracks),
-                   bool(h.tracks or h.threats or h.digests), h)
+def taken(h: Heard) -> Taken:
+    """``h`` as :data:`Taken`."""
+    return (h.t_frame, h.scans, h.ignored, h.strange,
+            tuple([(m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos]),
+            tuple([(i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0) for i in h.intents]),
+            tuple([(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in h.tracks]) if h.tracks else (),
+            bool(h.tracks or h.threats or h.digests), h)
 
 
 # The receive service's memo of one tick (Inbox.take): per (t, bounds), per frame's bytes, what
 # it is to a receiver (Taken) or the FrameError decoding it raised.
-HeardMemo = dict[Hashable, dict[bytes, "Taken | FrameError"]]
+HeardMemo = dict[Hashable, dict[bytes, Taken | FrameError]]
 
 
 class Inbox:
@@ -219,7 +211,7 @@ class Inbox:
         rules with the same results, in a loop that does per receiver only what depends on
         the receiver. ``memo`` is the service's for this tick, shared by every receiver it
         serves: a frame delivered to k receivers is looked up in the decode cache (and its
-        messages flattened, :class:`Taken`) once, not k times. :meth:`merge` stays the
+        messages flattened, :data:`Taken`) once, not k times. :meth:`merge` stays the
         specification (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py
         compares the two tick by tick)."""
         received: Received = []
@@ -250,22 +242,23 @@ class Inbox:
             rec = table.get(data)
             if rec is None:  # the first receiver of this frame (at this t) this tick
                 try:
-                    rec = Taken.of(heard_of(data, key, partial(check_frame, t=t, bounds=bounds)))
+                    rec = taken(heard_of(data, key, partial(check_frame, t=t, bounds=bounds)))
                 except FrameError as exc:  # (the auth failures among them: AuthError)
                     rec = exc
                 if type(data) is bytes:
                     table[data] = rec
-            if type(rec) is not Taken:  # a FrameError: rejected
+            if type(rec) is not tuple:  # a FrameError: rejected
                 counters.rejected += 1
                 if isinstance(rec, AuthError):
                     counters.rejected_auth += 1
                 append((sender, len(data), False))
                 continue
+            ft, heard_scans, n_ignored, n_strange, hellos, intents, tracks, rest, heard = rec
             delivered += 1
             append((sender, len(data), True))
-            ignored += rec.ignored
-            strange += rec.strange
-            for origin, tick, scan, disk_key in rec.scans:
+            ignored += n_ignored
+            strange += n_strange
+            for origin, tick, scan, disk_key in heard_scans:
                 if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
                     beyond += 1
                 elif log_add is None or log_add(origin, tick, scan):
@@ -277,13 +270,12 @@ class Inbox:
                         d = disk_stamp(*disk_key)
                     if d is not None:
                         stamp(d, scan[0])
-            ft = rec.t_frame
-            for uav, typ, x, y, v, theta in rec.hellos:
+            for uav, typ, x, y, v, theta in hellos:
                 if uav != me:
                     p = peers.get(uav) or peer(uav)
                     if ft >= p.t_pose:
                         p.type, p.x, p.y, p.v, p.theta, p.t_pose = typ, x, y, v, theta, ft
-            for uav, wx, wy, mode, target, asks in rec.intents:
+            for uav, wx, wy, mode, target, asks in intents:
                 if uav != me:
                     p = peers.get(uav) or peer(uav)
                     if ft >= p.t_intent:
@@ -292,10 +284,9 @@ class Inbox:
                             p.mode, p.asks = MODE_SURVEIL, True
                         elif p.asks:
                             p.asks = False
-            if rec.rest:
-                heard = rec.heard
-                if rec.tracks:
-                    k.merge_track_rows(rec.tracks)
+            if rest:
+                if tracks:
+                    k.merge_track_rows(tracks)
                 for th in heard.threats:
                     k.add_threat(*th)
                 for dg in heard.digests:
@@ -402,4 +393,4 @@ class Inbox:
         return received
 
 
-__all__ = ["Bounds", "Heard", "HeardMemo", "HeardScan", "Inbox", "InboxCounters", "Received", "Taken", "check_frame"]
+__all__ = ["Bounds", "Heard", "HeardMemo", "HeardScan", "Inbox", "InboxCounters", "Received", "Taken", "check_frame", "taken"]

@@ -1,9 +1,9 @@
 """The tick plane (issue 36) against its oracle: ``Simulation(tick_plane=True)`` runs the tick's
 array work in per-tick services, ``tick_plane=False`` the per-actor code they replace. Over
 generated scenarios with faults of every registered kind (``FaultKind.generate``, drawn by
-:func:`swarm.testing.strategies.scenario_documents`), with and without ``[radio] auth``, and
-with small mailboxes (overflow), knowledge horizons and anti-entropy periods, both are stepped in lockstep and every actor's state is
-compared after every tick: maps bit for bit, scan logs, peers, tracks, threats, counters,
+:func:`swarm.testing.strategies.scenario_documents`), with and without ``[radio] auth``, with
+small mailboxes (overflow), knowledge horizons and anti-entropy periods, both are stepped in
+lockstep and every actor's state is compared after every tick: maps bit for bit, scan logs, peers, tracks, threats, counters,
 mailboxes, pending digests, plans (:mod:`swarm.testing.oracle`); then the event logs' bytes.
 
 The comparison is itself tested: a state changed on one side only (a map cell, a peer's pose,
