@@ -9,8 +9,10 @@ delivered before it began, sensing is done), and a receiver's merge reads only i
 its own reading (where it is, its clock) and the frames delivered to it, so each actor ends up
 with exactly the state its own step would have given it. What the service shares between
 receivers is what is the same for all of them: a frame delivered to k receivers is looked up in
-the decode cache, checked and its scans' disks found once, not k times (the per-tick memo of
-:meth:`agents.inbox.Inbox.merge`).
+the decode cache (checked, if no receiver checked it yet) and its messages flattened into the
+tuples a receiver copies once, not k times (the per-tick memo of :meth:`agents.inbox.Inbox.take`).
+What is left per (receiver, frame) is what depends on the receiver: its horizon, its scan log,
+its map, its peers and tracks.
 
 Maps shared in a :class:`~agents.maps.mapgroup.MapGroup` see their stamps in another order (every
 heard scan before the tick's own scans, instead of actor by actor); a group only shares storage,
