@@ -13,7 +13,7 @@ the field), or None::
     assert_lockstep("paper-case1", duration_s=60, seed=3)
 
 What a UAV's state is here (:func:`actor_state`): its map cell for cell (a digest of the
-last-seen times' bytes), its scan log (every scan held, in order, and the count), its peers,
+last-seen times' bytes), its scan log (a digest of every scan held, in order, and the count), its peers,
 tracks and threats (in the order its dictionaries hold them: insertion order is state too), its
 counters, its mailbox (frames waiting, and the mailbox's statistics), the digests it heard and
 has not answered, its plan and its frame sequence number. Values are compared by ``repr`` (so a
@@ -30,7 +30,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agents.actor import UavActor
+from agents.maps.scanlog import ScanLog
 from agents.maps.umap import NEVER, UncertaintyMap
 from swarm.kernel.simulation import Simulation
 from swarm.scenario import Scenario
@@ -82,13 +85,20 @@ def map_digest(umap: UncertaintyMap) -> str:
     return h.hexdigest()
 
 
+def scans_digest(log: ScanLog) -> tuple[int, str]:
+    """A scan log's count and a digest of every scan it holds, in its order, as doubles
+    ``(origin, t, x, y, r)`` (a cheap stand-in for the list, which grows over a run)."""
+    rows = [(origin, *scan) for origin, scan in log.scans()]
+    return log.count, _digest(np.array(rows, dtype=np.float64).tobytes())
+
+
 def actor_state(actor: UavActor) -> State:
     """One actor's state as comparable values (see the module docstring), by field of :data:`FIELDS`."""
     k = actor.knowledge
     mailbox = actor.mailbox
     return {
         "map": map_digest(actor.umap),
-        "scans": (actor.scans.count, list(actor.scans.scans())),
+        "scans": scans_digest(actor.scans),
         "peers": list(k.peers.values()),
         "tracks": list(k.tracks.values()),
         "threats": list(k.threats.values()),
