@@ -45,7 +45,7 @@ def lockstep_documents(draw: st.DrawFn, max_uavs: int = 6, max_duration_s: int =
     return doc
 
 
-@pytest.mark.slow  # 150 examples, about 0.2-1 s of CPU each (two runs of 20-60 ticks, states compared every tick)
+@pytest.mark.slow  # 150 examples: about 25 s of CPU in all
 @settings(max_examples=examples(150), deadline=None, suppress_health_check=_HEALTH)
 @given(lockstep_documents())
 def test_tick_plane_is_the_oracle_tick_by_tick(doc):
@@ -59,7 +59,7 @@ def test_tick_plane_is_the_oracle_tick_by_tick_short(doc):
     assert_lockstep(parse_scenario(doc))
 
 
-@pytest.mark.slow  # two runs of 400 s, 8 UAVs, states compared every tick
+@pytest.mark.slow  # two runs of 400 s, 8 UAVs, states compared every tick: about 13 s of CPU each
 @pytest.mark.parametrize("auth", [True, False])
 def test_demo_all_faults_in_lockstep(auth):
     """Every fault kind in one scenario, with ``[radio] auth`` (the spoofer's frames rejected)
@@ -72,7 +72,7 @@ def test_demo_all_faults_in_lockstep_short():
     assert_lockstep("demo-all-faults", duration_s=100)
 
 
-@pytest.mark.slow  # two runs of 100 UAVs for 40 s, states compared every tick (about 8 s)
+@pytest.mark.slow  # two runs of 100 UAVs for 40 s, states compared every tick: about 15 s of CPU
 def test_bench_100_in_lockstep():
     """Tiled maps, a knowledge horizon (scans beyond it neither applied nor logged) and
     anti-entropy resends (stamped into one map each): paths the generated scenarios, on small
