@@ -6,7 +6,9 @@ all have answered. An actor's step only touches its own state and returns an
 UAV-id order, so the result does not depend on which task the event loop happens to run first.
 
 A step: merge the inbox (:mod:`agents.inbox`: decode, schema-check, merge; malformed frames,
-and with ``[radio] auth`` frames failing their MAC, are counted as rejected and skipped) -> own
+and with ``[radio] auth`` frames failing their MAC, are counted as rejected and skipped; in a
+simulation with the tick plane the receive service, :mod:`swarm.kernel.receiving`, has merged
+every live actor's inbox just before the step, with the same code and the same result) -> own
 scan (and what an :class:`OutboxHook` claims) and sightings -> replan if due -> local planner
 (APF) -> outbox (beacons, tracks, and answers to the digests heard: :mod:`agents.antientropy`).
 The replan sits between two halves (:meth:`UavActor.observe`, :meth:`UavActor.act`) so that the
@@ -27,7 +29,7 @@ import numpy as np
 
 from agents.antientropy import AntiEntropy
 from agents.apf import apf_command
-from agents.inbox import Inbox
+from agents.inbox import HeardMemo, Inbox
 from agents.inputs import ActorSettings, SensedUav, SensorReading
 from agents.knowledge import Knowledge, Peer
 from agents.maps.grid import Grid
@@ -128,6 +130,7 @@ class UavActor:
         decoder: DecodeCache | None = None,
         map_group: MapGroup | None = None,
         tick_plane: bool = True,
+        served: bool = False,
     ):
         self.uid = uid
         self.name = name
@@ -173,6 +176,9 @@ class UavActor:
         self._seq = 0
         # What a fault adds to its claims and beacons (an OutboxHook); None: nothing.
         self.outbox_hook: OutboxHook | None = None
+        # (issue 36) True when the simulation's receive service (swarm.kernel.receiving) merges
+        # its inbox each tick before its step: observe() then only reads what was merged.
+        self.served = served
         # Task plumbing (see run()).
         self._pending: SensorReading | None = None
         self._waiter: asyncio.Future[SensorReading] | None = None
@@ -232,8 +238,8 @@ class UavActor:
         """First half of a tick: merge the inbox, own scan and sightings. Returns the view to
         plan from when a replan is due (time, or waypoint reached), else ``None``."""
         t = r.t
-        self._received = self.inbox.merge(self.mailbox.drain(), t, r.x, r.y, self.umap, self.knowledge,
-                                          self.scans if self._log_scans else None, self.counters)
+        if not self.served:  # (served: the receive service merged it before this step)
+            self.receive(r)
         radius = self.kind.detect_radius
         self.claim_scan(self.uid, t, r.x, r.y, radius)
         if self.settings.outside is not None:  # (issue 26: outside the area polygon, always "seen")
@@ -272,6 +278,20 @@ class UavActor:
             return PlanView(t, self.uid, self.kind, r.x, r.y, r.v, r.theta, self.umap, k, self.rng,
                             self.grid, s.replan_s, s.surveillance, self.plan)
         return None
+
+    def receive(self, r: SensorReading, memo: HeardMemo | None = None) -> None:
+        """Merge the frames in its mailbox, heard at ``r.t`` where it senses itself (its own
+        reading), into its map, scan log and knowledge (:meth:`agents.inbox.Inbox.merge`). The
+        first thing of its step, or done for it by the receive service just before the step
+        (:attr:`served`), with the same result (:meth:`~agents.inbox.Inbox.take`, sharing its
+        per-tick ``memo`` among receivers)."""
+        scans = self.scans if self._log_scans else None
+        if memo is None:
+            self._received = self.inbox.merge(self.mailbox.drain(), r.t, r.x, r.y, self.umap, self.knowledge, scans,
+                                              self.counters)
+        else:
+            self._received = self.inbox.take(self.mailbox.drain(), r.t, r.x, r.y, self.umap, self.knowledge, scans,
+                                             self.counters, memo)
 
     def goto(self, x: float, y: float) -> None:
         """An operator's waypoint (the embedding API's ``set_waypoint``, a ground station's

@@ -19,7 +19,7 @@ from collections.abc import Callable, Hashable, Sequence
 from functools import partial
 from typing import Any, NamedTuple, Protocol
 
-from agents.knowledge import Knowledge
+from agents.knowledge import Knowledge, TrackRow
 from agents.maps.grid import MISSING as _MISSING  # a memo miss (None is a memoised value: a disk off the grid)
 from agents.maps.grid import DiskKey, Grid
 from agents.maps.scanlog import ScanLog
@@ -288,6 +288,30 @@ class InboxCounters(Protocol):
 Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each frame drained
 
 
+# A Heard as the receive service keeps it for the tick (Inbox.take), a plain tuple (cheaper to
+# build and to unpack than an object): (t_frame, scans, ignored, strange, hellos, intents,
+# tracks, rest, heard), the Heard's content with each hello flattened to (uav, type, x, y, v,
+# theta), each intent to (uav, wx, wy, mode, target, asks) (asks: a relief request, issue 33:
+# search mode with a target), each track item to a TrackRow; rest: whether it has tracks,
+# threats or digests (rare: looked at only then); heard: the Heard itself.
+Taken = tuple[float, tuple[HeardScan, ...], int, int, tuple[tuple[int, str, float, float, float, float], ...],
+              tuple[tuple[int, float, float, int, int, bool], ...], tuple[TrackRow, ...], bool, Heard]
+
+
+def taken(h: Heard) -> Taken:
+    """``h`` as :data:`Taken`."""
+    return (h.t_frame, h.scans, h.ignored, h.strange,
+            tuple([(m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos]),
+            tuple([(i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0) for i in h.intents]),
+            tuple([(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in h.tracks]) if h.tracks else (),
+            bool(h.tracks or h.threats or h.digests), h)
+
+
+# The receive service's memo of one tick (Inbox.take): per (t, bounds), per frame's bytes, what
+# it is to a receiver (Taken) or the FrameError decoding it raised.
+HeardMemo = dict[Hashable, dict[bytes, Taken | FrameError]]
+
+
 class Inbox:
     """A UAV's receiving side: decodes, checks and merges the frames it drained.
 
@@ -330,6 +354,100 @@ class Inbox:
         """The digests heard since they were last taken (to answer: agents.antientropy)."""
         digests, self.digests = self.digests, []
         return digests
+
+    def take(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
+             umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
+             memo: HeardMemo) -> Received:
+        """:meth:`merge`, for the receive service (:mod:`swarm.kernel.receiving`): the same
+        rules with the same results, in a loop that does per receiver only what depends on
+        the receiver. ``memo`` is the service's for this tick, shared by every receiver it
+        serves: a frame delivered to k receivers is looked up in the decode cache (and its
+        messages flattened, :data:`Taken`) once, not k times. :meth:`merge` stays the
+        specification (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py
+        compares the two tick by tick)."""
+        received: Received = []
+        if not frames:
+            return received
+        append = received.append
+        k = knowledge
+        peers = k.peers
+        peer = k.peer
+        me = self.uid
+        stamp = umap.stamp
+        grid = self.grid
+        disk_stamp = grid.disk_stamp
+        known_disk = grid.disk_lookup()
+        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
+        old = t - self.fresh_s
+        log_add = scans.add_tick if scans is not None else None
+        bounds = self.bounds
+        key = (t, bounds)
+        table = memo.get(key)
+        if table is None:
+            table = memo[key] = {}
+        heard_of = self._heard
+        digests = self.digests
+        delivered = ignored = strange = beyond = 0
+        horizon2 = self.horizon2
+        for _arrival, sender, data in frames:
+            rec = table.get(data)
+            if rec is None:  # the first receiver of this frame (at this t) this tick
+                try:
+                    rec = taken(heard_of(data, key, partial(check_frame, t=t, bounds=bounds)))
+                except FrameError as exc:  # (the auth failures among them: AuthError)
+                    rec = exc
+                if type(data) is bytes:
+                    table[data] = rec
+            if type(rec) is not tuple:  # a FrameError: rejected
+                counters.rejected += 1
+                if isinstance(rec, AuthError):
+                    counters.rejected_auth += 1
+                append((sender, len(data), False))
+                continue
+            ft, heard_scans, n_ignored, n_strange, hellos, intents, tracks, rest, heard = rec
+            delivered += 1
+            append((sender, len(data), True))
+            ignored += n_ignored
+            strange += n_strange
+            for origin, tick, scan, disk_key in heard_scans:
+                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
+                    beyond += 1
+                elif log_add is None or log_add(origin, tick, scan):
+                    d = known_disk(disk_key, _MISSING)
+                    if d is _MISSING:
+                        if once is not None and scan[0] < old:
+                            once(*disk_key, scan[0])
+                            continue
+                        d = disk_stamp(*disk_key)
+                    if d is not None:
+                        stamp(d, scan[0])
+            for uav, typ, x, y, v, theta in hellos:
+                if uav != me:
+                    p = peers.get(uav) or peer(uav)
+                    if ft >= p.t_pose:
+                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = typ, x, y, v, theta, ft
+            for uav, wx, wy, mode, target, asks in intents:
+                if uav != me:
+                    p = peers.get(uav) or peer(uav)
+                    if ft >= p.t_intent:
+                        p.wx, p.wy, p.mode, p.target, p.t_intent = wx, wy, mode, target, ft
+                        if asks:
+                            p.mode, p.asks = MODE_SURVEIL, True
+                        elif p.asks:
+                            p.asks = False
+            if rest:
+                if tracks:
+                    k.merge_track_rows(tracks)
+                for th in heard.threats:
+                    k.add_threat(*th)
+                for dg in heard.digests:
+                    if dg.uav != me:
+                        digests.append(dg)
+        counters.delivered += delivered
+        counters.scans_ignored += ignored
+        counters.scans_beyond += beyond
+        counters.messages_ignored += strange
+        return received
 
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
               umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:
@@ -426,4 +544,4 @@ class Inbox:
         return received
 
 
-__all__ = ["Bounds", "Heard", "HeardScan", "Inbox", "InboxCounters", "Received", "check_frame"]
+__all__ = ["Bounds", "Heard", "HeardMemo", "HeardScan", "Inbox", "InboxCounters", "Received", "Taken", "check_frame", "taken"]

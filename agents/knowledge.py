@@ -35,6 +35,10 @@ class Track:
         return self.x + self.vx * dt, self.y + self.vy * dt
 
 
+# A heard track item's fields: (target, x, y, vx, vy, t, value) (Knowledge.merge_track_rows).
+TrackRow = tuple[int, float, float, float, float, float, float]
+
+
 @dataclass(frozen=True, slots=True)
 class KnownThreat:
     threat: int
@@ -115,15 +119,21 @@ class Knowledge:
         self.see_target(item.target, item.x, item.y, item.vx, item.vy, item.t, item.value)
 
     def merge_tracks(self, items: Iterable[TrackItem]) -> None:
-        """:meth:`merge_track` of each item in order (a heard Tracks message), with
-        :meth:`see_target`'s rule written out: one call per message instead of two per item."""
+        """:meth:`merge_track` of each item in order (a heard Tracks message): :meth:`merge_track_rows`
+        of their fields."""
+        self.merge_track_rows([(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in items])
+
+    def merge_track_rows(self, rows: Iterable[TrackRow]) -> None:
+        """:meth:`see_target` of each ``(target, x, y, vx, vy, t, value)`` in order, its rule
+        written out (one call per message instead of one per item): the receive service keeps a
+        heard Tracks message's items as such rows for all its receivers (agents.inbox.Taken)."""
         tracks = self.tracks
-        for it in items:
-            tr = tracks.get(it.target)
+        for target, x, y, vx, vy, t, value in rows:
+            tr = tracks.get(target)
             if tr is None:
-                tracks[it.target] = Track(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value)
-            elif it.t >= tr.t:
-                tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = it.x, it.y, it.vx, it.vy, it.t, it.value
+                tracks[target] = Track(target, x, y, vx, vy, t, value)
+            elif t >= tr.t:
+                tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = x, y, vx, vy, t, value
 
     def inside_threat(self, x: float, y: float, margin: float = 0.0) -> KnownThreat | None:
         """The first known threat (by id) whose circle, widened by ``margin``, holds ``(x, y)``,

@@ -200,6 +200,9 @@ class _DeafInbox:
     def merge(self, frames, *state):
         return []
 
+    def take(self, frames, *state):  # (the receive service's merge: issue 36's tick plane)
+        return []
+
 
 def test_liveness_phase_catches_maps_that_never_merge():
     with pytest.raises(InvariantViolation) as info:

@@ -15,7 +15,9 @@ the part that owns it):
 3. **sense**: what each live UAV senses in the ground truth (:mod:`~swarm.kernel.world`), after
    the tick faults and with its energy reading;
 4. **wake**: every live actor runs its step, and the tick waits for all of them
-   (:mod:`~swarm.kernel.fleet`);
+   (:mod:`~swarm.kernel.fleet`); with the tick plane (``Simulation(tick_plane=True)``, the
+   default) the inboxes of the actors about to be woken are merged for them first, in UAV-id
+   order (:mod:`~swarm.kernel.receiving`);
 5. **observe**: the ground truth into the metrics (:mod:`~swarm.kernel.metrics`), the event log
    (:mod:`~swarm.kernel.recorder`) and the paths (:mod:`~swarm.kernel.observer`);
 6. **transmit**: the frames through the radio and the fault injector, their deliveries put on the

@@ -26,6 +26,7 @@ from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
 from comms.messages import MODE_NAMES
 from swarm.errors import SimulationError
+from swarm.kernel.receiving import Receiving
 from swarm.kernel.recorder import EventLog
 from swarm.kernel.rng import RngTree
 from swarm.kernel.world import ALIVE, CRASHED, LANDED, PENDING, World
@@ -44,8 +45,10 @@ class Fleet:
                  tick_plane: bool = True):
         """``actors``: the run's actors by UAV id, filled here as UAVs are added (shared with the
         transmission, which fills their mailboxes); ``lost``: how a frame copy the fleet drops
-        is counted (a down or landed UAV's unread frames); ``tick_plane``: each actor's
-        (:class:`~agents.actor.UavActor`)."""
+        is counted (a down or landed UAV's unread frames). ``tick_plane`` (issue 36): each
+        actor's (:class:`~agents.actor.UavActor`: its scan log as arrays), and the woken actors'
+        inboxes are merged by :mod:`swarm.kernel.receiving` at the start of the wake phase, not
+        by each actor in its step."""
         self.tick_plane = tick_plane
         self.scenario = sc
         self.world = world
@@ -64,6 +67,7 @@ class Fleet:
         self.outputs: dict[int, ActorOutput] = {}  # this tick's (and, until replaced, the last)
         self.returning: dict[int, float] = {}  # UAVs down that will be revived: when
         self.batcher = PlanBatcher() if batch_planning else None
+        self.receiving = Receiving(actors) if tick_plane else None
         self._barrier: asyncio.Future[None] | None = None
         self._waiting = 0
 
@@ -96,6 +100,7 @@ class Fleet:
             self.rng.generator("uav", b.name, *stream_key), self.settings,
             mailbox if mailbox is not None else Mailbox(self.scenario.radio.mailbox_capacity),
             decoder=self.decoder, map_group=self.map_group, tick_plane=self.tick_plane,
+            served=self.receiving is not None,
         )
         self.actors[uid] = actor
         return actor
@@ -189,7 +194,8 @@ class Fleet:
                    paused: set[int]) -> dict[int, ActorOutput]:
         """Hand every live actor its reading and wait until all of them have answered. A paused
         one is not woken: its airframe flies its last command, nothing is sent or read (its
-        mailbox fills). Only UAVs that answered the last tick are ever paused."""
+        mailbox fills). Only UAVs that answered the last tick are ever paused. With the receive
+        service the woken actors' inboxes are merged first, in UAV-id order (swarm.kernel.receiving)."""
         last, self.outputs = self.outputs, {}
         if paused:
             for uid in alive:
@@ -198,6 +204,8 @@ class Fleet:
                     self.outputs[uid] = ActorOutput(prev.a, prev.omega, [], prev.plan, [], speed=prev.speed)
             alive = [uid for uid in alive if uid not in paused]
         if alive:
+            if self.receiving is not None:  # (the tick plane: their inboxes, merged for them)
+                self.receiving.receive(alive, readings)
             self._barrier = asyncio.get_running_loop().create_future()
             self._waiting = len(alive)
             for uid in alive:

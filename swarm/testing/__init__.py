@@ -5,6 +5,8 @@
 * :mod:`.invariants`: checkers of safety, radio, map and assignment properties over event
   logs or live runs (these need no Hypothesis: ``swarm paper`` uses them);
 * :mod:`.stateful`: :class:`SwarmMachine`, a Hypothesis state machine driving one simulation;
+* :mod:`.oracle`: the tick plane against the per-actor code it replaces, two simulations in
+  lockstep compared every tick (needs no Hypothesis either);
 * :mod:`.settings`: :data:`simulation_settings`, the Hypothesis settings a property over whole
   runs needs (no deadline, the ``too_slow`` health check suppressed, 50 examples).
 
