@@ -218,7 +218,8 @@ def _run(scenario: str, tick_plane: bool, overrides: dict, duration_s: float | N
 @pytest.mark.parametrize("scenario, overrides, duration_s", [
     ("paper-fig11", {}, 60.0),  # unlimited range, 6 UAVs
     ("paper-case2", {"radio.mailbox_capacity": 2}, 120.0),  # full mailboxes: copies lost in batch order
-    ("demo-all-faults", {}, None),  # every fault kind: crashes (receivers down), spoofers, partitions, delays
+    # every fault kind: crashes (receivers down), spoofers, partitions, delays (6 s: slow)
+    pytest.param("demo-all-faults", {}, None, marks=pytest.mark.slow),
     ("paper-case3", {"radio.range_m": 10000.0, "radio.bandwidth_bytes_per_s": 400.0}, 120.0),  # links come and go
     ("paper-case3", {"radio.range_m": 10000.0, "radio.loss_base": 0.05, "radio.loss_at_range": 0.4}, 120.0),  # lossy
 ])

@@ -63,7 +63,8 @@ class Transmission:
         live UAV's, in id order, through the radio's links."""
         radio = self.radio
         pairs: tuple[np.ndarray, np.ndarray] | None = None
-        if self._pairs is not None:
+        if self._pairs is not None and radio.model.radius_m <= self._pairs.reach_m:
+            # (a radio reaching further than the shared query, e.g. a model swapped in: its own pairs)
             pairs = self._pairs.of(alive, xy).within(radio.model.radius_m)[:2]
         radio.update_topology(alive, xy, dt, pairs)
         record_lost = self._lost
