@@ -3,15 +3,17 @@
 Nine components, each the code that does one part of a UAV-tick's work (the list issue 36 and
 the tick-plane study attribute every change to):
 
-* ``receive``: frames into a UAV: the mailboxes filled (``Transmission._deliver``, ``Mailbox``),
-  the drain loop (``agents.inbox.Inbox.merge``), decoding and checking frames, the scan log's adds,
+* ``receive``: frames into a UAV: the mailboxes filled (``Transmission._deliver``,
+  ``_deliver_batch``, ``Mailbox``), the drain loop (the receive service,
+  ``swarm.kernel.receiving`` and ``agents.inbox.Inbox.take``, or each actor's
+  ``Inbox.merge`` without the tick plane), decoding and checking frames, the scan log's adds,
   heard scans stamped into the UAV's map, track merges;
 * ``outbox``: the frames a UAV sends, built and encoded (``UavActor._outbox``, ``_frame``, a
   liar's fabrications: ``faults.adversary.Lies``);
 * ``anti_entropy``: digests built (``ScanLog.digest``, ``forget_before``) and answered
   (``agents.antientropy``, ``ScanLog.missing``);
-* ``geometry``: a UAV's own scan and sightings (``UavActor.observe`` apart from its drain) and the
-  tick's disks built together (``Grid.prefetch_disks``);
+* ``geometry``: a UAV's own scan and sightings (``UavActor.observe`` apart from its drain,
+  ``claim_scan``) and the tick's disks built together (``Grid.prefetch_disks``);
 * ``radio``: topology and per-link decisions (``comms.radio``), the transmit phase around them and
   the fault injector (``swarm.kernel.faulting``, ``faults``);
 * ``observer``: the ground truth stamped and sampled, the metrics, events, paths and the event log
@@ -60,6 +62,7 @@ import swarm.kernel.metrics
 import swarm.kernel.mission
 import swarm.kernel.mission_phase
 import swarm.kernel.observer
+import swarm.kernel.receiving
 import swarm.kernel.recorder
 import swarm.kernel.results
 import swarm.kernel.simulation
@@ -71,7 +74,8 @@ COMPONENTS = ("receive", "outbox", "anti_entropy", "geometry", "radio", "observe
 # module -> (component of its functions not named, or None: not decided here, look further out;
 #            {function name: component})
 _RULES: list[tuple[ModuleType, str | None, Mapping[str, str]]] = [
-    (agents.actor, "actors", {"_outbox": "outbox", "_frame": "outbox", "observe": "geometry"}),
+    (agents.actor, "actors", {"_outbox": "outbox", "_frame": "outbox", "observe": "geometry", "claim_scan": "geometry",
+                              "receive": "receive"}),
     (agents.antientropy, "anti_entropy", {}),
     (agents.apf, "actors", {}),
     (agents.inbox, "receive", {}),
@@ -79,11 +83,13 @@ _RULES: list[tuple[ModuleType, str | None, Mapping[str, str]]] = [
     (agents.knowledge, None, {"merge_tracks": "receive", "merge_track": "receive", "recent_peers": "actors"}),
     (agents.maps.scanlog, None, {"add": "receive", "add_tick": "receive", "merge": "receive",
                                  "forget_before": "anti_entropy", "window": "anti_entropy", "_cut": "anti_entropy",
-                                 "digest": "anti_entropy", "missing": "anti_entropy", "_inside": "anti_entropy"}),
+                                 "digest": "anti_entropy", "missing": "anti_entropy",
+                                 "_rows_window": "anti_entropy"}),
     (agents.maps.grid, None, {"prefetch_disks": "geometry", "_prefetch_stamps": "geometry"}),
     (comms.mailbox, "receive", {}),
     (comms.radio, "radio", {}),
-    (swarm.kernel.transmission, "radio", {"_deliver": "receive"}),
+    (swarm.kernel.transmission, "radio", {"_deliver": "receive", "_deliver_batch": "receive"}),
+    (swarm.kernel.receiving, "receive", {}),
     (swarm.kernel.faulting, "radio", {}),
     (swarm.kernel.observer, "observer", {}),
     (swarm.kernel.metrics, "observer", {}),
