@@ -89,8 +89,8 @@ def test_late_joiner_moves_and_scans_only_after_joining(small_run):
     assert math.hypot(poses[-1][1] - poses[0][1], poses[-1][2] - poses[0][2]) > 1000.0
     joins = [e for e in events if e.kind == "join" and e.uav == a2]
     assert [e.t for e in joins] == [100.0]
-    own_scans = sim.actors[a2].scans._scans[a2]
-    assert min(own_scans) == 100  # its own first scan is at its join tick
+    own_ticks = [round(scan[0] / sim.dt) for origin, scan in sim.actors[a2].scans.scans() if origin == a2]
+    assert min(own_ticks) == 100  # its own first scan is at its join tick
     own_map = sim.uav_map("A2")
     finite = own_map[~(own_map == -math.inf)]
     # ...but through anti-entropy it also learnt what the others scanned before it joined.
