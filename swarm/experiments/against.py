@@ -27,15 +27,10 @@ import numpy as np
 
 from swarm.errors import UsageError
 from swarm.experiments.bench import CASES, Case, case_scenario
+from swarm.scenario.loading import builtin_folder
 
 # The reference's name for the scenario each case runs.
 REFERENCE_CASE = {"paper-fig11": "fig11", "bench-100": "b100", "bench-1000": "b1000"}
-
-
-def _builtin_dir() -> Path:
-    import swarm.scenario
-
-    return Path(swarm.scenario.__file__).parent / "builtin"
 
 
 def machine() -> dict[str, Any]:
@@ -75,7 +70,7 @@ def main(reference: str | Path, pairs: int = 3, quick: bool = False, only: list[
     if pairs < 1:
         raise UsageError(f"--pairs {pairs}: must be at least 1")
     cases = _selected(quick, only)
-    env = {**os.environ, "SWARM_BUILTIN": str(_builtin_dir())}
+    env = {**os.environ, "SWARM_BUILTIN": builtin_folder()}
     rows = []
     for case in cases:
         duration = case.duration_s if case.duration_s is not None else case_scenario(case).duration_s

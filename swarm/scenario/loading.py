@@ -22,9 +22,15 @@ from swarm.scenario.overrides import set_keys, switch_planner
 from swarm.scenario.positions import found_words
 from swarm.scenario.trust import allowed
 
-__all__ = ["builtin_scenarios", "load_scenario", "scenario_from_document", "scenario_from_toml"]
+__all__ = ["builtin_folder", "builtin_scenarios", "load_scenario", "scenario_from_document", "scenario_from_toml"]
 
 _BUILTIN_PACKAGE = "swarm.scenario.builtin"
+
+
+def builtin_folder() -> str:
+    """Where the built-in scenario files are, as a path (for a tool that reads them itself, such
+    as the bench yardstick through ``SWARM_BUILTIN``)."""
+    return str(resources.files(_BUILTIN_PACKAGE))
 
 
 def builtin_scenarios() -> list[str]:
