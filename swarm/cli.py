@@ -479,6 +479,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         _print_json(summary)
     elif not args.quiet:
         _console().print(_sweep_table(summary))
+        if summary.get("setting_comparisons"):
+            _console().print(_equivalence_table(summary))
     print(f"report: {report}", file=sys.stderr)
     print(f"{result.total} runs: {result.skipped} already finished, {result.ran} ran, "
           f"{len(result.failed)} failed; summary in {Path(args.out) / 'summary.json'}", file=sys.stderr)
@@ -504,6 +506,31 @@ def _sweep_table(summary: dict[str, Any]) -> Table:
             cells.append(f"{d['mean']:.3f} [{d['ci95'][0]:.3f}, {d['ci95'][1]:.3f}]" if d else "-")
         t.add_row(g["planner"], ", ".join(f"{k}={v}" for k, v in g["settings"].items()) or "-",
                   str(g["runs"]), *cells)
+    return t
+
+
+def _equivalence_table(summary: dict[str, Any]) -> Table:
+    """Each ``--set`` axis's later values against its first, paired by seed, with the verdict
+    of :mod:`swarm.experiments.equivalence` (the margins are in the column titles)."""
+    from rich.table import Table
+
+    from swarm.experiments.equivalence import MARGINS
+
+    t = Table(title="new - old, paired by seed (mean [95% interval]); equivalent when every interval is within its margin")
+    for col in ("planner", "setting", "seeds"):
+        t.add_column(col)
+    for name, margin in MARGINS.items():
+        t.add_column(f"{name} ({margin.text()})", justify="right")
+    t.add_column("equivalent")
+    for c in summary["setting_comparisons"]:
+        cells = []
+        for name in MARGINS:
+            e = c["equivalence"].get(name)
+            cells.append(f"{e['mean']:+.3f} [{e['ci95'][0]:+.3f}, {e['ci95'][1]:+.3f}]{'' if e['equivalent'] else ' (out)'}"
+                         if e else "-")
+        verdicts = [e["equivalent"] for e in c["equivalence"].values()]
+        t.add_row(c["planner"], f"{c['key']}: {c['old']} -> {c['new']}", str(c["paired_seeds"]), *cells,
+                  ("yes" if all(verdicts) else "no") if verdicts else "-")
     return t
 
 
