@@ -509,14 +509,30 @@ def _sweep_table(summary: dict[str, Any]) -> Table:
     return t
 
 
-def _equivalence_table(summary: dict[str, Any]) -> Table:
+def _cmd_compare(args: argparse.Namespace) -> int:
+    """Two sweep folders run by run: 0 equivalent, 1 not (2: cannot compare)."""
+    from swarm.experiments.equivalence import compare_folders
+
+    c = compare_folders(args.old, args.new)
+    if args.json:
+        _print_json(c.as_dict())
+    else:
+        rows = [{"planner": g["planner"], "label": f"{g['settings']} ({g['identical']} identical)",
+                 "paired_seeds": g["paired_seeds"], "equivalence": g["equivalence"]} for g in c.groups]
+        _console().print(_equivalence_table({"setting_comparisons": rows}, title="new - old, paired by run"))
+    print(f"{c.paired} runs in both ({c.identical} with the same event log), {c.only_old} only in {c.old}, "
+          f"{c.only_new} only in {c.new}: {'equivalent' if c.equivalent else 'NOT equivalent'}", file=sys.stderr)
+    return 0 if c.equivalent else 1
+
+
+def _equivalence_table(summary: dict[str, Any], title: str = "new - old, paired by seed") -> Table:
     """Each ``--set`` axis's later values against its first, paired by seed, with the verdict
     of :mod:`swarm.experiments.equivalence` (the margins are in the column titles)."""
     from rich.table import Table
 
     from swarm.experiments.equivalence import MARGINS
 
-    t = Table(title="new - old, paired by seed (mean [95% interval]); equivalent when every interval is within its margin")
+    t = Table(title=f"{title} (mean [95% interval]); equivalent when every interval is within its margin")
     for col in ("planner", "setting", "seeds"):
         t.add_column(col)
     for name, margin in MARGINS.items():
@@ -529,7 +545,7 @@ def _equivalence_table(summary: dict[str, Any]) -> Table:
             cells.append(f"{e['mean']:+.3f} [{e['ci95'][0]:+.3f}, {e['ci95'][1]:+.3f}]{'' if e['equivalent'] else ' (out)'}"
                          if e else "-")
         verdicts = [e["equivalent"] for e in c["equivalence"].values()]
-        t.add_row(c["planner"], f"{c['key']}: {c['old']} -> {c['new']}", str(c["paired_seeds"]), *cells,
+        t.add_row(c["planner"], c.get("label") or f"{c['key']}: {c['old']} -> {c['new']}", str(c["paired_seeds"]), *cells,
                   ("yes" if all(verdicts) else "no") if verdicts else "-")
     return t
 
@@ -770,6 +786,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_allow_arg(rr)
     rr.set_defaults(func=_cmd_rerun)
 
+    cm = sub.add_parser("compare", help="pair two sweep folders' runs by planner, settings and seed (before and after "
+                                        "a change): equivalent? (exit 0 yes, 1 no)")
+    cm.add_argument("old", help="the sweep folder of the old code or model (swarm sweep --out, or swarm paper's --out)")
+    cm.add_argument("new", help="the sweep folder of the new one, run with the same planners, settings and seeds")
+    cm.add_argument("--json", action="store_true", help="print the comparison as JSON instead of the table")
+    cm.set_defaults(func=_cmd_compare)
     b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
     b.add_argument("--quick", action="store_true", help="only the quick cases")
     b.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")

@@ -11,7 +11,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from swarm.cli import main
-from swarm.experiments.equivalence import DETECTION_TIME, MARGINS, axis_pairs, censored_detection_time, equivalence
+from swarm.experiments.equivalence import (
+    DETECTION_TIME,
+    MARGINS,
+    axis_pairs,
+    censored_detection_time,
+    compare_folders,
+    equivalence,
+)
 from swarm.experiments.sweep import _settings_key, describe, plan_runs, summarize, sweep
 from swarm.scenario import load_scenario
 from swarm.viz.report.sweep_report import write_sweep_report
@@ -104,3 +111,43 @@ def test_a_sweep_without_set_axes_has_no_setting_comparisons(small_scenario_path
     res = sweep(small, tmp_path, seeds=1, planners=["greedy"], duration_s=5.0, workers=1)
     assert res.summary["setting_comparisons"] == []
     assert Path(tmp_path / "summary.json").is_file()
+
+
+def _fake_sweep(root: Path, coverage: dict[tuple[str, int], float], sha: str = "same") -> Path:
+    for (planner, seed), cov in coverage.items():
+        d = root / "runs" / planner / "default" / f"seed-{seed:03d}"
+        d.mkdir(parents=True)
+        (d / "metrics.json").write_text(json.dumps({
+            "seed": seed, "sim_seconds": 100.0, "coverage": cov, "certainty": 0.3, "targets_found": 2,
+            "targets_total": 3, "time_to_first_detection_s": {"0": 5.0, "1": None, "2": 7.0},
+            "event_log_sha256": f"{sha}-{planner}-{seed}" if sha else f"x-{cov}"}))
+    return root
+
+
+def test_compare_folders_pairs_runs_and_judges_each_group(tmp_path):
+    old = _fake_sweep(tmp_path / "old", {(p, s): 0.5 + 0.01 * s for p in ("dacmp", "greedy") for s in range(4)})
+    _fake_sweep(tmp_path / "new" / "fig11", {**{("dacmp", s): 0.5 + 0.01 * s for s in range(4)},
+                                                   **{("greedy", s): 0.45 + 0.01 * s for s in range(3)}},
+                      sha="")
+    c = compare_folders(old, tmp_path / "new")  # a folder holding one sweep is read as that sweep
+    assert (c.paired, c.only_old, c.only_new) == (7, 1, 0)
+    by = {g["planner"]: g for g in c.groups}
+    assert by["dacmp"]["equivalence"]["coverage"]["equivalent"] and by["dacmp"]["paired_seeds"] == 4
+    assert by["greedy"]["difference"]["coverage"]["mean"] == pytest.approx(-0.05)
+    assert not by["greedy"]["equivalence"]["coverage"]["equivalent"] and not c.equivalent
+    assert c.identical == 0  # the new runs' event logs differ (a model change)
+    same = compare_folders(old, old)
+    assert same.equivalent and same.identical == same.paired == 8
+
+
+def test_cli_compare_exit_codes_and_errors(tmp_path, capsys):
+    old = _fake_sweep(tmp_path / "a", {("greedy", s): 0.5 + 0.01 * s for s in range(3)})
+    far = _fake_sweep(tmp_path / "b", {("greedy", s): 0.3 + 0.01 * s for s in range(3)}, sha="")
+    assert main(["compare", str(old), str(old)]) == 0
+    assert main(["compare", str(old), str(far)]) == 1
+    assert "NOT equivalent" in capsys.readouterr().err
+    assert main(["compare", str(old), str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: {tmp_path / 'missing'}: no such folder"]
+    assert main(["compare", "--json", str(old), str(old)]) == 0
+    assert json.loads(capsys.readouterr().out)["identical"] == 3
