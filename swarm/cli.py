@@ -666,6 +666,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:
         raise SwarmError(f"unknown bench case(s) {unknown}; known: {', '.join(k.name for k in CASES)}")
+    if args.examples is not None:
+        if args.examples < 1:
+            raise UsageError(f"--examples {args.examples}: expected a whole number >= 1")
+        from swarm.experiments.examples import main as examples_main
+
+        return examples_main(args.examples)
     if args.against is not None:
         from swarm.experiments.against import main as against_main
 
@@ -803,6 +809,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run each case alternately with this yardstick (../shared/bench/reference_limit.py), each in "
                         "its own process, and print the ratios of their rates (a JSON line per case, a table on stderr)")
     b.add_argument("--pairs", type=int, default=3, help="with --against: how many (case, reference) pairs (default 3)")
+    b.add_argument("--examples", type=int, default=None, metavar="N",
+                   help="instead of the cases: N property-test-sized runs in this process (paper-case1, 300 s, "
+                        "seeds 1..N after a warm-up) and the examples per CPU-minute (one JSON line)")
     b.set_defaults(func=_cmd_bench)
 
     sw = sub.add_parser("sweep", help="run planners x settings x seeds and summarise (process pool or Dask)")
