@@ -9,7 +9,7 @@ keep sharing it; a map that stamps a scan the others do not gets a tile of its o
 
 The rules, which keep every map's cells those of a map of its own:
 
-- A tiled map *owns* some of its tiles (:attr:`UncertaintyMap._own`): those no other map and no
+- A tiled map *owns* some of its tiles (``UncertaintyMap._own``): those no other map and no
   memo entry holds. It writes an owned tile in place, as an ordinary map does.
 - Any other tile of it may be shared: read-only (numpy's ``writeable`` flag, so a write that
   forgot the rule raises instead of changing another map's cells). A stamp on it goes through the
@@ -28,29 +28,26 @@ of tile-piece stamps and 22% of tiles; bench-1000-greedy 20 s: 65% and 59%).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
-
-if TYPE_CHECKING:
-    from agents.maps.umap import UncertaintyMap
 
 # Memo entries after which the memo is flushed even within a tick (it pins two tiles each: about
 # 2 GB of 16 KB tiles at most; a tick of bench-1000 makes about 6 000).
 MEMO_MAX = 1 << 16
 
-# A memo entry: the tile stamped, the values stamped on it, the result, the map that made it,
-# the tile key, and whether another map took the result.
-_Entry = list[object]
+Tiles = dict[int, np.ndarray]  # a tiled map's storage: tile key -> flat cells
+# A memo entry: the tile stamped, the values stamped on it, the result, and the tiles, owned keys
+# and tile key of the map that made it.
+_Entry = tuple[np.ndarray, np.ndarray, np.ndarray, Tiles, set[int], int]
 
 
 class TileShare:
     """The per-tick memo of stamps on shared tiles (one per grid: :meth:`Grid.tile_share`)."""
 
-    __slots__ = ("memo", "empty", "stamps", "made")
+    __slots__ = ("memo", "taken", "empty", "stamps", "made")
 
     def __init__(self) -> None:
         self.memo: dict[tuple[int, int, int, int], _Entry] = {}
+        self.taken: set[tuple[int, int, int, int]] = set()  # memo keys whose result another map took
         # The never-written tile of each flat size (read-only, -inf): what a map without the tile
         # stamps onto, so maps starting a tile with the same scan share it from the start.
         self.empty: dict[int, np.ndarray] = {}
@@ -64,36 +61,39 @@ class TileShare:
             tile.flags.writeable = False
         return tile
 
-    def stamp(self, umap: UncertaintyMap, key: int, tile: np.ndarray | None, start: int, stop: int,
-              values: np.ndarray) -> None:
-        """``umap``'s tile ``key`` (``tile``: its current, possibly shared object; None: never
-        written) becomes ``maximum`` of it and ``values`` on ``[start:stop]``: the memoised result
-        if another map made it from the same object, else a new read-only tile."""
+    def stamp(self, tiles: Tiles, own: set[int], key: int, size: int, start: int, values: np.ndarray) -> None:
+        """A map's tile ``key`` (``tiles[key]``: a tile ``own`` does not hold, possibly shared;
+        absent: never written, ``size`` cells of ``-inf``) becomes the ``maximum`` of it and
+        ``values`` on ``[start:start + len(values)]``: the memoised result if another map made it
+        from the same object, else a new read-only tile (owned by ``own``'s map again after the
+        next :meth:`flush` if no other map took it)."""
+        tile = tiles.get(key)
         if tile is None:
-            tile = self.empty_tile(umap.tile_shape[0] * umap.tile_shape[1])
+            tile = self.empty_tile(size)
         mk = (key, start, id(tile), id(values))
         self.stamps += 1
         entry = self.memo.get(mk)
         if entry is not None:
-            entry[5] = True
-            umap._tiles[key] = entry[2]  # type: ignore[assignment]
+            self.taken.add(mk)
+            tiles[key] = entry[2]
             return
         new = tile.copy()
-        view = new[start:stop]
+        view = new[start : start + len(values)]
         np.maximum(view, values, out=view)
         new.flags.writeable = False
-        umap._tiles[key] = new
+        tiles[key] = new
         self.made += 1
         memo = self.memo
         if len(memo) >= MEMO_MAX:
             self.flush()
-        memo[mk] = [tile, values, new, umap, key, False]
+        memo[mk] = (tile, values, new, tiles, own, key)
 
     def flush(self) -> None:
         """Forget the memo; give each result no other map took back to its maker (owned: written
         in place) if the maker still holds it."""
-        memo, self.memo = self.memo, {}
-        for _tile, _values, new, umap, key, taken in memo.values():
-            if not taken and umap._tiles.get(key) is new:  # type: ignore[attr-defined]
-                new.flags.writeable = True  # type: ignore[attr-defined]
-                umap._own.add(key)  # type: ignore[attr-defined]
+        memo, taken = self.memo, self.taken
+        self.memo, self.taken = {}, set()
+        for mk, (_tile, _values, new, tiles, own, key) in memo.items():
+            if mk not in taken and tiles.get(key) is new:
+                new.flags.writeable = True
+                own.add(key)

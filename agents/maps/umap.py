@@ -249,11 +249,12 @@ class UncertaintyMap:
         pieces = smemo[2] if smemo[1] == t and smemo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
         own = self._own
         share = self._share if d.key is not None else None
+        size = shape[0] * shape[1]
         for key, start, stop, values in pieces:
             if key in own:
                 tile = tiles[key]
             elif share is not None:  # (a tile that may be shared, or none yet: agents.maps.tiles)
-                share.stamp(self, key, tiles.get(key), start, stop, values)
+                share.stamp(tiles, own, key, size, start, values)
                 continue
             else:
                 tile = self._writable(key)
