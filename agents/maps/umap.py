@@ -95,7 +95,7 @@ class UncertaintyMap:
         # row-major); an absent tile is all -inf.
         self._tiles: dict[int, np.ndarray] = {}
         # (tiled maps) The keys of the tiles this map alone holds, written in place; the others
-        # may be shared with other maps (read-only, copy on write: agents.maps.tiles), through
+        # may be shared with other maps (never written: copy on write, agents.maps.tiles), through
         # the grid's TileShare when it has one (a simulation with the tick plane).
         self._own: set[int] = set()
         self._share: TileShare | None = None if dense else grid.tile_share
@@ -131,7 +131,7 @@ class UncertaintyMap:
         if tile is None:
             return self._alloc(key)
         if key not in self._own:
-            tile = self._tiles[key] = tile.copy()  # (a copy is writeable)
+            tile = self._tiles[key] = tile.copy()
             self._own.add(key)
         return tile
 
