@@ -18,6 +18,8 @@ paper's 500 x 500 is 250 000) are one tile covering the whole grid, allocated at
 fastest layout when every map ends up covering most of a small area anyway. Either way every
 method gives exactly the numbers of one dense ``float32`` array (``to_dense()``): the layout is
 invisible. Cells of edge tiles lying outside the grid stay ``-inf`` (writes are clipped to it).
+Tiled maps of a simulation with the tick plane share tile objects copy-on-write
+(:mod:`agents.maps.tiles`): UAVs that stamped the same scans onto a tile hold one tile for it.
 """
 
 from __future__ import annotations
