@@ -193,7 +193,8 @@ def test_import_circles_are_found_at_any_depth_but_not_through_type_checking():
 # RadioGraph.edge_data, DecodeCache.derive, Disk.values_memo / stamps_memo, MapGroup.base_cells
 # and the extra scans a MapGroup keeps for its members, DacmpPlanner.keep / search_weights / scratch).
 SAME_CLASS = {
-    "agents/maps/umap.py": {"new._tiles", "new._changes", "new._nty", "new._ntx", "other._materialize", "other._tiles"},
+    "agents/maps/umap.py": {"new._tiles", "new._changes", "new._nty", "new._ntx", "other._materialize", "other._tiles",
+                            "new._own", "new._share"},  # (issue 36, T8: a copy's owned tiles, its grid's sharing)
     "agents/maps/mapgroup.py": {"super()._cells"},
     "agents/planners/dacmp/maintained.py": {"plane._tiles", "MaintainedPyramid._recompute", "w.pyr._sum_chunks",
                                             "p._changed", "w.pyr._e_keys",

@@ -32,6 +32,8 @@ from typing import Final, Protocol, TypeVar, cast
 
 import numpy as np
 
+from agents.maps.tiles import TileShare
+
 # Disks remembered per grid by default (about 10 KB each for a 2 km radius on 100 m cells). A
 # record is reused within a few ticks (own scan, ground truth, every receiver); a simulation
 # sizes the cache to its swarm (set_disk_cache_size). A miss only costs recomputing the disk.
@@ -66,7 +68,7 @@ class DiskLookup(Protocol):
 
 
 class _GridCache:
-    __slots__ = ("disks", "centres", "size", "nx", "ny", "plane", "archive")
+    __slots__ = ("disks", "centres", "size", "nx", "ny", "plane", "archive", "share")
 
     def __init__(self) -> None:
         self.nx: int | None = None
@@ -78,6 +80,9 @@ class _GridCache:
         # the per-object code it replaces, kept as the oracle (Grid.set_tick_plane).
         self.plane = True
         self.archive: DiskArchive | None = None
+        # (issue 36, T8) Copy-on-write tiles shared between the tiled maps of this grid made
+        # after set_tick_plane(True) (agents.maps.tiles); None: every map keeps its own tiles.
+        self.share: TileShare | None = None
 
 
 _NEVER_BITS = np.uint32(0xFF800000)  # float32 -inf
@@ -734,15 +739,32 @@ class Grid:
     def set_tick_plane(self, on: bool, resend_keep_s: float = 0.0) -> None:
         """(issue 36) ``on``: the tick plane's disk geometry: :meth:`prefetch_disks` builds every
         disk of a tick in one batch, and with ``resend_keep_s > 0`` keeps their cells that long
-        in a :class:`DiskArchive` for anti-entropy resends (:meth:`UncertaintyMap.stamp_once`).
-        Off: the per-object code it replaces (the oracle). The same cells either way."""
+        in a :class:`DiskArchive` for anti-entropy resends (:meth:`UncertaintyMap.stamp_once`);
+        and tiled maps made on the grid from then on share tiles copy-on-write
+        (:mod:`agents.maps.tiles`; the simulation calls :meth:`new_tick` every tick). Off: the
+        per-object code it replaces (the oracle), every map with tiles of its own. The same
+        cells either way."""
         cache = self._cache
         cache.plane = bool(on)
         cache.archive = DiskArchive(resend_keep_s) if on and resend_keep_s > 0 else None
+        cache.share = TileShare() if on else None
 
     @property
     def tick_plane(self) -> bool:
         return self._cache.plane
+
+    @property
+    def tile_share(self) -> TileShare | None:
+        """(issue 36, T8) The copy-on-write tile sharing of the tiled maps made on this grid
+        from now on (:mod:`agents.maps.tiles`): on with :meth:`set_tick_plane`, else None."""
+        return self._cache.share
+
+    def new_tick(self) -> None:
+        """A simulation's tick begins: the tile sharing's memo of the last tick is flushed
+        (:meth:`agents.maps.tiles.TileShare.flush`). Changes no map's cells."""
+        share = self._cache.share
+        if share is not None:
+            share.flush()
 
     def disk_cells(self, x: float, y: float, radius: float) -> tuple[int, int, int, int, np.ndarray, int, int] | None:
         """``(iy0, iy1, ix0, ix1, mask, near_row, near_col)`` of the disk of ``(x, y, radius)``

@@ -199,6 +199,7 @@ class GroupMap(UncertaintyMap):
         self.tile_shape, self.dense = base.tile_shape, True
         self._nty = self._ntx = 1
         self._tiles = {}  # the built cells (a buffer), or the map's own array once it left
+        self._own, self._share = set(), None  # (UncertaintyMap's tile sharing: tiled maps only)
         self._changes = None  # UncertaintyMap.track_changes
         self.derived = None
         self._writes = 0  # stamps while a member: the built cells are current while it is unchanged

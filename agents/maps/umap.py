@@ -18,6 +18,8 @@ paper's 500 x 500 is 250 000) are one tile covering the whole grid, allocated at
 fastest layout when every map ends up covering most of a small area anyway. Either way every
 method gives exactly the numbers of one dense ``float32`` array (``to_dense()``): the layout is
 invisible. Cells of edge tiles lying outside the grid stay ``-inf`` (writes are clipped to it).
+Tiled maps of a simulation with the tick plane share tile objects copy-on-write
+(:mod:`agents.maps.tiles`): UAVs that stamped the same scans onto a tile hold one tile for it.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from typing import SupportsInt
 import numpy as np
 
 from agents.maps.grid import Disk, Grid, where_seen
+from agents.maps.tiles import TileShare
 
 NEVER = np.float32(-np.inf)
 
@@ -75,7 +78,7 @@ class UncertaintyMap:
     ``(ny, nx)`` array to start from (copied).
     """
 
-    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles", "_changes", "derived")
+    __slots__ = ("grid", "tau", "tile_shape", "dense", "_ntx", "_nty", "_tiles", "_own", "_share", "_changes", "derived")
 
     def __init__(self, grid: Grid, tau: float, last_seen: np.ndarray | None = None, *, tile: TileSpec = None):
         self.grid = grid
@@ -93,6 +96,11 @@ class UncertaintyMap:
         # tile key ty * ntx + tx -> float32 cells (dense: the (ny, nx) grid; tiled: th * tw flat,
         # row-major); an absent tile is all -inf.
         self._tiles: dict[int, np.ndarray] = {}
+        # (tiled maps) The keys of the tiles this map alone holds, written in place; the others
+        # may be shared with other maps (never written: copy on write, agents.maps.tiles), through
+        # the grid's TileShare when it has one (a simulation with the tick plane).
+        self._own: set[int] = set()
+        self._share: TileShare | None = None if dense else grid.tile_share
         self._changes: list[tuple[int, int, int, int]] | None = None  # track_changes()
         self.derived: object = None  # what a consumer of take_changes() keeps with the map
         if dense:
@@ -110,16 +118,30 @@ class UncertaintyMap:
         agents.maps.mapgroup.GroupMap, builds them here; an ordinary map holds them already)."""
 
     def _alloc(self, key: int) -> np.ndarray:
-        """A new all-``-inf`` tile (tiled maps keep tiles flat: ``th * tw`` cells, row-major)."""
+        """A new all-``-inf`` tile (tiled maps keep tiles flat: ``th * tw`` cells, row-major),
+        owned by this map."""
         th, tw = self.tile_shape
         tile = self._tiles[key] = np.empty(th * tw, dtype=np.float32)
         tile.fill(NEVER)
+        self._own.add(key)
+        return tile
+
+    def _writable(self, key: int) -> np.ndarray:
+        """Tile ``key`` of a tiled map, to be written in place: owned by this map (a copy of it
+        if it may be shared, a new one if absent)."""
+        tile = self._tiles.get(key)
+        if tile is None:
+            return self._alloc(key)
+        if key not in self._own:
+            tile = self._tiles[key] = tile.copy()
+            self._own.add(key)
         return tile
 
     def tile(self, key: int) -> np.ndarray | None:
-        """The stored last-seen times of tile ``key`` (``ty * ntx + tx``), live, not to be
-        written: a tiled map's flat ``th * tw`` cells (row-major; cells outside the grid are
-        ``-inf``), a dense map's whole grid (key 0); None where never written."""
+        """The stored last-seen times of tile ``key`` (``ty * ntx + tx``), not to be written: a
+        tiled map's flat ``th * tw`` cells (row-major; cells outside the grid are ``-inf``), a
+        dense map's whole grid (key 0); None where never written. Live until the map's next
+        write (a tile shared with other maps is replaced, not written, then)."""
         self._materialize()
         return self._tiles.get(key)
 
@@ -130,7 +152,7 @@ class UncertaintyMap:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of cell storage allocated."""
+        """Bytes of cell storage this map holds (a tile shared with other maps counted in each)."""
         self._materialize()
         return sum(a.nbytes for a in self._tiles.values())
 
@@ -198,10 +220,11 @@ class UncertaintyMap:
         th, tw = self.tile_shape
         tiles = self._tiles
         changed = 0
+        own = self._own
         for key, rows, cols, mask, _box in d.pieces(th, tw, self._ntx):
             tile = tiles.get(key)
-            if tile is None:
-                tile = self._alloc(key)
+            if tile is None or key not in own:
+                tile = self._writable(key)
             view = tile.reshape(th, tw)[rows, cols]
             newer = mask & (view < t32)
             view[newer] = t32
@@ -226,10 +249,17 @@ class UncertaintyMap:
         shape = self.tile_shape
         smemo = d.stamps_memo  # = d.stamps(...) when it matches, without the call (the per-receiver hot path)
         pieces = smemo[2] if smemo[1] == t and smemo[0] == shape else d.stamps(shape[0], shape[1], self._ntx, t)
+        own = self._own
+        share = self._share if d.key is not None else None
+        size = shape[0] * shape[1]
         for key, start, stop, values in pieces:
-            tile = tiles.get(key)
-            if tile is None:
-                tile = self._alloc(key)
+            if key in own:
+                tile = tiles[key]
+            elif share is not None:  # (a tile that may be shared, or none yet: agents.maps.tiles)
+                share.stamp(tiles, own, key, size, start, values)
+                continue
+            else:
+                tile = self._writable(key)
             view = tile[start:stop]
             np.maximum(view, values, out=view)
 
@@ -260,6 +290,7 @@ class UncertaintyMap:
             return
         th, tw = self.tile_shape
         tiles = self._tiles
+        own = self._own
         ntx = self._ntx
         item = mask.item
         maximum = np.maximum
@@ -272,8 +303,8 @@ class UncertaintyMap:
                 if item(nr, min(max(near_c, c0), c1 - 1)):  # (a tile holds a cell iff its nearest does)
                     key = ty * ntx + tx
                     tile = tiles.get(key)
-                    if tile is None:
-                        tile = self._alloc(key)
+                    if tile is None or key not in own:
+                        tile = self._writable(key)
                     cc = ix0 - tx * tw
                     view = tile.reshape(th, tw)[r0 + a:r1 + a, c0 + cc:c1 + cc]
                     maximum(view, values[r0:r1, c0:c1], out=view)
@@ -308,8 +339,8 @@ class UncertaintyMap:
                 if item(nr, min(max(near_c, c0), c1 - 1)):
                     key = ty * ntx + tx
                     tile = tiles.get(key)
-                    if tile is None:
-                        tile = self._alloc(key)
+                    if tile is None or key not in self._own:
+                        tile = self._writable(key)
                     a, c = iy0 - ty * th, ix0 - tx * tw
                     view = tile.reshape(th, tw)[r0 + a:r1 + a, c0 + c:c1 + c]
                     np.maximum(view, values[r0:r1, c0:c1], out=view)
@@ -329,8 +360,8 @@ class UncertaintyMap:
         new = 0
         for key, rows, cols, mask, box in d.pieces(th, tw, self._ntx):
             tile = tiles.get(key)
-            if tile is None:
-                tile = self._alloc(key)
+            if tile is None or key not in self._own:
+                tile = self._writable(key)
             view = tile.reshape(th, tw)[rows, cols]
             new += int(np.count_nonzero(mask & (view == NEVER)))
             np.maximum(view, values[box], out=view)
@@ -350,7 +381,10 @@ class UncertaintyMap:
                     mine = self._tiles.get(key)
                     if mine is None:
                         self._tiles[key] = theirs.copy()
+                        self._own.add(key)
                     else:
+                        if not self.dense and key not in self._own:
+                            mine = self._writable(key)
                         np.maximum(mine, theirs, out=mine)
                 return
             theirs = other.to_dense()
@@ -375,6 +409,8 @@ class UncertaintyMap:
                     if np.isneginf(piece).all():
                         continue  # max(-inf, -inf): nothing to store
                     mine = self._alloc(key)
+                elif key not in self._own:
+                    mine = self._writable(key)
                 view = mine.reshape(th, tw)[: r1 - r0, : c1 - c0]
                 np.maximum(view, piece, out=view)
 
@@ -388,6 +424,8 @@ class UncertaintyMap:
         new.dense = self.dense
         new._nty, new._ntx = self._nty, self._ntx
         new._tiles = {k: v.copy() for k, v in self._tiles.items()}
+        new._own = set(new._tiles)
+        new._share = self._share
         new._changes = None  # (a new map: nobody tracks it yet)
         new.derived = None
         return new

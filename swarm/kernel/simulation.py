@@ -235,6 +235,7 @@ class Simulation(HostApi):
         UAVs move only in :meth:`_integrate`, so these positions also serve the safety check and
         the radio topology of this tick."""
         world = self._world
+        self._grid.new_tick()  # (issue 36, T8: the maps' shared tiles, agents.maps.tiles)
         xy = world.positions(alive)
         readings = dict(zip(alive, world.sense_many(alive, t, xy)))
         self._faults.sense(t, alive, readings, self._fleet.outputs.__contains__)
