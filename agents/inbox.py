@@ -15,8 +15,9 @@ Heard in one pass, with decoding's own checks (the same Heard, or the same Frame
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from functools import partial
+from itertools import compress
 from typing import Any, NamedTuple, Protocol
 
 from agents.knowledge import Knowledge, TrackRow
@@ -293,9 +294,11 @@ Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each fra
 # tracks, rest, heard), the Heard's content with each hello flattened to (uav, type, x, y, v,
 # theta), each intent to (uav, wx, wy, mode, target, asks) (asks: a relief request, issue 33:
 # search mode with a target), each track item to a TrackRow; rest: whether it has tracks,
-# threats or digests (rare: looked at only then); heard: the Heard itself.
+# threats or digests (rare: looked at only then); heard: the Heard itself; centres: the scans'
+# centres (x0, y0, x1, y1, ...), flat (the receive service's horizon test, as arrays).
 Taken = tuple[float, tuple[HeardScan, ...], int, int, tuple[tuple[int, str, float, float, float, float], ...],
-              tuple[tuple[int, float, float, int, int, bool], ...], tuple[TrackRow, ...], bool, Heard]
+              tuple[tuple[int, float, float, int, int, bool], ...], tuple[TrackRow, ...], bool, Heard,
+              tuple[float, ...]]
 
 
 def taken(h: Heard) -> Taken:
@@ -304,7 +307,8 @@ def taken(h: Heard) -> Taken:
             tuple([(m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos]),
             tuple([(i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0) for i in h.intents]),
             tuple([(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in h.tracks]) if h.tracks else (),
-            bool(h.tracks or h.threats or h.digests), h)
+            bool(h.tracks or h.threats or h.digests), h,
+            tuple([v for _, _, scan, _ in h.scans for v in scan[1:3]]) if h.scans else ())
 
 
 # The receive service's memo of one tick (Inbox.take): per (t, bounds), per frame's bytes, what
@@ -359,36 +363,49 @@ class Inbox:
              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
              memo: HeardMemo) -> Received:
         """:meth:`merge`, for the receive service (:mod:`swarm.kernel.receiving`): the same
-        rules with the same results, in a loop that does per receiver only what depends on
-        the receiver. ``memo`` is the service's for this tick, shared by every receiver it
-        serves: a frame delivered to k receivers is looked up in the decode cache (and its
-        messages flattened, :data:`Taken`) once, not k times. :meth:`merge` stays the
-        specification (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py
-        compares the two tick by tick)."""
-        received: Received = []
-        if not frames:
+        rules with the same results, in three steps that do per receiver only what depends on
+        the receiver (:meth:`resolve`, the horizon test, :meth:`apply_scans` and
+        :meth:`merge_knowledge`; the service runs the horizon test of all receivers at once).
+        ``memo`` is the service's for this tick, shared by every receiver it serves: a frame
+        delivered to k receivers is looked up in the decode cache (and its messages flattened,
+        :data:`Taken`) once, not k times. :meth:`merge` stays the specification
+        (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py compares the two
+        tick by tick)."""
+        received, accepted = self.resolve(frames, t, counters, memo)
+        if not accepted:
             return received
+        heard: list[HeardScan] = []
+        for rec in accepted:
+            heard += rec[1]
+        horizon2 = self.horizon2
+        if horizon2 is not None and heard:
+            near = [hs for hs in heard if (hs[2][1] - here_x) ** 2 + (hs[2][2] - here_y) ** 2 <= horizon2]
+            counters.scans_beyond += len(heard) - len(near)
+            heard = near
+        self.apply_scans(heard, t, umap, scans)
+        self.merge_knowledge(accepted, knowledge)
+        return received
+
+    def resolve(self, frames: Sequence[tuple[float, int, bytes]], t: float, counters: InboxCounters,
+                memo: HeardMemo) -> tuple[Received, list[Taken]]:
+        """The first step of :meth:`take`: each frame of ``frames`` (a mailbox's ``(arrival,
+        sender, data)``), heard at ``t``, looked up in the tick's ``memo`` (decoded and checked
+        by the first receiver of its bytes); the rejected ones, the delivered ones, their
+        ignored scans and strange messages counted. Returns ``(sender, nbytes, accepted)`` per
+        frame, and the accepted frames as :data:`Taken`, in order."""
+        received: Received = []
+        accepted: list[Taken] = []
+        if not frames:
+            return received, accepted
         append = received.append
-        k = knowledge
-        peers = k.peers
-        peer = k.peer
-        me = self.uid
-        stamp = umap.stamp
-        grid = self.grid
-        disk_stamp = grid.disk_stamp
-        known_disk = grid.disk_lookup()
-        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
-        old = t - self.fresh_s
-        log_add = scans.add_tick if scans is not None else None
+        keep = accepted.append
         bounds = self.bounds
         key = (t, bounds)
         table = memo.get(key)
         if table is None:
             table = memo[key] = {}
         heard_of = self._heard
-        digests = self.digests
-        delivered = ignored = strange = beyond = 0
-        horizon2 = self.horizon2
+        ignored = strange = 0
         for _arrival, sender, data in frames:
             rec = table.get(data)
             if rec is None:  # the first receiver of this frame (at this t) this tick
@@ -404,23 +421,52 @@ class Inbox:
                     counters.rejected_auth += 1
                 append((sender, len(data), False))
                 continue
-            ft, heard_scans, n_ignored, n_strange, hellos, intents, tracks, rest, heard = rec
-            delivered += 1
+            keep(rec)
             append((sender, len(data), True))
-            ignored += n_ignored
-            strange += n_strange
-            for origin, tick, scan, disk_key in heard_scans:
-                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
-                    beyond += 1
-                elif log_add is None or log_add(origin, tick, scan):
-                    d = known_disk(disk_key, _MISSING)
-                    if d is _MISSING:
-                        if once is not None and scan[0] < old:
-                            once(*disk_key, scan[0])
-                            continue
-                        d = disk_stamp(*disk_key)
-                    if d is not None:
-                        stamp(d, scan[0])
+            ignored += rec[2]
+            strange += rec[3]
+        counters.delivered += len(accepted)
+        counters.scans_ignored += ignored
+        counters.messages_ignored += strange
+        return received, accepted
+
+    def apply_scans(self, heard: Sequence[HeardScan], t: float, umap: UncertaintyMap, scans: ScanLog | None) -> None:
+        """The heard scans within the knowledge horizon (``heard``, in the order of their frames),
+        heard at ``t``: those new to the scan log ``scans`` (all of them when None: not kept;
+        :meth:`ScanLog.add_ticks`, the first of a repeated one) logged and stamped into ``umap``,
+        in order, as :meth:`merge` stamps them."""
+        if not heard:
+            return
+        new: Iterable[HeardScan] = heard
+        if scans is not None:
+            new = compress(heard, scans.add_ticks(heard) if type(scans) is ScanLog
+                           else [scans.add_tick(origin, tick, scan) for origin, tick, scan, _ in heard])
+        stamp = umap.stamp
+        grid = self.grid
+        disk_stamp = grid.disk_stamp
+        known_disk = grid.disk_lookup()
+        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
+        old = t - self.fresh_s
+        for _origin, _tick, scan, disk_key in new:
+            d = known_disk(disk_key, _MISSING)
+            if d is _MISSING:
+                if once is not None and scan[0] < old:
+                    once(*disk_key, scan[0])
+                    continue
+                d = disk_stamp(*disk_key)
+            if d is not None:
+                stamp(d, scan[0])
+
+    def merge_knowledge(self, accepted: Sequence[Taken], knowledge: Knowledge) -> None:
+        """The last step of :meth:`take`: the hellos, intents, tracks, threats and digests of the
+        ``accepted`` frames (in order) merged into ``knowledge`` and the digests to answer, as
+        :meth:`merge` merges them (their scans are :meth:`apply_scans`')."""
+        k = knowledge
+        peers = k.peers
+        peer = k.peer
+        me = self.uid
+        digests = self.digests
+        for ft, _scans, _ignored, _strange, hellos, intents, tracks, rest, heard, _centres in accepted:
             for uav, typ, x, y, v, theta in hellos:
                 if uav != me:
                     p = peers.get(uav) or peer(uav)
@@ -443,11 +489,6 @@ class Inbox:
                 for dg in heard.digests:
                     if dg.uav != me:
                         digests.append(dg)
-        counters.delivered += delivered
-        counters.scans_ignored += ignored
-        counters.scans_beyond += beyond
-        counters.messages_ignored += strange
-        return received
 
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
               umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:

@@ -23,13 +23,26 @@ compares them tick by tick against the per-actor path).
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from itertools import compress
+
+import numpy as np
 
 from agents.actor import UavActor
-from agents.inbox import HeardMemo
+from agents.inbox import HeardMemo, HeardScan, Inbox, Taken
 from agents.inputs import SensorReading
 from swarm.errors import SimulationError
 
 __all__ = ["Receiving"]
+
+# Below this many receivers in a tick each merges on its own (Inbox.take: the scalar horizon
+# test), below this many (receiver, scan) pairs the horizon test is the scalar one: numpy's cost
+# per call is more than it saves there (paper-fig11: 6 UAVs).
+SMALL_SWARM = 16
+SMALL_PAIRS = 64
+# The band around the horizon where numpy's d*d and Python's d**2 (the oracle's: C pow, which
+# may differ from the product in the last bit) could decide differently: relative to H^2, far
+# wider than the few ulp they can differ by. Pairs in it are decided by the scalar formula.
+BAND = 1e-12
 
 
 class Receiving:
@@ -43,12 +56,107 @@ class Receiving:
 
     def receive(self, uids: Iterable[int], readings: Mapping[int, SensorReading]) -> None:
         """Merge the mailbox of each actor of ``uids`` (in that order: UAV ids ascending) with
-        its reading of this tick, sharing one memo of the frames heard."""
+        its reading of this tick, sharing one memo of the frames heard.
+
+        In three passes (a small swarm: each actor's :meth:`~agents.actor.UavActor.receive`,
+        one by one): every receiver's frames looked up and counted
+        (:meth:`~agents.actor.UavActor.heard`); the knowledge horizon tested for all (receiver,
+        scan) pairs of the tick at once (:func:`within_horizons`); each receiver's scans within
+        it logged and stamped, and the rest of its frames merged
+        (:meth:`~agents.actor.UavActor.apply_heard`), in UAV-id order. What a receiver's merge
+        reads is its own state and the frames (the first pass changes only the tick's memo, its
+        counters and what it received), so the passes give each the state its own merge would;
+        every map, the grid's shared disk memo and the resend archive see their calls in the
+        same order as receiver after receiver."""
         memo: HeardMemo = {}
         actors = self.actors
+        uids = list(uids)
+        if len(uids) < SMALL_SWARM:
+            for uid in uids:
+                actor = actors[uid]
+                try:
+                    actor.receive(readings[uid], memo)
+                except Exception as exc:
+                    raise _failed(actor, exc) from exc
+            return
+        # 1. Each receiver's frames, and its scans with their centres, flat.
+        jobs: list[tuple[UavActor, SensorReading, list[Taken] | None, list[HeardScan]]] = []
+        centres: list[float] = []
+        here: list[tuple[float, float, float]] = []  # per receiver with scans: x, y, H^2
+        counts: list[int] = []
         for uid in uids:
             actor = actors[uid]
+            r = readings[uid]
+            if type(actor.inbox) is not Inbox:  # (a test's stand-in: merged in the third pass)
+                jobs.append((actor, r, None, []))
+                continue
             try:
-                actor.receive(readings[uid], memo)
-            except Exception as exc:  # as the actor's own step would report it (swarm.kernel.fleet)
-                raise SimulationError(f"UAV {actor.name} raised {type(exc).__name__}: {exc}") from exc
+                accepted = actor.heard(r, memo)
+            except Exception as exc:
+                raise _failed(actor, exc) from exc
+            heard: list[HeardScan] = []
+            h2 = actor.inbox.horizon2
+            for rec in accepted:
+                if rec[1]:
+                    heard += rec[1]
+                    if h2 is not None:
+                        centres += rec[9]
+            if heard and h2 is not None:
+                here.append((r.x, r.y, h2))
+                counts.append(len(heard))
+            jobs.append((actor, r, accepted, heard))
+        # 2. The horizon test of every pair at once.
+        inside = within_horizons(centres, here, counts) if here else []
+        # 3. Each receiver's merge, in UAV-id order.
+        i = 0
+        for actor, r, got, heard in jobs:
+            try:
+                if got is None:
+                    actor.receive(r, memo)
+                    continue
+                if heard and actor.inbox.horizon2 is not None:
+                    n = len(heard)
+                    near = list(compress(heard, inside[i:i + n]))
+                    i += n
+                    actor.apply_heard(r, got, near, n - len(near))
+                else:
+                    actor.apply_heard(r, got, heard, 0)
+            except Exception as exc:
+                raise _failed(actor, exc) from exc
+
+
+def within_horizons(centres: list[float], here: list[tuple[float, float, float]], counts: list[int]) -> list[bool]:
+    """For each (receiver, scan) pair, whether the scan's centre lies within the receiver's
+    knowledge horizon, exactly as :meth:`agents.inbox.Inbox.merge` decides it: ``(x - hx) ** 2
+    + (y - hy) ** 2 <= H^2``. ``centres``: the pairs' scan centres ``x0, y0, x1, y1, ...``,
+    receiver by receiver; ``here``: per receiver ``(hx, hy, H^2)``; ``counts``: its pairs."""
+    n = len(centres) // 2
+    if n < SMALL_PAIRS:
+        out: list[bool] = []
+        j = 0
+        for (hx, hy, h2), c in zip(here, counts):
+            for k in range(j, j + 2 * c, 2):
+                out.append((centres[k] - hx) ** 2 + (centres[k + 1] - hy) ** 2 <= h2)
+            j += 2 * c
+        return out
+    p = np.array(centres, np.float64).reshape(n, 2)
+    h = np.array(here, np.float64)
+    reps = np.array(counts, np.intp)
+    p -= np.repeat(h[:, :2], reps, axis=0)
+    d = p * p
+    d2 = d[:, 0] + d[:, 1]
+    hh2 = np.repeat(h[:, 2], reps)
+    inside = d2 <= hh2
+    np.subtract(d2, hh2, out=d2)
+    close = np.flatnonzero(np.abs(d2, out=d2) <= BAND * hh2)
+    if len(close):
+        owner = np.repeat(np.arange(len(reps)), reps)  # (the receiver of each pair)
+        for k in close.tolist():
+            hx, hy, hh = here[int(owner[k])]
+            inside[k] = (centres[2 * k] - hx) ** 2 + (centres[2 * k + 1] - hy) ** 2 <= hh
+    return inside.tolist()  # type: ignore[no-any-return]
+
+
+def _failed(actor: UavActor, exc: Exception) -> SimulationError:
+    """The error of an actor's merge, as the actor's own step would report it (swarm.kernel.fleet)."""
+    return SimulationError(f"UAV {actor.name} raised {type(exc).__name__}: {exc}")
