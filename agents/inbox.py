@@ -294,11 +294,9 @@ Received = list[tuple[int, int, bool]]  # (sender, nbytes, accepted) of each fra
 # tracks, rest, heard), the Heard's content with each hello flattened to (uav, type, x, y, v,
 # theta), each intent to (uav, wx, wy, mode, target, asks) (asks: a relief request, issue 33:
 # search mode with a target), each track item to a TrackRow; rest: whether it has tracks,
-# threats or digests (rare: looked at only then); heard: the Heard itself; centres: the scans'
-# centres (x0, y0, x1, y1, ...), flat (the receive service's horizon test, as arrays).
+# threats or digests (rare: looked at only then); heard: the Heard itself.
 Taken = tuple[float, tuple[HeardScan, ...], int, int, tuple[tuple[int, str, float, float, float, float], ...],
-              tuple[tuple[int, float, float, int, int, bool], ...], tuple[TrackRow, ...], bool, Heard,
-              tuple[float, ...]]
+              tuple[tuple[int, float, float, int, int, bool], ...], tuple[TrackRow, ...], bool, Heard]
 
 
 def taken(h: Heard) -> Taken:
@@ -307,8 +305,7 @@ def taken(h: Heard) -> Taken:
             tuple([(m.uav, m.type, m.x, m.y, m.v, m.theta) for m in h.hellos]),
             tuple([(i.uav, i.wx, i.wy, i.mode, i.target, i.mode == MODE_SEARCH and i.target >= 0) for i in h.intents]),
             tuple([(it.target, it.x, it.y, it.vx, it.vy, it.t, it.value) for it in h.tracks]) if h.tracks else (),
-            bool(h.tracks or h.threats or h.digests), h,
-            tuple([v for _, _, scan, _ in h.scans for v in scan[1:3]]) if h.scans else ())
+            bool(h.tracks or h.threats or h.digests), h)
 
 
 # The receive service's memo of one tick (Inbox.take): per (t, bounds), per frame's bytes, what
@@ -363,49 +360,50 @@ class Inbox:
              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
              memo: HeardMemo) -> Received:
         """:meth:`merge`, for the receive service (:mod:`swarm.kernel.receiving`): the same
-        rules with the same results, in three steps that do per receiver only what depends on
-        the receiver (:meth:`resolve`, the horizon test, :meth:`apply_scans` and
-        :meth:`merge_knowledge`; the service runs the horizon test of all receivers at once).
-        ``memo`` is the service's for this tick, shared by every receiver it serves: a frame
-        delivered to k receivers is looked up in the decode cache (and its messages flattened,
-        :data:`Taken`) once, not k times. :meth:`merge` stays the specification
-        (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py compares the two
-        tick by tick)."""
-        received, accepted = self.resolve(frames, t, counters, memo)
-        if not accepted:
-            return received
-        heard: list[HeardScan] = []
-        for rec in accepted:
-            heard += rec[1]
-        horizon2 = self.horizon2
-        if horizon2 is not None and heard:
-            near = [hs for hs in heard if (hs[2][1] - here_x) ** 2 + (hs[2][2] - here_y) ** 2 <= horizon2]
-            counters.scans_beyond += len(heard) - len(near)
-            heard = near
-        self.apply_scans(heard, t, umap, scans)
-        self.merge_knowledge(accepted, knowledge)
+        rules with the same results, in two steps that do per receiver only what depends on the
+        receiver: :meth:`hear` (the frames looked up, counted and merged into its knowledge;
+        their scans gathered), then the horizon test and :meth:`apply_scans`; the service runs
+        the horizon test of all receivers of a tick at once. ``memo`` is the service's for this
+        tick, shared by every receiver it serves: a frame delivered to k receivers is looked up
+        in the decode cache (and its messages flattened, :data:`Taken`) once, not k times.
+        :meth:`merge` stays the specification (``Simulation(tick_plane=False)`` runs it;
+        tests/test_tick_plane.py compares the two tick by tick)."""
+        received, heard = self.hear(frames, t, knowledge, counters, memo)
+        if heard:
+            horizon2 = self.horizon2
+            if horizon2 is not None:
+                near = [hs for hs in heard if (hs[2][1] - here_x) ** 2 + (hs[2][2] - here_y) ** 2 <= horizon2]
+                counters.scans_beyond += len(heard) - len(near)
+                heard = near
+            self.apply_scans(heard, t, umap, scans)
         return received
 
-    def resolve(self, frames: Sequence[tuple[float, int, bytes]], t: float, counters: InboxCounters,
-                memo: HeardMemo) -> tuple[Received, list[Taken]]:
+    def hear(self, frames: Sequence[tuple[float, int, bytes]], t: float, knowledge: Knowledge,
+             counters: InboxCounters, memo: HeardMemo) -> tuple[Received, list[HeardScan]]:
         """The first step of :meth:`take`: each frame of ``frames`` (a mailbox's ``(arrival,
         sender, data)``), heard at ``t``, looked up in the tick's ``memo`` (decoded and checked
         by the first receiver of its bytes); the rejected ones, the delivered ones, their
-        ignored scans and strange messages counted. Returns ``(sender, nbytes, accepted)`` per
-        frame, and the accepted frames as :data:`Taken`, in order."""
+        ignored scans and strange messages counted; the hellos, intents, tracks, threats and
+        digests of the accepted ones merged into ``knowledge`` and the digests to answer, as
+        :meth:`merge` merges them. Returns ``(sender, nbytes, accepted)`` per frame, the
+        accepted frames' scans in order (for the horizon test and :meth:`apply_scans`)."""
         received: Received = []
-        accepted: list[Taken] = []
+        heard: list[HeardScan] = []
         if not frames:
-            return received, accepted
+            return received, heard
         append = received.append
-        keep = accepted.append
         bounds = self.bounds
         key = (t, bounds)
         table = memo.get(key)
         if table is None:
             table = memo[key] = {}
         heard_of = self._heard
-        ignored = strange = 0
+        k = knowledge
+        peers = k.peers
+        peer = k.peer
+        me = self.uid
+        digests = self.digests
+        delivered = ignored = strange = 0
         for _arrival, sender, data in frames:
             rec = table.get(data)
             if rec is None:  # the first receiver of this frame (at this t) this tick
@@ -421,14 +419,40 @@ class Inbox:
                     counters.rejected_auth += 1
                 append((sender, len(data), False))
                 continue
-            keep(rec)
+            ft, heard_scans, n_ignored, n_strange, hellos, intents, tracks, rest, h = rec
+            delivered += 1
             append((sender, len(data), True))
-            ignored += rec[2]
-            strange += rec[3]
-        counters.delivered += len(accepted)
+            if n_ignored or n_strange:
+                ignored += n_ignored
+                strange += n_strange
+            if heard_scans:
+                heard += heard_scans
+            for uav, typ, x, y, v, theta in hellos:
+                if uav != me:
+                    p = peers.get(uav) or peer(uav)
+                    if ft >= p.t_pose:
+                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = typ, x, y, v, theta, ft
+            for uav, wx, wy, mode, target, asks in intents:
+                if uav != me:
+                    p = peers.get(uav) or peer(uav)
+                    if ft >= p.t_intent:
+                        p.wx, p.wy, p.mode, p.target, p.t_intent = wx, wy, mode, target, ft
+                        if asks:
+                            p.mode, p.asks = MODE_SURVEIL, True
+                        elif p.asks:
+                            p.asks = False
+            if rest:
+                if tracks:
+                    k.merge_track_rows(tracks)
+                for th in h.threats:
+                    k.add_threat(*th)
+                for dg in h.digests:
+                    if dg.uav != me:
+                        digests.append(dg)
+        counters.delivered += delivered
         counters.scans_ignored += ignored
         counters.messages_ignored += strange
-        return received, accepted
+        return received, heard
 
     def apply_scans(self, heard: Sequence[HeardScan], t: float, umap: UncertaintyMap, scans: ScanLog | None) -> None:
         """The heard scans within the knowledge horizon (``heard``, in the order of their frames),
@@ -456,39 +480,6 @@ class Inbox:
                 d = disk_stamp(*disk_key)
             if d is not None:
                 stamp(d, scan[0])
-
-    def merge_knowledge(self, accepted: Sequence[Taken], knowledge: Knowledge) -> None:
-        """The last step of :meth:`take`: the hellos, intents, tracks, threats and digests of the
-        ``accepted`` frames (in order) merged into ``knowledge`` and the digests to answer, as
-        :meth:`merge` merges them (their scans are :meth:`apply_scans`')."""
-        k = knowledge
-        peers = k.peers
-        peer = k.peer
-        me = self.uid
-        digests = self.digests
-        for ft, _scans, _ignored, _strange, hellos, intents, tracks, rest, heard, _centres in accepted:
-            for uav, typ, x, y, v, theta in hellos:
-                if uav != me:
-                    p = peers.get(uav) or peer(uav)
-                    if ft >= p.t_pose:
-                        p.type, p.x, p.y, p.v, p.theta, p.t_pose = typ, x, y, v, theta, ft
-            for uav, wx, wy, mode, target, asks in intents:
-                if uav != me:
-                    p = peers.get(uav) or peer(uav)
-                    if ft >= p.t_intent:
-                        p.wx, p.wy, p.mode, p.target, p.t_intent = wx, wy, mode, target, ft
-                        if asks:
-                            p.mode, p.asks = MODE_SURVEIL, True
-                        elif p.asks:
-                            p.asks = False
-            if rest:
-                if tracks:
-                    k.merge_track_rows(tracks)
-                for th in heard.threats:
-                    k.add_threat(*th)
-                for dg in heard.digests:
-                    if dg.uav != me:
-                        digests.append(dg)
 
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
               umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:

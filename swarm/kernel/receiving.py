@@ -28,7 +28,7 @@ from itertools import compress
 import numpy as np
 
 from agents.actor import UavActor
-from agents.inbox import HeardMemo, HeardScan, Inbox, Taken
+from agents.inbox import HeardMemo, HeardScan, Inbox
 from agents.inputs import SensorReading
 from swarm.errors import SimulationError
 
@@ -39,6 +39,10 @@ __all__ = ["Receiving"]
 # per call is more than it saves there (paper-fig11: 6 UAVs).
 SMALL_SWARM = 16
 SMALL_PAIRS = 64
+# The horizon test runs as arrays over all pairs of a tick only when its receivers heard at least
+# this many scans each on average: gathering the centres costs more than the scalar test saves
+# below it (bench-100 and bench-1000 hear 5-6 a receiver-tick: measured, docs/speed.md).
+DENSE_PAIRS = 24
 # The band around the horizon where numpy's d*d and Python's d**2 (the oracle's: C pow, which
 # may differ from the product in the last bit) could decide differently: relative to H^2, far
 # wider than the few ulp they can differ by. Pairs in it are decided by the scalar formula.
@@ -59,15 +63,17 @@ class Receiving:
         its reading of this tick, sharing one memo of the frames heard.
 
         In three passes (a small swarm: each actor's :meth:`~agents.actor.UavActor.receive`,
-        one by one): every receiver's frames looked up and counted
-        (:meth:`~agents.actor.UavActor.heard`); the knowledge horizon tested for all (receiver,
-        scan) pairs of the tick at once (:func:`within_horizons`); each receiver's scans within
-        it logged and stamped, and the rest of its frames merged
-        (:meth:`~agents.actor.UavActor.apply_heard`), in UAV-id order. What a receiver's merge
-        reads is its own state and the frames (the first pass changes only the tick's memo, its
-        counters and what it received), so the passes give each the state its own merge would;
+        one by one): every receiver's frames looked up, counted and merged into its knowledge,
+        its heard scans gathered (:meth:`~agents.actor.UavActor.heard`); the knowledge horizon
+        tested for all (receiver, scan) pairs of the tick at once (:func:`within_horizons`);
+        each receiver's scans within it logged and stamped
+        (:meth:`~agents.actor.UavActor.apply_heard`), in UAV-id order. A receiver's merge reads
+        only its own state and the frames, and its knowledge, scan log and map are apart (the
+        first pass changes only the tick's memo and the receiver's counters, knowledge and
+        record of what it received), so the passes give each the state its own merge would;
         every map, the grid's shared disk memo and the resend archive see their calls in the
-        same order as receiver after receiver."""
+        same order as receiver after receiver.
+        """
         memo: HeardMemo = {}
         actors = self.actors
         uids = list(uids)
@@ -79,48 +85,48 @@ class Receiving:
                 except Exception as exc:
                     raise _failed(actor, exc) from exc
             return
-        # 1. Each receiver's frames, and its scans with their centres, flat.
-        jobs: list[tuple[UavActor, SensorReading, list[Taken] | None, list[HeardScan]]] = []
-        centres: list[float] = []
-        here: list[tuple[float, float, float]] = []  # per receiver with scans: x, y, H^2
-        counts: list[int] = []
+        # 1. Each receiver's frames, merged into its knowledge; its heard scans.
+        jobs: list[tuple[UavActor, SensorReading, list[HeardScan] | None]] = []
+        pairs = 0
         for uid in uids:
             actor = actors[uid]
             r = readings[uid]
             if type(actor.inbox) is not Inbox:  # (a test's stand-in: merged in the third pass)
-                jobs.append((actor, r, None, []))
+                jobs.append((actor, r, None))
                 continue
             try:
-                accepted = actor.heard(r, memo)
+                heard = actor.heard(r, memo)
             except Exception as exc:
                 raise _failed(actor, exc) from exc
-            heard: list[HeardScan] = []
-            h2 = actor.inbox.horizon2
-            for rec in accepted:
-                if rec[1]:
-                    heard += rec[1]
-                    if h2 is not None:
-                        centres += rec[9]
-            if heard and h2 is not None:
-                here.append((r.x, r.y, h2))
-                counts.append(len(heard))
-            jobs.append((actor, r, accepted, heard))
-        # 2. The horizon test of every pair at once.
-        inside = within_horizons(centres, here, counts) if here else []
-        # 3. Each receiver's merge, in UAV-id order.
+            if heard:
+                jobs.append((actor, r, heard))
+                pairs += len(heard)
+        # 2. The horizon test of every pair at once, where the tick has enough pairs per receiver.
+        inside: list[bool] | None = None
+        if pairs >= DENSE_PAIRS * len(jobs):
+            here = [(r.x, r.y, actor.inbox.horizon2) for actor, r, got in jobs
+                    if got is not None and actor.inbox.horizon2 is not None]
+            centres = [v for actor, _, got in jobs if got is not None and actor.inbox.horizon2 is not None
+                       for hs in got for v in hs[2][1:3]]
+            counts = [len(got) for actor, _, got in jobs if got is not None and actor.inbox.horizon2 is not None]
+            inside = within_horizons(centres, here, counts)
+        # 3. Each receiver's scans within its horizon logged and stamped, in UAV-id order.
         i = 0
-        for actor, r, got, heard in jobs:
+        for actor, r, got in jobs:
             try:
                 if got is None:
                     actor.receive(r, memo)
                     continue
-                if heard and actor.inbox.horizon2 is not None:
-                    n = len(heard)
-                    near = list(compress(heard, inside[i:i + n]))
-                    i += n
-                    actor.apply_heard(r, got, near, n - len(near))
+                h2 = actor.inbox.horizon2
+                if h2 is None:
+                    near = got
+                elif inside is not None:
+                    near = list(compress(got, inside[i:i + len(got)]))
+                    i += len(got)
                 else:
-                    actor.apply_heard(r, got, heard, 0)
+                    hx, hy = r.x, r.y
+                    near = [hs for hs in got if (hs[2][1] - hx) ** 2 + (hs[2][2] - hy) ** 2 <= h2]
+                actor.apply_heard(r, near, len(got) - len(near))
             except Exception as exc:
                 raise _failed(actor, exc) from exc
 
