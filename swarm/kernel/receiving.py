@@ -34,15 +34,15 @@ from swarm.errors import SimulationError
 
 __all__ = ["Receiving"]
 
-# Below this many receivers in a tick each merges on its own (Inbox.take: the scalar horizon
-# test), below this many (receiver, scan) pairs the horizon test is the scalar one: numpy's cost
-# per call is more than it saves there (paper-fig11: 6 UAVs).
+# The receivers of a tick merge one by one (each actor's receive: Inbox.take, the scalar horizon
+# test) when they are fewer than SMALL_SWARM or heard fewer than DENSE_FRAMES frames each on
+# average; else in the three passes of Receiving.receive, the horizon test as arrays over all
+# (receiver, scan) pairs. Gathering the pairs costs more than the scalar test saves below that
+# (bench-100 and bench-1000 hear 5-7 frames and scans a receiver-tick, bench-dense-300 about
+# 280: measured, docs/speed.md). Below SMALL_PAIRS pairs within_horizons tests them one by one.
 SMALL_SWARM = 16
+DENSE_FRAMES = 24
 SMALL_PAIRS = 64
-# The horizon test runs as arrays over all pairs of a tick only when its receivers heard at least
-# this many scans each on average: gathering the centres costs more than the scalar test saves
-# below it (bench-100 and bench-1000 hear 5-6 a receiver-tick: measured, docs/speed.md).
-DENSE_PAIRS = 24
 # The band around the horizon where numpy's d*d and Python's d**2 (the oracle's: C pow, which
 # may differ from the product in the last bit) could decide differently: relative to H^2, far
 # wider than the few ulp they can differ by. Pairs in it are decided by the scalar formula.
@@ -62,22 +62,22 @@ class Receiving:
         """Merge the mailbox of each actor of ``uids`` (in that order: UAV ids ascending) with
         its reading of this tick, sharing one memo of the frames heard.
 
-        In three passes (a small swarm: each actor's :meth:`~agents.actor.UavActor.receive`,
-        one by one): every receiver's frames looked up, counted and merged into its knowledge,
-        its heard scans gathered (:meth:`~agents.actor.UavActor.heard`); the knowledge horizon
-        tested for all (receiver, scan) pairs of the tick at once (:func:`within_horizons`);
-        each receiver's scans within it logged and stamped
-        (:meth:`~agents.actor.UavActor.apply_heard`), in UAV-id order. A receiver's merge reads
-        only its own state and the frames, and its knowledge, scan log and map are apart (the
-        first pass changes only the tick's memo and the receiver's counters, knowledge and
-        record of what it received), so the passes give each the state its own merge would;
-        every map, the grid's shared disk memo and the resend archive see their calls in the
-        same order as receiver after receiver.
+        A small or sparse tick (:data:`SMALL_SWARM`, :data:`DENSE_FRAMES`): each actor's
+        :meth:`~agents.actor.UavActor.receive`, one by one. Else in three passes: every
+        receiver's frames looked up, counted and merged into its knowledge, its heard scans
+        gathered (:meth:`~agents.actor.UavActor.heard`); the knowledge horizon tested for all
+        (receiver, scan) pairs of the tick at once (:func:`within_horizons`); each receiver's
+        scans within it logged and stamped (:meth:`~agents.actor.UavActor.apply_heard`), in
+        UAV-id order. A receiver's merge reads only its own state and the frames, and its
+        knowledge, scan log and map are apart (the first pass changes only the tick's memo and
+        the receiver's counters, knowledge and record of what it received), so the passes give
+        each the state its own merge would; every map, the grid's shared disk memo and the
+        resend archive see their calls in the same order as receiver after receiver.
         """
         memo: HeardMemo = {}
         actors = self.actors
         uids = list(uids)
-        if len(uids) < SMALL_SWARM:
+        if len(uids) < SMALL_SWARM or sum([len(actors[uid].mailbox) for uid in uids]) < DENSE_FRAMES * len(uids):
             for uid in uids:
                 actor = actors[uid]
                 try:
@@ -87,7 +87,9 @@ class Receiving:
             return
         # 1. Each receiver's frames, merged into its knowledge; its heard scans.
         jobs: list[tuple[UavActor, SensorReading, list[HeardScan] | None]] = []
-        pairs = 0
+        centres: list[float] = []  # of the pairs of the receivers with a horizon, x0, y0, x1, y1, ...
+        here: list[tuple[float, float, float]] = []  # of those receivers: x, y, H^2
+        counts: list[int] = []  # and their pairs
         for uid in uids:
             actor = actors[uid]
             r = readings[uid]
@@ -100,16 +102,13 @@ class Receiving:
                 raise _failed(actor, exc) from exc
             if heard:
                 jobs.append((actor, r, heard))
-                pairs += len(heard)
-        # 2. The horizon test of every pair at once, where the tick has enough pairs per receiver.
-        inside: list[bool] | None = None
-        if pairs >= DENSE_PAIRS * len(jobs):
-            here = [(r.x, r.y, actor.inbox.horizon2) for actor, r, got in jobs
-                    if got is not None and actor.inbox.horizon2 is not None]
-            centres = [v for actor, _, got in jobs if got is not None and actor.inbox.horizon2 is not None
-                       for hs in got for v in hs[2][1:3]]
-            counts = [len(got) for actor, _, got in jobs if got is not None and actor.inbox.horizon2 is not None]
-            inside = within_horizons(centres, here, counts)
+                h2 = actor.inbox.horizon2
+                if h2 is not None:
+                    centres += [v for hs in heard for v in hs[2][1:3]]
+                    here.append((r.x, r.y, h2))
+                    counts.append(len(heard))
+        # 2. The horizon test of every pair at once.
+        inside = within_horizons(centres, here, counts) if here else []
         # 3. Each receiver's scans within its horizon logged and stamped, in UAV-id order.
         i = 0
         for actor, r, got in jobs:
@@ -120,12 +119,9 @@ class Receiving:
                 h2 = actor.inbox.horizon2
                 if h2 is None:
                     near = got
-                elif inside is not None:
+                else:
                     near = list(compress(got, inside[i:i + len(got)]))
                     i += len(got)
-                else:
-                    hx, hy = r.x, r.y
-                    near = [hs for hs in got if (hs[2][1] - hx) ** 2 + (hs[2][2] - hy) ** 2 <= h2]
                 actor.apply_heard(r, near, len(got) - len(near))
             except Exception as exc:
                 raise _failed(actor, exc) from exc
