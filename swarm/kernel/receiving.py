@@ -12,7 +12,12 @@ receivers is what is the same for all of them: a frame delivered to k receivers 
 the decode cache (checked, if no receiver checked it yet) and its messages flattened into the
 tuples a receiver copies once, not k times (the per-tick memo of :meth:`agents.inbox.Inbox.take`).
 What is left per (receiver, frame) is what depends on the receiver: its horizon, its scan log,
-its map, its peers and tracks.
+its map, its peers and tracks. Where receivers hear many frames each (a dense swarm), the
+service does it in three passes, the knowledge horizon tested for every (receiver, scan) pair
+of the tick at once as arrays and each receiver's scans logged in one call
+(:meth:`Receiving.receive`); elsewhere each actor's :meth:`~agents.inbox.Inbox.take` does the
+same per receiver (the pairs are too few, 5-7 a receiver on bench-100 and bench-1000, for
+gathering them to pay).
 
 Maps shared in a :class:`~agents.maps.mapgroup.MapGroup` see their stamps in another order (every
 heard scan before the tick's own scans, instead of actor by actor); a group only shares storage,
