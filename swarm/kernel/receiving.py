@@ -16,8 +16,8 @@ its map, its peers and tracks. Where receivers hear many frames each (a dense sw
 service does it in three passes, the knowledge horizon tested for every (receiver, scan) pair
 of the tick at once as arrays and each receiver's scans logged in one call
 (:meth:`Receiving.receive`); elsewhere each actor's :meth:`~agents.inbox.Inbox.take` does the
-same per receiver (the pairs are too few, about 4.5 a receiver on bench-100, for gathering
-them to pay).
+same per receiver (bench-100 and bench-1000 hear 4.5-7 frames a receiver: too few for
+gathering the pairs to pay clearly).
 
 Maps shared in a :class:`~agents.maps.mapgroup.MapGroup` see their stamps in another order (every
 heard scan before the tick's own scans, instead of actor by actor); a group only shares storage,
@@ -42,13 +42,14 @@ __all__ = ["Receiving"]
 # The receivers of a tick merge one by one (each actor's receive: Inbox.take, the scalar horizon
 # test) when they are fewer than SMALL_SWARM or heard fewer than DENSE_FRAMES frames each on
 # average; else in the three passes of Receiving.receive, the horizon test as arrays over all
-# (receiver, scan) pairs. Measured on the 2-core VM (swarm bench's receive component, per-actor
-# against three passes, alternately, load 4-11): bench-1000-greedy (7.2 frames a receiver-tick)
-# 116 -> 103 us per UAV-tick, bench-dense-300 (about 280) 2490 -> 1980, bench-100-greedy (4.5)
-# 116 -> 126: below about 6 gathering the pairs costs more than it saves.
+# (receiver, scan) pairs. Measured on the 2-core VM (swarm bench's receive component, per actor
+# against three passes, alternately, load 4-11, us per UAV-tick): bench-dense-300 (about 280
+# frames a receiver-tick) 2673 -> 1973 and 2306 -> 1987; bench-1000-greedy (7.2) a mean of 120
+# -> 111 over 6 pairs, within the noise (one round equal); bench-100-greedy (4.5) 116 -> 126
+# over 4. So only clearly dense ticks take the passes (docs/speed.md).
 # Below SMALL_PAIRS pairs within_horizons tests them one by one.
 SMALL_SWARM = 16
-DENSE_FRAMES = 6
+DENSE_FRAMES = 24
 SMALL_PAIRS = 64
 # The band around the horizon where numpy's d*d and Python's d**2 (the oracle's: C pow, which
 # may differ from the product in the last bit) could decide differently: relative to H^2, far
