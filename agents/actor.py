@@ -29,7 +29,7 @@ import numpy as np
 
 from agents.antientropy import AntiEntropy
 from agents.apf import apf_command
-from agents.inbox import HeardMemo, Inbox
+from agents.inbox import HeardMemo, HeardScan, Inbox
 from agents.inputs import ActorSettings, SensedUav, SensorReading
 from agents.knowledge import Knowledge, Peer
 from agents.maps.grid import Grid
@@ -292,6 +292,22 @@ class UavActor:
         else:
             self._received = self.inbox.take(self.mailbox.drain(), r.t, r.x, r.y, self.umap, self.knowledge, scans,
                                              self.counters, memo)
+
+    def heard(self, r: SensorReading, memo: HeardMemo) -> list[HeardScan]:
+        """The receive service's first step of :meth:`receive` (:mod:`swarm.kernel.receiving`):
+        the frames in its mailbox, heard at ``r.t``, looked up in the tick's ``memo``, counted
+        and merged into its knowledge (:meth:`~agents.inbox.Inbox.hear`); returns their scans.
+        Then the service tests them against its horizon and :meth:`apply_heard` applies those
+        within it."""
+        self._received, heard = self.inbox.hear(self.mailbox.drain(), r.t, self.knowledge, self.counters, memo)
+        return heard
+
+    def apply_heard(self, r: SensorReading, near: Sequence[HeardScan], beyond: int) -> None:
+        """The receive service's last step of :meth:`receive`: the heard scans within its
+        knowledge horizon (``near``, in order; ``beyond``: how many were not) logged and
+        stamped into its map (:meth:`~agents.inbox.Inbox.apply_scans`)."""
+        self.counters.scans_beyond += beyond
+        self.inbox.apply_scans(near, r.t, self.umap, self.scans if self._log_scans else None)
 
     def goto(self, x: float, y: float) -> None:
         """An operator's waypoint (the embedding API's ``set_waypoint``, a ground station's

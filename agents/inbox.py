@@ -15,8 +15,9 @@ Heard in one pass, with decoding's own checks (the same Heard, or the same Frame
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from functools import partial
+from itertools import compress
 from typing import Any, NamedTuple, Protocol
 
 from agents.knowledge import Knowledge, TrackRow
@@ -359,36 +360,50 @@ class Inbox:
              umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters,
              memo: HeardMemo) -> Received:
         """:meth:`merge`, for the receive service (:mod:`swarm.kernel.receiving`): the same
-        rules with the same results, in a loop that does per receiver only what depends on
-        the receiver. ``memo`` is the service's for this tick, shared by every receiver it
-        serves: a frame delivered to k receivers is looked up in the decode cache (and its
-        messages flattened, :data:`Taken`) once, not k times. :meth:`merge` stays the
-        specification (``Simulation(tick_plane=False)`` runs it; tests/test_tick_plane.py
-        compares the two tick by tick)."""
+        rules with the same results, in two steps that do per receiver only what depends on the
+        receiver: :meth:`hear` (the frames looked up, counted and merged into its knowledge;
+        their scans gathered), then the horizon test and :meth:`apply_scans`; the service runs
+        the horizon test of all receivers of a tick at once. ``memo`` is the service's for this
+        tick, shared by every receiver it serves: a frame delivered to k receivers is looked up
+        in the decode cache (and its messages flattened, :data:`Taken`) once, not k times.
+        :meth:`merge` stays the specification (``Simulation(tick_plane=False)`` runs it;
+        tests/test_tick_plane.py compares the two tick by tick)."""
+        received, heard = self.hear(frames, t, knowledge, counters, memo)
+        if heard:
+            horizon2 = self.horizon2
+            if horizon2 is not None:
+                near = [hs for hs in heard if (hs[2][1] - here_x) ** 2 + (hs[2][2] - here_y) ** 2 <= horizon2]
+                counters.scans_beyond += len(heard) - len(near)
+                heard = near
+            self.apply_scans(heard, t, umap, scans)
+        return received
+
+    def hear(self, frames: Sequence[tuple[float, int, bytes]], t: float, knowledge: Knowledge,
+             counters: InboxCounters, memo: HeardMemo) -> tuple[Received, list[HeardScan]]:
+        """The first step of :meth:`take`: each frame of ``frames`` (a mailbox's ``(arrival,
+        sender, data)``), heard at ``t``, looked up in the tick's ``memo`` (decoded and checked
+        by the first receiver of its bytes); the rejected ones, the delivered ones, their
+        ignored scans and strange messages counted; the hellos, intents, tracks, threats and
+        digests of the accepted ones merged into ``knowledge`` and the digests to answer, as
+        :meth:`merge` merges them. Returns ``(sender, nbytes, accepted)`` per frame, the
+        accepted frames' scans in order (for the horizon test and :meth:`apply_scans`)."""
         received: Received = []
+        heard: list[HeardScan] = []
         if not frames:
-            return received
+            return received, heard
         append = received.append
-        k = knowledge
-        peers = k.peers
-        peer = k.peer
-        me = self.uid
-        stamp = umap.stamp
-        grid = self.grid
-        disk_stamp = grid.disk_stamp
-        known_disk = grid.disk_lookup()
-        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
-        old = t - self.fresh_s
-        log_add = scans.add_tick if scans is not None else None
         bounds = self.bounds
         key = (t, bounds)
         table = memo.get(key)
         if table is None:
             table = memo[key] = {}
         heard_of = self._heard
+        k = knowledge
+        peers = k.peers
+        peer = k.peer
+        me = self.uid
         digests = self.digests
-        delivered = ignored = strange = beyond = 0
-        horizon2 = self.horizon2
+        delivered = ignored = strange = 0
         for _arrival, sender, data in frames:
             rec = table.get(data)
             if rec is None:  # the first receiver of this frame (at this t) this tick
@@ -404,23 +419,14 @@ class Inbox:
                     counters.rejected_auth += 1
                 append((sender, len(data), False))
                 continue
-            ft, heard_scans, n_ignored, n_strange, hellos, intents, tracks, rest, heard = rec
+            ft, heard_scans, n_ignored, n_strange, hellos, intents, tracks, rest, h = rec
             delivered += 1
             append((sender, len(data), True))
-            ignored += n_ignored
-            strange += n_strange
-            for origin, tick, scan, disk_key in heard_scans:
-                if horizon2 is not None and (scan[1] - here_x) ** 2 + (scan[2] - here_y) ** 2 > horizon2:
-                    beyond += 1
-                elif log_add is None or log_add(origin, tick, scan):
-                    d = known_disk(disk_key, _MISSING)
-                    if d is _MISSING:
-                        if once is not None and scan[0] < old:
-                            once(*disk_key, scan[0])
-                            continue
-                        d = disk_stamp(*disk_key)
-                    if d is not None:
-                        stamp(d, scan[0])
+            if n_ignored or n_strange:
+                ignored += n_ignored
+                strange += n_strange
+            if heard_scans:
+                heard += heard_scans
             for uav, typ, x, y, v, theta in hellos:
                 if uav != me:
                     p = peers.get(uav) or peer(uav)
@@ -438,16 +444,42 @@ class Inbox:
             if rest:
                 if tracks:
                     k.merge_track_rows(tracks)
-                for th in heard.threats:
+                for th in h.threats:
                     k.add_threat(*th)
-                for dg in heard.digests:
+                for dg in h.digests:
                     if dg.uav != me:
                         digests.append(dg)
         counters.delivered += delivered
         counters.scans_ignored += ignored
-        counters.scans_beyond += beyond
         counters.messages_ignored += strange
-        return received
+        return received, heard
+
+    def apply_scans(self, heard: Sequence[HeardScan], t: float, umap: UncertaintyMap, scans: ScanLog | None) -> None:
+        """The heard scans within the knowledge horizon (``heard``, in the order of their frames),
+        heard at ``t``: those new to the scan log ``scans`` (all of them when None: not kept;
+        :meth:`ScanLog.add_ticks`, the first of a repeated one) logged and stamped into ``umap``,
+        in order, as :meth:`merge` stamps them."""
+        if not heard:
+            return
+        new: Iterable[HeardScan] = heard
+        if scans is not None:
+            new = compress(heard, scans.add_ticks(heard) if type(scans) is ScanLog
+                           else [scans.add_tick(origin, tick, scan) for origin, tick, scan, _ in heard])
+        stamp = umap.stamp
+        grid = self.grid
+        disk_stamp = grid.disk_stamp
+        known_disk = grid.disk_lookup()
+        once = umap.stamp_once if type(umap) is UncertaintyMap and not umap.dense else None
+        old = t - self.fresh_s
+        for _origin, _tick, scan, disk_key in new:
+            d = known_disk(disk_key, _MISSING)
+            if d is _MISSING:
+                if once is not None and scan[0] < old:
+                    once(*disk_key, scan[0])
+                    continue
+                d = disk_stamp(*disk_key)
+            if d is not None:
+                stamp(d, scan[0])
 
     def merge(self, frames: Sequence[tuple[float, int, bytes]], t: float, here_x: float, here_y: float,
               umap: UncertaintyMap, knowledge: Knowledge, scans: ScanLog | None, counters: InboxCounters) -> Received:

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left, bisect_right
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from itertools import groupby
 from operator import itemgetter
 from typing import cast
@@ -137,6 +137,45 @@ class ScanLog:
         self.count += 1
         self._version += 1
         return True
+
+    def add_ticks(self, heard: Iterable[tuple[int, int, Scan, object]]) -> list[bool]:
+        """:meth:`add_tick` of each ``(origin, tick, scan, ...)`` of ``heard`` in order (a
+        receiver's heard scans of a tick, :data:`agents.inbox.HeardScan`: anything after the
+        scan is ignored), in one call: whether each was new (of two equal ones in ``heard``
+        the first). The same log as the calls one by one (``tests/test_scanlog.py``)."""
+        out: list[bool] = []
+        append = out.append
+        floor = self._floor
+        rows = self._row
+        lo, hi, cap, cap8, bv, cv = self._lo, self._hi, self._cap, self._cap8, self._bv, self._cv
+        added = 0
+        for origin, tick, scan, _ in heard:
+            if tick < floor:
+                append(True)
+                continue
+            held = rows.get(origin)
+            if held is None:
+                held = self._new_row(origin)  # (may make the ring matrices anew)
+                bv, cv = self._bv, self._cv
+            row, recs = held
+            if tick in recs:
+                append(False)
+                continue
+            recs[tick] = scan
+            if not lo <= tick < hi:
+                self._extend(tick)  # (may make the ring anew, larger)
+                lo, hi, cap, cap8, bv, cv = self._lo, self._hi, self._cap, self._cap8, self._bv, self._cv
+            c = tick % cap
+            bv[row * cap8 + (c >> 3)] |= 1 << (tick & 7)
+            j = 2 * (row * cap + c)
+            cv[j] = scan[1]
+            cv[j + 1] = scan[2]
+            added += 1
+            append(True)
+        if added:
+            self.count += added
+            self._version += added
+        return out
 
     def _new_row(self, origin: int) -> tuple[int, dict[int, Scan]]:
         """The row of an origin heard for the first time, and its scans by tick (the matrices
