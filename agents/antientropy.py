@@ -33,15 +33,25 @@ def answer_hash(me: int, sender: int, t_cut: float) -> int:
     return h ^ (h >> 29)
 
 
-def answers(me: int, digest: ScanDigest, n: int) -> bool:
-    """Whether UAV ``me``, hearing ``n`` neighbours, answers ``digest``.
+def answer_slot(me: int, digest: ScanDigest, n: int) -> int | None:
+    """Whether UAV ``me``, hearing ``n`` neighbours, answers ``digest``, and as which answerer.
 
     Not every neighbour answers: in a dense swarm a digest is heard by hundreds of UAVs, and
     all answering would send the same scans hundreds of times. Each UAV answers when a hash of
     (itself, the sender, the digest's cut) falls in the first ``2 / n`` of its range: about two
     answer each digest, different ones each round (no random draw: the UAVs' streams are their
-    planners'). With two or fewer neighbours every one answers."""
-    return n <= ANSWERERS or answer_hash(me, digest.uav, digest.t_cut) % n < ANSWERERS
+    planners'). The hash modulo ``n`` is then its slot, ``0 .. ANSWERERS - 1`` (which share of
+    the missing scans it sends under ``[radio] sync_split``). With two or fewer neighbours every
+    one answers, with slot ``-1`` (all of them). None: it does not answer."""
+    if n <= ANSWERERS:
+        return -1
+    slot = answer_hash(me, digest.uav, digest.t_cut) % n
+    return slot if slot < ANSWERERS else None
+
+
+def answers(me: int, digest: ScanDigest, n: int) -> bool:
+    """Whether UAV ``me``, hearing ``n`` neighbours, answers ``digest`` (:func:`answer_slot`)."""
+    return answer_slot(me, digest, n) is not None
 
 
 class AntiEntropyCounters(Protocol):
@@ -89,14 +99,22 @@ class AntiEntropy:
         """The frames sent at ``t`` in answer to ``digests``, as ``(receiver, frame)``: each
         digest this UAV answers (:func:`answers`, ``n`` the ``peers`` heard within ``timeout_s``)
         gets the scans of the log its sender lacks, within the knowledge horizon of where its
-        Hello put it, at most ``sync_max_records`` scans in all, as many frames as they take."""
+        Hello put it, at most ``sync_max_records`` scans in all, as many frames as they take.
+
+        Flow control (issue 36, M2): with ``sync_split`` an answerer with a slot sends only its
+        share of those scans (a hash of each scan and the digest's round, modulo
+        :data:`ANSWERERS`, equal to its slot), so the about two answerers of a digest split the
+        work instead of both sending it; with ``sync_resend_cap`` > 0 an answer to one digest
+        carries at most that many scans, the latest first (:func:`agents.maps.scanlog.kept`)."""
         replies: list[tuple[int, bytes]] = []
         budget = self.radio.sync_max_records
+        cap, split = self.radio.sync_resend_cap, self.radio.sync_split
         per_frame = self.per_frame
         horizon = self.radio.horizon_m
         n = sum(1 for p in peers.values() if t - p.t_pose <= timeout_s)
         for dg in digests:
-            if not answers(self.uid, dg, n):
+            slot = answer_slot(self.uid, dg, n)
+            if slot is None:
                 continue
             near = None
             if not math.isinf(horizon):
@@ -107,7 +125,9 @@ class AntiEntropy:
                 near = (p.x, p.y, horizon)
             msgs: list[Message | Packed] = []
             room = per_frame  # scans the current frame can still take
-            for origin, flat in self.log.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget, near):
+            share = (slot, ANSWERERS, answer_hash(0, dg.uav, dg.t_cut)) if split and slot >= 0 else None
+            for origin, flat in self.log.missing(dg.tick0, dg.lo, dg.hi, dg.bitmaps, min(dg.t_cut, t), budget, near,
+                                                 newest=cap, share=share):
                 budget -= len(flat) // 4
                 counters.scans_resent += len(flat) // 4
                 while flat:
@@ -125,4 +145,4 @@ class AntiEntropy:
         return replies
 
 
-__all__ = ["ANSWERERS", "AntiEntropy", "AntiEntropyCounters", "answer_hash", "answers"]
+__all__ = ["ANSWERERS", "AntiEntropy", "AntiEntropyCounters", "answer_hash", "answer_slot", "answers"]

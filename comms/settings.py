@@ -165,6 +165,12 @@ class RadioSettings:
     sync_settle_s: float = field(default=2.0, metadata={"ge": 0})
     sync_max_records: int = field(default=4000, metadata={"ge": 0})
     sync_horizon_s: float = field(default=600.0, metadata={"gt": 0, "note": "seconds; scans older than this are not resent"})
+    # Anti-entropy flow control (issue 36, M2; agents.antientropy): an answer to one digest carries
+    # at most sync_resend_cap scans, the latest first (0 = unlimited); with sync_split the about two
+    # answerers of a digest each send only their share of the scans it lacks (a hash of the scan and
+    # the round picks which), instead of both sending all of them.
+    sync_resend_cap: int = field(default=0, metadata={"ge": 0, "note": "scans per answer, latest first; 0 = unlimited"})
+    sync_split: bool = False
     # The knowledge horizon (agents.maps.scanlog, "Knowledge horizon"): a UAV applies, logs, relays
     # and compares only scans whose centre lies within sync_horizon_m of itself (its own always), and
     # answers a digest only with scans within sync_horizon_m of the digest's sender. So its map and

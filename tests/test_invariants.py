@@ -832,6 +832,18 @@ def test_closed_gaps_come_back_without_anti_entropy(case, tmp_path):
     assert [v.invariant for v in monitor.violations][:1] == [checker_cls.name]
 
 
+@pytest.mark.parametrize("case", sorted(CLOSED_GAPS))
+def test_closed_gaps_come_back_with_a_tight_resend_cap(case):
+    """Flow control (issue 36, M2) trades convergence for cost: with one scan per answer
+    (``radio.sync_resend_cap = 1``) the same runs break the invariant again (its bounds assume a
+    round delivers all that a neighbour lacks), as they do without anti-entropy."""
+    doc, checker_cls = CLOSED_GAPS[case]
+    doc = dict(doc, radio={**doc.get("radio", {}), "sync_resend_cap": 1})
+    with Simulation(_known(doc)) as sim:
+        monitor = _run_live(sim, [checker_cls()])
+    assert [v.invariant for v in monitor.violations][:1] == [checker_cls.name]
+
+
 # A head-on encounter with every frame dropped: the UAVs cannot hear each other. It collided
 # (greedy, 3 separation violations) while separation rested on the radio alone; the
 # detect-and-avoid sensor (uav_types.X.daa_range_m) closed it (a known failure until then).

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from budget import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
-from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Near, ScanLog
+from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Near, ScanLog, Share, share_hash, share_hashes
 from agents.maps.scanlog_oracle import OracleScanLog
 from swarm import Simulation
 
@@ -189,19 +190,27 @@ class _Model:
                 out.append((origin, sum(1 << j for j in ks).to_bytes(max(ks) // 8 + 1, "little")))
         return tuple(out)
 
-    def missing(self, tick0: int, lo: int, hi: int, bitmaps, t_cut: float, limit: int, near):
+    def missing(self, tick0: int, lo: int, hi: int, bitmaps, t_cut: float, limit: int, near,
+                newest: int = 0, share: Share | None = None):
         """The held scans of ticks tick0..t_cut, origins lo..hi, whose bit the digest does not
-        set, inside ``near``; by origin then tick, the first ``limit``, grouped by origin."""
+        set, inside ``near``; of those, with ``share = (slot, of, key)`` the ones whose
+        share_hash % of is slot, and with ``newest`` > 0 the ``newest`` of the latest ticks
+        (ties: lower origin); by origin then tick, the first ``limit``, grouped by origin."""
         k_cut = math.floor(t_cut / self.dt)
         if k_cut < 0 or tick0 < 0 or tick0 % 8 or tick0 > k_cut:
             return []
         theirs = {o: int.from_bytes(b, "little") for o, b in bitmaps}
-        lacking = []
+        found = []
         for (o, k), (t, x, y, r) in sorted(self.scans.items()):
             if not (lo <= o <= hi and tick0 <= k <= k_cut) or theirs.get(o, 0) >> (k - tick0) & 1:
                 continue
             if near is None or (x - near[0]) * (x - near[0]) + (y - near[1]) * (y - near[1]) <= near[2] * near[2]:
-                lacking.append((o, [t, x, y, r]))
+                if share is None or share_hash(o, k, share[2]) % share[1] == share[0]:
+                    found.append((o, k, [t, x, y, r]))
+        if 0 < newest < len(found):
+            latest = set(sorted((-k, o) for o, k, _ in found)[:newest])
+            found = [f for f in found if (-f[1], f[0]) in latest]
+        lacking = [(o, s) for o, _, s in found]
         out: list[tuple[int, list[float]]] = []
         for o, s in lacking[:max(limit, 0)]:
             if out and out[-1][0] == o:
@@ -229,16 +238,21 @@ def _apply(ops, dt: float, horizon_s: float) -> tuple[ScanLog, _Model]:
     return log, model
 
 
+_newest = st.sampled_from([0, 0, 1, 3, 10, 50])  # flow control: the cap (0: none) ...
+_share = st.none() | st.tuples(st.integers(0, 1), st.just(2), st.integers(0, 2**64 - 1))  # ... and the split
+
+
 @settings(max_examples=examples(300), deadline=None)
 @given(ops=_ops, peer_ops=_ops, dt=st.sampled_from([1.0, 0.5]), horizon_s=st.sampled_from([math.inf, 40.0, 100.0]),
        t_cut=st.integers(-2, 420), limit=st.integers(-1, 120),
        near=st.none() | st.tuples(_coord, _coord, st.integers(0, 30).map(float)),
-       split=st.sampled_from([None, 20, 60]), data=st.data())
-def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon_s, t_cut, limit, near, split, data):
+       split=st.sampled_from([None, 20, 60]), newest=_newest, share=_share, data=st.data())
+def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon_s, t_cut, limit, near, split,
+                                                      newest, share, data):
     """Random logs (origins, ticks, adds out of order, forgetting) and digests of random peers
-    (split or not, or arbitrary bitmaps): count, scans(), digest() and missing() (horizon and
-    limit included) give exactly what the model gives, in its order; so does the same log
-    after more scans arrive."""
+    (split or not, or arbitrary bitmaps): count, scans(), digest() and missing() (horizon,
+    limit and flow control included) give exactly what the model gives, in its order; so does
+    the same log after more scans arrive."""
     log, model = _apply(ops, dt, horizon_s)
     peer, peer_model = _apply(peer_ops, dt, horizon_s)
     for _ in range(2):
@@ -249,8 +263,8 @@ def test_the_log_lists_what_a_plain_model_of_it_lists(ops, peer_ops, dt, horizon
         assert bitmaps == tuple((o, b) for o, b in peer_model.digest(t_cut * dt) if lo <= o <= hi)
         arbitrary = data.draw(st.lists(st.tuples(_origin, st.binary(max_size=60)), max_size=4))
         for args in ((tick0, lo, hi, bitmaps), (data.draw(st.integers(-8, 400)), 0, ORIGIN_MAX, tuple(arbitrary))):
-            got = list(log.missing(*args, t_cut * dt, limit, near))
-            assert got == model.missing(*args, t_cut * dt, limit, near)
+            got = list(log.missing(*args, t_cut * dt, limit, near, newest=newest, share=share))
+            assert got == model.missing(*args, t_cut * dt, limit, near, newest, share)
         more, _ = _apply(data.draw(_ops), dt, horizon_s)  # (the same log, more scans heard)
         for origin, scan in more.scans():
             assert log.add(origin, *scan) == model.add(origin, *scan)
@@ -321,14 +335,17 @@ class ArrayLogAgainstOracle(RuleBasedStateMachine):
         assert new.digest(t_cut, start, max_bytes) == oracle.digest(t_cut, start, max_bytes)
 
     @rule(p=st.integers(0, 1), back=_cut_back, start=st.integers(0, 3), max_bytes=st.sampled_from([None, 20, 60]),
-          limit=st.integers(-1, 400), near=_near)
-    def answer(self, p: int, back: int, start: int, max_bytes: int | None, limit: int, near: Near | None) -> None:
-        """Answer the other pair's digest (the array log's: the same as its oracle's, by digest)."""
+          limit=st.integers(-1, 400), near=_near, newest=_newest, share=_share)
+    def answer(self, p: int, back: int, start: int, max_bytes: int | None, limit: int, near: Near | None,
+               newest: int, share: Share | None) -> None:
+        """Answer the other pair's digest (the array log's: the same as its oracle's, by digest),
+        with and without flow control."""
         t_cut = self._tick(back) * self.dt
         tick0, lo, hi, bitmaps, _ = self.pairs[1 - p][0].digest(t_cut, start, max_bytes)
         new, oracle = self.pairs[p]
         args = (tick0, lo, hi, bitmaps, t_cut, limit, near)
-        assert list(new.missing(*args)) == list(oracle.missing(*args))
+        assert (list(new.missing(*args, newest=newest, share=share))
+                == list(oracle.missing(*args, newest=newest, share=share)))
 
     @rule(p=st.integers(0, 1), tick0=st.integers(-8, 600), lo=st.integers(0, 9), hi=st.sampled_from([2, 9, ORIGIN_MAX]),
           bitmaps=st.lists(st.tuples(_origin, st.binary(max_size=200)), max_size=4), back=_cut_back,
@@ -384,3 +401,29 @@ def test_a_run_with_every_fault_keeps_its_scan_logs_and_event_log_with_the_oracl
     assert runs[True][2] == {ScanLog} and runs[False][2] == {OracleScanLog}
     assert sum(len(s) for s in runs[True][1].values()) > 1000
     assert runs[True][:2] == runs[False][:2]
+
+
+# --- flow control (issue 36, M2: [radio] sync_resend_cap and sync_split) ------------------------
+
+
+@given(origins=st.lists(st.integers(0, 2**31 - 1), min_size=1, max_size=20), tick=st.integers(0, 2**40),
+       key=st.integers(0, 2**64 - 1))
+def test_the_share_hash_of_arrays_is_the_share_hash_of_each(origins, tick, key):
+    ticks = [tick + 3 * i for i in range(len(origins))]
+    got = share_hashes(np.array(origins, np.int64), np.array(ticks, np.int64), key).tolist()
+    assert got == [share_hash(o, k, key) for o, k in zip(origins, ticks)]
+
+
+def test_the_two_answerers_shares_split_what_is_missing_and_the_cap_keeps_the_latest():
+    """The two slots' answers are disjoint and together are the whole answer, about half each;
+    a cap keeps the latest scans (ties to the lower origin), listed by origin then tick."""
+    log = _log([_scan(o, k) for o in (1, 2, 5) for k in range(0, 200)])
+    args = (0, 0, ORIGIN_MAX, (), 300.0, 10_000)
+    whole = {(o, flat[i]) for o, flat in log.missing(*args) for i in range(0, len(flat), 4)}
+    parts = [{(o, flat[i]) for o, flat in log.missing(*args, share=(slot, 2, 12345)) for i in range(0, len(flat), 4)}
+             for slot in (0, 1)]
+    assert parts[0] | parts[1] == whole and not parts[0] & parts[1]
+    assert 0.4 < len(parts[0]) / len(whole) < 0.6
+    capped = list(log.missing(*args, newest=7))
+    assert [(o, flat[::4]) for o, flat in capped] == [(1, [197.0, 198.0, 199.0]), (2, [198.0, 199.0]), (5, [198.0, 199.0])]
+    assert list(log.missing(*args, newest=10_000)) == list(log.missing(*args))  # a cap above the count: no change

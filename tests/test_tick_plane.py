@@ -42,6 +42,11 @@ def lockstep_documents(draw: st.DrawFn, max_uavs: int = 6, max_duration_s: int =
     every = draw(st.sampled_from([None, 2.0, 0.0]), label="sync_every_s")
     if every is not None:
         doc["radio"]["sync_every_s"] = every
+    # Anti-entropy flow control (issue 36, M2): a cap on the scans of an answer, a split between
+    # the answerers, both, or neither (the default).
+    flow = draw(st.sampled_from([None, (0, True), (3, False), (20, True)]), label="flow control")
+    if flow is not None:
+        doc["radio"]["sync_resend_cap"], doc["radio"]["sync_split"] = flow
     return doc
 
 
@@ -72,18 +77,20 @@ def test_demo_all_faults_in_lockstep_short():
     assert_lockstep("demo-all-faults", duration_s=100)
 
 
-@pytest.mark.slow  # two runs of 100 UAVs for 40 s, states compared every tick: about 15 s of CPU
-def test_bench_100_in_lockstep():
+@pytest.mark.slow  # two runs of 100 UAVs for 40 s, states compared every tick: about 15 s of CPU each
+@pytest.mark.parametrize("flow", [{}, {"radio.sync_resend_cap": 20, "radio.sync_split": True}])
+def test_bench_100_in_lockstep(flow):
     """Tiled maps, a knowledge horizon (scans beyond it neither applied nor logged) and
     anti-entropy resends (stamped into one map each): paths the generated scenarios, on small
-    dense areas without a horizon, do not take. The run must take them for the test to count."""
+    dense areas without a horizon, do not take; with and without flow control (issue 36, M2).
+    The run must take them for the test to count."""
     seen: dict[str, int] = {}
 
     def count(sim: Simulation, tick: int) -> None:
         cs = [a.counters for a in sim.actors.values()]
         seen.update(resent=sum(c.scans_resent for c in cs), beyond=sum(c.scans_beyond for c in cs))
 
-    assert_lockstep("bench-100", planner="greedy", duration_s=40, seed=0, tamper=count)
+    assert_lockstep(load_scenario("bench-100", overrides=flow), planner="greedy", duration_s=40, seed=0, tamper=count)
     assert seen["resent"] > 0 and seen["beyond"] > 0, seen
 
 

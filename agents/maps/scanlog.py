@@ -67,6 +67,52 @@ def within(x: float, y: float, near: Near | None) -> bool:
     return dx * dx + dy * dy <= near[2] * near[2]
 
 
+_M64 = 0xFFFFFFFFFFFFFFFF
+_U = np.uint64
+
+
+def share_hash(origin: int, tick: int, key: int) -> int:
+    """A well-mixed non-negative integer of a scan (its origin and tick) and an answer's round
+    ``key``: which of the answerers of a digest sends that scan (``[radio] sync_split``)."""
+    h = (origin * 0x9E3779B97F4A7C15 + tick * 0xC2B2AE3D27D4EB4F + (key & _M64) * 0x165667B19E3779F9) & _M64
+    h ^= h >> 31
+    h = (h * 0xBF58476D1CE4E5B9) & _M64
+    return h ^ (h >> 29)
+
+
+def share_hashes(origins: np.ndarray, ticks: np.ndarray, key: int) -> np.ndarray:
+    """:func:`share_hash` of every ``(origins[i], ticks[i])`` (non-negative ints) at once (uint64:
+    the same integers; numpy's unsigned arithmetic wraps modulo 2**64 as the masks do)."""
+    with np.errstate(over="ignore"):
+        h = (origins.astype(_U) * _U(0x9E3779B97F4A7C15) + ticks.astype(_U) * _U(0xC2B2AE3D27D4EB4F)
+             + _U(((key & _M64) * 0x165667B19E3779F9) & _M64))
+        h ^= h >> _U(31)
+        h *= _U(0xBF58476D1CE4E5B9)
+        h ^= h >> _U(29)
+    return h
+
+
+Share = tuple[int, int, int]  # (slot, of, key): only the scans whose share_hash(origin, tick, key) % of == slot
+
+
+def kept(origins: np.ndarray, ticks: np.ndarray, newest: int, share: Share | None) -> np.ndarray | None:
+    """Which of the lacking scans ``(origins[i], ticks[i])`` (in answer order) an answer sends
+    under flow control (``[radio] sync_split`` and ``sync_resend_cap``): with ``share``, those of
+    this answerer's slot; of those, with ``newest > 0``, the ``newest`` of the latest ticks
+    (ties: lower origin first). A boolean mask, or None: all of them. :meth:`ScanLog.missing`
+    and its oracle both take their scans through this one rule."""
+    keep: np.ndarray | None = None
+    if share is not None:
+        slot, of, key = share
+        keep = share_hashes(origins, ticks, key) % _U(of) == _U(slot)
+    if 0 < newest < (len(ticks) if keep is None else int(np.count_nonzero(keep))):
+        idx = np.flatnonzero(keep) if keep is not None else np.arange(len(ticks))
+        order = np.lexsort((origins.take(idx), -ticks.take(idx).astype(np.int64)))  # latest tick, then origin
+        keep = np.zeros(len(ticks), bool)
+        keep[idx.take(order[:newest])] = True
+    return keep
+
+
 def _round_cap(ticks: int) -> int:
     """A ring size of at least ``ticks``: a multiple of 64 ticks (8 bytes of a row)."""
     return -(-max(ticks, 64) // 64) * 64
@@ -365,12 +411,15 @@ class ScanLog:
         return tick0, lo, hi, tuple(out), (i if i < len(items) else 0)
 
     def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int,
-                near: Near | None = None) -> Iterator[tuple[int, list[float]]]:
+                near: Near | None = None, *, newest: int = 0, share: Share | None = None
+                ) -> Iterator[tuple[int, list[float]]]:
         """The scans this log holds at ticks ``tick0..t_cut`` of origins in ``[lo, hi]`` that
         the digest ``bitmaps`` (relative to ``tick0``) lacks, as ``(origin, [t, x, y, r, ...])``
         per origin (ascending), at most ``limit`` scans in all, oldest first within an origin.
         ``near``: only scans centred inside that horizon (the digest sender's: it would not
-        keep the others, and would be sent them again at every digest)."""
+        keep the others, and would be sent them again at every digest). ``newest`` and
+        ``share`` (flow control, :func:`kept`): of those, only this answerer's share, and only
+        the ``newest`` latest (0: all), before ``limit`` applies."""
         k_cut = math.floor(t_cut / self.dt)
         if k_cut < 0 or limit <= 0 or not self._row or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
             return
@@ -404,9 +453,13 @@ class ScanLog:
             dx, dy = z.real, z.imag
             inside = dx * dx + dy * dy <= near[2] * near[2]
             row, j = row[inside], j[inside]
-        # The first `limit`, by origin then tick (the rows' order, then the bits').
         recs, rlist = self._recs, rows.tolist()
         first = tick0 + 8 * jlo
+        if newest > 0 or share is not None:
+            keep = kept(np.array(origins[a:b], np.int64).take(row), j + first, newest, share)
+            if keep is not None:
+                row, j = row[keep], j[keep]
+        # The first `limit`, by origin then tick (the rows' order, then the bits').
         for i, ticks in groupby(zip(row[:limit].tolist(), j[:limit].tolist()), itemgetter(0)):
             scans = recs[rlist[a + i]]
             yield origins[a + i], [v for _, k in ticks for v in scans[first + k]]
@@ -415,4 +468,4 @@ class ScanLog:
 _NOT = bytes(255 - i for i in range(256))  # bytes.translate table: every bit inverted
 
 
-__all__ = ["ORIGIN_MAX", "Near", "ScanLog", "within"]
+__all__ = ["ORIGIN_MAX", "Near", "ScanLog", "Share", "kept", "share_hash", "share_hashes", "within"]

@@ -19,7 +19,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Bitmaps, Near, ScanLog
+from agents.maps.scanlog import FORGET_SLACK_TICKS, ORIGIN_MAX, Bitmaps, Near, ScanLog, Share, kept
 
 # Per origin: [bitmap, its base tick, tick -> scan, centres] (see OracleScanLog.__init__).
 _Origin = list[Any]  # (a list, mutated in place: cheaper than an object on add_tick's path)
@@ -148,12 +148,14 @@ class OracleScanLog(ScanLog):
         return out, items
 
     def missing(self, tick0: int, lo: int, hi: int, bitmaps: Bitmaps, t_cut: float, limit: int,
-                near: Near | None = None) -> Iterator[tuple[int, list[float]]]:
+                near: Near | None = None, *, newest: int = 0, share: Share | None = None
+                ) -> Iterator[tuple[int, list[float]]]:
         """The scans this log holds at ticks ``tick0..t_cut`` of origins in ``[lo, hi]`` that
         the digest ``bitmaps`` (relative to ``tick0``) lacks, as ``(origin, [t, x, y, r, ...])``
         per origin (ascending), at most ``limit`` scans in all, oldest first within an origin.
         ``near``: only scans centred inside that horizon (the digest sender's: it would not
-        keep the others, and would be sent them again at every digest)."""
+        keep the others, and would be sent them again at every digest). ``newest``, ``share``:
+        flow control, as :meth:`ScanLog.missing` (:func:`~agents.maps.scanlog.kept`)."""
         k_cut = math.floor(t_cut / self.dt)
         if k_cut < 0 or limit <= 0 or not self._org or tick0 < 0 or tick0 & 7 or tick0 > k_cut:
             return
@@ -174,6 +176,11 @@ class OracleScanLog(ScanLog):
         lacks = np.flatnonzero(np.unpackbits(have & ~known, bitorder="little").view(bool))
         if near is not None and lacks.size:
             lacks = lacks[_inside(lacks, w, tick0, [self._org[origin] for origin, _, _ in differ], near)]
+        if (newest > 0 or share is not None) and lacks.size:
+            r, j = np.divmod(lacks, w)
+            keep = kept(np.array([origin for origin, _, _ in differ], np.int64).take(r), j + tick0, newest, share)
+            if keep is not None:
+                lacks = lacks[keep]
         # The first `limit`, by origin then tick (the rows' order, then the bits').
         row, j = np.divmod(lacks[:limit], w)
         for r, ticks in groupby(zip(row.tolist(), (j + tick0).tolist()), itemgetter(0)):
