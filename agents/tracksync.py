@@ -18,7 +18,7 @@ tracks known, whether they change or not. With ``"on_change"``:
   (a newer version it missed; a smaller lag is a change on its way).
 
 So on a radio that loses nothing a UAV that lacks a track a neighbour knows gets it within
-:func:`track_delay_s`. Docs: docs/modelling.md, "Tracks".
+:func:`track_delay_s`. Docs: docs/scenarios.md, "Tracks".
 """
 
 from __future__ import annotations
