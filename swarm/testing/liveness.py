@@ -49,7 +49,8 @@ radio.jitter_s``, ``n`` the live UAVs):
   (``sync_every_s``, or ``tracks_every_s`` with anti-entropy off): the lacking UAV's next digest
   goes out on a beacon within ``E + beacon_every_s``, every neighbour that holds a track it lacks
   answers it the next tick, and the answer is merged the tick after. A hop per ``D + dt + lat``;
-  ``n`` hops, one of slack, as for ``Q``.
+  ``n`` hops, one of slack, plus ``max(0, skew)``, as for ``Q`` (a sighting stamped by a clock
+  ahead is refused until true time passes it).
 * reassignment: ``B = D + peer_timeout_s + 2 * replan_s + 2 dt + lat``: the track
   must reach a free UAV (within ``D``, above), the lost watcher's intent
   must expire (``peer_timeout_s``, 5 s), then a replan (``replan_s``; two, as a plan made just
@@ -106,9 +107,10 @@ def reassign_bound_s(scenario: Scenario) -> float:
             + 2 * scenario.dt_s + _lat(scenario))
 
 
-def tracks_period_s(scenario: Scenario, n_live: int) -> float:
+def tracks_period_s(scenario: Scenario, n_live: int, faults: Iterable[FaultKind] = ()) -> float:
     """``Qt`` of the module docstring."""
-    return max(1, n_live) * (track_delay_s(scenario.radio, scenario.dt_s) + scenario.dt_s + _lat(scenario))
+    return (max(1, n_live) * (track_delay_s(scenario.radio, scenario.dt_s) + scenario.dt_s + _lat(scenario))
+            + max_skew_at_end(faults))
 
 
 def _watchers(sim: Any) -> dict[int, int]:
@@ -205,7 +207,7 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
     skewed = skewed_stamps(sim.injector.schedule, sim.scenario.duration_s)
     at_t0 = {uid: owed_map(sim.uav_map(names[uid]), skewed) for uid in live}
     # (issue 36, M1) The targets each UAV held a track of at T0: owed to its component.
-    qt = tracks_period_s(sc, len(live))
+    qt = tracks_period_s(sc, len(live), sim.injector.schedule.faults)
     tracks_t0 = {uid: set(sim.actors[uid].knowledge.tracks) for uid in live}
     tracks_done = False
     # Reassignment obligations, fixed at T0.
