@@ -15,7 +15,7 @@ from agents.inbox import check_frame
 from agents.knowledge import Knowledge, Peer
 from agents.tracksync import TrackSync, digest_every_s, track_delay_s
 from comms.codec import K_TRACK_DIGEST, FrameError, decode, encode, pack_track_digest
-from comms.messages import ThreatItem, Threats, TrackDigest, TrackItem, Tracks
+from comms.messages import Threats, TrackDigest, TrackItem, Tracks
 from comms.settings import RadioSettings
 from faults.cuts import Partition
 from swarm import Simulation
