@@ -5,9 +5,10 @@ With ``tracks = "periodic"`` a UAV sends every track and threat it knows every
 tracks known, whether they change or not. With ``"on_change"``:
 
 * **On change** (:meth:`TrackSync.changed`): a track is sent when it is new to the UAV or newer
-  than what it last sent of it (its own sighting, or one heard: so tracks spread hop by hop),
-  at most once every ``tracks_every_s`` per track (a watched target's track, renewed every
-  tick, goes out every ``tracks_every_s``, as before); a threat once, when first known.
+  than what it last sent of it (its own sighting, or one heard: so tracks spread hop by hop).
+  A new one goes out at once; changes wait for the UAV's next turn and go out together, one
+  frame at most every ``tracks_every_s`` (a watched target's track, renewed every tick, goes
+  out every ``tracks_every_s``, as before); a threat once, when first known.
 * **Digest** (:meth:`TrackSync.digest`): every ``sync_every_s`` (``tracks_every_s`` when
   anti-entropy is off) the beacon carries a :class:`~comms.messages.TrackDigest`: the target and
   sighting time of each track the UAV holds, and the ids of its threats.
@@ -85,7 +86,7 @@ class TrackSync:
         self._next_periodic = -math.inf
         self._next_digest = -math.inf
         self._sent: dict[int, float] = {}  # target -> the sighting time of the version last sent
-        self._next_ok: dict[int, float] = {}  # target -> when it may be sent again
+        self._next_ok = -math.inf  # when changed tracks may go out again
         self._threats_sent = 0  # of Knowledge.new_threats
 
     def outbox(self, t: float, k: Knowledge, frame: Frame) -> list[bytes]:
@@ -110,19 +111,24 @@ class TrackSync:
             return []
         items = []
         if k.changed:
-            sent, next_ok, every = self._sent, self._next_ok, self.every
+            sent, every = self._sent, self.every
+            # Changes go out together, at most one frame every tracks_every_s (so at most that
+            # often per track); a track new to the UAV goes out at once.
+            batch = t >= self._next_ok
             keep = set()
             tracks = k.tracks
             for target in sorted(k.changed):
                 tr = tracks[target]
-                if tr.t <= sent.get(target, -math.inf):
+                last = sent.get(target)
+                if last is not None and tr.t <= last:
                     continue  # (what it last sent: nothing new)
-                if t < next_ok.get(target, -math.inf):
+                if not batch and last is not None:
                     keep.add(target)  # newer, not its turn yet
                     continue
                 items.append(tr)
                 sent[target] = tr.t
-                next_ok[target] = t + every - 1e-9
+            if batch and items:
+                self._next_ok = t + every - 1e-9
             k.changed = keep
         self._threats_sent = len(k.new_threats)
         if not (items or threats):
