@@ -40,6 +40,7 @@ from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, Planner, PlannerError, PlanView
 from agents.relief import HOME_TARGET, Relief
 from agents.station import loiter
+from agents.tracksync import TrackSync
 from agents.types import UavType
 from comms.codec import (
     FRAME_SLACK,
@@ -49,8 +50,6 @@ from comms.codec import (
     pack_hello,
     pack_intent,
     pack_scans,
-    pack_threats,
-    pack_tracks,
 )
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox
@@ -58,10 +57,9 @@ from comms.messages import (
     MODE_SURVEIL,
     NO_TARGET,
     Message,
+    ScanDigest,
+    TrackDigest,
 )
-
-# Items per Tracks message, so one frame stays far below the size cap (an item is < 80 bytes).
-_TRACKS_PER_FRAME = 400
 
 
 def _planner_name(planner: object) -> str:
@@ -170,7 +168,8 @@ class UavActor:
         self.counters = ActorCounters()
         self._next_replan = -math.inf
         self._next_beacon = -math.inf
-        self._next_tracks = -math.inf
+        # (issue 36, M1) How it sends tracks and threats: periodic or on change (agents.tracksync).
+        self.track_sync = TrackSync(uid, radio)
         self._pending_scans: list[float] = []
         self._received: list[tuple[int, int, bool]] = []
         self._seq = 0
@@ -387,8 +386,16 @@ class UavActor:
                                    list(k.threats.values()), others, apf, s.dt)
         received, self._received = self._received, []
         frames = self._outbox(r, plan)
-        replies = (self.anti_entropy.answer(self.inbox.take_digests(), t, k.peers, s.peer_timeout_s, self._frame,
-                                            self.counters) if self.inbox.digests else [])
+        replies: list[tuple[int, bytes]] = []
+        if self.inbox.digests:
+            heard = self.inbox.take_digests()
+            scan_digests = [d for d in heard if type(d) is ScanDigest]
+            if scan_digests:
+                replies = self.anti_entropy.answer(scan_digests, t, k.peers, s.peer_timeout_s, self._frame,
+                                                   self.counters)
+            if len(scan_digests) < len(heard):  # (issue 36, M1) track digests: tracks on change
+                replies += self.track_sync.answer([d for d in heard if type(d) is TrackDigest], t, k, k.peers,
+                                                  s.peer_timeout_s, self._frame)
         return ActorOutput(a, omega, frames, plan, received, replies, speed)
 
     def _others(self, r: SensorReading, peers: list[Peer]) -> list[tuple[float, float, float, float]]:
@@ -448,25 +455,17 @@ class UavActor:
                 self._pending_scans = []
             if self.outbox_hook is not None:
                 room = self.outbox_hook.beacon(t, msgs, room)
+            track_digest = self.track_sync.digest(t, self.knowledge)  # (issue 36, M1: tracks on change)
+            if track_digest is not None:
+                msgs.append(track_digest)
+                room -= 16 + 14 * len(self.knowledge.tracks) + 6 * len(self.knowledge.threats)  # (about its bytes)
             digest = self.anti_entropy.digest(t, room, self.counters)  # (riding on the beacon: no extra frame)
             if digest is not None:
                 msgs.append(digest)
             frames.append(self._frame(t, msgs))
             self._next_beacon = t + s.beacon_every_s - 1e-9
-        k = self.knowledge
-        if t >= self._next_tracks and (k.tracks or k.threats):
-            # Packed straight from the tracks and threats: the bytes of Tracks(TrackItem(...) of
-            # each) and Threats(ThreatItem(...) of each).
-            items = [tr for _, tr in sorted(k.tracks.items())]
-            threats = [th for _, th in sorted(k.threats.items())]
-            first = True
-            for i in range(0, max(len(items), 1), _TRACKS_PER_FRAME):
-                msgs = [pack_tracks(items[i:i + _TRACKS_PER_FRAME])]
-                if first and threats:
-                    msgs.append(pack_threats(threats))
-                first = False
-                frames.append(self._frame(t, msgs))
-            self._next_tracks = t + s.tracks_every_s - 1e-9
+        # Tracks and threats: every one every tracks_every_s, or on change ([radio] tracks).
+        frames += self.track_sync.outbox(t, self.knowledge, self._frame)
         return frames
 
 

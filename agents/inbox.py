@@ -31,6 +31,7 @@ from comms.codec import (
     K_INTENT,
     K_SCAN,
     K_THREATS,
+    K_TRACK_DIGEST,
     K_TRACKS,
     AuthError,
     Frame,
@@ -44,11 +45,23 @@ from comms.codec import (
     read_intent,
     read_scans,
     read_threat_items,
+    read_track_digest,
     read_track_item,
     read_track_items,
 )
 from comms.framecache import DecodeCache
-from comms.messages import MODE_SEARCH, MODE_SURVEIL, Hello, Intent, ScanDigest, ScanRecords, Threats, TrackItem, Tracks
+from comms.messages import (
+    MODE_SEARCH,
+    MODE_SURVEIL,
+    Hello,
+    Intent,
+    ScanDigest,
+    ScanRecords,
+    Threats,
+    TrackDigest,
+    TrackItem,
+    Tracks,
+)
 from comms.settings import RadioSettings
 
 # What a receiver accepts of heard numbers: ids below 2**31, speeds and velocities within
@@ -79,7 +92,18 @@ class Heard(NamedTuple):
     intents: tuple[Intent, ...]
     tracks: tuple[TrackItem, ...]  # every sane item of every Tracks message, in order
     threats: tuple[tuple[int, float, float, float, float], ...]
-    digests: tuple[ScanDigest, ...]
+    digests: tuple[ScanDigest | TrackDigest, ...]  # (track digests: issue 36, M1)
+
+
+# --- (issue 36, M1) track digests: the one plausibility rule, for both readers below ---------
+
+def sane_track_digest(dg: TrackDigest, t: float) -> bool:
+    """Whether a heard :class:`TrackDigest` is one an honest UAV at or before ``t`` could send:
+    ids in range, its time and its sightings' times not after ``t`` (nor before the run)."""
+    return (0 <= dg.uav < MAX_ID and 0.0 <= dg.t <= t and all(0 <= g < MAX_ID for g in dg.targets)
+            and all(0.0 <= tg <= t for tg in dg.times) and all(0 <= th < MAX_ID for th in dg.threats))
+
+# ---------------------------------------------------------------------------------------------
 
 
 def check_frame(frame: Frame | FrameRecord, t: float, bounds: Bounds) -> Heard:
@@ -108,7 +132,7 @@ def check_frame(frame: Frame | FrameRecord, t: float, bounds: Bounds) -> Heard:
     intents: list[Intent] = []
     tracks: list[TrackItem] = []
     threats: list[tuple[int, float, float, float, float]] = []
-    digests: list[ScanDigest] = []
+    digests: list[ScanDigest | TrackDigest] = []
     ignored = strange = 0
     for m in frame.messages:
         if type(m) is ScanRecords:
@@ -151,6 +175,11 @@ def check_frame(frame: Frame | FrameRecord, t: float, bounds: Bounds) -> Heard:
                 digests.append(m)
             else:
                 strange += 1
+        elif type(m) is TrackDigest:  # (issue 36, M1)
+            if sane_track_digest(m, t):
+                digests.append(m)
+            else:
+                strange += 1
     return Heard(ft, tuple(scans), ignored, strange, tuple(hellos), tuple(intents), tuple(tracks),
                  tuple(threats), tuple(digests))
 
@@ -179,7 +208,7 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
     intents: list[Intent] = []
     tracks: list[TrackItem] = []
     threats: list[tuple[int, float, float, float, float]] = []
-    digests: list[ScanDigest] = []
+    digests: list[ScanDigest | TrackDigest] = []
     ignored = strange = 0
     records: Sequence[Any]
     for raw in messages:
@@ -267,6 +296,12 @@ def _check_record(rec: FrameRecord, t: float, bounds: Bounds) -> Heard:
                 digests.append(dg)
             else:
                 strange += 1
+        elif kind == K_TRACK_DIGEST:  # (issue 36, M1)
+            td = read_track_digest(raw)
+            if sane_track_digest(td, t):
+                digests.append(td)
+            else:
+                strange += 1
         else:
             message_kind(raw)  # (raises: an unknown kind)
     if not 0.0 <= ft <= t:
@@ -340,7 +375,7 @@ class Inbox:
         # Heard scans older than this are anti-entropy resends (a beacon carries the scans of the
         # last beacon period): sent to this UAV alone, their disks are not worth sharing.
         self.fresh_s = radio.beacon_every_s + 2 * dt
-        self.digests: list[ScanDigest] = []  # heard, not yet answered
+        self.digests: list[ScanDigest | TrackDigest] = []  # heard, not yet answered
         # heard(data, key, check) -> the Heard of data's frame for key = (t, bounds), raising
         # FrameError: one call into the shared cache (the value kept beside the frame, or
         # derived and kept), or decode and check.
@@ -351,8 +386,9 @@ class Inbox:
             decode_frame = partial(decode, max_bytes=radio.frame_max_bytes, key=key)
             self._heard = lambda data, _key, check: check(decode_frame(data))
 
-    def take_digests(self) -> list[ScanDigest]:
-        """The digests heard since they were last taken (to answer: agents.antientropy)."""
+    def take_digests(self) -> list[ScanDigest | TrackDigest]:
+        """The digests heard since they were last taken (to answer: agents.antientropy, and
+        agents.tracksync for track digests)."""
         digests, self.digests = self.digests, []
         return digests
 

@@ -92,7 +92,7 @@ def zone_clearance(zone: KnownThreat | Keepout, x: float, y: float) -> tuple[flo
 
 
 class Knowledge:
-    __slots__ = ("tracks", "threats", "no_fly", "peers", "_by_id")
+    __slots__ = ("tracks", "threats", "no_fly", "peers", "_by_id", "changed", "new_threats")
 
     def __init__(self, no_fly: Sequence[Keepout] = ()) -> None:
         self.tracks: dict[int, Track] = {}
@@ -104,15 +104,21 @@ class Knowledge:
         # The peers in id order, kept as they are added (peer()): recent_peers() runs for every
         # UAV every tick and peers only grow (issue 25: it sorted them all each time).
         self._by_id: list[Peer] = []
+        # (issue 36, M1) What changed since the UAV last sent it (agents.tracksync takes them):
+        # the targets whose track was added or updated, the threats added.
+        self.changed: set[int] = set()
+        self.new_threats: list[int] = []
 
     def see_target(self, target: int, x: float, y: float, vx: float, vy: float, t: float, value: float) -> bool:
         """Record a sighting; True if the target was unknown before."""
         tr = self.tracks.get(target)
         if tr is None:
             self.tracks[target] = Track(target, x, y, vx, vy, t, value)
+            self.changed.add(target)
             return True
         if t >= tr.t:
             tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = x, y, vx, vy, t, value
+            self.changed.add(target)
         return False
 
     def merge_track(self, item: TrackItem) -> None:
@@ -128,12 +134,15 @@ class Knowledge:
         written out (one call per message instead of one per item): the receive service keeps a
         heard Tracks message's items as such rows for all its receivers (agents.inbox.Taken)."""
         tracks = self.tracks
+        changed = self.changed.add
         for target, x, y, vx, vy, t, value in rows:
             tr = tracks.get(target)
             if tr is None:
                 tracks[target] = Track(target, x, y, vx, vy, t, value)
+                changed(target)
             elif t >= tr.t:
                 tr.x, tr.y, tr.vx, tr.vy, tr.t, tr.value = x, y, vx, vy, t, value
+                changed(target)
 
     def inside_threat(self, x: float, y: float, margin: float = 0.0) -> KnownThreat | None:
         """The first known threat (by id) whose circle, widened by ``margin``, holds ``(x, y)``,
@@ -158,6 +167,7 @@ class Knowledge:
     def add_threat(self, threat: int, x: float, y: float, radius: float, d_max: float) -> None:
         if threat not in self.threats:
             self.threats[threat] = KnownThreat(threat, x, y, radius, d_max)
+            self.new_threats.append(threat)
 
     def peer(self, uav: int) -> Peer:
         p = self.peers.get(uav)

@@ -9,7 +9,7 @@ from comms.codec import AuthError, Frame, FrameError, decode, encode
 from comms.errors import SwarmError
 from comms.framecache import DecodeCache
 from comms.mailbox import Mailbox, MailboxStats
-from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackItem, Tracks
+from comms.messages import Hello, Intent, ScanDigest, ScanRecords, ThreatItem, Threats, TrackDigest, TrackItem, Tracks
 from comms.radio import Delivery, LinkFilter, Radio, RadioCounters
 from comms.settings import LinkModel, LogDistance, RadioSettings
 
@@ -34,6 +34,7 @@ __all__ = [
     "SwarmError",
     "ThreatItem",
     "Threats",
+    "TrackDigest",
     "TrackItem",
     "Tracks",
     "decode",

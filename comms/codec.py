@@ -47,6 +47,7 @@ from comms.messages import (
     ScanRecords,
     ThreatItem,
     Threats,
+    TrackDigest,
     TrackItem,
     Tracks,
 )
@@ -61,6 +62,7 @@ SCAN_BYTES = 36
 FRAME_SLACK = 256
 
 K_HELLO, K_INTENT, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST = 1, 2, 3, 4, 5, 6
+K_TRACK_DIGEST = 7  # (issue 36, M1: tracks on change)
 
 
 class FrameError(SwarmError, ValueError):
@@ -153,6 +155,13 @@ def pack_threats(items: Iterable[ThreatLike]) -> Packed:
     return [K_THREATS, [[i.threat, i.x, i.y, i.radius, i.d_max] for i in items]]
 
 
+def pack_track_digest(uav: int, t: float, targets: Sequence[int], times: Sequence[float],
+                      threats: Sequence[int]) -> Packed:
+    """= ``TrackDigest(uav, t, tuple(targets), tuple(times), tuple(threats))``, packed (lists:
+    what msgpack reads back)."""
+    return [K_TRACK_DIGEST, uav, t, list(targets), list(times), list(threats)]
+
+
 def _pack_message(m: Message | Packed) -> Packed:
     if type(m) is list:  # packed already (pack_hello, ...): what the actors' outboxes send
         return m
@@ -168,6 +177,8 @@ def _pack_message(m: Message | Packed) -> Packed:
         return pack_threats(m.items)
     if type(m) is ScanDigest:
         return [K_DIGEST, m.uav, m.t_cut, m.tick0, m.lo, m.hi, [[origin, bits] for origin, bits in m.bitmaps]]
+    if type(m) is TrackDigest:
+        return pack_track_digest(m.uav, m.t, m.targets, m.times, m.threats)
     raise TypeError(f"not a message: {m!r}")
 
 
@@ -302,7 +313,7 @@ def message_kind(raw: object) -> int:
     """The kind of a message as msgpack gives it (an array, its first item a known kind), or
     :class:`FrameError`. Its fields are checked by the kind's reader: :func:`read_hello`,
     :func:`read_intent`, :func:`read_scans`, :func:`read_track_items`, :func:`read_threat_items`,
-    :func:`read_digest` (decoding builds the messages with them, :func:`_message`; a receiver
+    :func:`read_digest`, :func:`read_track_digest` (decoding builds the messages with them, :func:`_message`; a receiver
     may read a frame's messages with them straight into what it keeps, without the message
     objects: :func:`agents.inbox.check_frame` of a :class:`FrameRecord`)."""
     if type(raw) is not list:
@@ -312,7 +323,7 @@ def message_kind(raw: object) -> int:
     kind = raw[0]
     if type(kind) is not int:
         raise FrameError(f"expected an integer, got {type(kind).__name__}")
-    if not K_HELLO <= kind <= K_DIGEST:
+    if not K_HELLO <= kind <= K_TRACK_DIGEST:
         raise FrameError(f"unknown message kind {kind}")
     return kind
 
@@ -412,6 +423,27 @@ def read_digest(raw: list[Any]) -> ScanDigest:
     return ScanDigest(_int(raw[1]), _num(raw[2]), _int(raw[3]), _int(raw[4]), _int(raw[5]), tuple(bitmaps))
 
 
+def _ints(values: list[Any]) -> tuple[int, ...]:
+    """``_int`` of each value, as a tuple (a list of exact ints passes in C)."""
+    if set(map(type, values)) <= _INT:
+        return tuple(values)
+    return tuple([_int(v) for v in values])
+
+
+_INT = {int}
+
+
+def read_track_digest(raw: list[Any]) -> TrackDigest:
+    """The :class:`TrackDigest` of a message of kind ``K_TRACK_DIGEST``, or :class:`FrameError`
+    (its targets and times must pair up)."""
+    _list(raw, 6)
+    targets = _ints(_list(raw[3]))
+    times = _nums(_list(raw[4]))
+    if len(targets) != len(times):
+        raise FrameError(f"track digest: {len(targets)} targets, {len(times)} times")
+    return TrackDigest(_int(raw[1]), _num(raw[2]), targets, times, _ints(_list(raw[5])))
+
+
 def _message(raw: object) -> Message:
     kind = message_kind(raw)
     raw = cast("list[Any]", raw)
@@ -425,6 +457,8 @@ def _message(raw: object) -> Message:
         return Tracks(tuple(read_track_items(raw)))
     if kind == K_THREATS:
         return Threats(tuple(read_threat_items(raw)))
+    if kind == K_TRACK_DIGEST:
+        return read_track_digest(raw)
     return read_digest(raw)
 
 

@@ -107,4 +107,19 @@ class ScanDigest:
     bitmaps: tuple[tuple[int, bytes], ...]
 
 
-Message = Hello | Intent | ScanRecords | Tracks | Threats | ScanDigest
+@dataclass(frozen=True, slots=True)
+class TrackDigest:
+    """Tracks on change (``[radio] tracks = "on_change"``, :mod:`agents.tracksync`): what the
+    sender knows of tracks and threats at ``t``: the target of each track it holds with its
+    sighting's time (``targets[i]`` seen at ``times[i]``), and the threats' ids. A neighbour
+    answers with the tracks and threats the sender lacks, or holds more than
+    ``tracks_every_s`` older than its own."""
+
+    uav: int
+    t: float
+    targets: tuple[int, ...]
+    times: tuple[float, ...]
+    threats: tuple[int, ...]
+
+
+Message = Hello | Intent | ScanRecords | Tracks | Threats | ScanDigest | TrackDigest

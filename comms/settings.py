@@ -158,6 +158,13 @@ class RadioSettings:
     mailbox_capacity: int = field(default=1024, metadata={"ge": 1})
     beacon_every_s: float = field(default=1.0, metadata={"gt": 0})
     tracks_every_s: float = field(default=5.0, metadata={"gt": 0})
+    # (issue 36, M1) How tracks and threats are sent (agents.tracksync): "periodic", every one a
+    # UAV knows every tracks_every_s; "on_change", a track when it is new or newer than what the
+    # UAV last sent of it (at most every tracks_every_s per track), a threat once, and a track
+    # digest on the beacon every sync_every_s (tracks_every_s with anti-entropy off) that
+    # neighbours answer with what it lacks.
+    tracks: Literal["periodic", "on_change"] = field(default="periodic", metadata={
+        "note": "periodic: every track every tracks_every_s; on_change: new or newer tracks, and a digest for repair"})
     # Anti-entropy (agents.maps.scanlog): every sync_every_s a UAV's beacon carries a digest of the
     # scans it knows from the last sync_horizon_s up to sync_settle_s ago; neighbours resend what
     # it lacks, at most sync_max_records scans each time. sync_every_s = 0 turns it off.

@@ -436,7 +436,8 @@ def test_hand_built_valid_frame_decodes():
         # message envelope
         (frame_obj([[]]), "empty message"),
         (frame_obj([[0]]), "unknown message kind 0"),
-        (frame_obj([[7, 1]]), "unknown message kind 7"),
+        (frame_obj([[8, 1]]), "unknown message kind 8"),
+        (frame_obj([[7, 1]]), "expected 6 fields, got 2"),  # (a track digest, issue 36 M1)
         (frame_obj([[6, 1, 0.0, 0, 0, 9, [[1, "not bytes"]]]]), "digest: bitmap is not bytes"),
         (frame_obj([[6, 1, 0.0, 0, 0, 9, [[1]]]]), "expected 2 fields, got 1"),
         (frame_obj([[6, 1, 0.0, 0, 9, []]]), "expected 7 fields, got 6"),

@@ -23,6 +23,7 @@ from comms.codec import (
     K_INTENT,
     K_SCAN,
     K_THREATS,
+    K_TRACK_DIGEST,
     K_TRACKS,
     AuthError,
     FrameError,
@@ -35,7 +36,7 @@ from comms.codec import (
     read,
 )
 from comms.framecache import DecodeCache
-from comms.messages import Hello, ScanRecords, TrackItem, Tracks
+from comms.messages import Hello, ScanRecords, TrackDigest, TrackItem, Tracks
 
 BOUNDS = (1000.0, 5000.0, 5000.0, 1.0)  # (max scan radius, width, height, dt): check_frame's
 T_RECV = 100.0
@@ -83,7 +84,7 @@ def frames(draw):
         return items
 
     def message():
-        kind = draw(st.sampled_from([K_HELLO, K_INTENT, K_SCAN, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST]))
+        kind = draw(st.sampled_from([K_HELLO, K_INTENT, K_SCAN, K_SCAN, K_TRACKS, K_THREATS, K_DIGEST, K_TRACK_DIGEST]))
         if kind == K_HELLO:
             items = [kind, v(ids), v(st.sampled_from(["A", "B", "B", "x" * 65])), v(coords), v(coords), v(small), v(small)]
             if draw(st.integers(0, 3)) == 0 and type(items[2]) is str:
@@ -113,11 +114,19 @@ def frames(draw):
                 d = r + draw(st.sampled_from([-10.0, 0.0, 400.0, 1500.0]))  # (some bad: d_max < radius)
                 threats.append(shaped([v(ids), v(coords), v(coords), v(st.just(r)), v(st.just(d))]))
             items = [kind, threats]
+        elif kind == K_TRACK_DIGEST:  # (issue 36, M1) targets and times that may not pair up
+            n = draw(st.integers(0, 3))
+            targets = [v(ids) for _ in range(n)]
+            stamps = [v(times) for _ in range(n + (draw(st.integers(-1, 1)) if rate else 0))]
+            threat_ids = [v(ids) for _ in range(draw(st.integers(0, 2)))]
+            if not rate and draw(st.integers(0, 3)) == 0:
+                return TrackDigest(v(ids), v(times), tuple(targets), tuple(stamps), tuple(threat_ids))
+            items = [kind, v(ids), v(times), targets, stamps, threat_ids]
         else:
             bitmaps = [shaped([v(ids), v(st.binary(max_size=4))]) for _ in range(draw(st.integers(0, 2)))]
             items = [kind, v(ids), v(times), v(st.integers(-3, 3)), v(st.integers(-3, 3)), v(st.integers(0, 12)), bitmaps]
         if rate and draw(st.integers(0, 19)) == 0:
-            items = [draw(st.sampled_from([0, 7, -1, True, 3.0])), *items[1:]]  # an unknown kind
+            items = [draw(st.sampled_from([0, 8, -1, True, 3.0])), *items[1:]]  # an unknown kind
         if rate and draw(st.integers(0, 29)) == 0:
             return draw(st.lists(nasty, max_size=2))  # junk
         return shaped(items)

@@ -40,6 +40,8 @@ class RecordingMachine(SwarmMachine):
                 RecordingMachine.liveness_tally["maps judged"] += any(
                     j.startswith("maps") and not j.startswith("maps: 0 ") for j in r.judged)
                 RecordingMachine.liveness_tally["targets judged"] += sum(j.startswith("target") for j in r.judged)
+                RecordingMachine.liveness_tally["tracks judged"] += any(
+                    j.startswith("tracks") and not j.startswith("tracks: 0 ") for j in r.judged)
 
 
 @pytest.fixture(autouse=True)
@@ -56,12 +58,12 @@ TestSwarmMachine.settings = settings(max_examples=examples(50), stateful_step_co
 
 def test_the_liveness_phase_judged_something():
     """Runs after TestSwarmMachine (file order): the liveness phase ran at the end of the
-    examples and judged map agreement on connected pairs in some of them (it cannot pass by
-    never judging)."""
+    examples and judged map agreement and tracks spread on connected pairs in some of them (it
+    cannot pass by never judging)."""
     tally = RecordingMachine.liveness_tally
     if not tally["examples"]:
         pytest.skip("TestSwarmMachine did not run in this session (a -k selection)")
-    assert tally["maps judged"] >= 1, dict(tally)
+    assert tally["maps judged"] >= 1 and tally["tracks judged"] >= 1, dict(tally)
 
 
 class CoverageMachine(RecordingMachine):

@@ -26,6 +26,10 @@ once it has rejoined):
   that may run with it watches, the search planners through the shared logic), a live UAV not
   watching anything knows the target's track, and the radio loses nothing by itself. Otherwise
   the obligation is listed as not judged, with why.
+* **tracks spread** (issue 36, M1): for every two live UAVs ``a`` and ``b`` in one radio
+  component at every tick of ``[T0, T0 + Qt]``, ``b`` holds at ``T0 + Qt`` a track of every
+  target ``a`` held one of at ``T0`` (a UAV that missed a track gets it). Judged, like the maps,
+  only on a radio that loses nothing by itself.
 
 The bounds, from the scenario's settings (``dt`` the tick, ``lat`` = ``radio.latency_s +
 radio.jitter_s``, ``n`` the live UAVs):
@@ -38,8 +42,17 @@ radio.jitter_s``, ``n`` the live UAVs):
   ``sync_settle_s`` are not in a digest yet. ``skew`` is the largest clock error a
   ``clock_skew`` fault had when it ended: the cells that UAV stamped ahead of time are refused by
   every receiver (stamped later than its clock) until true time passes their stamp.
-* reassignment: ``B = tracks_every_s + peer_timeout_s + 2 * replan_s + 2 dt + lat``: the track
-  must reach a free UAV (tracks are sent every ``tracks_every_s``), the lost watcher's intent
+* tracks: ``Qt = n * (D + dt + lat)``, ``D`` = :func:`agents.tracksync.track_delay_s`: how long
+  a track may take to reach a neighbour that lacks it. ``radio.tracks = "periodic"``:
+  ``D = tracks_every_s`` (every UAV sends every track it knows that often). ``"on_change"``:
+  ``D = max(tracks_every_s, E + beacon_every_s + 2 dt + 2 lat)``, ``E`` the track digest's period
+  (``sync_every_s``, or ``tracks_every_s`` with anti-entropy off): the lacking UAV's next digest
+  goes out on a beacon within ``E + beacon_every_s``, every neighbour that holds a track it lacks
+  answers it the next tick, and the answer is merged the tick after. A hop per ``D + dt + lat``;
+  ``n`` hops, one of slack, plus ``max(0, skew)``, as for ``Q`` (a sighting stamped by a clock
+  ahead is refused until true time passes it).
+* reassignment: ``B = D + peer_timeout_s + 2 * replan_s + 2 dt + lat``: the track
+  must reach a free UAV (within ``D``, above), the lost watcher's intent
   must expire (``peer_timeout_s``, 5 s), then a replan (``replan_s``; two, as a plan made just
   before the expiry still counts the old watcher).
 """
@@ -54,6 +67,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from agents.inputs import ActorSettings
+from agents.tracksync import track_delay_s
 from comms.messages import MODE_NAMES, MODE_SURVEIL
 from faults.base import FaultKind
 from faults.sensing import max_skew_at_end, skewed_stamps
@@ -63,7 +77,7 @@ if TYPE_CHECKING:
     from swarm.scenario import Scenario
 
 __all__ = ["LivenessReport", "RecoveryWatch", "quiesce", "quiet_period_s", "radio_loses_nothing",
-           "reassign_bound_s"]
+           "reassign_bound_s", "tracks_period_s"]
 
 _EPS = 1e-6
 PEER_TIMEOUT_S = ActorSettings().peer_timeout_s  # (not a scenario setting)
@@ -89,8 +103,14 @@ def quiet_period_s(scenario: Scenario, n_live: int, faults: Iterable[FaultKind] 
 
 def reassign_bound_s(scenario: Scenario) -> float:
     """``B`` of the module docstring."""
-    return (scenario.radio.tracks_every_s + PEER_TIMEOUT_S + 2 * scenario.planner.replan_s
+    return (track_delay_s(scenario.radio, scenario.dt_s) + PEER_TIMEOUT_S + 2 * scenario.planner.replan_s
             + 2 * scenario.dt_s + _lat(scenario))
+
+
+def tracks_period_s(scenario: Scenario, n_live: int, faults: Iterable[FaultKind] = ()) -> float:
+    """``Qt`` of the module docstring."""
+    return (max(1, n_live) * (track_delay_s(scenario.radio, scenario.dt_s) + scenario.dt_s + _lat(scenario))
+            + max_skew_at_end(faults))
 
 
 def _watchers(sim: Any) -> dict[int, int]:
@@ -186,6 +206,10 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
     # What each UAV knew at T0 and owes its peers (less the stamps of a skewed clock: never owed).
     skewed = skewed_stamps(sim.injector.schedule, sim.scenario.duration_s)
     at_t0 = {uid: owed_map(sim.uav_map(names[uid]), skewed) for uid in live}
+    # (issue 36, M1) The targets each UAV held a track of at T0: owed to its component.
+    qt = tracks_period_s(sc, len(live), sim.injector.schedule.faults)
+    tracks_t0 = {uid: set(sim.actors[uid].knowledge.tracks) for uid in live}
+    tracks_done = False
     # Reassignment obligations, fixed at T0.
     pending: dict[int, float] = {}
     if watch is not None:
@@ -211,7 +235,7 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
         maps_done, q = True, 0.0
     bound = reassign_bound_s(sc)
     together = {(a, b): True for a in live for b in live if a < b}
-    horizon = max(q, bound if pending else 0.0)
+    horizon = max(q, qt, bound if pending else 0.0)
     ticks = int(math.ceil(horizon / dt - 1e-9))
     for _ in range(ticks):
         if sim.done:
@@ -230,17 +254,44 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
         if sim.now - t0 >= q - _EPS and not maps_done:
             _judge_maps(sim, report, live, names, at_t0, together, lossless, alive_now)
             maps_done = True
+        if sim.now - t0 >= qt - _EPS and not tracks_done:
+            _judge_tracks(sim, report, names, tracks_t0, together, lossless, alive_now, qt)
+            tracks_done = True
     for m in sorted(pending):
         if sim.now - t0 >= bound - _EPS:
             report.violations.append(Violation(
                 "liveness", sim.now, f"target {m} lost its watcher at {pending[m]:g} s and nobody watched it "
-                f"within {bound:g} s of the faults ending at {t0:g} s (bound tracks_every + peer timeout + "
+                f"within {bound:g} s of the faults ending at {t0:g} s (bound track delay + peer timeout + "
                 "2 replans + 2 ticks + latency)", target=m))
         else:
             report.not_judged.append(f"target {m}: the run ended before the bound")
     if not maps_done:
         report.not_judged.append(f"maps: the run ended before the quiet period of {q:g} s")
+    if not tracks_done:
+        report.not_judged.append(f"tracks: the run ended before {qt:g} s")
     return report
+
+
+def _judge_tracks(sim: Any, report: LivenessReport, names: dict[int, str], at_t0: dict[int, set[int]],
+                  together: dict[tuple[int, int], bool], lossless: bool, alive_now: set[int], qt: float) -> None:
+    """The "tracks spread" obligation of the module docstring, judged ``qt`` after ``T0``."""
+    if not lossless:
+        report.not_judged.append("tracks: not judged (lossy radio)")
+        return
+    now = {uid: sim.actors[uid].knowledge.tracks for uid in at_t0 if uid in alive_now}
+    pairs = 0
+    for (a, b), ok in sorted(together.items()):
+        if not ok:
+            continue
+        for x, y in ((a, b), (b, a)):
+            pairs += 1
+            missing = sorted(at_t0[x] - now[y].keys())
+            if missing:
+                report.violations.append(Violation(
+                    "liveness", sim.now, f"{sim.now - report.t0:g} s after the faults ended ({report.t0:g} s), "
+                    f"{names[y]} still has no track of target(s) {missing} that {names[x]} held then, although "
+                    f"connected all along (bound {qt:g} s)", (names[y], names[x]), data={"targets": missing}))
+    report.judged.append(f"tracks: {pairs} ordered pair(s) connected all along")
 
 
 def _judge_maps(sim: Any, report: LivenessReport, live: list[int], names: dict[int, str],
