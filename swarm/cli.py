@@ -511,7 +511,7 @@ def _sweep_table(summary: dict[str, Any]) -> Table:
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     """Two sweep folders run by run: 0 equivalent, 1 not (2: cannot compare)."""
-    from swarm.experiments.equivalence import compare_folders
+    from swarm.experiments.compare import compare_folders
 
     c = compare_folders(args.old, args.new)
     if args.json:

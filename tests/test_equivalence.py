@@ -11,12 +11,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from swarm.cli import main
+from swarm.experiments.compare import compare_folders
 from swarm.experiments.equivalence import (
     DETECTION_TIME,
     MARGINS,
     axis_pairs,
     censored_detection_time,
-    compare_folders,
     equivalence,
 )
 from swarm.experiments.sweep import _settings_key, describe, plan_runs, summarize, sweep

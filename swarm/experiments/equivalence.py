@@ -7,7 +7,7 @@ axis, each later value is compared with the axis's first value (the old model) s
 the other axes held fixed: ``new - old`` per seed, its mean and 95% interval
 (:func:`swarm.experiments.sweep.describe`). A change of code with no setting (or several
 changes at once) is judged the same way from two sweep folders run before and after it
-(``swarm compare OLD NEW``, :func:`compare_folders`), paired by planner, settings and seed.
+(``swarm compare OLD NEW``, :mod:`swarm.experiments.compare`), paired by planner, settings and seed.
 
 **Equivalent** means, for each of the quantities in :data:`MARGINS`, that the whole 95% interval
 of the paired difference lies within the margin (a two one-sided tests reading at the 2.5%
@@ -24,13 +24,9 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from swarm.errors import UsageError
-
-__all__ = ["DETECTION_TIME", "MARGINS", "FolderComparison", "Margin", "censored_detection_time", "compare_folders",
-           "equivalence"]
+__all__ = ["DETECTION_TIME", "MARGINS", "Margin", "axis_pairs", "censored_detection_time", "equivalence"]
 
 # The one per-run number for "time to detection": every target's time to first detection, a
 # target never detected counted as the run's length (so a change that finds fewer targets
@@ -109,107 +105,3 @@ def axis_pairs(settings_list: Sequence[Sequence[tuple[str, Any]]], key_of: Any
                 out.append((k, v, index[key_of(old)], tuple(settings)))
     return out
 
-
-@dataclass
-class FolderComparison:
-    """Two sweep folders (``swarm sweep`` or ``swarm paper`` outputs, e.g. before and after a
-    change of code), run by run: ``groups`` per (planner, settings folder) with the paired
-    differences and verdict; ``identical``/``paired``: runs whose event logs are byte for byte
-    the same / runs finished in both."""
-
-    old: str
-    new: str
-    groups: list[dict[str, Any]]
-    paired: int
-    identical: int
-    only_old: int
-    only_new: int
-
-    @property
-    def equivalent(self) -> bool:
-        verdicts = [e["equivalent"] for g in self.groups for e in g["equivalence"].values()]
-        return bool(verdicts) and all(verdicts)
-
-    def as_dict(self) -> dict[str, Any]:
-        """As strict JSON takes it (a non-finite bound written ``"inf"``, as sweeps write them)."""
-        from swarm.experiments.sweep import strict_json
-
-        out: dict[str, Any] = strict_json({"old": self.old, "new": self.new, "paired": self.paired, "identical": self.identical,
-                "only_old": self.only_old, "only_new": self.only_new, "equivalent": self.equivalent,
-                "groups": self.groups})
-        return out
-
-
-def _finished_runs(folder: Path) -> dict[str, dict[str, Any]]:
-    """``runs/<planner>/<settings>/seed-NNN`` -> its ``metrics.json``, for every finished run."""
-    import json
-
-    runs = {}
-    for p in sorted(folder.glob("runs/*/*/seed-*/metrics.json")):
-        try:
-            runs[p.parent.relative_to(folder).as_posix()] = json.loads(p.read_text())
-        except (OSError, ValueError) as e:
-            raise UsageError(f"{p}: not a readable metrics.json ({e})") from None
-    return runs
-
-
-def compare_folders(old: str | Path, new: str | Path) -> FolderComparison:
-    """Pair the finished runs of two sweep folders by planner, settings and seed (the same
-    relative run folder) and judge each (planner, settings) group as :func:`equivalence` does.
-    A folder may be a sweep's or hold one (``swarm paper``'s ``OUT/fig11``)."""
-    from swarm.experiments.sweep import describe, difference_bounds, flatten_metrics, metric_bounds
-
-    a, b = _sweep_dir(Path(old)), _sweep_dir(Path(new))
-    before, after = _finished_runs(a), _finished_runs(b)
-    common = sorted(set(before) & set(after))
-    by_group: dict[str, list[str]] = {}
-    for run in common:
-        by_group.setdefault(run.rsplit("/", 1)[0], []).append(run)
-    groups: list[dict[str, Any]] = []
-    skip = {"seed", "sim_seconds", "wall_seconds", "events", "targets_total"}
-    for group, runs in by_group.items():
-        rows_old, rows_new = [], []
-        for run in runs:
-            mo, mn = before[run], after[run]
-            ro = {k: float(v) for k, v in flatten_metrics(mo).items() if k not in skip}
-            rn = {k: float(v) for k, v in flatten_metrics(mn).items() if k not in skip}
-            for row, m in ((ro, mo), (rn, mn)):
-                d = censored_detection_time(m)
-                if d is not None:
-                    row[DETECTION_TIME] = d
-            rows_old.append(ro)
-            rows_new.append(rn)
-        names = [m for m in rows_old[0] if all(m in r for r in rows_old + rows_new)]
-        total = max(float(before[r].get("targets_total") or 0) for r in runs)
-        difference = {m: describe([n[m] - o[m] for o, n in zip(rows_old, rows_new)],
-                                  difference_bounds(metric_bounds(m, total))) for m in names}
-        old_stats = {m: describe([o[m] for o in rows_old]) for m in names}
-        planner, settings = group.split("/")[1:3]
-        groups.append({"group": group, "planner": planner, "settings": settings, "paired_seeds": len(runs),
-                       "identical": sum(_same_log(before[r], after[r]) for r in runs),
-                       "old": {m: old_stats[m] for m in MARGINS if m in old_stats},
-                       "difference": difference, "equivalence": equivalence(difference, old_stats)})
-    if not common:
-        raise UsageError(f"{old} and {new}: no finished run in both (runs/<planner>/<settings>/seed-NNN/metrics.json)")
-    return FolderComparison(str(old), str(new), groups, len(common), sum(g["identical"] for g in groups),
-                            len(set(before) - set(after)), len(set(after) - set(before)))
-
-
-def _same_log(old: Mapping[str, Any], new: Mapping[str, Any]) -> bool:
-    h = old.get("event_log_sha256")
-    return bool(h) and h == new.get("event_log_sha256")
-
-
-def _sweep_dir(folder: Path) -> Path:
-    """``folder`` if it holds ``runs/``; else its one sub-folder that does (``swarm paper``'s
-    ``OUT/fig11``); else a :class:`UsageError` naming what was looked for."""
-    if not folder.is_dir():
-        raise UsageError(f"{folder}: no such folder")
-    if (folder / "runs").is_dir():
-        return folder
-    inner = [p for p in sorted(folder.iterdir()) if (p / "runs").is_dir()]
-    if len(inner) == 1:
-        return inner[0]
-    if inner:
-        raise UsageError(f"{folder}: holds several sweeps ({', '.join(p.name for p in inner)}): name one")
-    raise UsageError(f"{folder}: not a sweep folder (no runs/ in it or in a folder inside it)")
