@@ -47,6 +47,8 @@ def lockstep_documents(draw: st.DrawFn, max_uavs: int = 6, max_duration_s: int =
     flow = draw(st.sampled_from([None, (0, True), (3, False), (20, True)]), label="flow control")
     if flow is not None:
         doc["radio"]["sync_resend_cap"], doc["radio"]["sync_split"] = flow
+    # Tracks every tracks_every_s (the default), or on change with a digest for repair (M1).
+    doc["radio"]["tracks"] = draw(st.sampled_from(["periodic", "on_change"]), label="tracks")
     return doc
 
 

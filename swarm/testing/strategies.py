@@ -349,8 +349,6 @@ def radio_tables(draw: st.DrawFn, *, max_range_m: float = 20_000.0, lossy: bool 
     if m.bandwidth_bytes_per_s is not None:
         table["bandwidth_bytes_per_s"] = m.bandwidth_bytes_per_s
     table["mailbox_capacity"] = draw(st.sampled_from([1024, 64, 8]))
-    # (issue 36, M1) Tracks every tracks_every_s, or on change with a digest for repair.
-    table["tracks"] = draw(st.sampled_from(["periodic", "on_change"]), label="tracks")
     return table
 
 
