@@ -78,7 +78,7 @@ class SharedSurveillance:
             u = UavSearch.build(planner.dacmp, view, 0)
             planner._prepared = (view, u)
             if u.targets:
-                pyramids.append(MaintainedPyramid.of(view.umap, planner.dacmp.levels))
+                pyramids.append(planner.dacmp.planning_pyramid(view.umap))
                 ts.append(view.t)
         if len(pyramids) > 1:
             MaintainedPyramid.update_many(pyramids, ts)

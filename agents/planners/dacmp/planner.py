@@ -43,6 +43,8 @@ import numpy as np
 
 from agents.knowledge import Knowledge, KnownThreat, Track
 from agents.maps.grid import Grid
+from agents.maps.mapgroup import GroupMap
+from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.dacmp.maintained import MaintainedPyramid
@@ -269,6 +271,14 @@ class DacmpPlanner(DacmpSettings):
         to ``(UAVs, points)``), or None. The paper's DACMP has none; variants beyond the paper
         do (:mod:`agents.planners.dacmp.spread`)."""
         return None
+
+    def planning_pyramid(self, umap: UncertaintyMap) -> MaintainedPyramid:
+        """The maintained pyramid a UAV with map ``umap`` plans on (``member_map``): its own
+        map's, or with ``member_map = "base"`` and ``umap`` a member of a map group, the group
+        base's (the scans every member has; one pyramid for the whole group)."""
+        if self.member_map == "base" and isinstance(umap, GroupMap) and umap.extra_disks() is not None:
+            umap = umap.base
+        return MaintainedPyramid.of(umap, self.levels)
 
     def plan(self, view: PlanView) -> Plan:
         return self.plan_many([view])[0]
@@ -627,6 +637,16 @@ def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, 
     return i, max(i - 1, 0), min(i + 2, n)
 
 
+def _update_pyramids(pyramids: list[MaintainedPyramid], ts: list[float]) -> None:
+    """:meth:`MaintainedPyramid.update_many` of the pyramids the UAVs of a plan read, each
+    pyramid once where several UAVs read one (``member_map = "base"``) at one time."""
+    unique = {id(p): (p, t) for p, t in zip(pyramids, ts)}
+    if len(unique) < len(pyramids) and len(set(ts)) == 1:
+        MaintainedPyramid.update_many([p for p, _ in unique.values()], [t for _, t in unique.values()])
+    else:
+        MaintainedPyramid.update_many(pyramids, ts)
+
+
 @functools.lru_cache(maxsize=64)
 def _cell_parts(ny: int, nx: int, search: tuple[int, ...], shapes: tuple[tuple[int, int], ...],
                 widths: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -669,8 +689,9 @@ class Layers:
         lam = planner.search_weights(len(search))
         self.lam = lam[:, None, None]
         self.lam_total = float(np.add.reduce(lam, initial=0.0))
-        pyramids = [MaintainedPyramid.of(v.umap, planner.levels) for v in views]
-        self.scale = np.array(MaintainedPyramid.update_many(pyramids, [v.t for v in views]), np.float64)  # s of each UAV's map
+        pyramids = [planner.planning_pyramid(v.umap) for v in views]
+        _update_pyramids(pyramids, [v.t for v in views])
+        self.scale = np.array([p.s for p in pyramids], np.float64)  # s of each UAV's map
         # Window of each UAV on each search level: rows lo..hi, columns lo..hi (inclusive).
         win = np.empty((len(search), n, 4), np.int64)
         for i, (u, pyr) in enumerate(zip(uavs, pyramids)):
