@@ -280,6 +280,25 @@ class DacmpPlanner(DacmpSettings):
             umap = umap.base
         return MaintainedPyramid.of(umap, self.levels)
 
+    def refresh(self, pyramids: list[MaintainedPyramid], ts: list[float]) -> None:
+        """Bring the pyramids the UAVs of a plan read (:meth:`planning_pyramid`; each at its
+        plan's ``t``) to their plans' times: up to date with their maps in one
+        :meth:`MaintainedPyramid.update_many` (a pyramid several UAVs read, once), except, with
+        ``map_refresh_s``, those updated less than that long ago, which are only aged
+        (:meth:`MaintainedPyramid.age`)."""
+        due: list[MaintainedPyramid] = []
+        due_ts: list[float] = []
+        seen: dict[int, float] = {}
+        for p, t in zip(pyramids, ts):
+            if p.refreshed is not None and t - p.refreshed < self.map_refresh_s and p.age(t) is not None:
+                continue
+            if seen.get(id(p)) != t:  # (a pyramid at two times: update_many does them in turn)
+                seen[id(p)] = t
+                due.append(p)
+                due_ts.append(t)
+        if due:
+            MaintainedPyramid.update_many(due, due_ts)
+
     def plan(self, view: PlanView) -> Plan:
         return self.plan_many([view])[0]
 
@@ -637,16 +656,6 @@ def _neighbour_blocks(edges: tuple[int, ...], n: int, pos: float) -> tuple[int, 
     return i, max(i - 1, 0), min(i + 2, n)
 
 
-def _update_pyramids(pyramids: list[MaintainedPyramid], ts: list[float]) -> None:
-    """:meth:`MaintainedPyramid.update_many` of the pyramids the UAVs of a plan read, each
-    pyramid once where several UAVs read one (``member_map = "base"``) at one time."""
-    unique = {id(p): (p, t) for p, t in zip(pyramids, ts)}
-    if len(unique) < len(pyramids) and len(set(ts)) == 1:
-        MaintainedPyramid.update_many([p for p, _ in unique.values()], [t for _, t in unique.values()])
-    else:
-        MaintainedPyramid.update_many(pyramids, ts)
-
-
 @functools.lru_cache(maxsize=64)
 def _cell_parts(ny: int, nx: int, search: tuple[int, ...], shapes: tuple[tuple[int, int], ...],
                 widths: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -690,7 +699,7 @@ class Layers:
         self.lam = lam[:, None, None]
         self.lam_total = float(np.add.reduce(lam, initial=0.0))
         pyramids = [planner.planning_pyramid(v.umap) for v in views]
-        _update_pyramids(pyramids, [v.t for v in views])
+        planner.refresh(pyramids, [v.t for v in views])
         self.scale = np.array([p.s for p in pyramids], np.float64)  # s of each UAV's map
         # Window of each UAV on each search level: rows lo..hi, columns lo..hi (inclusive).
         win = np.empty((len(search), n, 4), np.int64)

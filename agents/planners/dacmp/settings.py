@@ -61,3 +61,8 @@ class DacmpSettings:
     # member has: its own map less the scans of the last tick or two that some member still
     # lacks (its own latest, mostly). One pyramid per group instead of one per UAV.
     member_map: Literal["own", "base"] = "own"
+    # Planning budget (issue 36): a UAV's map pyramid (what eq. 19-20 read) is brought up to date
+    # with its map at a plan only when its last update is at least this old (or the pyramid's
+    # base time moved); plans in between read the map as it was at that update, aged to the
+    # plan's time. 0: at every plan (the paper).
+    map_refresh_s: float = field(default=0.0, metadata={"ge": 0, "note": "seconds"})
