@@ -479,6 +479,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         _print_json(summary)
     elif not args.quiet:
         _console().print(_sweep_table(summary))
+        if summary.get("setting_comparisons"):
+            _console().print(_equivalence_table(summary))
     print(f"report: {report}", file=sys.stderr)
     print(f"{result.total} runs: {result.skipped} already finished, {result.ran} ran, "
           f"{len(result.failed)} failed; summary in {Path(args.out) / 'summary.json'}", file=sys.stderr)
@@ -504,6 +506,47 @@ def _sweep_table(summary: dict[str, Any]) -> Table:
             cells.append(f"{d['mean']:.3f} [{d['ci95'][0]:.3f}, {d['ci95'][1]:.3f}]" if d else "-")
         t.add_row(g["planner"], ", ".join(f"{k}={v}" for k, v in g["settings"].items()) or "-",
                   str(g["runs"]), *cells)
+    return t
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    """Two sweep folders run by run: 0 equivalent, 1 not (2: cannot compare)."""
+    from swarm.experiments.equivalence import compare_folders
+
+    c = compare_folders(args.old, args.new)
+    if args.json:
+        _print_json(c.as_dict())
+    else:
+        rows = [{"planner": g["planner"], "label": f"{g['settings']} ({g['identical']} identical)",
+                 "paired_seeds": g["paired_seeds"], "equivalence": g["equivalence"]} for g in c.groups]
+        _console().print(_equivalence_table({"setting_comparisons": rows}, title="new - old, paired by run"))
+    print(f"{c.paired} runs in both ({c.identical} with the same event log), {c.only_old} only in {c.old}, "
+          f"{c.only_new} only in {c.new}: {'equivalent' if c.equivalent else 'NOT equivalent'}", file=sys.stderr)
+    return 0 if c.equivalent else 1
+
+
+def _equivalence_table(summary: dict[str, Any], title: str = "new - old, paired by seed") -> Table:
+    """Each ``--set`` axis's later values against its first, paired by seed, with the verdict
+    of :mod:`swarm.experiments.equivalence` (the margins are in the column titles)."""
+    from rich.table import Table
+
+    from swarm.experiments.equivalence import MARGINS
+
+    t = Table(title=f"{title} (mean [95% interval]); equivalent when every interval is within its margin")
+    for col in ("planner", "setting", "seeds"):
+        t.add_column(col)
+    for name, margin in MARGINS.items():
+        t.add_column(f"{name} ({margin.text()})", justify="right")
+    t.add_column("equivalent")
+    for c in summary["setting_comparisons"]:
+        cells = []
+        for name in MARGINS:
+            e = c["equivalence"].get(name)
+            cells.append(f"{e['mean']:+.3f} [{e['ci95'][0]:+.3f}, {e['ci95'][1]:+.3f}]{'' if e['equivalent'] else ' (out)'}"
+                         if e else "-")
+        verdicts = [e["equivalent"] for e in c["equivalence"].values()]
+        t.add_row(c["planner"], c.get("label") or f"{c['key']}: {c['old']} -> {c['new']}", str(c["paired_seeds"]), *cells,
+                  ("yes" if all(verdicts) else "no") if verdicts else "-")
     return t
 
 
@@ -623,6 +666,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     unknown = [c for c in args.case if c not in {k.name for k in CASES}]
     if unknown:
         raise SwarmError(f"unknown bench case(s) {unknown}; known: {', '.join(k.name for k in CASES)}")
+    if args.examples is not None:
+        if args.examples < 1:
+            raise UsageError(f"--examples {args.examples}: expected a whole number >= 1")
+        from swarm.experiments.examples import main as examples_main
+
+        return examples_main(args.examples)
     if args.against is not None:
         from swarm.experiments.against import main as against_main
 
@@ -743,6 +792,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_allow_arg(rr)
     rr.set_defaults(func=_cmd_rerun)
 
+    cm = sub.add_parser("compare", help="pair two sweep folders' runs by planner, settings and seed (before and after "
+                                        "a change): equivalent? (exit 0 yes, 1 no)")
+    cm.add_argument("old", help="the sweep folder of the old code or model (swarm sweep --out, or swarm paper's --out)")
+    cm.add_argument("new", help="the sweep folder of the new one, run with the same planners, settings and seeds")
+    cm.add_argument("--json", action="store_true", help="print the comparison as JSON instead of the table")
+    cm.set_defaults(func=_cmd_compare)
     b = sub.add_parser("bench", help="run the benchmark cases, one JSON line each")
     b.add_argument("--quick", action="store_true", help="only the quick cases")
     b.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
@@ -754,6 +809,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run each case alternately with this yardstick (../shared/bench/reference_limit.py), each in "
                         "its own process, and print the ratios of their rates (a JSON line per case, a table on stderr)")
     b.add_argument("--pairs", type=int, default=3, help="with --against: how many (case, reference) pairs (default 3)")
+    b.add_argument("--examples", type=int, default=None, metavar="N",
+                   help="instead of the cases: N property-test-sized runs in this process (paper-case1, 300 s, "
+                        "seeds 1..N after a warm-up) and the examples per CPU-minute (one JSON line)")
     b.set_defaults(func=_cmd_bench)
 
     sw = sub.add_parser("sweep", help="run planners x settings x seeds and summarise (process pool or Dask)")

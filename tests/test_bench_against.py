@@ -77,3 +77,16 @@ def test_table_has_a_row_per_case():
     runs = [{"uav_steps_per_cpu_s": 10.0, "reference_uav_steps_per_cpu_s": 20.0, "ratio": 0.5, "load_avg": [1.0, 2.0]}]
     text = table([{"case": "c", "pairs": runs, "ratio_median": 0.5, "flatness_median": 0.9}])
     assert "| c | 10 | 20 | 0.50 (0.50) | 0.90 | 1.0-2.0 |" in text
+
+
+def test_examples_per_cpu_minute_is_what_the_loop_measured():
+    from swarm.experiments.examples import measure
+
+    r = measure(2, duration_s=10.0)
+    assert r["examples"] == 2 and len(r["cpu_ms_each"]) == 2
+    assert r["examples_per_cpu_minute"] == pytest.approx(60.0 * 2 / r["cpu_seconds"], rel=2e-3)
+
+
+def test_cli_bench_examples_refuses_a_count_below_one(capsys):
+    assert main(["bench", "--examples", "0"]) == 2
+    assert capsys.readouterr().err.strip() == "error: --examples 0: expected a whole number >= 1"

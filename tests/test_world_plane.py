@@ -171,3 +171,40 @@ def test_a_few_uavs_sense_targets_as_the_numpy_test_senses_them(seed, n_uavs, n_
     w._sense_few([w.uavs[u] for u in ids], xy, few)
     w._sense_many_targets([w.uavs[u] for u in ids], xy, many)
     assert few == many
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(2, 10), st.booleans())
+@settings(max_examples=examples(100))
+def test_a_few_detect_and_avoid_pairs_give_the_numpy_readings(seed, n_uavs, tick_pairs):
+    """_detect_and_avoid's Python assembly for a few pairs (_sensed_few) gives the readings of its
+    numpy path: the same UAVs, order and values, ranges of 0 and pairs on the range included,
+    with the tick's shared pair query and without it."""
+    import swarm.kernel.world as world_module
+    from swarm.pairs import TickPairs
+
+    rng = np.random.default_rng(seed)
+    w = World(Grid(10_000.0, 10_000.0, 100.0), Targets(TargetMotion()), [],
+              pairs=TickPairs(20_000.0) if tick_pairs else None)
+    kinds = [UavType(n, 20.0, 60.0, 2.0, 0.5, 2000.0, 1.0, 1.0, 1000.0, daa_range=r)
+             for n, r in (("A", 1500.0), ("B", 3000.0), ("C", 0.0))]
+    for uid in range(n_uavs):
+        if uid and rng.random() < 0.4:  # on another's range exactly, or a hair inside or out
+            o = w.uavs[int(rng.integers(uid))]
+            d = float(rng.choice([1500.0, 3000.0])) * float(rng.choice([1.0, 1.0 - 1e-15, 1.0 + 1e-15]))
+            x, y = o.x + d, o.y
+        else:
+            x, y = rng.uniform(0.0, 6_000.0, 2)
+        w.add_uav(UavBody(uid, f"U{uid}", kinds[int(rng.integers(3))], float(x), float(y),
+                          float(rng.uniform(20, 60)), float(rng.uniform(-math.pi, math.pi)), "alive"))
+    ids = w.alive_ids()
+    xy = w.positions(ids)
+    bodies = [w.uavs[u] for u in ids]
+    saved = world_module._DAA_FEW_PAIRS
+    try:
+        world_module._DAA_FEW_PAIRS = 10**6
+        few = w._detect_and_avoid(ids, bodies, xy)
+        world_module._DAA_FEW_PAIRS = 0
+        many = w._detect_and_avoid(ids, bodies, xy)
+    finally:
+        world_module._DAA_FEW_PAIRS = saved
+    assert few == many

@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from swarm.errors import UsageError
+from swarm.experiments.equivalence import DETECTION_TIME, axis_pairs, censored_detection_time, equivalence
 from swarm.outputs import run_files, write_files
 from swarm.scenario import Scenario, apply_overrides, load_scenario, parse_scenario
 from swarm.scenario.trust import allowed
@@ -619,8 +620,11 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None
         if mpath.is_file():
             g["runs"] += 1
             metrics = json.loads(mpath.read_text())
-            per_seed.setdefault(key, {})[spec.seed] = {k: float(v) for k, v in flatten_metrics(metrics).items()
-                                                       if k not in _NOT_SUMMARISED}
+            row = per_seed.setdefault(key, {})[spec.seed] = {k: float(v) for k, v in flatten_metrics(metrics).items()
+                                                             if k not in _NOT_SUMMARISED}
+            detection = censored_detection_time(metrics)
+            if detection is not None:
+                row[DETECTION_TIME] = detection
             per_entity.update(dict.fromkeys(breakdowns(metrics)))
             if isinstance(metrics.get("targets_total"), (int, float)):
                 targets[key] = max(targets.get(key, 0.0), float(metrics["targets_total"]))
@@ -665,7 +669,34 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None
         "breakdowns": list(per_entity),
         "groups": list(groups.values()),
         "comparisons": comparisons,
+        "setting_comparisons": _setting_comparisons(per_seed, planners, settings_list, targets),
     }
+
+
+def _setting_comparisons(per_seed: Mapping[tuple[Any, ...], Mapping[int, Mapping[str, float]]],
+                         planners: Sequence[str],
+                         settings_list: Sequence[tuple[str, Sequence[tuple[str, Any]]]],
+                         targets: Mapping[tuple[Any, ...], float]) -> list[dict[str, Any]]:
+    """Per planner and ``--set`` axis, each later value against the axis's first, seed by seed,
+    with the equivalence verdict of :mod:`swarm.experiments.equivalence`."""
+    out = []
+    for key, value, old, new in axis_pairs([s for _, s in settings_list], _settings_key):
+        okey, nkey = _settings_key(old), _settings_key(new)
+        for planner in planners:
+            before, after = per_seed.get((planner, okey), {}), per_seed.get((planner, nkey), {})
+            common = sorted(set(before) & set(after))
+            if not common:
+                continue
+            shared = set.intersection(*(set(before[s]) & set(after[s]) for s in common))
+            names = [m for m in before[common[0]] if m in shared]
+            bound = max(targets.get((planner, okey), 0.0), targets.get((planner, nkey), 0.0))
+            difference = {m: describe([after[s][m] - before[s][m] for s in common],
+                                      difference_bounds(metric_bounds(m, bound))) for m in names}
+            old_metrics = {m: describe([before[s][m] for s in common]) for m in names}
+            out.append({"planner": planner, "key": key, "old": dict(old).get(key), "new": value,
+                        "settings": dict(new), "paired_seeds": len(common), "difference": difference,
+                        "equivalence": equivalence(difference, old_metrics)})
+    return out
 
 
 def _csv(summary: dict[str, Any]) -> str:

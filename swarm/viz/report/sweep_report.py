@@ -255,6 +255,28 @@ def _difference_tables(comparisons: list[Any], metrics: list[str], first_minus_s
     return tables
 
 
+def _equivalence_tables(setting_comparisons: list[Any]) -> list[dict[str, Any]]:
+    """One table per (planner, setting change): a row per quantity of the equivalence margins."""
+    tables = []
+    for c in setting_comparisons:
+        if not isinstance(c, dict) or not isinstance(c.get("equivalence"), dict):
+            continue
+        rows = []
+        for name, e in c["equivalence"].items():
+            if not isinstance(e, dict):
+                continue
+            lo, hi = (as_number(x) for x in (e.get("ci95") or [math.nan, math.nan]))
+            ok = bool(e.get("equivalent"))
+            rows.append([name, cell(f"{as_number(e.get('mean')):+.4g} [{lo:+.4g}, {hi:+.4g}]", "num"),
+                         cell(f"±{as_number(e.get('margin')):.4g} ({e.get('margin_text', '')})", "num"),
+                         cell("yes" if ok else "no", "num" if ok else "num worse")])
+        if rows:
+            tables.append({"title": f"{c.get('planner', '?')}: {c.get('key', '?')} {fmt(c.get('old'))} \u2192 "
+                                    f"{fmt(c.get('new'))} ({fmt(c.get('paired_seeds'))} paired seeds)",
+                           "header": ["quantity", f"new {MINUS} old", "margin", "equivalent"], "rows": rows})
+    return tables
+
+
 def build_sweep_report(sweep_dir: Path, summary: dict[str, Any], *, first_minus_second: bool = True) -> str:
     """The HTML text of a sweep's report (``sweep_report.html.j2``); see :func:`write_sweep_report`."""
     groups = summary.get("groups")
@@ -265,7 +287,7 @@ def build_sweep_report(sweep_dir: Path, summary: dict[str, Any], *, first_minus_
     metrics = [m for m in every if m not in constant]
     title = f"Sweep: {summary.get('scenario', sweep_dir.name)}"
     settings_rows = [(k, ", ".join(fmt(x) for x in v) if isinstance(v, list) else fmt(v)) for k, v in summary.items()
-                     if k not in ("groups", "comparisons", "interval", "breakdowns")
+                     if k not in ("groups", "comparisons", "setting_comparisons", "interval", "breakdowns")
                      and (isinstance(v, (str, int, float, bool)) or v is None
                           or (isinstance(v, list) and all(isinstance(x, (str, int, float)) for x in v)))]
     units = {m: _column_unit(groups, m) for m in metrics}
@@ -283,8 +305,11 @@ def build_sweep_report(sweep_dir: Path, summary: dict[str, Any], *, first_minus_
     comparisons = summary.get("comparisons") or []
     differences = _difference_tables(comparisons if isinstance(comparisons, list) else [], metrics,
                                      first_minus_second)
-    nav = [("summary", "summary"), ("comparison", "comparison")] + ([("differences", "paired differences")]
-                                                                    if differences else [])
+    setting_comparisons = summary.get("setting_comparisons") or []
+    equivalence = _equivalence_tables(setting_comparisons if isinstance(setting_comparisons, list) else [])
+    nav = ([("summary", "summary"), ("comparison", "comparison")]
+           + ([("differences", "paired differences")] if differences else [])
+           + ([("equivalence", "setting changes")] if equivalence else []))
     n_runs = sum(int(r) for r in (as_number(g.get("runs")) for g in groups) if math.isfinite(r))
     return render(
         "sweep_report.html.j2",
@@ -301,6 +326,8 @@ def build_sweep_report(sweep_dir: Path, summary: dict[str, Any], *, first_minus_
         breakdowns=[f"{prefix}.* ({n})" for prefix, n in per_entity.items()],
         sweep_figure=sweep_figure,
         differences=differences,
+        equivalence=equivalence,
+        minus=MINUS,
         order_text="first planner minus second" if first_minus_second else "second planner minus first",
         interval_text=str(summary.get("interval") or "Student-t 95% interval of the mean over seeds"),
     )
