@@ -153,7 +153,7 @@ def test_dacmp_planner_takes_every_setting_of_the_table():
     values = {"particles": 7, "iterations": 3, "w_start": 0.8, "w_end": 0.3, "c1_start": 2.0, "c1_end": 0.4,
               "c2_start": 0.6, "c2_end": 2.2, "ring_mean_factor": 1.2, "ring_sd_factor": 0.4, "ring_max_factor": 2.0,
               "heading_sd_rad": 1.0, "eta": 0.7, "field_unit_m": 500.0, "threat_margin_m": 250.0,
-              "track_max_age_s": 99.0, "level_weights": [1.0, 2.0, 3.0]}
+              "track_max_age_s": 99.0, "level_weights": [1.0, 2.0, 3.0], "member_map": "base", "map_refresh_s": 20.0}
     assert set(values) == set(generated.DacmpSettings.model_fields), "update the test values with the new field"
     planner = DacmpPlanner.from_settings(PlannerSettings(dacmp=values), levels=3)
     for name, value in values.items():

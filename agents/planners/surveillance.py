@@ -71,17 +71,20 @@ class SharedSurveillance:
         :meth:`MaintainedPyramid.update_many`, whose shared array calls give each pyramid bit
         for bit what its own update would (so :meth:`watch` finds nothing left to do and its
         plan is unchanged). Each one's :class:`UavSearch` is kept for its :meth:`watch`."""
-        pyramids, ts = [], []
+        pyramids: list[MaintainedPyramid] = []
+        ts: list[float] = []
+        dacmp = None
         for planner, view in requests:
             if not view.surveillance:
                 continue
             u = UavSearch.build(planner.dacmp, view, 0)
             planner._prepared = (view, u)
             if u.targets:
-                pyramids.append(MaintainedPyramid.of(view.umap, planner.dacmp.levels))
+                dacmp = planner.dacmp
+                pyramids.append(dacmp.planning_pyramid(view.umap))
                 ts.append(view.t)
-        if len(pyramids) > 1:
-            MaintainedPyramid.update_many(pyramids, ts)
+        if dacmp is not None and len(pyramids) > 1:
+            dacmp.refresh(pyramids, ts)  # (every watcher's dacmp has the scenario's settings)
 
     @classmethod
     def of(cls, search: Planner, context: PlannerContext) -> SharedSurveillance:

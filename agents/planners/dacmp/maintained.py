@@ -495,7 +495,7 @@ class MaintainedPyramid:
 
     __slots__ = ("umap", "levels", "shapes", "planes", "t0", "s", "regions", "row_edges", "col_edges",
                  "_chunk_rows", "_chunk_cols", "_chunk_sums", "_chunk_block_row", "_chunk_block_col", "_block_rows",
-                 "_block_cols", "_block_sums", "_block_cells", "version", "_history", "_synced", "_own")
+                 "_block_cols", "_block_sums", "_block_cells", "version", "_history", "_synced", "_own", "refreshed")
 
     def __init__(self, umap: UncertaintyMap, levels: int):
         self.umap = umap
@@ -539,6 +539,8 @@ class MaintainedPyramid:
         # the boxes of each plane where this state differs from that copy (its own extra scans').
         self._synced: tuple[MaintainedPyramid, int] | None = None
         self._own: Written | None = None
+        # The time of the last plan that brought it up to date with the map (None: never).
+        self.refreshed: float | None = None
 
     @classmethod
     def of(cls, umap: UncertaintyMap, levels: int) -> MaintainedPyramid:
@@ -561,6 +563,16 @@ class MaintainedPyramid:
         ``s = exp(-tau (t - t0))``."""
         return MaintainedPyramid.update_many([self], [t])[0]
 
+    def age(self, t: float) -> float | None:
+        """For a plan at ``t`` without reading the map's changes: ``s`` moved to ``t``, so the
+        levels read the map as it was at the last update, aged to ``t`` (a planning budget:
+        ``planner.dacmp.map_refresh_s``). None (nothing changed) when ``t`` is in another base
+        span than the state's or the pyramid was never updated: then it needs :meth:`update`."""
+        if self.t0 is None or self.refreshed is None or base_time(t, self.umap.tau) != self.t0:
+            return None
+        self.s = math.exp(-self.umap.tau * (t - self.t0))
+        return self.s
+
     @staticmethod
     def update_many(pyramids: list[MaintainedPyramid], ts: list[float]) -> list[float]:
         """:meth:`update` of each pyramid for a plan at its ``t`` (the maps of one planning
@@ -582,6 +594,8 @@ class MaintainedPyramid:
             if cells >= BATCH_CELLS or w is work[-1]:
                 MaintainedPyramid._recompute(batch)
                 batch, cells = [], 0
+        for p, t in zip(pyramids, ts):
+            p.refreshed = t
         return [p.s for p in pyramids]
 
     @staticmethod

@@ -43,6 +43,8 @@ import numpy as np
 
 from agents.knowledge import Knowledge, KnownThreat, Track
 from agents.maps.grid import Grid
+from agents.maps.mapgroup import GroupMap
+from agents.maps.umap import UncertaintyMap
 from agents.planners.base import Plan, PlanView
 from agents.planners.dacmp.dubins import DubinsPoses
 from agents.planners.dacmp.maintained import MaintainedPyramid
@@ -269,6 +271,33 @@ class DacmpPlanner(DacmpSettings):
         to ``(UAVs, points)``), or None. The paper's DACMP has none; variants beyond the paper
         do (:mod:`agents.planners.dacmp.spread`)."""
         return None
+
+    def planning_pyramid(self, umap: UncertaintyMap) -> MaintainedPyramid:
+        """The maintained pyramid a UAV with map ``umap`` plans on (``member_map``): its own
+        map's, or with ``member_map = "base"`` and ``umap`` a member of a map group, the group
+        base's (the scans every member has; one pyramid for the whole group)."""
+        if self.member_map == "base" and isinstance(umap, GroupMap) and umap.extra_disks() is not None:
+            umap = umap.base
+        return MaintainedPyramid.of(umap, self.levels)
+
+    def refresh(self, pyramids: list[MaintainedPyramid], ts: list[float]) -> None:
+        """Bring the pyramids the UAVs of a plan read (:meth:`planning_pyramid`; each at its
+        plan's ``t``) to their plans' times: up to date with their maps in one
+        :meth:`MaintainedPyramid.update_many` (a pyramid several UAVs read, once), except, with
+        ``map_refresh_s``, those updated less than that long ago, which are only aged
+        (:meth:`MaintainedPyramid.age`)."""
+        due: list[MaintainedPyramid] = []
+        due_ts: list[float] = []
+        seen: dict[int, float] = {}
+        for p, t in zip(pyramids, ts):
+            if p.refreshed is not None and t - p.refreshed < self.map_refresh_s and p.age(t) is not None:
+                continue
+            if seen.get(id(p)) != t:  # (a pyramid at two times: update_many does them in turn)
+                seen[id(p)] = t
+                due.append(p)
+                due_ts.append(t)
+        if due:
+            MaintainedPyramid.update_many(due, due_ts)
 
     def plan(self, view: PlanView) -> Plan:
         return self.plan_many([view])[0]
@@ -669,8 +698,9 @@ class Layers:
         lam = planner.search_weights(len(search))
         self.lam = lam[:, None, None]
         self.lam_total = float(np.add.reduce(lam, initial=0.0))
-        pyramids = [MaintainedPyramid.of(v.umap, planner.levels) for v in views]
-        self.scale = np.array(MaintainedPyramid.update_many(pyramids, [v.t for v in views]), np.float64)  # s of each UAV's map
+        pyramids = [planner.planning_pyramid(v.umap) for v in views]
+        planner.refresh(pyramids, [v.t for v in views])
+        self.scale = np.array([p.s for p in pyramids], np.float64)  # s of each UAV's map
         # Window of each UAV on each search level: rows lo..hi, columns lo..hi (inclusive).
         win = np.empty((len(search), n, 4), np.int64)
         for i, (u, pyr) in enumerate(zip(uavs, pyramids)):

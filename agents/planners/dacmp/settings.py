@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 __all__ = ["DacmpSettings"]
 
@@ -54,3 +55,14 @@ class DacmpSettings:
         "each": {"ge": 0},
         "expected": "an array of numbers >= 0, one per map level, with a positive sum, or leave it out",
     })
+    # Planning budget (issue 36; docs/planners.md, "Planning budget"). "own": a UAV plans on its
+    # own map (the paper). "base": a UAV whose map is a member of a MapGroup (agents.maps.mapgroup:
+    # a dense map shared by UAVs that hear each other) plans on the group's base, the scans every
+    # member has: its own map less the scans of the last tick or two that some member still
+    # lacks (its own latest, mostly). One pyramid per group instead of one per UAV.
+    member_map: Literal["own", "base"] = "own"
+    # Planning budget (issue 36): a UAV's map pyramid (what eq. 19-20 read) is brought up to date
+    # with its map at a plan only when its last update is at least this old (or the pyramid's
+    # base time moved); plans in between read the map as it was at that update, aged to the
+    # plan's time. 0: at every plan (the paper).
+    map_refresh_s: float = field(default=0.0, metadata={"ge": 0, "note": "seconds"})
