@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from swarm.errors import UsageError
-from swarm.experiments.equivalence import DETECTION_TIME, MARGINS, censored_detection_time, equivalence
-from swarm.experiments.sweep import describe, difference_bounds, flatten_metrics, metric_bounds, strict_json
+from swarm.experiments.equivalence import MARGINS, equivalence
+from swarm.experiments.sweep import describe, paired_differences, strict_json, summary_row
 
 __all__ = ["FolderComparison", "compare_folders"]
 
@@ -72,24 +72,11 @@ def compare_folders(old: str | Path, new: str | Path) -> FolderComparison:
     for run in common:
         by_group.setdefault(run.rsplit("/", 1)[0], []).append(run)
     groups: list[dict[str, Any]] = []
-    skip = {"seed", "sim_seconds", "wall_seconds", "events", "targets_total"}
     for group, runs in by_group.items():
-        rows_old, rows_new = [], []
-        for run in runs:
-            mo, mn = before[run], after[run]
-            ro = {k: float(v) for k, v in flatten_metrics(mo).items() if k not in skip}
-            rn = {k: float(v) for k, v in flatten_metrics(mn).items() if k not in skip}
-            for row, m in ((ro, mo), (rn, mn)):
-                d = censored_detection_time(m)
-                if d is not None:
-                    row[DETECTION_TIME] = d
-            rows_old.append(ro)
-            rows_new.append(rn)
-        names = [m for m in rows_old[0] if all(m in r for r in rows_old + rows_new)]
+        rows_old = {r: summary_row(before[r]) for r in runs}
         total = max(float(before[r].get("targets_total") or 0) for r in runs)
-        difference = {m: describe([n[m] - o[m] for o, n in zip(rows_old, rows_new)],
-                                  difference_bounds(metric_bounds(m, total))) for m in names}
-        old_stats = {m: describe([o[m] for o in rows_old]) for m in names}
+        _, difference = paired_differences(rows_old, {r: summary_row(after[r]) for r in runs}, total)
+        old_stats = {m: describe([rows_old[r][m] for r in runs]) for m in difference}
         planner, settings = group.split("/")[1:3]
         groups.append({"group": group, "planner": planner, "settings": settings, "paired_seeds": len(runs),
                        "identical": sum(_same_log(before[r], after[r]) for r in runs),

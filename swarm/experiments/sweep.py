@@ -597,6 +597,31 @@ def check_baseline(planners: Iterable[str], baseline: str | None) -> str | None:
     return baseline
 
 
+def summary_row(metrics: Mapping[str, Any]) -> dict[str, float]:
+    """One finished run's numbers as the summary reads them: every metric of its ``metrics.json``
+    (:func:`flatten_metrics`) but :data:`_NOT_SUMMARISED`, and the censored mean time to detection
+    (:data:`~swarm.experiments.equivalence.DETECTION_TIME`) when it has targets."""
+    row = {k: float(v) for k, v in flatten_metrics(metrics).items() if k not in _NOT_SUMMARISED}
+    detection = censored_detection_time(metrics)
+    if detection is not None:
+        row[DETECTION_TIME] = detection
+    return row
+
+
+def paired_differences(before: Mapping[Any, Mapping[str, float]], after: Mapping[Any, Mapping[str, float]],
+                       targets_total: float) -> tuple[list[Any], dict[str, dict[str, Any]]]:
+    """Runs paired by key (a seed, a run folder): the keys in both, sorted, and per metric every
+    one of them has, :func:`describe` of ``after - before`` (clipped as a difference of two values
+    of the metric; ``targets_total`` bounds ``targets_found``). No key in both: ``([], {})``."""
+    common = sorted(set(before) & set(after))
+    if not common:
+        return [], {}
+    shared = set.intersection(*(set(before[k]) & set(after[k]) for k in common))
+    names = [m for m in before[common[0]] if m in shared]
+    return common, {m: describe([after[k][m] - before[k][m] for k in common],
+                                difference_bounds(metric_bounds(m, targets_total))) for m in names}
+
+
 def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None = None) -> dict[str, Any]:
     """Per planner and setting: mean, sd and 95% interval of every metric over finished seeds
     (every number of ``metrics.json``, flattened by :func:`flatten_metrics`, but
@@ -620,11 +645,7 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None
         if mpath.is_file():
             g["runs"] += 1
             metrics = json.loads(mpath.read_text())
-            row = per_seed.setdefault(key, {})[spec.seed] = {k: float(v) for k, v in flatten_metrics(metrics).items()
-                                                             if k not in _NOT_SUMMARISED}
-            detection = censored_detection_time(metrics)
-            if detection is not None:
-                row[DETECTION_TIME] = detection
+            per_seed.setdefault(key, {})[spec.seed] = summary_row(metrics)
             per_entity.update(dict.fromkeys(breakdowns(metrics)))
             if isinstance(metrics.get("targets_total"), (int, float)):
                 targets[key] = max(targets.get(key, 0.0), float(metrics["targets_total"]))
@@ -646,19 +667,11 @@ def summarize(out_dir: str | Path, runs: Sequence[RunSpec], baseline: str | None
             if other == base_name:
                 continue
             theirs = per_seed.get((other, skey), {})
-            common = sorted(set(base) & set(theirs))
-            if not common:
-                continue
-            shared = set.intersection(*(set(base[s]) & set(theirs[s]) for s in common))
-            names = [m for m in base[common[0]] if m in shared]
-            comparisons.append({
-                "settings": dict(settings), "planner": other, "baseline": base_name,
-                "paired_seeds": len(common),
-                "difference": {m: describe([theirs[s][m] - base[s][m] for s in common],
-                                           difference_bounds(metric_bounds(m, max(targets.get((base_name, skey), 0.0),
-                                                                                  targets.get((other, skey), 0.0)))))
-                               for m in names},
-            })
+            common, difference = paired_differences(
+                base, theirs, max(targets.get((base_name, skey), 0.0), targets.get((other, skey), 0.0)))
+            if common:
+                comparisons.append({"settings": dict(settings), "planner": other, "baseline": base_name,
+                                    "paired_seeds": len(common), "difference": difference})
     return {
         "runs_total": len(runs),
         "runs_finished": sum(g["runs"] for g in groups.values()),
@@ -684,15 +697,11 @@ def _setting_comparisons(per_seed: Mapping[tuple[Any, ...], Mapping[int, Mapping
         okey, nkey = _settings_key(old), _settings_key(new)
         for planner in planners:
             before, after = per_seed.get((planner, okey), {}), per_seed.get((planner, nkey), {})
-            common = sorted(set(before) & set(after))
+            bound = max(targets.get((planner, okey), 0.0), targets.get((planner, nkey), 0.0))
+            common, difference = paired_differences(before, after, bound)
             if not common:
                 continue
-            shared = set.intersection(*(set(before[s]) & set(after[s]) for s in common))
-            names = [m for m in before[common[0]] if m in shared]
-            bound = max(targets.get((planner, okey), 0.0), targets.get((planner, nkey), 0.0))
-            difference = {m: describe([after[s][m] - before[s][m] for s in common],
-                                      difference_bounds(metric_bounds(m, bound))) for m in names}
-            old_metrics = {m: describe([before[s][m] for s in common]) for m in names}
+            old_metrics = {m: describe([before[s][m] for s in common]) for m in difference}
             out.append({"planner": planner, "key": key, "old": dict(old).get(key), "new": value,
                         "settings": dict(new), "paired_seeds": len(common), "difference": difference,
                         "equivalence": equivalence(difference, old_metrics)})

@@ -272,6 +272,11 @@ def quiesce(sim: Any, *, faults_end_s: float, watch: RecoveryWatch | None = None
     return report
 
 
+def _ordered_pairs(together: dict[tuple[int, int], bool]) -> list[tuple[int, int]]:
+    """Both orders of every pair of UAVs connected all along, in id order."""
+    return [xy for (a, b), ok in sorted(together.items()) if ok for xy in ((a, b), (b, a))]
+
+
 def _judge_tracks(sim: Any, report: LivenessReport, names: dict[int, str], at_t0: dict[int, set[int]],
                   together: dict[tuple[int, int], bool], lossless: bool, alive_now: set[int], qt: float) -> None:
     """The "tracks spread" obligation of the module docstring, judged ``qt`` after ``T0``."""
@@ -279,19 +284,15 @@ def _judge_tracks(sim: Any, report: LivenessReport, names: dict[int, str], at_t0
         report.not_judged.append("tracks: not judged (lossy radio)")
         return
     now = {uid: sim.actors[uid].knowledge.tracks for uid in at_t0 if uid in alive_now}
-    pairs = 0
-    for (a, b), ok in sorted(together.items()):
-        if not ok:
-            continue
-        for x, y in ((a, b), (b, a)):
-            pairs += 1
-            missing = sorted(at_t0[x] - now[y].keys())
-            if missing:
-                report.violations.append(Violation(
-                    "liveness", sim.now, f"{sim.now - report.t0:g} s after the faults ended ({report.t0:g} s), "
-                    f"{names[y]} still has no track of target(s) {missing} that {names[x]} held then, although "
-                    f"connected all along (bound {qt:g} s)", (names[y], names[x]), data={"targets": missing}))
-    report.judged.append(f"tracks: {pairs} ordered pair(s) connected all along")
+    ordered = _ordered_pairs(together)
+    for x, y in ordered:
+        missing = sorted(at_t0[x] - now[y].keys())
+        if missing:
+            report.violations.append(Violation(
+                "liveness", sim.now, f"{sim.now - report.t0:g} s after the faults ended ({report.t0:g} s), "
+                f"{names[y]} still has no track of target(s) {missing} that {names[x]} held then, although "
+                f"connected all along (bound {qt:g} s)", (names[y], names[x]), data={"targets": missing}))
+    report.judged.append(f"tracks: {len(ordered)} ordered pair(s) connected all along")
 
 
 def _judge_maps(sim: Any, report: LivenessReport, live: list[int], names: dict[int, str],
@@ -301,19 +302,15 @@ def _judge_maps(sim: Any, report: LivenessReport, live: list[int], names: dict[i
         report.not_judged.append("maps: not judged (lossy radio)")
         return
     now = {uid: sim.uav_map(names[uid]) for uid in live if uid in alive_now}
-    pairs = 0
-    for (a, b), ok in sorted(together.items()):
-        if not ok:
-            continue
-        for x, y in ((a, b), (b, a)):
-            pairs += 1
-            behind = now[y] < at_t0[x]
-            if behind.any():
-                iy, ix = (int(v[0]) for v in np.nonzero(behind))
-                report.violations.append(Violation(
-                    "liveness", sim.now, f"{sim.now - report.t0:g} s after the faults ended ({report.t0:g} s), "
-                    f"{names[y]} still misses {int(behind.sum())} cell(s) that {names[x]} knew then, although "
-                    f"connected all along, e.g. cell (ix={ix}, iy={iy}): {float(now[y][iy, ix]):g} < "
-                    f"{float(at_t0[x][iy, ix]):g} (quiet period {report.quiet_s:g} s)",
-                    (names[y], names[x]), data={"cells": int(behind.sum())}))
-    report.judged.append(f"maps: {pairs} ordered pair(s) connected all along")
+    ordered = _ordered_pairs(together)
+    for x, y in ordered:
+        behind = now[y] < at_t0[x]
+        if behind.any():
+            iy, ix = (int(v[0]) for v in np.nonzero(behind))
+            report.violations.append(Violation(
+                "liveness", sim.now, f"{sim.now - report.t0:g} s after the faults ended ({report.t0:g} s), "
+                f"{names[y]} still misses {int(behind.sum())} cell(s) that {names[x]} knew then, although "
+                f"connected all along, e.g. cell (ix={ix}, iy={iy}): {float(now[y][iy, ix]):g} < "
+                f"{float(at_t0[x][iy, ix]):g} (quiet period {report.quiet_s:g} s)",
+                (names[y], names[x]), data={"cells": int(behind.sum())}))
+    report.judged.append(f"maps: {len(ordered)} ordered pair(s) connected all along")
